@@ -1,0 +1,35 @@
+# Entry points of the README. Each target installs what it needs into .venv by itself.
+PY ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+
+.PHONY: venv demo test bench proto clean
+
+$(STAMP): pyproject.toml requirements.lock
+	$(PY) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -r requirements.lock
+	$(BIN)/pip install --quiet --no-deps -e .
+	touch $(STAMP)
+
+venv: $(STAMP)
+
+demo: $(STAMP)
+	$(BIN)/aioadept demo $(ARGS)
+
+# pytest exits 5 when it collected no tests: that is a failure, not a pass.
+test: $(STAMP)
+	$(BIN)/python -m pytest -q $(ARGS); rc=$$?; \
+	if [ $$rc -eq 5 ]; then echo "no tests were collected" >&2; exit 1; fi; exit $$rc
+
+bench: $(STAMP)
+	for b in benchmarks/bench_*.py; do $(BIN)/python $$b || exit 1; done
+
+# Regenerate the Protobuf code committed under src/aioadept/bus/.
+proto: $(STAMP)
+	$(BIN)/pip install --quiet grpcio-tools==1.85.1
+	cd src/aioadept/bus && ../../../$(BIN)/python -m grpc_tools.protoc -I. --python_out=. --pyi_out=. epypes.proto aioadept.proto
+
+clean:
+	rm -rf $(VENV) build *.egg-info src/*.egg-info .pytest_cache

@@ -1,0 +1,57 @@
+"""The ``aioadept`` console script: one entry point, one subcommand per node or tool.
+
+Each subcommand lives next to the code it runs and exposes ``main(argv) -> int``; this module only dispatches, and
+imports a subcommand's module when it is called so ``aioadept --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+# name -> (module with main(argv), one-line help)
+SUBCOMMANDS: dict[str, tuple[str, str]] = {
+    "sim": ("aioadept.sim.__main__", "run the simulated Adept controller (RobotServer) over TCP"),
+    "send": ("aioadept.client_cli", "send commands to a robot server and print the acks"),
+    "vision": ("aioadept.vision.__main__", "run the image acquisition + processing node"),
+    "focus": ("aioadept.apps.focus_cli", "run focus-plane calibration against a robot server and vision node"),
+    "demo": ("aioadept.apps.demo", "start the whole simulated cell and run focus calibration"),
+    "analyze": ("aioadept.analysis.__main__", "analyse run folders: the paper's timing metrics and plots"),
+    "experiment": ("aioadept.apps.experiment", "repeat the demo over a parameter grid, then analyse"),
+}
+
+
+def _usage() -> str:
+    lines = ["usage: aioadept COMMAND [options]", "", "commands:"]
+    lines += [f"  {name:<11} {help_}" for name, (_, help_) in SUBCOMMANDS.items()]
+    lines += ["", "Run 'aioadept COMMAND --help' for a command's options."]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = list(sys.argv[1:] if argv is None else argv)
+    if not args or args[0] in ("-h", "--help"):
+        print(_usage())
+        return 0 if args else 2
+    if args[0] == "--version":
+        from aioadept import __version__
+
+        print(__version__)
+        return 0
+    name = args[0]
+    if name not in SUBCOMMANDS:
+        print(f"aioadept: unknown command {name!r}\n\n{_usage()}", file=sys.stderr)
+        return 2
+    module_name = SUBCOMMANDS[name][0]
+    try:
+        module = importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        if exc.name == module_name:
+            print(f"aioadept: {name} is not available in this version", file=sys.stderr)
+            return 2
+        raise
+    return int(module.main(args[1:]) or 0)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,137 @@
+"""The one exception tree of aioadept.
+
+Errors from sockets, ZeroMQ and Protobuf are translated into these where they enter the library, so user code
+catches our types only::
+
+    AdeptError
+    ├─ ProtocolError
+    │   ├─ LocalProtocolError      we were asked to send something the protocol cannot carry
+    │   └─ RemoteProtocolError     the peer sent bytes that do not parse (carries a V+-style code)
+    ├─ CommandError                the server answered a command with an ``error`` ack
+    ├─ CommandAborted              the server flushed a command with an ``aborted`` ack (after a stop)
+    ├─ ConnectError                could not connect to a robot server (refused, unreachable, rejected)
+    ├─ ConnectionLost              the connection dropped; says which messages are known done and which are unknown
+    ├─ AckTimeout (TimeoutError)   no ack in time
+    ├─ ClientStateError            not connected / closed / reentered
+    ├─ BusError                    ZeroMQ/Protobuf failures at the bus edge
+    │   └─ RequestTimeout (TimeoutError)   no response to a bus request in time
+    ├─ VisionError                 a vision node answered with an error result (e.g. no object found)
+    └─ RobotError                  the simulated controller refused a motion (reach, joint limit); carries the code
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # pragma: no cover
+    from aioadept.protocol import Ack
+
+
+class AdeptError(Exception):
+    """Base of every error raised by aioadept."""
+
+
+class ProtocolError(AdeptError):
+    """Bytes on the wire that break the line protocol."""
+
+
+class LocalProtocolError(ProtocolError):
+    """We were asked to encode something the protocol cannot carry (e.g. a line over 128 characters)."""
+
+
+class RemoteProtocolError(ProtocolError):
+    """The peer sent something that does not parse.
+
+    ``code`` is the V+-style error code (see :mod:`aioadept.protocol.codes`) that a server answers with, and ``id``
+    the message ID when one could be recovered from the line, so that the error ack can be routed.
+    """
+
+    def __init__(self, code: int, message: str, *, id: str | None = None, line: bytes | None = None) -> None:
+        super().__init__(f"{message} (code {code})")
+        self.code = code
+        self.message = message
+        self.id = id
+        self.line = line
+
+
+class CommandError(AdeptError):
+    """The server answered a command with an ``error`` ack; the robot did not execute it."""
+
+    def __init__(self, ack: Ack, skill: str | None = None) -> None:
+        code = ack.error_code
+        msg = ack.error_message or ""
+        where = f" {skill}" if skill else ""
+        super().__init__(f"command {ack.id}{where} failed: {msg} (code {code})")
+        self.ack = ack
+        self.code = code
+        self.message = msg
+        self.skill = skill
+
+
+class CommandAborted(AdeptError):
+    """The server flushed a command with an ``aborted`` ack, normally because a stop was requested."""
+
+    def __init__(self, ack: Ack, skill: str | None = None) -> None:
+        super().__init__(f"command {ack.id} {skill or ''} was aborted".replace("  ", " "))
+        self.ack = ack
+        self.skill = skill
+
+
+class ConnectError(AdeptError):
+    """A connection to the robot server could not be established."""
+
+
+class ConnectionLost(AdeptError):
+    """The connection to the server dropped while messages were pending.
+
+    ``acked`` lists the message IDs that were acknowledged (known done), ``unresolved`` the ones sent or queued
+    whose fate is unknown: they may or may not have run on the robot. Nothing is re-sent automatically.
+    """
+
+    def __init__(self, message: str, *, acked: tuple[str, ...] = (), unresolved: tuple[str, ...] = ()) -> None:
+        detail = f"{message}; acked={list(acked)} unresolved={list(unresolved)}"
+        super().__init__(detail)
+        self.acked = tuple(acked)
+        self.unresolved = tuple(unresolved)
+
+
+class AckTimeout(AdeptError, TimeoutError):
+    """No acknowledgement arrived within the timeout. ``pending`` lists the IDs still waiting."""
+
+    def __init__(self, message: str, *, pending: tuple[str, ...] = ()) -> None:
+        super().__init__(message)
+        self.pending = tuple(pending)
+
+
+class ClientStateError(AdeptError):
+    """The client is used in a state that does not allow it (not connected, closed, reentered)."""
+
+
+class BusError(AdeptError):
+    """A failure at the publish/subscribe edge (ZeroMQ or Protobuf)."""
+
+
+class RequestTimeout(BusError, TimeoutError):
+    """A bus request got no matching response in time."""
+
+    def __init__(self, message: str, *, request_id: str | None = None, **extra: Any) -> None:
+        super().__init__(message)
+        self.request_id = request_id
+        self.extra = extra
+
+
+class VisionError(AdeptError):
+    """A vision node answered a request with an error result (for example: no calibration object found)."""
+
+    def __init__(self, message: str, *, attributes: dict[str, Any] | None = None) -> None:
+        super().__init__(message)
+        self.attributes = dict(attributes or {})
+
+
+class RobotError(AdeptError):
+    """The (simulated) controller refused a motion: target out of reach, joint limit, bad value."""
+
+    def __init__(self, code: int, message: str) -> None:
+        super().__init__(f"{message} (code {code})")
+        self.code = code
+        self.message = message

@@ -1,0 +1,57 @@
+"""The one table of error codes carried by ``error`` acks.
+
+Codes are negative integers in the V+ error-code range (-300 .. -1300) so that they read like controller errors.
+The exact numbers V+ uses for "undefined program" or "location out of range" could not be confirmed; these are
+ours, chosen once and kept stable. Both the simulated controller and the V+ modules in ``vplus/`` use this table.
+"""
+
+from __future__ import annotations
+
+from enum import IntEnum
+
+
+class ErrorCode(IntEnum):
+    """Error codes of the ``error`` ack (wire value = the integer)."""
+
+    SKILL_FAILED = -300
+    """A skill raised an error that has no more specific code."""
+    MALFORMED_MESSAGE = -401
+    """The line does not follow ``ID:SKILL[:ARGS]`` (bad ID, bad characters, empty fields)."""
+    LINE_TOO_LONG = -402
+    """The line is longer than 128 characters, the V+ string limit."""
+    UNKNOWN_SKILL = -406
+    """No skill of that name is registered ("undefined program")."""
+    WRONG_ARGUMENT_COUNT = -407
+    """The skill takes another number of arguments."""
+    ILLEGAL_VALUE = -410
+    """An argument is not a finite decimal number, or is out of its range (e.g. speed outside 0..100)."""
+    OUT_OF_REACH = -610
+    """The target location is outside the robot's workspace ("location out of range")."""
+    JOINT_LIMIT = -1003
+    """The target, or the path to it, passes a joint limit."""
+    SERVER_BUSY = -530
+    """The server refuses the connection (too many clients, address not allowed)."""
+    INTERNAL = -1200
+    """The server failed in a way that is its own fault."""
+
+
+DEFAULT_TEXT: dict[ErrorCode, str] = {
+    ErrorCode.SKILL_FAILED: "skill failed",
+    ErrorCode.MALFORMED_MESSAGE: "malformed message",
+    ErrorCode.LINE_TOO_LONG: "line too long",
+    ErrorCode.UNKNOWN_SKILL: "undefined skill",
+    ErrorCode.WRONG_ARGUMENT_COUNT: "wrong number of arguments",
+    ErrorCode.ILLEGAL_VALUE: "illegal value",
+    ErrorCode.OUT_OF_REACH: "location out of range",
+    ErrorCode.JOINT_LIMIT: "joint limit",
+    ErrorCode.SERVER_BUSY: "server busy",
+    ErrorCode.INTERNAL: "internal error",
+}
+
+
+def describe(code: int) -> str:
+    """The name of a code if it is in the table, else ``"code N"`` (peers may send codes we do not know)."""
+    try:
+        return ErrorCode(code).name
+    except ValueError:
+        return f"code {code}"

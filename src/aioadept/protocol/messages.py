@@ -1,0 +1,283 @@
+"""Command messages and acknowledgements: values, encoders and parsers for both directions.
+
+Client → server (one command message)::
+
+    ID:SKILL[:ARG,ARG,...]\\r\\n        e.g. eae86869:move_to:-80.000,-481.000,112.500,180.000,90.000,180.000
+
+Server → client (one ack per command message)::
+
+    ID:STATUS:T_START,T_DONE:X,Y,Z,YAW,PITCH,ROLL[:EXTRA...]\\r\\n
+
+``STATUS`` is ``done`` (the original protocol), or our extensions ``error`` (``EXTRA`` = ``CODE:MESSAGE``) and
+``aborted`` (flushed by a stop). The original client reads only the first four ``:`` fields, so extensions travel
+as trailing fields. See ``docs/protocol.md`` for the grammar. Nothing here does I/O or reads a clock.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from enum import Enum
+
+from aioadept.errors import LocalProtocolError, RemoteProtocolError
+from aioadept.geometry import Pose
+from aioadept.protocol.codes import DEFAULT_TEXT, ErrorCode
+from aioadept.protocol.framing import DELIMITER, MAX_LINE
+
+ID_LENGTH = 8
+NO_ID = "00000000"
+"""ID of an error ack for a line whose own ID could not be recovered; clients never allocate it."""
+MAX_SKILL_NAME = 15
+"""V+ program names are at most 15 characters."""
+MAX_ERROR_TEXT = 80
+
+_ID_RE = re.compile(r"[0-9A-Za-z]{8}\Z")
+_SKILL_RE = re.compile(r"[a-z][a-z0-9._]{0,14}\Z")
+_NUMBER_RE = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)\Z")
+_INT_RE = re.compile(r"[+-]?\d+\Z")
+
+
+class Status(str, Enum):
+    """Ack status. ``DONE`` is the original protocol's only status; the others are our extensions."""
+
+    DONE = "done"
+    ERROR = "error"
+    ABORTED = "aborted"
+
+
+_STATUS_BY_WIRE = {s.value: s for s in Status}
+
+
+def format_arg(value: int | float) -> str:
+    """One argument as the original client writes it: ``%.3f`` for reals, ``%d`` for ints (set_speed)."""
+    if isinstance(value, bool):
+        raise LocalProtocolError("argument: bool is not a number")
+    if isinstance(value, int):
+        return "%d" % value
+    return "%.3f" % value
+
+
+def check_skill_name(skill: str) -> None:
+    """Raise ``ValueError`` unless ``skill`` is a name V+ can CALLS: lowercase, starts with a letter, ≤ 15 chars."""
+    if not isinstance(skill, str) or not _SKILL_RE.match(skill):
+        raise ValueError(
+            f"skill: {skill!r} is not a V+ program name (a letter, then letters, digits, '.' or '_', "
+            f"at most {MAX_SKILL_NAME} characters, lowercase)"
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class SkillCall:
+    """A skill name and its numeric arguments: one command message without its ID.
+
+    Validated at construction: a name V+ can call and finite numbers. ``wire`` is the ``SKILL[:ARGS]`` text,
+    computed once, so allocating an ID is the only per-send work.
+    """
+
+    skill: str
+    args: tuple[int | float, ...] = ()
+    wire: str = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        check_skill_name(self.skill)
+        args = tuple(self.args)
+        for i, a in enumerate(args):
+            if isinstance(a, bool) or not isinstance(a, (int, float)):
+                raise ValueError(f"args[{i}]: {a!r} is not a number")
+            if isinstance(a, float) and not math.isfinite(a):
+                raise ValueError(f"args[{i}]: {a!r} is not finite")
+        object.__setattr__(self, "args", args)
+        wire = self.skill + (":" + ",".join(map(format_arg, args)) if args else "")
+        if ID_LENGTH + 1 + len(wire) > MAX_LINE:
+            raise ValueError(f"args: the message would be {ID_LENGTH + 1 + len(wire)} characters, over {MAX_LINE}")
+        object.__setattr__(self, "wire", wire)
+
+
+@dataclass(frozen=True, slots=True)
+class CommandMessage:
+    """A command message as the server sees it: ID, skill name and parsed arguments."""
+
+    id: str
+    skill: str
+    args: tuple[int | float, ...] = ()
+
+
+def encode_command(id: str, call: SkillCall) -> bytes:
+    """``ID:SKILL[:ARGS]\\r\\n``. The caller owns ID uniqueness (see :class:`IdAllocator`)."""
+    return f"{id}:{call.wire}\r\n".encode("ascii")
+
+
+def parse_command(line: bytes) -> CommandMessage:
+    """Parse one command line (without delimiter), server side.
+
+    Raises :class:`RemoteProtocolError` with a code from :mod:`codes`; its ``id`` is set when the line starts with
+    a valid ID, so the error ack can be routed to the command that caused it.
+    """
+    if len(line) > MAX_LINE:
+        raise RemoteProtocolError(ErrorCode.LINE_TOO_LONG, DEFAULT_TEXT[ErrorCode.LINE_TOO_LONG],
+                                  id=recover_id(line), line=line)
+    try:
+        text = line.decode("ascii")
+    except UnicodeDecodeError:
+        raise RemoteProtocolError(ErrorCode.MALFORMED_MESSAGE, "non-ASCII bytes", id=recover_id(line),
+                                  line=line) from None
+    parts = text.split(":")
+    mid = parts[0]
+    if not _ID_RE.match(mid):
+        raise RemoteProtocolError(ErrorCode.MALFORMED_MESSAGE, "bad message ID", line=line)
+    if len(parts) < 2 or len(parts) > 3:
+        raise RemoteProtocolError(ErrorCode.MALFORMED_MESSAGE, "expected ID:SKILL[:ARGS]", id=mid, line=line)
+    skill = parts[1]
+    if not _SKILL_RE.match(skill):
+        raise RemoteProtocolError(ErrorCode.MALFORMED_MESSAGE, "bad skill name", id=mid, line=line)
+    args: tuple[int | float, ...] = ()
+    if len(parts) == 3:
+        tokens = parts[2].split(",")
+        vals: list[int | float] = []
+        for tok in tokens:
+            tok = tok.strip()
+            if _INT_RE.match(tok):
+                vals.append(int(tok))
+            elif _NUMBER_RE.match(tok):
+                vals.append(float(tok))
+            else:
+                raise RemoteProtocolError(ErrorCode.ILLEGAL_VALUE, f"not a number: {tok[:16]!r}", id=mid, line=line)
+        args = tuple(vals)
+    return CommandMessage(mid, skill, args)
+
+
+def recover_id(line: bytes) -> str | None:
+    """The ID at the start of a (possibly broken) line, or None."""
+    head = line[: ID_LENGTH + 1]
+    if len(head) == ID_LENGTH + 1 and head[ID_LENGTH:] == b":":
+        try:
+            mid = head[:ID_LENGTH].decode("ascii")
+        except UnicodeDecodeError:
+            return None
+        if _ID_RE.match(mid):
+            return mid
+    return None
+
+
+@dataclass(frozen=True, slots=True)
+class Ack:
+    """One acknowledgement.
+
+    ``t_start_s``/``t_done_s`` are server-clock seconds (since server start, 1 ms resolution); ``pose`` is the
+    robot's location (HERE) when the ack was written; ``extra`` holds trailing fields after the pose.
+    """
+
+    id: str
+    status: Status
+    t_start_s: float
+    t_done_s: float
+    pose: Pose
+    extra: tuple[str, ...] = ()
+
+    @property
+    def ok(self) -> bool:
+        return self.status is Status.DONE
+
+    @property
+    def error_code(self) -> int | None:
+        """The code of an ``error`` ack (None otherwise)."""
+        if self.status is not Status.ERROR or not self.extra:
+            return None
+        try:
+            return int(self.extra[0])
+        except ValueError:
+            return None
+
+    @property
+    def error_message(self) -> str | None:
+        """The short text of an ``error`` ack (None otherwise)."""
+        if self.status is not Status.ERROR:
+            return None
+        return self.extra[1] if len(self.extra) > 1 else ""
+
+    @classmethod
+    def error(cls, id: str | None, code: int, message: str | None, t_start_s: float, t_done_s: float,
+              pose: Pose) -> Ack:
+        """An ``error`` ack; ``message`` defaults to the table's text and is made wire-safe."""
+        if message is None:
+            try:
+                message = DEFAULT_TEXT[ErrorCode(code)]
+            except ValueError:
+                message = ""
+        return cls(id or NO_ID, Status.ERROR, t_start_s, t_done_s, pose, (str(int(code)), sanitize_text(message)))
+
+
+def sanitize_text(text: str) -> str:
+    """Make free text safe as one trailing field: ASCII, no ':' or line breaks, at most 80 characters."""
+    clean = text.encode("ascii", "replace").decode("ascii")
+    clean = clean.replace(":", ";").replace("\r", " ").replace("\n", " ")
+    return clean[:MAX_ERROR_TEXT]
+
+
+def encode_ack(ack: Ack) -> bytes:
+    """``ID:STATUS:T_START,T_DONE:X,Y,Z,YAW,PITCH,ROLL[:EXTRA...]\\r\\n`` with ``%.3f`` numbers."""
+    p = ack.pose
+    head = "%s:%s:%.3f,%.3f:%.3f,%.3f,%.3f,%.3f,%.3f,%.3f" % (
+        ack.id, ack.status.value, ack.t_start_s, ack.t_done_s, p.x, p.y, p.z, p.yaw, p.pitch, p.roll)
+    for f in ack.extra:
+        if ":" in f or "\r" in f or "\n" in f:
+            raise LocalProtocolError(f"extra field {f!r} contains ':' or a line break")
+    if ack.extra:
+        head += ":" + ":".join(ack.extra)
+    return head.encode("ascii") + DELIMITER
+
+
+def parse_ack(line: bytes) -> Ack:
+    """Parse one ack line (without delimiter), client side. Raises :class:`RemoteProtocolError`."""
+    try:
+        text = line.decode("ascii")
+    except UnicodeDecodeError:
+        raise RemoteProtocolError(ErrorCode.MALFORMED_MESSAGE, "non-ASCII ack", id=recover_id(line),
+                                  line=line) from None
+    parts = text.split(":")
+    if len(parts) < 4:
+        raise RemoteProtocolError(ErrorCode.MALFORMED_MESSAGE, "ack has fewer than 4 fields",
+                                  id=recover_id(line), line=line)
+    mid, status_text, times, pose_text = parts[0], parts[1], parts[2], parts[3]
+    status = _STATUS_BY_WIRE.get(status_text)
+    if status is None or not _ID_RE.match(mid):
+        raise RemoteProtocolError(ErrorCode.MALFORMED_MESSAGE, f"bad ack head {text[:24]!r}",
+                                  id=recover_id(line), line=line)
+    try:
+        t_start_text, t_done_text = times.split(",")
+        t_start, t_done = float(t_start_text), float(t_done_text)
+        pose_vals = pose_text.split(",")
+        if len(pose_vals) != 6:
+            raise ValueError
+        x, y, z, yaw, pitch, roll = map(float, pose_vals)
+    except ValueError:
+        raise RemoteProtocolError(ErrorCode.MALFORMED_MESSAGE, "bad ack times or pose", id=mid,
+                                  line=line) from None
+    if not all(map(math.isfinite, (t_start, t_done, x, y, z, yaw, pitch, roll))):
+        raise RemoteProtocolError(ErrorCode.MALFORMED_MESSAGE, "non-finite number in ack", id=mid, line=line)
+    extra = tuple(parts[4:])
+    if status is Status.ERROR:
+        if not extra or not _INT_RE.match(extra[0]):
+            raise RemoteProtocolError(ErrorCode.MALFORMED_MESSAGE, "error ack without a code", id=mid, line=line)
+    return Ack(mid, status, t_start, t_done, Pose(x, y, z, yaw, pitch, roll), extra)
+
+
+class IdAllocator:
+    """Message IDs unique per connection: 8 lowercase hex characters, like ``uuid4().hex[:8]``.
+
+    A counter from a random start (passed in, so this stays free of I/O) guarantees that no two of the next
+    2**32 - 1 IDs repeat, which a truly random ID does not; ``00000000`` (:data:`NO_ID`) is never issued.
+    """
+
+    __slots__ = ("_next",)
+
+    def __init__(self, start: int) -> None:
+        self._next = start & 0xFFFFFFFF
+
+    def next(self) -> str:
+        n = self._next
+        if n == 0:
+            n = 1
+        self._next = (n + 1) & 0xFFFFFFFF
+        return "%08x" % n
