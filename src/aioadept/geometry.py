@@ -127,3 +127,38 @@ def inverse_transform(m: np.ndarray) -> np.ndarray:
     inv[:3, :3] = rt
     inv[:3, 3] = -rt @ m[:3, 3]
     return inv
+
+
+def rel_world(pose: Pose, delta: Pose | Iterable[float]) -> Pose:
+    """AdeptServer's ``move_rel_world`` target: the six numbers added component-wise, angles included.
+
+    ``TRANS(x+dx, y+dy, z+dz, yaw+dyaw, pitch+dpitch, roll+droll)`` of the decomposed current pose; rotations are
+    not composed (that is what the original V+ program does).
+    """
+    d = delta if isinstance(delta, Pose) else Pose.from_seq(delta)
+    return Pose(*(a + b for a, b in zip(pose.as_tuple(), d.as_tuple())))
+
+
+def rel_tool(pose: Pose, delta: Pose | Iterable[float]) -> Pose:
+    """``move_rel_tool`` target: V+ ``pose:TRANS(delta)``, the displacement expressed in the tool frame."""
+    d = delta if isinstance(delta, Pose) else Pose.from_seq(delta)
+    return decompose(pose.to_matrix() @ d.to_matrix())
+
+
+def pose_error(a: Pose, b: Pose) -> tuple[float, float]:
+    """(translation distance in mm, rotation angle in degrees) between two poses.
+
+    Compares rotation matrices, so equivalent Euler triples (e.g. at pitch 180) count as equal.
+    """
+    r = zyz_to_rotation(a.yaw, a.pitch, a.roll).T @ zyz_to_rotation(b.yaw, b.pitch, b.roll)
+    # atan2 of the axis-angle sine and cosine stays precise near 0, where acos(trace) loses half the digits.
+    sin_angle = 0.5 * math.sqrt((r[2, 1] - r[1, 2]) ** 2 + (r[0, 2] - r[2, 0]) ** 2 + (r[1, 0] - r[0, 1]) ** 2)
+    cos_angle = (float(np.trace(r)) - 1.0) / 2.0
+    angle = math.degrees(math.atan2(sin_angle, cos_angle))
+    return a.translation_distance_mm(b), angle
+
+
+def poses_close(a: Pose, b: Pose, *, tol_mm: float = 1e-6, tol_deg: float = 1e-6) -> bool:
+    """True when ``a`` and ``b`` are the same location within the tolerances (see :func:`pose_error`)."""
+    dist_mm, angle_deg = pose_error(a, b)
+    return dist_mm <= tol_mm and angle_deg <= tol_deg
