@@ -1,0 +1,247 @@
+"""A cell described as data: where the robot server and the vision node are, whether to start them, and the focus
+parameters. ``aioadept demo`` and ``aioadept focus`` both run a :class:`CellConfig`; a TOML file can hold one
+(see ``examples/cell.toml``), so each node can move to another machine by editing an address.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import dataclasses
+import datetime as _dt
+import json
+import logging
+import socket
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from aioadept.apps.focus import FocusParams, FocusResult, ufloop
+from aioadept.apps.processes import NodeProcess, watch
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(slots=True)
+class RobotSection:
+    host: str = "127.0.0.1"
+    port: int = 1234
+    """0 with ``start_sim``: pick a free port."""
+    start_sim: bool = True
+    """Start ``aioadept sim`` on this machine (else connect to a running server, e.g. a real controller)."""
+    time_scale: float = 1.0
+    """Sim motion speed-up (1 = real time)."""
+    monitor_speed: int = 100
+    state_endpoint: str = "tcp://127.0.0.1:5560"
+    """Where the sim publishes the robot state (the virtual camera subscribes). Port 0: pick a free one."""
+    connect_timeout_s: float = 5.0
+    ack_timeout_s: float = 30.0
+    sim_args: list[str] = field(default_factory=list)
+
+
+@dataclass(slots=True)
+class VisionSection:
+    start: bool = True
+    """Start ``aioadept vision`` on this machine."""
+    request_endpoint: str = "tcp://127.0.0.1:5555"
+    response_endpoint: str = "tcp://127.0.0.1:5556"
+    source: str = "virtual"
+    focus_offset_mm: float = 20.0
+    """Virtual camera: how far along tool z beyond the approach pose the focal plane lies."""
+    fps: float = 15.0
+    policy: str = "after"
+    """Frame choice: "nearest" in time to the request (the paper), or the first frame "after" it."""
+    vision_args: list[str] = field(default_factory=list)
+
+
+@dataclass(slots=True)
+class RunSection:
+    out_dir: str = "runs"
+    analyze: bool = True
+    name: str = ""
+
+
+@dataclass(slots=True)
+class CellConfig:
+    robot: RobotSection = field(default_factory=RobotSection)
+    vision: VisionSection = field(default_factory=VisionSection)
+    focus: FocusParams = field(default_factory=FocusParams)
+    run: RunSection = field(default_factory=RunSection)
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> CellConfig:
+        with open(path, "rb") as f:
+            data = tomllib.load(f)
+        return cls.from_dict(data, source=str(path))
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], *, source: str = "config") -> CellConfig:
+        known = {"robot": RobotSection, "vision": VisionSection, "focus": FocusParams, "run": RunSection}
+        unknown = set(data) - set(known)
+        if unknown:
+            raise ValueError(f"{source}: unknown section(s) {sorted(unknown)}; expected {sorted(known)}")
+        parts = {}
+        for name, typ in known.items():
+            section = data.get(name, {})
+            names = {f.name for f in dataclasses.fields(typ)}
+            bad = set(section) - names
+            if bad:
+                raise ValueError(f"{source}: unknown key(s) {sorted(bad)} in [{name}]; expected {sorted(names)}")
+            parts[name] = typ(**section)
+        return cls(**parts)
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+def free_port(host: str = "127.0.0.1") -> int:
+    """A TCP port that was free a moment ago (the OS picks it)."""
+    with contextlib.closing(socket.socket(socket.AF_INET, socket.SOCK_STREAM)) as s:
+        s.bind((host, 0))
+        return int(s.getsockname()[1])
+
+
+def _with_free_port(endpoint: str) -> str:
+    # tcp://HOST:0 -> tcp://HOST:<free port>, so we know the address before the node binds it.
+    prefix, _, port = endpoint.rpartition(":")
+    if port in ("0", "*"):
+        host = prefix.split("//", 1)[-1]
+        return f"{prefix}:{free_port(host)}"
+    return endpoint
+
+
+def resolve_ports(cfg: CellConfig) -> CellConfig:
+    """Replace port 0 by free ports for the nodes this machine starts."""
+    cfg = dataclasses.replace(cfg, robot=dataclasses.replace(cfg.robot), vision=dataclasses.replace(cfg.vision))
+    if cfg.robot.start_sim:
+        if cfg.robot.port == 0:
+            cfg.robot.port = free_port(cfg.robot.host)
+        cfg.robot.state_endpoint = _with_free_port(cfg.robot.state_endpoint)
+    if cfg.vision.start:
+        cfg.vision.request_endpoint = _with_free_port(cfg.vision.request_endpoint)
+        cfg.vision.response_endpoint = _with_free_port(cfg.vision.response_endpoint)
+    return cfg
+
+
+def sim_argv(cfg: CellConfig) -> list[str]:
+    r = cfg.robot
+    return ["sim", "--host", r.host, "--port", str(r.port), "--time-scale", str(r.time_scale),
+            "--monitor-speed", str(r.monitor_speed), "--state-endpoint", r.state_endpoint, *r.sim_args]
+
+
+def vision_argv(cfg: CellConfig) -> list[str]:
+    v = cfg.vision
+    return ["vision", "--source", v.source, "--state-endpoint", cfg.robot.state_endpoint,
+            "--request-endpoint", v.request_endpoint, "--response-endpoint", v.response_endpoint,
+            "--focus-offset-mm", str(v.focus_offset_mm), "--fps", str(v.fps), "--policy", v.policy,
+            *v.vision_args]
+
+
+def new_run_dir(cfg: CellConfig, base: Path | None = None) -> Path:
+    stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S-%f")[:-3]
+    name = cfg.run.name or f"focus-s{cfg.focus.approach_speed}-dz{cfg.focus.delta_z_mm:g}"
+    d = (base or Path(cfg.run.out_dir)) / f"{stamp}-{name}"
+    d.mkdir(parents=True, exist_ok=False)
+    return d
+
+
+@dataclass(frozen=True, slots=True)
+class RunOutcome:
+    run_dir: Path
+    result: FocusResult | None
+    error: str | None
+
+
+async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams | None = None) -> RunOutcome:
+    """Connect to the robot server and the vision node of ``cfg``, run :func:`ufloop` once, record and save it."""
+    from aioadept import __version__
+    from aioadept.bus import Communicator
+    from aioadept.capture import Recorder
+    from aioadept.client import RobotClient
+
+    params = params or cfg.focus
+    recorder = Recorder()
+    result: FocusResult | None = None
+    error: str | None = None
+    started = _dt.datetime.now(_dt.timezone.utc).isoformat()
+    try:
+        async with RobotClient(cfg.robot.host, cfg.robot.port, connect_timeout_s=cfg.robot.connect_timeout_s,
+                               ack_timeout_s=cfg.robot.ack_timeout_s, observers=[recorder]) as rc, \
+                Communicator(cfg.vision.request_endpoint, cfg.vision.response_endpoint,
+                             timeout_s=params.vision_timeout_s, observers=[recorder]) as comm:
+            result = await ufloop(rc, comm, params.delta_z_mm, params.approach_speed, max_steps=params.max_steps,
+                                  vision_timeout_s=params.vision_timeout_s, retract_speed=params.retract_speed,
+                                  recorder=recorder)
+    except Exception as exc:
+        error = f"{type(exc).__name__}: {exc}"
+        raise
+    finally:
+        meta = {
+            "app": "focus", "aioadept_version": __version__, "started_utc": started,
+            "approach_speed": params.approach_speed, "delta_z_mm": params.delta_z_mm,
+            "max_steps": params.max_steps, "cell": cfg.to_dict(), "error": error,
+            "result": None if result is None else focus_result_dict(result),
+        }
+        recorder.save(run_dir, metadata=meta)
+        (run_dir / "focus.json").write_text(json.dumps(meta["result"] or {"error": error}, indent=2))
+    return RunOutcome(run_dir, result, error)
+
+
+def focus_result_dict(r: FocusResult) -> dict[str, Any]:
+    return {
+        "inspection_pose": dataclasses.asdict(r.inspection_pose),
+        "approach_pose": dataclasses.asdict(r.approach_pose),
+        "sharpness": list(r.sharpness), "peak_index": r.peak_index, "delta_z_mm": r.delta_z_mm,
+        "peak_offset_mm": r.peak_offset_mm, "steps": r.steps,
+    }
+
+
+class Cell:
+    """The running nodes of a cell and its resolved addresses; :meth:`run` supervises a coroutine against them."""
+
+    def __init__(self, cfg: CellConfig, nodes: list[NodeProcess]) -> None:
+        self.cfg = cfg
+        self.nodes = nodes
+
+    async def run(self, coro: Any) -> Any:
+        """Await ``coro``; if a node dies first, cancel it and raise :class:`~aioadept.apps.processes.NodeError`."""
+        main = asyncio.ensure_future(coro)
+        if not self.nodes:
+            return await main
+        watcher = asyncio.create_task(watch(*self.nodes))
+        try:
+            await asyncio.wait({main, watcher}, return_when=asyncio.FIRST_COMPLETED)
+        finally:
+            for t in (main, watcher):
+                if not t.done():
+                    t.cancel()
+            await asyncio.gather(main, watcher, return_exceptions=True)
+        if not main.cancelled() and main.exception() is None:
+            return main.result()
+        if watcher.done() and not watcher.cancelled() and watcher.exception() is not None:
+            raise watcher.exception()  # type: ignore[misc]
+        return main.result()
+
+
+@contextlib.asynccontextmanager
+async def running_cell(cfg: CellConfig, log_dir: Path):
+    """Start the nodes of ``cfg`` that run on this machine and yield a :class:`Cell` with resolved addresses.
+
+    The nodes are stopped on exit (SIGINT, then SIGTERM, then SIGKILL), whatever happened.
+    """
+    cfg = resolve_ports(cfg)
+    nodes: list[NodeProcess] = []
+    async with contextlib.AsyncExitStack() as stack:
+        if cfg.robot.start_sim:
+            sim = await stack.enter_async_context(NodeProcess("sim", sim_argv(cfg), log_path=log_dir / "sim.log"))
+            cfg.robot.port = int(sim.ready.get("port", cfg.robot.port))
+            cfg.robot.host = sim.ready.get("host", cfg.robot.host)
+            nodes.append(sim)
+        if cfg.vision.start:
+            vis = await stack.enter_async_context(
+                NodeProcess("vision", vision_argv(cfg), log_path=log_dir / "vision.log"))
+            cfg.vision.request_endpoint = vis.ready.get("request", cfg.vision.request_endpoint)
+            cfg.vision.response_endpoint = vis.ready.get("response", cfg.vision.response_endpoint)
+            nodes.append(vis)
+        yield Cell(cfg, nodes)

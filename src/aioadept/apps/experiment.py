@@ -1,0 +1,91 @@
+"""``aioadept experiment``: the paper's experiment — focus runs over a grid of approach speed x delta_z, N each.
+
+The nodes are started once; each run gets its own run folder; the analysis then pools all runs (the paper pooled
+32 runs over speed {5, 25, 50, 75, 100} x delta_z {1.5, 2.0, 2.5}).
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import dataclasses
+import itertools
+import logging
+import sys
+from pathlib import Path
+
+from aioadept.apps.cell import CellConfig, new_run_dir, run_focus_once, running_cell
+from aioadept.apps.cli_common import configure_logging
+
+log = logging.getLogger("aioadept.experiment")
+
+
+def _floats(text: str) -> list[float]:
+    return [float(x) for x in text.split(",") if x.strip()]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="aioadept experiment", description=__doc__.split("\n\n")[0])
+    p.add_argument("--config", type=Path, help="cell description (TOML)")
+    p.add_argument("--speeds", default="5,25,50,75,100", help="approach speeds (default: the paper's)")
+    p.add_argument("--delta-z", dest="delta_z", default="1.5,2.0,2.5", help="z steps in mm (default: the paper's)")
+    p.add_argument("--runs", type=int, default=2, help="runs per grid point (default 2)")
+    p.add_argument("--time-scale", type=float, dest="time_scale", default=None, help="sim motion speed-up")
+    p.add_argument("--out", default=None, help="experiment folder (default runs/experiment-<time>)")
+    p.add_argument("-v", "--verbose", action="store_true")
+    return p
+
+
+async def run_experiment(cfg: CellConfig, grid: list[tuple[int, float]], runs: int, out: Path) -> list[Path]:
+    from rich.progress import Progress
+
+    done: list[Path] = []
+    failures = 0
+    async with running_cell(cfg, out / "logs") as cell:
+        with Progress() as progress:
+            task = progress.add_task("focus runs", total=len(grid) * runs)
+            for (speed, dz), k in itertools.product(grid, range(runs)):
+                params = dataclasses.replace(cell.cfg.focus, approach_speed=speed, delta_z_mm=dz)
+                cell.cfg.run.name = f"s{speed}-dz{dz:g}-{k}"
+                run_dir = new_run_dir(cell.cfg, out)
+                try:
+                    await cell.run(run_focus_once(cell.cfg, run_dir, params=params))
+                    done.append(run_dir)
+                except Exception as exc:  # keep going: a failed run is data too, and is logged in its folder
+                    failures += 1
+                    log.error("run %s failed: %s", run_dir.name, exc)
+                progress.advance(task)
+    log.info("%d runs done, %d failed", len(done), failures)
+    return done
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    configure_logging(args.verbose)
+    cfg = CellConfig.from_toml(args.config) if args.config else CellConfig()
+    if not args.config:
+        cfg.robot.port = 0
+        cfg.robot.state_endpoint = cfg.vision.request_endpoint = cfg.vision.response_endpoint = "tcp://127.0.0.1:0"
+    if args.time_scale is not None:
+        cfg.robot.time_scale = args.time_scale
+    import datetime as _dt
+
+    out = Path(args.out or Path(cfg.run.out_dir) / f"experiment-{_dt.datetime.now():%Y%m%d-%H%M%S}")
+    out.mkdir(parents=True, exist_ok=True)
+    grid = [(int(s), dz) for s in _floats(args.speeds) for dz in _floats(args.delta_z)]
+    try:
+        run_dirs = asyncio.run(run_experiment(cfg, grid, args.runs, out))
+    except KeyboardInterrupt:
+        return 130
+    if not run_dirs:
+        log.error("no run succeeded")
+        return 1
+    from aioadept.analysis import analyze_runs
+
+    analyze_runs(run_dirs, out / "analysis")
+    log.info("analysis of %d runs written to %s", len(run_dirs), out / "analysis")
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,161 @@
+"""Starting and supervising the cell's nodes as child processes.
+
+Each node (``aioadept sim``, ``aioadept vision``) is a separate process, as on a real cell. A :class:`NodeProcess`
+starts one with the same Python, waits for its ``READY key=value ...`` line (never a sleep), keeps its output in a
+log file, notices when it dies, and on exit stops it with SIGINT, then SIGTERM, then SIGKILL.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import os
+import shlex
+import signal
+import sys
+from pathlib import Path
+from typing import IO
+
+from aioadept.errors import AdeptError
+
+
+class NodeError(AdeptError):
+    """A node process failed to start or died while the cell was running."""
+
+
+def parse_ready(line: str) -> dict[str, str]:
+    """``READY host=127.0.0.1 port=1234`` -> ``{"host": "127.0.0.1", "port": "1234"}``."""
+    fields = line.split()
+    if not fields or fields[0] != "READY":
+        raise ValueError(f"not a READY line: {line!r}")
+    out: dict[str, str] = {}
+    for f in fields[1:]:
+        key, sep, value = f.partition("=")
+        if sep:
+            out[key] = value
+    return out
+
+
+class NodeProcess:
+    """One node as a child process: ``async with NodeProcess("sim", ["sim", "--port", "0"]) as node: node.ready``."""
+
+    def __init__(self, name: str, argv: list[str], *, log_path: Path | None = None, ready_timeout_s: float = 30.0,
+                 env: dict[str, str] | None = None) -> None:
+        self.name = name
+        self.argv = [sys.executable, "-m", "aioadept", *argv]
+        self.log_path = log_path
+        self.ready_timeout_s = ready_timeout_s
+        self.env = env
+        self.ready: dict[str, str] = {}
+        self.proc: asyncio.subprocess.Process | None = None
+        self._log: IO[str] | None = None
+        self._pumps: list[asyncio.Task[None]] = []
+        self._tail: list[str] = []
+        self._stopping = False
+
+    @property
+    def command_line(self) -> str:
+        return shlex.join(self.argv)
+
+    async def __aenter__(self) -> NodeProcess:
+        await self.start()
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.stop()
+
+    async def start(self) -> dict[str, str]:
+        env = dict(os.environ if self.env is None else self.env)
+        env.setdefault("PYTHONUNBUFFERED", "1")
+        if self.log_path is not None:
+            self.log_path.parent.mkdir(parents=True, exist_ok=True)
+            self._log = open(self.log_path, "w", encoding="utf-8")  # noqa: SIM115 - closed in stop()
+            self._log.write(f"$ {self.command_line}\n")
+        self.proc = await asyncio.create_subprocess_exec(
+            *self.argv, stdin=asyncio.subprocess.DEVNULL, stdout=asyncio.subprocess.PIPE,
+            stderr=asyncio.subprocess.PIPE, env=env, start_new_session=True)
+        assert self.proc.stdout is not None and self.proc.stderr is not None
+        self._pumps.append(asyncio.create_task(self._pump(self.proc.stderr, "err")))
+        try:
+            async with asyncio.timeout(self.ready_timeout_s):
+                while True:
+                    raw = await self.proc.stdout.readline()
+                    if not raw:
+                        await self.proc.wait()
+                        raise NodeError(f"{self.name} exited with code {self.proc.returncode} before it was ready:"
+                                        f"\n{self.tail()}")
+                    line = raw.decode(errors="replace").rstrip()
+                    self._keep(line)
+                    if line.startswith("READY"):
+                        self.ready = parse_ready(line)
+                        break
+        except TimeoutError:
+            await self.stop()
+            raise NodeError(f"{self.name} did not report READY within {self.ready_timeout_s} s:\n{self.tail()}")
+        except BaseException:
+            await self.stop()
+            raise
+        self._pumps.append(asyncio.create_task(self._pump(self.proc.stdout, "out")))
+        return self.ready
+
+    async def _pump(self, stream: asyncio.StreamReader, _tag: str) -> None:
+        while raw := await stream.readline():
+            self._keep(raw.decode(errors="replace").rstrip())
+
+    def _keep(self, line: str) -> None:
+        if self._log is not None:
+            self._log.write(line + "\n")
+            self._log.flush()
+        self._tail.append(line)
+        del self._tail[:-20]
+
+    def tail(self) -> str:
+        """The last lines the node printed (for error messages)."""
+        return "\n".join(f"  [{self.name}] {line}" for line in self._tail)
+
+    @property
+    def returncode(self) -> int | None:
+        return None if self.proc is None else self.proc.returncode
+
+    async def wait_exit(self) -> int:
+        """Wait until the process exits on its own; returns its exit code."""
+        assert self.proc is not None
+        return await self.proc.wait()
+
+    async def stop(self, *, grace_s: float = 5.0) -> int | None:
+        """Stop the node: SIGINT, then SIGTERM, then SIGKILL, each after ``grace_s``. Idempotent."""
+        proc = self.proc
+        if proc is not None and proc.returncode is None:
+            self._stopping = True
+            for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+                with contextlib.suppress(ProcessLookupError):
+                    os.killpg(proc.pid, sig)
+                try:
+                    async with asyncio.timeout(grace_s):
+                        await proc.wait()
+                    break
+                except TimeoutError:
+                    continue
+        for task in self._pumps:
+            task.cancel()
+        for task in self._pumps:
+            with contextlib.suppress(asyncio.CancelledError):
+                await task
+        self._pumps.clear()
+        if self._log is not None:
+            self._log.close()
+            self._log = None
+        return None if proc is None else proc.returncode
+
+
+async def watch(*nodes: NodeProcess) -> None:
+    """Return never while all nodes run; raise :class:`NodeError` as soon as one exits on its own."""
+    waits = {asyncio.create_task(n.wait_exit()): n for n in nodes}
+    try:
+        done, _ = await asyncio.wait(waits, return_when=asyncio.FIRST_COMPLETED)
+        node = waits[next(iter(done))]
+        raise NodeError(f"{node.name} exited unexpectedly with code {node.returncode}:\n{node.tail()}")
+    finally:
+        for t in waits:
+            t.cancel()
+        await asyncio.gather(*waits, return_exceptions=True)
