@@ -14,7 +14,8 @@ catches our types only::
     ├─ AckTimeout (TimeoutError)   no ack in time
     ├─ ClientStateError            not connected / closed / reentered
     ├─ BusError                    ZeroMQ/Protobuf failures at the bus edge
-    │   └─ RequestTimeout (TimeoutError)   no response to a bus request in time
+    │   ├─ RequestTimeout (TimeoutError)   no response to a bus request in time
+    │   └─ BusEncodeError (ValueError)     a value the bus schema cannot carry
     ├─ VisionError                 a vision node answered with an error result (e.g. no object found)
     └─ RobotError                  the simulated controller refused a motion (reach, joint limit); carries the code
 """
@@ -135,3 +136,29 @@ class RobotError(AdeptError):
         super().__init__(f"{message} (code {code})")
         self.code = code
         self.message = message
+
+
+class BusEncodeError(BusError, ValueError):
+    """A value the bus schema cannot carry: an attribute of another type than str/float/int (bool included, as in
+    EPypes), an int outside int32, a missing required field. ``key`` names the offending attribute when there is one.
+    """
+
+    def __init__(self, message: str, *, key: str | None = None, value: Any = None) -> None:
+        super().__init__(message)
+        self.key = key
+        self.value = value
+
+
+class GraphError(AdeptError, ValueError):
+    """A computational graph is inconsistent (cycle, token produced twice, missing input) or misused at run time.
+
+    Part of the vision side (:mod:`aioadept.vision.graph`); ``tokens`` names the tokens concerned, when known.
+    """
+
+    def __init__(self, message: str, *, tokens: tuple[str, ...] = ()) -> None:
+        super().__init__(message)
+        self.tokens = tuple(tokens)
+
+
+class ObjectNotFound(VisionError):
+    """The sharpness pipeline found no region that looks like the calibration object in the image."""

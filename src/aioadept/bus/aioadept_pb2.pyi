@@ -1,0 +1,35 @@
+from google.protobuf.internal import containers as _containers
+from google.protobuf import descriptor as _descriptor
+from google.protobuf import message as _message
+from collections.abc import Iterable as _Iterable
+from typing import ClassVar as _ClassVar, Optional as _Optional
+
+DESCRIPTOR: _descriptor.FileDescriptor
+
+class RobotState(_message.Message):
+    __slots__ = ("t_s", "wall_time_s", "joints_deg", "x", "y", "z", "yaw", "pitch", "roll", "in_motion", "speed_pct", "air")
+    T_S_FIELD_NUMBER: _ClassVar[int]
+    WALL_TIME_S_FIELD_NUMBER: _ClassVar[int]
+    JOINTS_DEG_FIELD_NUMBER: _ClassVar[int]
+    X_FIELD_NUMBER: _ClassVar[int]
+    Y_FIELD_NUMBER: _ClassVar[int]
+    Z_FIELD_NUMBER: _ClassVar[int]
+    YAW_FIELD_NUMBER: _ClassVar[int]
+    PITCH_FIELD_NUMBER: _ClassVar[int]
+    ROLL_FIELD_NUMBER: _ClassVar[int]
+    IN_MOTION_FIELD_NUMBER: _ClassVar[int]
+    SPEED_PCT_FIELD_NUMBER: _ClassVar[int]
+    AIR_FIELD_NUMBER: _ClassVar[int]
+    t_s: float
+    wall_time_s: float
+    joints_deg: _containers.RepeatedScalarFieldContainer[float]
+    x: float
+    y: float
+    z: float
+    yaw: float
+    pitch: float
+    roll: float
+    in_motion: bool
+    speed_pct: int
+    air: bool
+    def __init__(self, t_s: _Optional[float] = ..., wall_time_s: _Optional[float] = ..., joints_deg: _Optional[_Iterable[float]] = ..., x: _Optional[float] = ..., y: _Optional[float] = ..., z: _Optional[float] = ..., yaw: _Optional[float] = ..., pitch: _Optional[float] = ..., roll: _Optional[float] = ..., in_motion: _Optional[bool] = ..., speed_pct: _Optional[int] = ..., air: _Optional[bool] = ...) -> None: ...
