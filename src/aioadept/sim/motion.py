@@ -1,0 +1,281 @@
+"""Motion timing of the simulated arm: synchronised trapezoidal joint profiles, blending and stopping.
+
+Pure: every function takes the time as an argument (server-clock seconds), so the controller and its tests can
+run motions without sleeping. The controller (:mod:`aioadept.sim.controller`) decides *when* a motion may start
+(V+ forward processing); this module decides *how* the joints move once it has.
+
+Model:
+
+- **Joint interpolation.** Every motion is a straight segment in joint space (V+ ``MOVE``; straight-line ``MOVES``
+  is not modelled). All joints share one normalised trapezoidal profile, so they start and arrive together; the
+  duration is that of the slowest joint.
+- **Speed.** The joint speed limits are ``MAX_JOINT_SPEED_DEG_S`` times the speed fraction
+  (program speed x monitor speed). With ``SCALE.ACCEL`` (on, as V+ defaults) the acceleration limits scale the same
+  way, so the ramp time stays at ``ramp_s`` (0.1 s by default: a_max = v_max / 0.1 s).
+- **Blending.** A motion added while another is executing starts when the previous one begins to decelerate: the
+  deceleration of one overlaps the acceleration of the next and the velocities add, the continuous path V+ makes
+  of consecutive motions without ``BREAK``.
+- **Stop.** Each joint's velocity ramps down linearly to zero, all joints together, in the time the most loaded
+  joint needs at full acceleration.
+- **Time scale.** Durations are divided by ``time_scale``; ``instant`` makes every motion take no time.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from aioadept.sim.kinematics import MAX_JOINT_SPEED_DEG_S
+
+
+@dataclass(frozen=True, slots=True)
+class MotionLimits:
+    """Per-joint speed limits (deg/s at 100 %) and the ramp time to full speed (s)."""
+
+    max_speed_deg_s: tuple[float, ...] = MAX_JOINT_SPEED_DEG_S
+    ramp_s: float = 0.1
+
+    def __post_init__(self) -> None:
+        if len(self.max_speed_deg_s) != 6 or min(self.max_speed_deg_s) <= 0:
+            raise ValueError("max_speed_deg_s: expected 6 positive speeds")
+        if self.ramp_s <= 0:
+            raise ValueError("ramp_s: must be > 0")
+
+
+@dataclass(frozen=True, slots=True)
+class Segment:
+    """One joint-interpolated motion: ``delta_deg`` traversed from ``t0_s`` in ``duration_s``.
+
+    The profile accelerates for ``ramp_s``, cruises, and decelerates for ``ramp_s`` (``ramp_s <= duration_s/2``).
+    ``speed_pct`` is the effective speed it was planned with (program x monitor).
+    """
+
+    start_deg: tuple[float, ...]
+    end_deg: tuple[float, ...]
+    t0_s: float
+    duration_s: float
+    ramp_s: float
+    speed_pct: float
+
+    @property
+    def t_end_s(self) -> float:
+        return self.t0_s + self.duration_s
+
+    @property
+    def delta_deg(self) -> np.ndarray:
+        return np.subtract(self.end_deg, self.start_deg)
+
+    def progress(self, t_s: float) -> float:
+        """Normalised position along the segment, 0 before it starts and 1 after it ends."""
+        tau = t_s - self.t0_s
+        T, ta = self.duration_s, self.ramp_s
+        if tau >= T:
+            return 1.0
+        if tau <= 0.0:
+            return 0.0
+        vp = 1.0 / (T - ta)
+        if tau < ta:
+            return 0.5 * vp * tau * tau / ta
+        if tau <= T - ta:
+            return vp * (tau - 0.5 * ta)
+        rem = T - tau
+        return 1.0 - 0.5 * vp * rem * rem / ta
+
+    def rate(self, t_s: float) -> float:
+        """Time derivative of :meth:`progress` (1/s)."""
+        tau = t_s - self.t0_s
+        T, ta = self.duration_s, self.ramp_s
+        if tau <= 0.0 or tau >= T:
+            return 0.0
+        vp = 1.0 / (T - ta)
+        if tau < ta:
+            return vp * tau / ta
+        if tau <= T - ta:
+            return vp
+        return vp * (T - tau) / ta
+
+    def offset(self, t_s: float) -> np.ndarray:
+        return self.delta_deg * self.progress(t_s)
+
+    def velocity(self, t_s: float) -> np.ndarray:
+        return self.delta_deg * self.rate(t_s)
+
+
+@dataclass(frozen=True, slots=True)
+class StopSegment:
+    """Deceleration to rest: velocity ``v0_deg_s`` at ``t0_s`` falls linearly to zero at ``t0_s + duration_s``."""
+
+    start_deg: tuple[float, ...]
+    v0_deg_s: tuple[float, ...]
+    t0_s: float
+    duration_s: float
+
+    @property
+    def t_end_s(self) -> float:
+        return self.t0_s + self.duration_s
+
+    @property
+    def end_deg(self) -> tuple[float, ...]:
+        return tuple(float(v) for v in np.add(self.start_deg, self.offset(self.t_end_s)))
+
+    @property
+    def speed_pct(self) -> float:
+        return 0.0
+
+    def offset(self, t_s: float) -> np.ndarray:
+        tau = min(max(t_s - self.t0_s, 0.0), self.duration_s)
+        v0 = np.asarray(self.v0_deg_s)
+        if self.duration_s <= 0.0:
+            return np.zeros(6)
+        return v0 * tau - 0.5 * v0 * tau * tau / self.duration_s
+
+    def velocity(self, t_s: float) -> np.ndarray:
+        tau = max(t_s - self.t0_s, 0.0)
+        if tau >= self.duration_s:
+            return np.zeros(6)
+        return np.asarray(self.v0_deg_s) * (1.0 - tau / self.duration_s)
+
+
+def plan_duration(delta_deg: Sequence[float], speed_fraction: float, *, limits: MotionLimits = MotionLimits(),
+                  accel_fraction: float = 1.0) -> tuple[float, float]:
+    """(duration_s, ramp_s) of a synchronised trapezoid covering ``delta_deg`` at ``speed_fraction`` (0..1].
+
+    ``accel_fraction`` is V+ ``ACCEL``/100: below 1 the ramps get longer. Robot time, before any time scale.
+    """
+    if not 0.0 < speed_fraction <= 1.0 + 1e-9:
+        raise ValueError(f"speed_fraction: {speed_fraction} outside (0, 1]")
+    if not 0.0 < accel_fraction <= 1.0 + 1e-9:
+        raise ValueError(f"accel_fraction: {accel_fraction} outside (0, 1]")
+    ramp = limits.ramp_s / accel_fraction
+    duration = 0.0
+    for d, vmax in zip(delta_deg, limits.max_speed_deg_s):
+        d = abs(d)
+        if d == 0.0:
+            continue
+        v = vmax * speed_fraction
+        a = v / ramp
+        t = d / v + ramp if d >= v * ramp else 2.0 * math.sqrt(d / a)
+        duration = max(duration, t)
+    return duration, min(ramp, duration / 2.0)
+
+
+class Trajectory:
+    """The arm's joint trajectory: where it is at any time, and the motions planned ahead.
+
+    Segments overlap only when blended; the position is the start position plus the sum of every segment's
+    offset, so blended motions superpose. Query times must not go back before the last :meth:`add` or
+    :meth:`stop` (the controller only moves forward in time).
+    """
+
+    def __init__(self, joints_deg: Sequence[float], *, limits: MotionLimits = MotionLimits(),
+                 time_scale: float = 1.0, instant: bool = False) -> None:
+        if len(joints_deg) != 6:
+            raise ValueError("joints_deg: expected 6 values")
+        if not time_scale > 0:
+            raise ValueError("time_scale: must be > 0")
+        self.limits = limits
+        self.time_scale = float(time_scale)
+        self.instant = instant
+        self._base = np.array(joints_deg, dtype=float)
+        self._segments: list[Segment | StopSegment] = []
+
+    # -- queries ---------------------------------------------------------------------------------------------
+    def position(self, t_s: float) -> tuple[float, ...]:
+        """Joint angles (deg) at ``t_s``."""
+        p = self._base.copy()
+        for seg in self._segments:
+            p += seg.offset(t_s)
+        return tuple(float(v) for v in p)
+
+    def velocity(self, t_s: float) -> tuple[float, ...]:
+        """Joint velocities (deg/s, real time) at ``t_s``."""
+        v = np.zeros(6)
+        for seg in self._segments:
+            if isinstance(seg, StopSegment) or seg.t0_s < t_s < seg.t_end_s:
+                v += seg.velocity(t_s)
+        return tuple(float(x) for x in v)
+
+    @property
+    def end_deg(self) -> tuple[float, ...]:
+        """Where the robot will be when every planned motion is done (the start of the next one)."""
+        if not self._segments:
+            return tuple(float(v) for v in self._base)
+        return self._segments[-1].end_deg
+
+    @property
+    def t_rest_s(self) -> float:
+        """When every planned motion is done (-inf when nothing was ever planned)."""
+        return max((s.t_end_s for s in self._segments), default=-math.inf)
+
+    def in_motion(self, t_s: float) -> bool:
+        return t_s < self.t_rest_s
+
+    def pending_start_s(self, t_s: float) -> float | None:
+        """Start time of a motion planned but not yet started at ``t_s`` (V+: one motion queued ahead)."""
+        for seg in self._segments:
+            if seg.t0_s > t_s:
+                return seg.t0_s
+        return None
+
+    def current_speed_pct(self, t_s: float) -> float | None:
+        """Effective speed of the motion executing at ``t_s`` (the latest started), or None at rest."""
+        speed = None
+        for seg in self._segments:
+            if seg.t0_s <= t_s < seg.t_end_s:
+                speed = seg.speed_pct
+        return speed
+
+    # -- changes ---------------------------------------------------------------------------------------------
+    def _fold(self, t_s: float) -> None:
+        """Fold segments finished by ``t_s`` into the base position, so the list stays short."""
+        keep: list[Segment | StopSegment] = []
+        for seg in self._segments:
+            if seg.t_end_s <= t_s and not keep:
+                self._base = self._base + seg.offset(seg.t_end_s)
+            else:
+                keep.append(seg)
+        self._segments = keep
+
+    def add(self, target_deg: Sequence[float], t_s: float, *, speed_pct: float,
+            accel_pct: float = 100.0) -> Segment:
+        """Plan a joint move from :attr:`end_deg` to ``target_deg``, issued at ``t_s``.
+
+        If a motion is still executing, the new one blends into it (starts as it begins to decelerate);
+        otherwise it starts at ``t_s``. ``speed_pct`` is the effective speed (program x monitor, 0 < s <= 100).
+        """
+        self._fold(t_s)
+        start = self.end_deg
+        delta = np.subtract(target_deg, start)
+        duration, ramp = plan_duration(delta, speed_pct / 100.0, limits=self.limits, accel_fraction=accel_pct / 100.0)
+        if self.instant:
+            duration, ramp = 0.0, 0.0
+        else:
+            duration, ramp = duration / self.time_scale, ramp / self.time_scale
+        t0 = t_s
+        if self._segments:
+            last = self._segments[-1]
+            if last.t_end_s > t_s:
+                overlap = min(getattr(last, "ramp_s", 0.0), ramp)
+                t0 = max(t_s, last.t_end_s - overlap)
+        seg = Segment(tuple(start), tuple(float(v) for v in target_deg), t0, duration, ramp, float(speed_pct))
+        self._segments.append(seg)
+        return seg
+
+    def stop(self, t_s: float) -> float:
+        """Decelerate to rest from ``t_s``, dropping motions not yet reached; returns the time of rest."""
+        p0 = self.position(t_s)
+        v0 = np.array(self.velocity(t_s))
+        self._base = np.array(p0)
+        self._segments = []
+        if self.instant or not np.any(v0):
+            return t_s
+        # Robot-time velocities and full accelerations a = v_max / ramp; scaled back to real time.
+        s = self.time_scale
+        a_max = np.array(self.limits.max_speed_deg_s) / self.limits.ramp_s
+        t_stop_robot = float(np.max(np.abs(v0 / s) / a_max))
+        duration = t_stop_robot / s
+        self._segments.append(StopSegment(tuple(p0), tuple(float(v) for v in v0), t_s, duration))
+        return t_s + duration
