@@ -1,0 +1,280 @@
+"""ZeroMQ publish/subscribe sockets with owned lifetimes: the transport under the Communicator and the state stream.
+
+Frames on the wire:
+
+- ``publish(topic, payload)`` sends two frames ``[topic, payload]``; subscribers filter on the topic frame prefix.
+- ``send(payload)`` sends one frame, as EPypes nodes do (their SUB sockets ``recv()`` single frames with prefix
+  ``""``). Use it towards EPypes peers.
+- ``Subscriber.recv()`` accepts both and returns ``(topic, payload)``, with ``topic == b""`` for a single frame.
+
+Every socket is created in the constructor (so a bound socket's real port is known at once through
+``actual_endpoint``), has ``LINGER 0`` and is closed by ``close()`` / ``async with``. Without an explicit
+``context`` the process-wide ``zmq.asyncio.Context.instance()`` is used and never terminated by us: terminating a
+shared context would break every other socket in the process. ZeroMQ errors become :class:`BusError`.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from collections.abc import AsyncIterator, Iterable
+from typing import Any
+
+import zmq
+import zmq.asyncio
+
+from aioadept.errors import BusError
+
+__all__ = [
+    "DEFAULT_REQUEST_ENDPOINT",
+    "DEFAULT_RESPONSE_ENDPOINT",
+    "DEFAULT_STATE_ENDPOINT",
+    "Publisher",
+    "SyncPublisher",
+    "Subscriber",
+    "as_topic",
+]
+
+log = logging.getLogger(__name__)
+
+DEFAULT_REQUEST_ENDPOINT = "tcp://127.0.0.1:5555"
+"""Vision requests: the node's SUB binds, the MCN's PUB connects (docs/interfaces.md)."""
+DEFAULT_RESPONSE_ENDPOINT = "tcp://127.0.0.1:5556"
+"""Vision responses: the node's PUB binds, the MCN's SUB connects."""
+DEFAULT_STATE_ENDPOINT = "tcp://127.0.0.1:5560"
+"""Robot state stream (topic ``robot.state``): the sim's PUB binds."""
+
+
+def as_topic(topic: bytes | str) -> bytes:
+    """A topic as the bytes of its first frame (str is UTF-8 encoded)."""
+    if isinstance(topic, bytes):
+        return topic
+    if isinstance(topic, str):
+        return topic.encode()
+    raise BusError(f"topic must be bytes or str, got {type(topic).__name__}")
+
+
+def _async_context(context: zmq.Context | None) -> zmq.asyncio.Context:
+    if context is None:
+        return zmq.asyncio.Context.instance()
+    if isinstance(context, zmq.asyncio.Context):
+        return context
+    # A plain context given by the caller: shadow it (no ownership, the caller terminates it).
+    return zmq.asyncio.Context.shadow(context.underlying)
+
+
+def _attach(sock: zmq.Socket, endpoint: str, bind: bool) -> str:
+    """Bind or connect ``sock``; return the endpoint actually in use (the real port after binding to 0 or *)."""
+    try:
+        if bind:
+            sock.bind(endpoint)
+            return sock.getsockopt_string(zmq.LAST_ENDPOINT)
+        sock.connect(endpoint)
+        return endpoint
+    except zmq.ZMQError as exc:
+        sock.close(linger=0)
+        verb = "bind" if bind else "connect"
+        raise BusError(f"cannot {verb} {endpoint!r}: {exc}") from exc
+
+
+class _Owned:
+    """Shared lifetime of one owned socket."""
+
+    _sock: zmq.Socket
+    _endpoint: str
+    _actual: str
+    _bind: bool
+
+    @property
+    def endpoint(self) -> str:
+        """The endpoint as given."""
+        return self._endpoint
+
+    @property
+    def actual_endpoint(self) -> str:
+        """The endpoint in use: after binding to port 0 or ``*`` this has the real port (``LAST_ENDPOINT``)."""
+        return self._actual
+
+    @property
+    def bound(self) -> bool:
+        return self._bind
+
+    @property
+    def closed(self) -> bool:
+        return self._sock.closed
+
+    def close(self) -> None:
+        """Close the socket at once (linger 0: unsent messages are dropped). Idempotent."""
+        if not self._sock.closed:
+            self._sock.close(linger=0)
+
+    def __repr__(self) -> str:
+        state = "closed" if self.closed else ("bound" if self._bind else "connected")
+        return f"<{type(self).__name__} {state} {self._actual}>"
+
+
+class _PublisherBase(_Owned):
+    def _publish(self, topic: bytes | str, payload: bytes) -> None:
+        try:
+            self._sock.send_multipart((as_topic(topic), payload), zmq.NOBLOCK)
+        except zmq.Again:
+            # Only reachable if a peer's queue is full with a non-dropping option; PUB normally drops silently.
+            log.debug("%r: dropped a message (high-water mark)", self)
+        except zmq.ZMQError as exc:
+            raise BusError(f"publish on {self._actual} failed: {exc}") from exc
+
+    def _send(self, payload: bytes) -> None:
+        try:
+            self._sock.send(payload, zmq.NOBLOCK)
+        except zmq.Again:
+            log.debug("%r: dropped a message (high-water mark)", self)
+        except zmq.ZMQError as exc:
+            raise BusError(f"send on {self._actual} failed: {exc}") from exc
+
+
+class Publisher(_PublisherBase):
+    """An asyncio-side PUB socket.
+
+    ``Publisher(endpoint, bind=True)`` binds (a node's output); ``bind=False`` connects (the MCN's requests).
+    A PUB socket never blocks: with no subscriber, or a full queue, ZeroMQ drops the message. The ``*_nowait``
+    methods are therefore the real work and may be called from callbacks on the loop's thread; the ``async``
+    ones exist for symmetry with :class:`Subscriber`. For other threads use :class:`SyncPublisher`.
+    """
+
+    def __init__(self, endpoint: str, *, bind: bool = True, context: zmq.Context | None = None,
+                 sndhwm: int = 1000) -> None:
+        ctx = _async_context(context)
+        # A plain (synchronous) socket on the same context: sends never wait, so the asyncio machinery of
+        # zmq.asyncio (a future per send) would be pure overhead on the hot path.
+        self._sock = zmq.Socket(ctx, zmq.PUB)
+        self._sock.setsockopt(zmq.LINGER, 0)
+        self._sock.setsockopt(zmq.SNDHWM, sndhwm)
+        self._endpoint, self._bind = endpoint, bind
+        self._actual = _attach(self._sock, endpoint, bind)
+
+    def publish_nowait(self, topic: bytes | str, payload: bytes) -> None:
+        """Send ``[topic, payload]``. Raises :class:`BusError` if the socket is closed."""
+        self._publish(topic, payload)
+
+    def send_nowait(self, payload: bytes) -> None:
+        """Send the single frame ``payload`` (EPypes style)."""
+        self._send(payload)
+
+    async def publish(self, topic: bytes | str, payload: bytes) -> None:
+        """Send ``[topic, payload]``."""
+        self._publish(topic, payload)
+
+    async def send(self, payload: bytes) -> None:
+        """Send the single frame ``payload`` (EPypes style)."""
+        self._send(payload)
+
+    async def __aenter__(self) -> Publisher:
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        self.close()
+
+
+class SyncPublisher(_PublisherBase):
+    """A PUB socket for a plain thread (a camera grab loop, a simulator thread). Use it from ONE thread only.
+
+    Same frames as :class:`Publisher`; ``with SyncPublisher(...) as pub:`` closes it. Without ``context`` it uses the
+    process-wide ``zmq.Context.instance()``.
+    """
+
+    def __init__(self, endpoint: str, *, bind: bool = True, context: zmq.Context | None = None,
+                 sndhwm: int = 1000) -> None:
+        ctx = context if context is not None else zmq.Context.instance()
+        self._sock = zmq.Socket(ctx, zmq.PUB)
+        self._sock.setsockopt(zmq.LINGER, 0)
+        self._sock.setsockopt(zmq.SNDHWM, sndhwm)
+        self._endpoint, self._bind = endpoint, bind
+        self._actual = _attach(self._sock, endpoint, bind)
+
+    def publish(self, topic: bytes | str, payload: bytes) -> None:
+        """Send ``[topic, payload]``; never blocks."""
+        self._publish(topic, payload)
+
+    def send(self, payload: bytes) -> None:
+        """Send the single frame ``payload`` (EPypes style); never blocks."""
+        self._send(payload)
+
+    def __enter__(self) -> SyncPublisher:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class Subscriber(_Owned):
+    """An asyncio SUB socket. ``topics`` are subscription prefixes of the first frame (``b""``: everything).
+
+    ``Subscriber(endpoint)`` connects (the MCN's responses); ``bind=True`` binds (a node's request input).
+    ``await sub.recv()`` returns ``(topic, payload)``; ``async for topic, payload in sub`` loops until closed.
+    """
+
+    def __init__(self, endpoint: str, *, topics: Iterable[bytes | str] = (b"",), bind: bool = False,
+                 context: zmq.Context | None = None, rcvhwm: int = 1000) -> None:
+        ctx = _async_context(context)
+        self._sock = ctx.socket(zmq.SUB)
+        self._sock.setsockopt(zmq.LINGER, 0)
+        self._sock.setsockopt(zmq.RCVHWM, rcvhwm)
+        self._topics: list[bytes] = []
+        for t in topics:
+            self.subscribe(t)
+        self._endpoint, self._bind = endpoint, bind
+        self._actual = _attach(self._sock, endpoint, bind)
+
+    @property
+    def topics(self) -> tuple[bytes, ...]:
+        return tuple(self._topics)
+
+    def subscribe(self, topic: bytes | str) -> None:
+        t = as_topic(topic)
+        self._sock.setsockopt(zmq.SUBSCRIBE, t)
+        self._topics.append(t)
+
+    def unsubscribe(self, topic: bytes | str) -> None:
+        t = as_topic(topic)
+        self._sock.setsockopt(zmq.UNSUBSCRIBE, t)
+        self._topics.remove(t)
+
+    async def recv(self) -> tuple[bytes, bytes]:
+        """The next message as ``(topic, payload)``; a single-frame message has topic ``b""``.
+
+        Raises :class:`BusError` if the socket is closed or a message has more than two frames.
+        """
+        try:
+            frames: list[Any] = await self._sock.recv_multipart()
+        except zmq.ZMQError as exc:
+            raise BusError(f"receive on {self._actual} failed: {exc}") from exc
+        except asyncio.CancelledError:
+            # pyzmq cancels pending receives when the socket is closed under them; that is not a cancellation of
+            # our task, so report it as the closed socket it is.
+            task = asyncio.current_task()
+            if self._sock.closed and task is not None and not task.cancelling():
+                raise BusError(f"{self._actual}: socket closed while receiving") from None
+            raise
+        if len(frames) == 2:
+            return frames[0], frames[1]
+        if len(frames) == 1:
+            return b"", frames[0]
+        raise BusError(f"expected 1 or 2 frames on {self._actual}, got {len(frames)}")
+
+    def __aiter__(self) -> AsyncIterator[tuple[bytes, bytes]]:
+        return self._iterate()
+
+    async def _iterate(self) -> AsyncIterator[tuple[bytes, bytes]]:
+        while not self.closed:
+            try:
+                yield await self.recv()
+            except BusError:
+                if self.closed:
+                    return
+                raise
+
+    async def __aenter__(self) -> Subscriber:
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        self.close()
