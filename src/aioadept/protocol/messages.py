@@ -32,6 +32,18 @@ MAX_SKILL_NAME = 15
 """V+ program names are at most 15 characters."""
 MAX_ERROR_TEXT = 80
 
+# Extension skills (docs/protocol.md, "Extensions"). The original V+ server halts on any of them ("undefined
+# program"), so a client sends them only to servers that implement the extensions.
+STOP_SKILL = "stop"
+"""Served the moment it is read: abort the motion in progress, ack everything not yet done ``aborted``, then ack
+the stop itself ``done``."""
+HERE_SKILL = "here"
+"""No motion; the ``done`` ack carries the current pose."""
+HELLO_SKILL = "hello"
+"""No motion; the ``done`` ack carries two trailing fields: the protocol version and the server's name."""
+PROTOCOL_VERSION = 1
+"""Version of the extended protocol described in docs/protocol.md (sent in the ``hello`` ack)."""
+
 _ID_RE = re.compile(r"[0-9A-Za-z]{8}\Z")
 _SKILL_RE = re.compile(r"[a-z][a-z0-9._]{0,14}\Z")
 _NUMBER_RE = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)\Z")
