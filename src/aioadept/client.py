@@ -49,7 +49,7 @@ from aioadept.geometry import Pose
 from aioadept.protocol import (
     HELLO_SKILL,
     HERE_SKILL,
-    MAX_LINE,
+    MAX_ACK_LINE,
     NO_ID,
     STOP_SKILL,
     Ack,
@@ -245,7 +245,7 @@ class RobotClient:
     def __init__(self, host: str = "127.0.0.1", port: int = 1234, *, connect_timeout_s: float = 5.0,
                  ack_timeout_s: float | None = 60.0, observers: Iterable[Observer] = (),
                  id_start: int | None = None, auto_reconnect: bool = False,
-                 connector: Connector | None = None, max_line: int = MAX_LINE) -> None:
+                 connector: Connector | None = None, max_line: int = MAX_ACK_LINE) -> None:
         self.host = host
         self.port = port
         self.connect_timeout_s = connect_timeout_s

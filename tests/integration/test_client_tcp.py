@@ -319,7 +319,7 @@ async def test_unknown_noid_and_garbage_lines_are_recorded_not_fatal(caplog):
         for msg in await read_lines(reader, framer, 1):
             writer.write(ack_bytes("deadbeef"))                                   # unknown ID
             writer.write(encode_ack(Ack.error(None, -401, None, 1.0, 1.0, POSE)))  # 00000000
-            writer.write(b"this is not an ack\r\n" + b"x" * 300 + b"\r\n")         # garbage, oversize
+            writer.write(b"this is not an ack\r\n" + b"x" * 1100 + b"\r\n")         # garbage, oversize
             writer.write(ack_bytes(msg.id))
         await reader.read()
 

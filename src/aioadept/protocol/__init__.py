@@ -10,7 +10,7 @@ simulated server (:mod:`aioadept.sim.server`) both drive it::
 """
 
 from aioadept.protocol.codes import DEFAULT_TEXT, ErrorCode, describe
-from aioadept.protocol.framing import DELIMITER, MAX_LINE, LineFramer, Oversize
+from aioadept.protocol.framing import DELIMITER, MAX_ACK_LINE, MAX_LINE, LineFramer, Oversize
 from aioadept.protocol.messages import (
     HELLO_SKILL,
     HERE_SKILL,
@@ -35,7 +35,7 @@ from aioadept.protocol.messages import (
 )
 
 __all__ = [
-    "DEFAULT_TEXT", "DELIMITER", "HELLO_SKILL", "HERE_SKILL", "ID_LENGTH", "MAX_LINE", "MAX_SKILL_NAME", "NO_ID", "PROTOCOL_VERSION", "STOP_SKILL",
+    "DEFAULT_TEXT", "DELIMITER", "HELLO_SKILL", "HERE_SKILL", "ID_LENGTH", "MAX_ACK_LINE", "MAX_LINE", "MAX_SKILL_NAME", "NO_ID", "PROTOCOL_VERSION", "STOP_SKILL",
     "Ack", "CommandMessage", "ErrorCode", "IdAllocator", "LineFramer", "Oversize", "SkillCall", "Status",
     "check_skill_name", "describe", "encode_ack", "encode_command", "format_arg", "parse_ack", "parse_command",
     "recover_id", "sanitize_text",

@@ -13,6 +13,10 @@ from dataclasses import dataclass
 MAX_LINE = 128
 """Longest command line (without the delimiter) a V+ string can hold."""
 
+MAX_ACK_LINE = 1024
+"""Longest ack line a client accepts. Acks are not bound by the 128-character limit (V+ WRITE concatenates several
+strings), and an error ack with its message can exceed 128, so clients frame acks with this larger limit."""
+
 DELIMITER = b"\r\n"
 
 
