@@ -1,0 +1,524 @@
+"""The simulated SmartController running AdeptServer: skills, one serial executor, V+ motion semantics.
+
+Pure: no sockets, no clock. The TCP adapter (:mod:`aioadept.sim.server`) feeds it lines with the time they were
+read and calls :meth:`Controller.step` when :meth:`Controller.next_wake_s` says something is due; tests do the
+same with a fake clock. Each call returns the acks to write, each addressed to the connection that sent the
+command::
+
+    ctl = Controller()
+    ctl.connect("a")
+    out = ctl.handle(b"0000abcd:move_joints:0,-90,180,0,90,0", "a", now=0.0)   # [Outgoing("a", Ack(...done...))]
+    out = ctl.handle(b"0000abce:break", "a", now=0.0)                           # [] - waits for the motion
+    out = ctl.step(ctl.next_wake_s())                                          # [Outgoing("a", break done)]
+
+Semantics, following the original V+ AdeptServer (FACTS.md):
+
+- One executor runs skills one after another in arrival order, across all connections, like the single V+ task
+  running ``CALLS $skill``. While a skill waits (``break`` for the robot to stop, a move for a free slot), later
+  commands wait behind it.
+- Forward processing: a move acks as soon as its motion is planned and started; at most one motion waits
+  ahead of the executing one, so a third move waits until the second starts. Consecutive motions without
+  ``break`` blend.
+- ``set_speed`` applies to the next motion instruction only (V+ ``SPEED`` without ``ALWAYS``), which consumes it
+  whether it succeeds or fails. Effective speed = program speed x monitor speed / 100.
+- Relative moves read ``HERE`` when they run, as the V+ program does: without a ``break`` before them they start
+  from wherever the arm is at that moment, not from the previous motion's target.
+- Errors never halt the server: a bad line, unknown skill, wrong argument count or value, unreachable target or
+  joint limit each answer an ``error`` ack with a code from :class:`aioadept.protocol.ErrorCode`; the robot does
+  not move and the next command runs.
+- ``stop`` (an extension) is served the moment it is read: the executing skill and every queued command, from
+  every connection, are acked ``aborted``; the arm decelerates to rest; then ``stop`` is acked ``done``.
+- ``hello`` (an extension) is also answered at once, with trailing fields ``aioadept-sim``, the package version
+  and the protocol version.
+- A connection that goes away loses its queued commands; they never run. Motions it already started go on.
+
+Skills live in a table (:attr:`Controller.skills`); :meth:`Controller.register` adds user skills. A skill is a
+function ``skill(ctl, args)`` that returns ``None`` (done now), a :class:`SkillResult` (done, with trailing
+fields), or a generator that yields the server time it wants to be resumed at and finally returns one of those.
+It raises :class:`aioadept.errors.RobotError` to answer an ``error`` ack.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Callable, Generator, Hashable, Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any, Union
+
+from aioadept.errors import RemoteProtocolError, RobotError
+from aioadept.geometry import NULL, Pose, rel_tool, rel_world
+from aioadept.protocol import (
+    NO_ID,
+    Ack,
+    CommandMessage,
+    ErrorCode,
+    Oversize,
+    Status,
+    parse_command,
+    recover_id,
+)
+from aioadept.sim import kinematics as kin
+from aioadept.sim.motion import MotionLimits, Trajectory
+
+PROTOCOL_VERSION = "1"
+SERVER_NAME = "aioadept-sim"
+AIR_SIGNAL = 8
+"""The digital output that enable_air / disable_air switch (AdeptServer uses signal 8)."""
+
+ConnId = Hashable
+
+
+@dataclass(frozen=True, slots=True)
+class Outgoing:
+    """An ack to write to one connection."""
+
+    conn: ConnId
+    ack: Ack
+
+
+@dataclass(frozen=True, slots=True)
+class SkillResult:
+    """What a finished skill answers: trailing fields after the pose (``extra``)."""
+
+    extra: tuple[str, ...] = ()
+
+
+SkillGen = Generator[float, None, Union[SkillResult, None]]
+SkillFunc = Callable[["Controller", tuple[float, ...]], Union[SkillResult, None, SkillGen]]
+
+
+@dataclass(frozen=True, slots=True)
+class SkillSpec:
+    """One entry of the skill table.
+
+    ``nargs``: the argument counts accepted (None: any). ``immediate``: served when read instead of queued (only
+    for skills that never move the arm or wait; ``stop`` is handled by the controller itself).
+    """
+
+    name: str
+    func: SkillFunc
+    nargs: tuple[int, ...] | None = (0,)
+    immediate: bool = False
+
+
+@dataclass(slots=True)
+class _Entry:
+    conn: ConnId
+    id: str
+    t_read_s: float
+    spec: SkillSpec | None = None
+    args: tuple[float, ...] = ()
+    error: tuple[int, str | None] | None = None
+
+
+@dataclass(slots=True)
+class _Running:
+    entry: _Entry
+    t_start_s: float
+    gen: SkillGen
+    wake_s: float
+
+
+@dataclass(frozen=True, slots=True)
+class ControllerState:
+    """A snapshot of the robot for the state stream (see docs/interfaces.md)."""
+
+    t_s: float
+    joints_deg: tuple[float, ...]
+    pose: Pose
+    in_motion: bool
+    speed_pct: float
+    air: bool
+
+
+class Controller:
+    """The simulated controller; see the module docstring. All times are server-clock seconds."""
+
+    def __init__(self, *, joints_deg: Sequence[float] = kin.HOME_JOINTS_DEG, tool: Pose = NULL,
+                 monitor_speed_pct: float = 100.0, time_scale: float = 1.0, instant: bool = False,
+                 motion_limits: MotionLimits = MotionLimits(), joint_limits: kin.JointLimits = kin.VIPER_S850_LIMITS,
+                 max_queued_per_conn: int = 10_000, skills: Iterable[SkillSpec] | None = None,
+                 version: str | None = None) -> None:
+        if not 0 < monitor_speed_pct <= 100:
+            raise ValueError(f"monitor_speed_pct: {monitor_speed_pct} outside (0, 100]")
+        joint_limits.check(joints_deg)
+        self.tool = tool
+        self.monitor_speed_pct = float(monitor_speed_pct)
+        self.joint_limits = joint_limits
+        self.trajectory = Trajectory(joints_deg, limits=motion_limits, time_scale=time_scale, instant=instant)
+        self.max_queued_per_conn = max_queued_per_conn
+        self.always_speed_pct = 100.0
+        self.pending_speed_pct: float | None = None
+        self.accel_pct = 100.0
+        self.signals: dict[int, bool] = {}
+        self.now_s = 0.0
+        """The time of the event being processed (a skill reads it as 'now')."""
+        if version is None:
+            from aioadept import __version__ as version
+        self.version = version
+        self.skills: dict[str, SkillSpec] = {}
+        for spec in default_skills() if skills is None else skills:
+            self.skills[spec.name] = spec
+        self._queue: deque[_Entry] = deque()
+        self._queued_by_conn: dict[ConnId, int] = {}
+        self._running: _Running | None = None
+        self._conns: set[ConnId] = set()
+        self._out: list[Outgoing] = []
+        self.executed = 0
+        """Skills run to completion (done or error), for inspection in tests and benchmarks."""
+
+    # -- skill table ---------------------------------------------------------------------------------------
+    def register(self, name: str, func: SkillFunc, *, nargs: int | Sequence[int] | None = 0,
+                 immediate: bool = False) -> None:
+        """Add or replace a skill. ``nargs``: an accepted argument count, several, or None for any."""
+        from aioadept.protocol import check_skill_name
+
+        check_skill_name(name)
+        counts = None if nargs is None else ((nargs,) if isinstance(nargs, int) else tuple(nargs))
+        self.skills[name] = SkillSpec(name, func, counts, immediate)
+
+    # -- connections ---------------------------------------------------------------------------------------
+    def connect(self, conn: ConnId) -> None:
+        self._conns.add(conn)
+
+    def disconnect(self, conn: ConnId, now: float | None = None) -> None:
+        """Forget a connection: its queued commands are discarded; a skill it started runs on, unacknowledged."""
+        if now is not None:
+            self._advance(now)
+        self._conns.discard(conn)
+        self._queue = deque(e for e in self._queue if e.conn != conn)
+        self._queued_by_conn.pop(conn, None)
+
+    @property
+    def connections(self) -> frozenset[ConnId]:
+        return frozenset(self._conns)
+
+    def queued(self, conn: ConnId | None = None) -> int:
+        """Commands waiting to run (of one connection, or all)."""
+        return len(self._queue) if conn is None else self._queued_by_conn.get(conn, 0)
+
+    @property
+    def busy(self) -> bool:
+        """True while a skill is executing (e.g. a break waiting)."""
+        return self._running is not None
+
+    # -- input ---------------------------------------------------------------------------------------------
+    def handle(self, message: bytes | Oversize | CommandMessage, conn: ConnId, now: float) -> list[Outgoing]:
+        """Take one framed line (or its parsed message) read from ``conn`` at ``now``; return acks now due."""
+        self._advance(now)
+        entry = self._entry(message, conn, now)
+        if entry.error is None and entry.spec is not None and entry.spec.name == "stop":
+            self._stop(entry, now)
+        elif entry.error is None and entry.spec is not None and entry.spec.immediate:
+            self._run_immediate(entry, now)
+        elif self._queued_by_conn.get(conn, 0) >= self.max_queued_per_conn:
+            self._emit(entry, Status.ERROR, now, now, (ErrorCode.SERVER_BUSY, "too many queued commands"))
+        else:
+            self._queue.append(entry)
+            self._queued_by_conn[conn] = self._queued_by_conn.get(conn, 0) + 1
+        self._advance(now)
+        return self._drain()
+
+    def step(self, now: float) -> list[Outgoing]:
+        """Run everything due up to ``now``; return the acks produced."""
+        self._advance(now)
+        return self._drain()
+
+    def next_wake_s(self) -> float | None:
+        """When :meth:`step` next has work (None: nothing until a new message arrives)."""
+        if self._running is not None:
+            return self._running.wake_s
+        return None
+
+    def _entry(self, message: bytes | Oversize | CommandMessage, conn: ConnId, now: float) -> _Entry:
+        if isinstance(message, Oversize):
+            return _Entry(conn, recover_id(message.head) or NO_ID, now,
+                          error=(ErrorCode.LINE_TOO_LONG, "line longer than 128 characters"))
+        if not isinstance(message, CommandMessage):
+            try:
+                message = parse_command(bytes(message))
+            except RemoteProtocolError as exc:
+                return _Entry(conn, exc.id or NO_ID, now, error=(exc.code, exc.message))
+        spec = self.skills.get(message.skill)
+        if spec is None:
+            return _Entry(conn, message.id, now, error=(ErrorCode.UNKNOWN_SKILL, f"undefined skill {message.skill}"))
+        if spec.nargs is not None and len(message.args) not in spec.nargs:
+            want = " or ".join(map(str, spec.nargs))
+            return _Entry(conn, message.id, now, error=(
+                ErrorCode.WRONG_ARGUMENT_COUNT, f"{spec.name} takes {want} arguments, got {len(message.args)}"))
+        return _Entry(conn, message.id, now, spec, tuple(float(a) for a in message.args))
+
+    # -- executor ------------------------------------------------------------------------------------------
+    def _advance(self, now: float) -> None:
+        """Process every event due up to ``now``, each at its own time."""
+        for _ in range(1_000_000):  # a bound, so a skill that keeps yielding the past cannot hang the server
+            run = self._running
+            if run is not None:
+                if run.wake_s > now:
+                    break
+                self._resume(run, max(run.wake_s, self.now_s))
+                continue
+            if not self._queue:
+                break
+            entry = self._queue.popleft()
+            n = self._queued_by_conn.get(entry.conn, 1) - 1
+            if n:
+                self._queued_by_conn[entry.conn] = n
+            else:
+                self._queued_by_conn.pop(entry.conn, None)
+            t = max(self.now_s, entry.t_read_s)
+            self._start(entry, t)
+        self.now_s = max(self.now_s, now)
+
+    def _start(self, entry: _Entry, t: float) -> None:
+        self.now_s = t
+        if entry.error is not None:
+            self._emit(entry, Status.ERROR, t, t, entry.error)
+            return
+        assert entry.spec is not None
+        try:
+            result = entry.spec.func(self, entry.args)
+        except RobotError as exc:
+            self._emit(entry, Status.ERROR, t, t, (exc.code, exc.message))
+            return
+        except Exception as exc:  # a user skill's bug must not take the server down
+            self._emit(entry, Status.ERROR, t, t, (ErrorCode.SKILL_FAILED, f"{type(exc).__name__}: {exc}"))
+            return
+        if isinstance(result, Generator):
+            self._running = _Running(entry, t, result, t)
+            self._resume(self._running, t)
+        else:
+            self._finish(entry, t, t, result)
+
+    def _resume(self, run: _Running, t: float) -> None:
+        self.now_s = t
+        try:
+            wake = run.gen.send(None)
+        except StopIteration as stop:
+            self._running = None
+            self._finish(run.entry, run.t_start_s, t, stop.value)
+            return
+        except RobotError as exc:
+            self._running = None
+            self._emit(run.entry, Status.ERROR, run.t_start_s, t, (exc.code, exc.message))
+            return
+        except Exception as exc:
+            self._running = None
+            self._emit(run.entry, Status.ERROR, run.t_start_s, t,
+                       (ErrorCode.SKILL_FAILED, f"{type(exc).__name__}: {exc}"))
+            return
+        run.wake_s = float(wake)
+
+    def _finish(self, entry: _Entry, t_start: float, t_done: float, result: Any) -> None:
+        extra = result.extra if isinstance(result, SkillResult) else ()
+        self._emit(entry, Status.DONE, t_start, t_done, extra=extra)
+
+    def _run_immediate(self, entry: _Entry, now: float) -> None:
+        assert entry.spec is not None
+        try:
+            result = entry.spec.func(self, entry.args)
+        except RobotError as exc:
+            self._emit(entry, Status.ERROR, now, now, (exc.code, exc.message))
+            return
+        if isinstance(result, Generator):
+            result.close()
+            self._emit(entry, Status.ERROR, now, now, (ErrorCode.INTERNAL, "immediate skill must not wait"))
+            return
+        self._finish(entry, now, now, result)
+
+    def _stop(self, entry: _Entry, now: float) -> None:
+        run = self._running
+        if run is not None and not (run.entry.spec is not None and run.entry.spec.name == "stop"):
+            run.gen.close()
+            self._running = None
+            self._emit(run.entry, Status.ABORTED, run.t_start_s, now)
+            run = None
+        for e in self._queue:
+            self._emit(e, Status.ABORTED, now, now)
+        self._queue.clear()
+        self._queued_by_conn.clear()
+        self.pending_speed_pct = None
+        self.trajectory.stop(now)
+        spec = SkillSpec("stop", lambda ctl, args: ctl.wait_rest(), (0,))
+        stop_entry = _Entry(entry.conn, entry.id, now, spec)
+        if run is None:
+            self._start(stop_entry, now)
+        else:
+            # A stop is already bringing the arm to rest: this one is answered when it has.
+            self._queue.appendleft(stop_entry)
+            self._queued_by_conn[entry.conn] = self._queued_by_conn.get(entry.conn, 0) + 1
+
+    # -- output --------------------------------------------------------------------------------------------
+    def _emit(self, entry: _Entry, status: Status, t_start: float, t_done: float,
+              error: tuple[int, str | None] | None = None, extra: tuple[str, ...] = ()) -> None:
+        if status is not Status.ABORTED:
+            self.executed += 1
+        if entry.conn not in self._conns:
+            return
+        pose = self.here_at(t_done)
+        if status is Status.ERROR:
+            assert error is not None
+            ack = Ack.error(entry.id, int(error[0]), error[1], t_start, t_done, pose)
+        else:
+            ack = Ack(entry.id, status, t_start, t_done, pose, extra)
+        self._out.append(Outgoing(entry.conn, ack))
+
+    def _drain(self) -> list[Outgoing]:
+        out, self._out = self._out, []
+        return out
+
+    # -- the robot, as skills see it ------------------------------------------------------------------------
+    def joints_at(self, t_s: float) -> tuple[float, ...]:
+        return self.trajectory.position(t_s)
+
+    def here_at(self, t_s: float) -> Pose:
+        """V+ ``HERE`` at ``t_s``: the tool pose in the world frame."""
+        return kin.forward(self.trajectory.position(t_s), self.tool)
+
+    @property
+    def joints_deg(self) -> tuple[float, ...]:
+        return self.joints_at(self.now_s)
+
+    @property
+    def here(self) -> Pose:
+        return self.here_at(self.now_s)
+
+    @property
+    def air(self) -> bool:
+        return self.signals.get(AIR_SIGNAL, False)
+
+    def state(self, t_s: float) -> ControllerState:
+        """Snapshot for the state stream at ``t_s`` (may be later than the last processed event)."""
+        joints = self.trajectory.position(t_s)
+        speed = self.trajectory.current_speed_pct(t_s)
+        if speed is None:
+            speed = (self.pending_speed_pct or self.always_speed_pct) * self.monitor_speed_pct / 100.0
+        return ControllerState(t_s, joints, kin.forward(joints, self.tool), self.trajectory.in_motion(t_s),
+                               float(speed), self.air)
+
+    def take_speed_pct(self) -> float:
+        """The effective speed (program x monitor) for the next motion; consumes a one-shot ``set_speed``."""
+        program = self.always_speed_pct if self.pending_speed_pct is None else self.pending_speed_pct
+        self.pending_speed_pct = None
+        return program * self.monitor_speed_pct / 100.0
+
+    def move_joints(self, target_deg: Sequence[float]) -> SkillGen:
+        """Generator for skills: check the path, wait for a motion slot, start the motion (V+ ``MOVE``)."""
+        speed = self.take_speed_pct()
+        target = tuple(float(v) for v in target_deg)
+        start = self.trajectory.end_deg
+        # Both ends inside the limit box: the joint-space segment between them is too (the box is convex).
+        kin.check_joint_path(start, target, limits=self.joint_limits)
+        while True:
+            pending = self.trajectory.pending_start_s(self.now_s)
+            if pending is None:
+                break
+            yield pending
+        self.trajectory.add(target, self.now_s, speed_pct=speed, accel_pct=self.accel_pct)
+        return None
+
+    def move_pose(self, pose: Pose) -> SkillGen:
+        """Generator for skills: inverse kinematics from the planned end, then :meth:`move_joints`."""
+        try:
+            target = kin.inverse(pose, self.trajectory.end_deg, self.tool, limits=self.joint_limits)
+        except RobotError:
+            self.take_speed_pct()  # the failed motion instruction still consumes SPEED
+            raise
+        return (yield from self.move_joints(target))
+
+    def wait_rest(self) -> SkillGen:
+        """Generator for skills: V+ ``BREAK``, until every planned motion is done."""
+        while self.trajectory.t_rest_s > self.now_s:
+            yield self.trajectory.t_rest_s
+        return None
+
+
+# -- the AdeptServer skills ------------------------------------------------------------------------------------
+
+def _finite(args: Sequence[float]) -> None:
+    for a in args:
+        if not math.isfinite(a):
+            raise RobotError(ErrorCode.ILLEGAL_VALUE, "argument is not finite")
+
+
+def _move_to(ctl: Controller, args: tuple[float, ...]) -> SkillGen:
+    _finite(args)
+    return (yield from ctl.move_pose(Pose(*args)))
+
+
+def _move_joints(ctl: Controller, args: tuple[float, ...]) -> SkillGen:
+    _finite(args)
+    return (yield from ctl.move_joints(args))
+
+
+def _move_rel_world(ctl: Controller, args: tuple[float, ...]) -> SkillGen:
+    _finite(args)
+    return (yield from ctl.move_pose(rel_world(ctl.here, args)))
+
+
+def _move_rel_tool(ctl: Controller, args: tuple[float, ...]) -> SkillGen:
+    _finite(args)
+    return (yield from ctl.move_pose(rel_tool(ctl.here, args)))
+
+
+def _move_rel_joints(ctl: Controller, args: tuple[float, ...]) -> SkillGen:
+    _finite(args)
+    return (yield from ctl.move_joints([a + d for a, d in zip(ctl.joints_deg, args)]))
+
+
+def _break(ctl: Controller, args: tuple[float, ...]) -> SkillGen:
+    return (yield from ctl.wait_rest())
+
+
+def _set_speed(ctl: Controller, args: tuple[float, ...]) -> None:
+    (speed,) = args
+    if not 0 < speed <= 100:
+        raise RobotError(ErrorCode.ILLEGAL_VALUE, f"speed {speed:g} outside 1..100")
+    ctl.pending_speed_pct = float(speed)
+
+
+def _enable_air(ctl: Controller, args: tuple[float, ...]) -> None:
+    ctl.signals[AIR_SIGNAL] = True
+
+
+def _disable_air(ctl: Controller, args: tuple[float, ...]) -> None:
+    ctl.signals[AIR_SIGNAL] = False
+
+
+def _here(ctl: Controller, args: tuple[float, ...]) -> SkillResult:
+    # The ack's pose is HERE already; the joints follow as trailing fields for tools that want them.
+    return SkillResult((",".join("%.3f" % j for j in ctl.joints_deg),))
+
+
+def _hello(ctl: Controller, args: tuple[float, ...]) -> SkillResult:
+    return SkillResult((SERVER_NAME, ctl.version, PROTOCOL_VERSION))
+
+
+def _stop_placeholder(ctl: Controller, args: tuple[float, ...]) -> None:  # pragma: no cover - never called
+    raise AssertionError("stop is handled by the controller")
+
+
+def default_skills() -> list[SkillSpec]:
+    """The AdeptServer skills plus our extensions (stop, here, hello)."""
+    six = (6,)
+    return [
+        SkillSpec("move_to", _move_to, six),
+        SkillSpec("move_joints", _move_joints, six),
+        SkillSpec("move_rel_world", _move_rel_world, six),
+        SkillSpec("move_rel_tool", _move_rel_tool, six),
+        SkillSpec("move_rel_joints", _move_rel_joints, six),
+        SkillSpec("break", _break, (0,)),
+        SkillSpec("set_speed", _set_speed, (1,)),
+        SkillSpec("enable_air", _enable_air, (0,)),
+        SkillSpec("disable_air", _disable_air, (0,)),
+        SkillSpec("here", _here, (0,)),
+        SkillSpec("hello", _hello, (0,), immediate=True),
+        SkillSpec("stop", _stop_placeholder, (0,), immediate=True),
+    ]
+
+
+__all__ = [
+    "AIR_SIGNAL", "PROTOCOL_VERSION", "SERVER_NAME", "Controller", "ControllerState", "Outgoing", "SkillResult",
+    "SkillSpec", "default_skills",
+]
