@@ -28,8 +28,8 @@ Semantics, following the original V+ AdeptServer (FACTS.md):
   not move and the next command runs.
 - ``stop`` (an extension) is served the moment it is read: the executing skill and every queued command, from
   every connection, are acked ``aborted``; the arm decelerates to rest; then ``stop`` is acked ``done``.
-- ``hello`` (an extension) is also answered at once, with trailing fields ``aioadept-sim``, the package version
-  and the protocol version.
+- ``hello`` (an extension) runs in order like any skill; its ack carries two trailing fields, the protocol
+  version and the server name (``1:aioadept-sim 0.1.0``), as docs/protocol.md specifies.
 - A connection that goes away loses its queued commands; they never run. Motions it already started go on.
 
 Skills live in a table (:attr:`Controller.skills`); :meth:`Controller.register` adds user skills. A skill is a
@@ -50,6 +50,7 @@ from aioadept.errors import RemoteProtocolError, RobotError
 from aioadept.geometry import NULL, Pose, rel_tool, rel_world
 from aioadept.protocol import (
     NO_ID,
+    PROTOCOL_VERSION,
     Ack,
     CommandMessage,
     ErrorCode,
@@ -61,7 +62,6 @@ from aioadept.protocol import (
 from aioadept.sim import kinematics as kin
 from aioadept.sim.motion import MotionLimits, Trajectory
 
-PROTOCOL_VERSION = "1"
 SERVER_NAME = "aioadept-sim"
 AIR_SIGNAL = 8
 """The digital output that enable_air / disable_air switch (AdeptServer uses signal 8)."""
@@ -492,7 +492,7 @@ def _here(ctl: Controller, args: tuple[float, ...]) -> SkillResult:
 
 
 def _hello(ctl: Controller, args: tuple[float, ...]) -> SkillResult:
-    return SkillResult((SERVER_NAME, ctl.version, PROTOCOL_VERSION))
+    return SkillResult((str(PROTOCOL_VERSION), f"{SERVER_NAME} {ctl.version}"))
 
 
 def _stop_placeholder(ctl: Controller, args: tuple[float, ...]) -> None:  # pragma: no cover - never called
@@ -513,12 +513,12 @@ def default_skills() -> list[SkillSpec]:
         SkillSpec("enable_air", _enable_air, (0,)),
         SkillSpec("disable_air", _disable_air, (0,)),
         SkillSpec("here", _here, (0,)),
-        SkillSpec("hello", _hello, (0,), immediate=True),
+        SkillSpec("hello", _hello, (0,)),
         SkillSpec("stop", _stop_placeholder, (0,), immediate=True),
     ]
 
 
 __all__ = [
-    "AIR_SIGNAL", "PROTOCOL_VERSION", "SERVER_NAME", "Controller", "ControllerState", "Outgoing", "SkillResult",
+    "AIR_SIGNAL", "SERVER_NAME", "Controller", "ControllerState", "Outgoing", "SkillResult",
     "SkillSpec", "default_skills",
 ]

@@ -209,13 +209,23 @@ def test_acks_go_to_the_sender_in_one_serial_order(rig):
     assert rig.ack("b", h).extra[0] == ",".join("%.3f" % v for v in (60, -90, 180, 0, 90, 0))
 
 
-def test_hello_is_answered_at_once_even_during_a_break(rig):
+def test_hello_reports_protocol_version_and_server_name_in_order(rig):
+    rig.send("a", "move_joints", 60, -90, 180, 0, 90, 0, now=0.0)
+    b = rig.send("a", "break", now=0.0)
+    h = rig.send("b", "hello", now=0.01)
+    assert rig.ack("b", h) is None  # executed in order, behind the break
+    rig.run_until_idle()
+    ack = rig.ack("b", h)
+    assert ack.status is Status.DONE and ack.extra == ("1", f"aioadept-sim {rig.ctl.version}")
+    assert ack.t_done_s == pytest.approx(rig.ack("a", b).t_done_s)
+
+
+def test_immediate_user_skill_is_served_during_a_break(rig):
+    rig.ctl.register("ping", lambda ctl, args: SkillResult(("pong",)), immediate=True)
     rig.send("a", "move_joints", 60, -90, 180, 0, 90, 0, now=0.0)
     rig.send("a", "break", now=0.0)
-    h = rig.send("b", "hello", now=0.01)
-    ack = rig.ack("b", h)
-    assert ack.status is Status.DONE and ack.extra[0] == "aioadept-sim" and ack.extra[2] == "1"
-    assert ack.t_done_s == pytest.approx(0.01)
+    p = rig.send("b", "ping", now=0.01)
+    assert rig.ack("b", p).extra == ("pong",) and rig.ack("b", p).t_done_s == pytest.approx(0.01)
 
 
 def test_air_is_digital_output_8(rig):
