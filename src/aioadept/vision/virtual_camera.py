@@ -1,0 +1,455 @@
+"""A virtual camera that sees the calibration object on the simulated robot's tool, with thin-lens defocus.
+
+Where it sits: the sim publishes :class:`aioadept.bus.messages.RobotState` at 100 Hz; a
+:class:`RobotStateFollower` (one owned thread) keeps a short :class:`PoseHistory` of tool poses stamped on receipt;
+:class:`VirtualCamera` renders a frame at ``time.time()`` from the pose interpolated at that time, and the
+acquisition service buffers the frames like those of a real camera.
+
+Model:
+
+- a pinhole camera fixed in the world (``camera_pose``: OpenCV axes, z along the optical axis, x right, y down),
+  1024 x 768 px of 4.65 um (Prosilica GC1020), focal length 35 mm (the paper's Fujinon HF35HA-1B);
+- the paper's calibration object (:class:`CalibrationTarget`): a white plate with nested rectangles drawn as thin
+  black lines, on a dark background, fixed to the tool (``target_offset`` from the tool frame; default: centred on
+  the tool origin, facing along the tool's +z);
+- thin-lens defocus: the lens is focused at ``focus_distance_mm``; an object at distance u is imaged with a circle
+  of confusion of diameter ``c = A * |v_u - v_s| / v_u`` on the sensor (``A = f / N`` the aperture, ``v`` the image
+  distances ``f u / (u - f)``), rendered as a disk kernel, combined with a small in-focus blur of lens and sensor;
+- additive Gaussian sensor noise, mono8.
+
+:func:`paper_camera` builds the camera of the paper's experiment: it sits on the tool's +z axis in front of the
+approach pose (:func:`paper_approach_pose`, where ``init_move`` leaves the robot), looking back at the tool, with
+the focal plane ``focus_offset_mm`` (default 20 mm) ahead of the approach pose. Moving the tool along +z
+(``MoveToolZ(+delta_z)``) brings the object closer; over a sweep the sharpness rises to one peak at the focal plane
+and falls. With f/2.8 the circle of confusion grows by about 1.4 px per mm of defocus: a depth of field of about
+3 mm (circle <= 2 px), so steps of 1.5-2.5 mm are resolved.
+
+Rendering cost is bounded for >= 10 fps: the target texture is drawn once at the image scale of the focal plane,
+each frame warps it (``cv2.warpPerspective``) into the bounding box of the projected plate only, blurs that box with
+a disk kernel from a cache, and adds a window of a precomputed noise field at a random offset.
+"""
+
+from __future__ import annotations
+
+import bisect
+import logging
+import math
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from aioadept.geometry import NULL, Pose, inverse_transform, trans
+from aioadept.vision.sources import Camera, Frame
+
+log = logging.getLogger(__name__)
+
+# The paper's init_move (Semeniuta & Falkman 2019, "Coroutines"): joints of the home configuration, the relative
+# joint move, the tool-frame move and the final J6 rotation that together reach the approach pose.
+PAPER_HOME_JOINTS_DEG = (0.0, -90.0, 180.0, 0.0, 90.0, 0.0)
+PAPER_REL_JOINTS_DEG = (-90.0, 60.0, 30.0, -90.0, 0.0, 0.0)
+PAPER_REL_TOOL = (40.0, -25.0, 185.0, 0.0, 0.0, 0.0)
+PAPER_REL_JOINTS_2_DEG = (0.0, 0.0, 0.0, 0.0, 0.0, 1.5)
+
+
+@dataclass(frozen=True, slots=True)
+class LensOptics:
+    """Camera and lens. Defaults: Prosilica GC1020 (1024 x 768, 4.65 um pixels) with a 35 mm lens at f/2.8.
+
+    ``psf_floor_px`` is the blur diameter of lens and sensor at perfect focus (no real lens is a pinhole).
+    """
+
+    focal_length_mm: float = 35.0
+    f_number: float = 2.8
+    pixel_size_mm: float = 0.00465
+    width_px: int = 1024
+    height_px: int = 768
+    psf_floor_px: float = 1.2
+
+    @property
+    def aperture_mm(self) -> float:
+        return self.focal_length_mm / self.f_number
+
+    def image_distance_mm(self, object_distance_mm: float) -> float:
+        """Thin lens: distance behind the lens at which an object at ``object_distance_mm`` is in focus."""
+        f = self.focal_length_mm
+        if object_distance_mm <= f:
+            return math.inf
+        return f * object_distance_mm / (object_distance_mm - f)
+
+    def coc_px(self, object_distance_mm: float, focus_distance_mm: float) -> float:
+        """Diameter (px) of the circle of confusion of a point at ``object_distance_mm`` when the lens is focused
+        at ``focus_distance_mm`` (both measured from the lens along the optical axis)."""
+        v_obj = self.image_distance_mm(object_distance_mm)
+        v_sensor = self.image_distance_mm(focus_distance_mm)
+        if math.isinf(v_obj):
+            return math.inf
+        return self.aperture_mm * abs(v_obj - v_sensor) / v_obj / self.pixel_size_mm
+
+    def blur_diameter_px(self, object_distance_mm: float, focus_distance_mm: float) -> float:
+        """Total blur diameter: circle of confusion combined with the in-focus floor."""
+        return math.hypot(self.coc_px(object_distance_mm, focus_distance_mm), self.psf_floor_px)
+
+
+@dataclass(frozen=True, slots=True)
+class CalibrationTarget:
+    """The paper's calibration object (Fig. 6): a white plate ``width_mm`` x ``height_mm`` with ``n_rectangles``
+    nested rectangles drawn as black lines ``line_width_mm`` wide, the outermost ``border_mm`` inside the plate's
+    edge and each next one ``spacing_mm`` further in. Grey levels: ``white`` plate, ``ink`` lines."""
+
+    width_mm: float = 21.0
+    height_mm: float = 14.0
+    n_rectangles: int = 4
+    line_width_mm: float = 0.15
+    border_mm: float = 2.0
+    spacing_mm: float = 1.2
+    white: int = 225
+    ink: int = 30
+
+    def __post_init__(self) -> None:
+        inner = 2 * (self.border_mm + (self.n_rectangles - 1) * self.spacing_mm + self.line_width_mm)
+        if inner >= min(self.width_mm, self.height_mm):
+            raise ValueError("calibration target: the nested rectangles do not fit on the plate")
+
+    def texture(self, px_per_mm: float) -> np.ndarray:
+        """The plate as a mono8 image at ``px_per_mm``, drawn at 4x and area-averaged so thin lines keep their
+        grey-level weight (anti-aliased)."""
+        ss = 4
+        s = px_per_mm * ss
+        w, h = max(2, round(self.width_mm * s)), max(2, round(self.height_mm * s))
+        img = np.full((h, w), self.white, np.uint8)
+        lw = max(1, round(self.line_width_mm * s))
+        for i in range(self.n_rectangles):
+            inset = self.border_mm + i * self.spacing_mm
+            x0, y0 = round(inset * s), round(inset * s)
+            x1, y1 = w - 1 - x0, h - 1 - y0
+            # Filled black rectangle, then white inside: a border exactly lw px wide on every side.
+            img[y0:y1 + 1, x0:x1 + 1] = self.ink
+            img[y0 + lw:y1 + 1 - lw, x0 + lw:x1 + 1 - lw] = self.white
+        out_w, out_h = max(2, round(self.width_mm * px_per_mm)), max(2, round(self.height_mm * px_per_mm))
+        return cv2.resize(img, (out_w, out_h), interpolation=cv2.INTER_AREA)
+
+
+def disk_kernel(diameter_px: float) -> np.ndarray:
+    """A normalised disk (pillbox) kernel of the given diameter, anti-aliased by 8x8 supersampling per pixel.
+
+    Diameters below 1 px give the identity kernel.
+    """
+    if diameter_px <= 1.0:
+        return np.ones((1, 1), np.float32)
+    r = diameter_px / 2.0
+    half = int(math.ceil(r - 0.5))
+    n = 2 * half + 1
+    ss = 8
+    coords = (np.arange(n * ss) + 0.5) / ss - n / 2.0
+    xx, yy = np.meshgrid(coords, coords)
+    inside = (xx * xx + yy * yy <= r * r).astype(np.float32)
+    k = inside.reshape(n, ss, n, ss).mean(axis=(1, 3))
+    return (k / k.sum()).astype(np.float32)
+
+
+# ------------------------------------------------------------------------------------------ paper geometry
+def paper_approach_pose(forward: Callable[[Sequence[float]], Pose] | None = None) -> Pose:
+    """The approach pose of the paper's focus application: where ``init_move`` leaves the robot.
+
+    ``MoveJoints([0,-90,180,0,90,0]); MoveRelJoints([-90,60,30,-90,0,0]); MoveRelTool([40,-25,185,0,0,0]);
+    MoveRelJoints([0,0,0,0,0,1.5])``, computed with the sim's kinematics (``aioadept.sim.kinematics``): forward
+    kinematics of the joints after the first two moves, the tool-frame move, inverse kinematics for its joints,
+    and forward kinematics again after the J6 increment. ``forward`` may replace the sim's forward function (the
+    inverse then becomes a tool-frame composition, which is what a J6 rotation is for a flange on the J6 axis).
+    """
+    from aioadept.sim import kinematics as kin
+
+    fk = forward or kin.forward
+    joints = [h + d for h, d in zip(PAPER_HOME_JOINTS_DEG, PAPER_REL_JOINTS_DEG)]
+    after_tool = fk(joints) @ Pose.from_seq(PAPER_REL_TOOL)
+    if forward is None:
+        j = kin.inverse(after_tool, joints)
+        return kin.forward([a + d for a, d in zip(j, PAPER_REL_JOINTS_2_DEG)])
+    return after_tool @ Pose(roll=PAPER_REL_JOINTS_2_DEG[5])
+
+
+def camera_facing_tool(tool_pose: Pose, distance_mm: float) -> Pose:
+    """Pose of a camera on the tool's +z axis ``distance_mm`` ahead of ``tool_pose``, looking back at the tool.
+
+    Camera axes (OpenCV): z = -tool z (towards the tool), x = -tool x, y = tool y.
+    """
+    return tool_pose @ Pose(z=distance_mm, pitch=180.0)
+
+
+# ------------------------------------------------------------------------------------------ the camera
+class VirtualCamera(Camera):
+    """Renders the calibration object on the robot's tool as a mono8 frame (see the module docstring).
+
+    ``pose_source(t_s)`` returns the tool pose at epoch time ``t_s`` or ``None`` when unknown (no robot state yet;
+    the frame then shows the empty background). :meth:`render` takes a pose directly (tests, figures).
+    ``seed`` makes the noise reproducible.
+    """
+
+    def __init__(self, pose_source: Callable[[float], Pose | None] | None = None, *, camera_pose: Pose,
+                 focus_distance_mm: float, optics: LensOptics = LensOptics(),
+                 target: CalibrationTarget = CalibrationTarget(), target_offset: Pose = NULL,
+                 noise_sigma: float = 2.0, background: int = 18, seed: int | None = None,
+                 camera_id: str = "virtual", clock: Callable[[], float] = time.time) -> None:
+        self.camera_id = camera_id
+        self.camera_pose = camera_pose
+        self.focus_distance_mm = float(focus_distance_mm)
+        self.optics = optics
+        self.target = target
+        self.target_offset = target_offset
+        self.noise_sigma = float(noise_sigma)
+        self.background = int(background)
+        self._pose_source = pose_source
+        self._clock = clock
+        self._seq = 0
+        self._world_to_cam = inverse_transform(camera_pose.to_matrix())
+        # The sensor sits where the focal plane is imaged: that image distance sets the pinhole focal length.
+        v = optics.image_distance_mm(self.focus_distance_mm)
+        self._f_px = v / optics.pixel_size_mm
+        self._k = np.array([[self._f_px, 0.0, optics.width_px / 2.0], [0.0, self._f_px, optics.height_px / 2.0],
+                            [0.0, 0.0, 1.0]])
+        self._tex_px_per_mm = self._f_px / self.focus_distance_mm
+        self._texture = target.texture(self._tex_px_per_mm)
+        th, tw = self._texture.shape
+        w2, h2 = target.width_mm / 2.0, target.height_mm / 2.0
+        # Texture corners (px) and the same corners on the plate in the target frame (mm, plate in z = 0).
+        self._tex_corners = np.array([[0, 0], [tw, 0], [tw, th], [0, th]], np.float32)
+        self._obj_corners = np.array([[-w2, -h2, 0, 1], [w2, -h2, 0, 1], [w2, h2, 0, 1], [-w2, h2, 0, 1]]).T
+        self._kernels: dict[int, np.ndarray] = {}
+        rng = np.random.default_rng(seed)
+        self._rng = rng
+        self._noise_pad = 64
+        if self.noise_sigma > 0:
+            shape = (optics.height_px + self._noise_pad, optics.width_px + self._noise_pad)
+            self._noise = np.round(rng.standard_normal(shape, dtype=np.float32) * self.noise_sigma).astype(np.int16)
+        else:
+            self._noise = None
+        self._lock = threading.Lock()
+
+    # --------------------------------------------------------------------------------------- geometry
+    def target_in_camera(self, tool_pose: Pose) -> np.ndarray:
+        """4x4 transform of the target frame in the camera frame (mm)."""
+        return self._world_to_cam @ tool_pose.to_matrix() @ self.target_offset.to_matrix()
+
+    def object_distance_mm(self, tool_pose: Pose) -> float:
+        """Depth of the target's centre along the optical axis (mm)."""
+        return float(self.target_in_camera(tool_pose)[2, 3])
+
+    def blur_diameter_px(self, tool_pose: Pose) -> float:
+        """Blur diameter (px) at which the target is rendered for ``tool_pose``."""
+        return self.optics.blur_diameter_px(self.object_distance_mm(tool_pose), self.focus_distance_mm)
+
+    def project(self, tool_pose: Pose) -> np.ndarray | None:
+        """Image corners (4 x 2 px) of the plate, or None when any corner is not in front of the lens."""
+        pts = self.target_in_camera(tool_pose) @ self._obj_corners
+        z = pts[2]
+        if np.any(z <= self.optics.focal_length_mm):
+            return None
+        uv = (self._k @ (pts[:3] / z))[:2].T
+        return uv.astype(np.float32)
+
+    # --------------------------------------------------------------------------------------- rendering
+    def _kernel(self, diameter_px: float) -> np.ndarray:
+        key = int(round(diameter_px * 4))  # quarter-pixel steps: finer than the eye or the metric can tell
+        k = self._kernels.get(key)
+        if k is None:
+            if len(self._kernels) > 256:
+                self._kernels.clear()
+            k = self._kernels[key] = disk_kernel(key / 4.0)
+        return k
+
+    def render(self, tool_pose: Pose | None) -> np.ndarray:
+        """A mono8 frame of the target at ``tool_pose`` (None: background only), with blur and noise."""
+        o = self.optics
+        frame = np.full((o.height_px, o.width_px), self.background, np.uint8)
+        corners = self.project(tool_pose) if tool_pose is not None else None
+        if corners is not None:
+            kernel = self._kernel(self.blur_diameter_px(tool_pose))
+            pad = kernel.shape[0] // 2 + 2
+            x0 = max(0, int(math.floor(corners[:, 0].min())) - pad)
+            y0 = max(0, int(math.floor(corners[:, 1].min())) - pad)
+            x1 = min(o.width_px, int(math.ceil(corners[:, 0].max())) + pad + 1)
+            y1 = min(o.height_px, int(math.ceil(corners[:, 1].max())) + pad + 1)
+            if x1 > x0 and y1 > y0:
+                h = cv2.getPerspectiveTransform(self._tex_corners, corners - np.float32([x0, y0]))
+                roi = cv2.warpPerspective(self._texture, h, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR,
+                                          borderMode=cv2.BORDER_CONSTANT, borderValue=self.background)
+                if kernel.shape[0] > 1:
+                    roi = cv2.filter2D(roi, -1, kernel, borderType=cv2.BORDER_REPLICATE)
+                frame[y0:y1, x0:x1] = roi
+        if self._noise is not None:
+            with self._lock:  # the Generator is not thread-safe
+                dy, dx = (int(v) for v in self._rng.integers(0, self._noise_pad, size=2))
+            window = self._noise[dy:dy + o.height_px, dx:dx + o.width_px]
+            frame = cv2.add(frame, window, dtype=cv2.CV_8U)
+        return frame
+
+    def grab(self) -> Frame:
+        t_s = self._clock()
+        pose = self._pose_source(t_s) if self._pose_source is not None else None
+        image = self.render(pose)
+        frame = Frame(image, t_s, self.camera_id, self._seq)
+        self._seq += 1
+        return frame
+
+
+def paper_camera(pose_source: Callable[[float], Pose | None] | None = None, *, focus_offset_mm: float = 20.0,
+                 working_distance_mm: float = 300.0, approach_pose: Pose | None = None,
+                 **options) -> VirtualCamera:
+    """The virtual camera of the paper's experiment (see the module docstring).
+
+    ``working_distance_mm``: from the lens to the target at the approach pose; ``focus_offset_mm``: how far along
+    the tool's +z from the approach pose the focal plane lies (so ``focus_offset_mm / delta_z`` steps of the focus
+    application reach it). Other keywords go to :class:`VirtualCamera`.
+    """
+    appr = approach_pose if approach_pose is not None else paper_approach_pose()
+    return VirtualCamera(pose_source, camera_pose=camera_facing_tool(appr, working_distance_mm),
+                         focus_distance_mm=working_distance_mm - focus_offset_mm, **options)
+
+
+# ------------------------------------------------------------------------------------------ pose history
+class PoseHistory:
+    """A short, thread-safe history of timestamped tool poses with interpolation at any time.
+
+    ``add(t_s, pose)`` appends (times must not decrease; an older sample is dropped). ``at(t_s)`` interpolates the
+    position linearly and the rotation by spherical linear interpolation between the two samples around ``t_s``;
+    before the first / after the last sample it returns the first / last pose (the robot is assumed still).
+    Samples older than ``max_age_s`` behind the newest are discarded.
+    """
+
+    def __init__(self, *, max_age_s: float = 2.0, max_len: int = 2000) -> None:
+        self.max_age_s = max_age_s
+        self._t: deque[float] = deque(maxlen=max_len)
+        self._m: deque[np.ndarray] = deque(maxlen=max_len)
+        self._lock = threading.Lock()
+
+    def __len__(self) -> int:
+        return len(self._t)
+
+    def add(self, t_s: float, pose: Pose) -> None:
+        m = pose.to_matrix()
+        with self._lock:
+            if self._t and t_s < self._t[-1]:
+                return
+            self._t.append(t_s)
+            self._m.append(m)
+            while self._t and self._t[0] < t_s - self.max_age_s and len(self._t) > 2:
+                self._t.popleft()
+                self._m.popleft()
+
+    def at(self, t_s: float) -> Pose | None:
+        with self._lock:
+            if not self._t:
+                return None
+            times = list(self._t)
+            i = bisect.bisect_right(times, t_s)
+            if i == 0:
+                m = self._m[0]
+            elif i == len(times):
+                m = self._m[-1]
+            else:
+                t0, t1 = times[i - 1], times[i]
+                m0, m1 = self._m[i - 1], self._m[i]
+                a = 0.0 if t1 == t0 else (t_s - t0) / (t1 - t0)
+                m = _interpolate(m0, m1, a)
+        return Pose.from_matrix(m)
+
+
+def _interpolate(m0: np.ndarray, m1: np.ndarray, a: float) -> np.ndarray:
+    from scipy.spatial.transform import Rotation, Slerp
+
+    out = np.eye(4)
+    out[:3, 3] = (1 - a) * m0[:3, 3] + a * m1[:3, 3]
+    rots = Rotation.from_matrix(np.stack([m0[:3, :3], m1[:3, :3]]))
+    out[:3, :3] = Slerp([0.0, 1.0], rots)([a]).as_matrix()[0]
+    return out
+
+
+class RobotStateFollower:
+    """Subscribes to the sim's robot state stream and fills a :class:`PoseHistory`, stamped on receipt.
+
+    One owned daemon-less thread with its own ZeroMQ SUB socket (linger 0). :meth:`start` connects, :meth:`stop`
+    sets the stop flag, joins the thread and closes the socket; also a context manager. Samples are stamped with
+    ``time.time()`` at receipt (the frame clock), so the camera and the history share one clock even if the sim's
+    clock drifts; the state's own ``wall_time_s`` is kept as :attr:`last_state`.
+    """
+
+    def __init__(self, endpoint: str, *, history: PoseHistory | None = None, topic: bytes = b"robot.state",
+                 clock: Callable[[], float] = time.time) -> None:
+        self.endpoint = endpoint
+        self.topic = topic
+        self.history = history if history is not None else PoseHistory()
+        self.received = 0
+        self.last_state = None
+        self._clock = clock
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._ready = threading.Event()
+        self._error: BaseException | None = None
+
+    def start(self) -> RobotStateFollower:
+        if self._thread is not None:
+            raise RuntimeError("RobotStateFollower already started")
+        self._thread = threading.Thread(target=self._run, name=f"robot-state:{self.endpoint}")
+        self._thread.start()
+        self._ready.wait(5.0)
+        if self._error is not None:
+            raise self._error
+        return self
+
+    def _run(self) -> None:
+        import zmq
+
+        from aioadept.bus.messages import RobotState
+
+        ctx = zmq.Context.instance()
+        sock = ctx.socket(zmq.SUB)
+        try:
+            sock.setsockopt(zmq.LINGER, 0)
+            sock.setsockopt(zmq.SUBSCRIBE, self.topic)
+            sock.connect(self.endpoint)
+        except zmq.ZMQError as exc:
+            self._error = exc
+            self._ready.set()
+            sock.close(0)
+            return
+        self._ready.set()
+        poller = zmq.Poller()
+        poller.register(sock, zmq.POLLIN)
+        try:
+            while not self._stop.is_set():
+                if not poller.poll(100):  # wake up regularly to see the stop flag
+                    continue
+                parts = sock.recv_multipart()
+                t_s = self._clock()
+                # [topic, payload] frames; a single frame carries the topic as a prefix.
+                payload = parts[-1] if len(parts) > 1 else parts[0][len(self.topic):]
+                try:
+                    state = RobotState.from_bytes(payload)
+                except Exception as exc:  # a bad sample must not kill the camera
+                    log.warning("robot state: undecodable message (%s)", exc)
+                    continue
+                self.history.add(t_s, state.pose)
+                self.last_state = state
+                self.received += 1
+        finally:
+            sock.close(0)
+
+    def pose_at(self, t_s: float) -> Pose | None:
+        return self.history.at(t_s)
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
+            self._thread = None
+
+    def __enter__(self) -> RobotStateFollower:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
