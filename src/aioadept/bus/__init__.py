@@ -8,6 +8,15 @@
 See docs/bus.md for the schema, endpoints and the request/response protocol.
 """
 
+from aioadept.bus.communicator import (
+    BusObserver,
+    Communicator,
+    Request,
+    Responder,
+    Response,
+    new_request_id,
+    response_type_for,
+)
 from aioadept.bus.messages import (
     ROBOT_STATE_TOPIC,
     EventMessage,
@@ -28,6 +37,13 @@ from aioadept.bus.pubsub import (
 )
 
 __all__ = [
+    "BusObserver",
+    "Communicator",
+    "Request",
+    "Responder",
+    "Response",
+    "new_request_id",
+    "response_type_for",
     "DEFAULT_REQUEST_ENDPOINT",
     "DEFAULT_RESPONSE_ENDPOINT",
     "DEFAULT_STATE_ENDPOINT",

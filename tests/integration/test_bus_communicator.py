@@ -1,0 +1,265 @@
+"""Communicator <-> Responder over real ZeroMQ on 127.0.0.1: matching, slow joiner, stale/foreign, timeouts."""
+
+from __future__ import annotations
+
+import asyncio
+import socket
+import threading
+import time
+
+import pytest
+
+from aioadept.bus import epypes_pb2
+from aioadept.bus.communicator import Communicator, Request, Responder, Response
+from aioadept.bus.messages import EventMessage, decode_event, encode_event
+from aioadept.bus.pubsub import Publisher, Subscriber
+from aioadept.errors import BusError, ClientStateError, RequestTimeout, VisionError
+
+ANY = "tcp://127.0.0.1:*"
+
+
+class Recorder:
+    def __init__(self) -> None:
+        self.requests: list[Request] = []
+        self.responses: list[Response] = []
+        self.first_request = asyncio.Event()
+
+    def on_request(self, r: Request) -> None:
+        self.requests.append(r)
+        self.first_request.set()
+
+    def on_response(self, r: Response) -> None:
+        self.responses.append(r)
+
+
+def free_port() -> int:
+    # The slow-joiner test needs an address nobody serves yet; ZeroMQ's connect keeps retrying it.
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.mark.timeout(10)
+async def test_request_gets_matching_response_with_observers_and_t_request():
+    calls = []
+
+    def handler(event_type, rid, attrs):
+        calls.append((event_type, rid, attrs))
+        return {"sharpness": 12.5, "frame_t": attrs["t_request"], "proc_time_ms": 0.1}
+
+    rec = Recorder()
+    async with Responder(ANY, ANY, handler) as node:
+        async with Communicator(node.actual_request_endpoint, node.actual_response_endpoint,
+                                observers=[rec]) as comm:
+            t0 = time.time()
+            resp = await comm.request("VisionRequest", {"camera": "c0"})
+    assert resp.event_type == "VisionResponse" and resp.attributes["sharpness"] == 12.5
+    assert len(resp.id) == 8 and int(resp.id, 16) >= 0
+    (etype, rid, attrs), = calls
+    assert (etype, rid, attrs["camera"]) == ("VisionRequest", resp.id, "c0")
+    assert t0 <= attrs["t_request"] <= time.time() and resp.attributes["frame_t"] == attrs["t_request"]
+    assert [r.id for r in rec.requests] == [resp.id] and rec.responses == [resp]
+    assert rec.requests[0].attributes["t_request"] == attrs["t_request"]
+    assert 0 <= resp.t_send_s <= resp.t_recv_s and resp.t_send_s == rec.requests[0].t_send_s
+
+
+@pytest.mark.timeout(10)
+async def test_responder_started_after_request_was_published_slow_joiner():
+    req_ep, resp_ep = f"tcp://127.0.0.1:{free_port()}", f"tcp://127.0.0.1:{free_port()}"
+    rec = Recorder()
+    async with Communicator(req_ep, resp_ep, observers=[rec], timeout_s=5.0) as comm:
+        pending = asyncio.create_task(comm.request("VisionRequest", {"n": 1}))
+        await rec.first_request.wait()  # published into the void: nobody is bound yet
+        async with Responder(req_ep, resp_ep, lambda t, i, a: {"echo": a["n"]}) as node:
+            resp = await pending
+        assert resp.attributes == {"echo": 1}
+        assert comm.republished >= 1 and node.handled == 1
+
+
+@pytest.mark.timeout(10)
+async def test_stale_and_foreign_responses_are_ignored():
+    # A hand-made node: for each request it first publishes an answer to an old id and to someone else's id.
+    async with Subscriber(ANY, bind=True) as req_sub, Publisher(ANY) as resp_pub:
+        async with Communicator(req_sub.actual_endpoint, resp_pub.actual_endpoint) as comm:
+            first = asyncio.create_task(comm.request("VisionRequest", {"k": 1}))
+            seen: set[str] = set()
+            old_id = None
+            results = []
+            for k in (1, 2):
+                if k == 2:
+                    second = asyncio.create_task(comm.request("VisionRequest", {"k": 2}))
+                while True:
+                    etype, rid, attrs = decode_event((await req_sub.recv())[1])
+                    if attrs["k"] == k and rid not in seen:
+                        break
+                seen.add(rid)
+                if old_id is not None:
+                    resp_pub.send_nowait(encode_event("VisionResponse", old_id, {"v": "stale"}))
+                resp_pub.send_nowait(encode_event("VisionResponse", "f0reign1", {"v": "foreign"}))
+                resp_pub.send_nowait(encode_event("VisionResponse", rid, {"v": f"right-{k}"}))
+                results.append(await (first if k == 1 else second))
+                old_id = rid
+            assert [r.attributes["v"] for r in results] == ["right-1", "right-2"]
+            assert comm.ignored_responses >= 2  # at least the foreign one and the stale one reached us
+
+
+@pytest.mark.timeout(10)
+async def test_timeout_raises_request_timeout_and_republishes_same_id():
+    async with Subscriber(ANY, bind=True) as req_sub, Publisher(ANY) as resp_pub:
+        async with Communicator(req_sub.actual_endpoint, resp_pub.actual_endpoint,
+                                republish_interval_s=0.01, republish_backoff=1.5) as comm:
+            got: list[bytes] = []
+
+            async def silent_node():  # reads requests (so its subscription is live) and never answers
+                while True:
+                    got.append((await req_sub.recv())[1])
+
+            node = asyncio.create_task(silent_node())
+            try:
+                with pytest.raises(RequestTimeout) as info:
+                    await comm.request("VisionRequest", {"x": 1.0}, timeout_s=0.3)
+            finally:
+                node.cancel()
+            assert isinstance(info.value, TimeoutError) and isinstance(info.value, BusError)
+            rid = info.value.request_id
+            assert len(rid) == 8 and info.value.extra["publishes"] >= 3
+            # What the node received: one id, re-published as identical bytes.
+            assert len(got) >= 2 and len(set(got)) == 1 and decode_event(got[0])[1] == rid
+            # A late answer to the timed-out request is stale: ignored, and the next request still works.
+            resp_pub.send_nowait(encode_event("VisionResponse", rid, {"late": 1}))
+            nxt = asyncio.create_task(comm.request("VisionRequest", {"x": 2.0}, timeout_s=5))
+            while True:
+                etype, rid2, attrs = decode_event((await req_sub.recv())[1])
+                if rid2 != rid:
+                    break
+            resp_pub.send_nowait(encode_event("VisionResponse", rid2, {"ok": 1}))
+            assert (await nxt).attributes == {"ok": 1}
+
+
+@pytest.mark.timeout(10)
+async def test_concurrent_requests_are_routed_by_id_when_answered_out_of_order():
+    async with Subscriber(ANY, bind=True) as req_sub, Publisher(ANY) as resp_pub:
+        async with Communicator(req_sub.actual_endpoint, resp_pub.actual_endpoint) as comm:
+            tasks = [asyncio.create_task(comm.request("VisionRequest", {"n": n})) for n in range(5)]
+            ids: dict[int, str] = {}
+            while len(ids) < 5:
+                _, rid, attrs = decode_event((await req_sub.recv())[1])
+                ids[attrs["n"]] = rid
+            for n in reversed(range(5)):  # answer in reverse order
+                resp_pub.send_nowait(encode_event("VisionResponse", ids[n], {"n2": n * n}))
+            results = await asyncio.gather(*tasks)
+    assert [r.attributes["n2"] for r in results] == [n * n for n in range(5)]
+    assert [r.id for r in results] == [ids[n] for n in range(5)] and len(set(ids.values())) == 5
+
+
+@pytest.mark.timeout(10)
+async def test_repeated_id_is_answered_from_cache_not_reprocessed():
+    calls = []
+
+    async def handler(t, rid, attrs):
+        calls.append(rid)
+        return {"count": len(calls)}
+
+    async with Responder(ANY, ANY, handler, cache_size=2) as node:
+        async with Communicator(node.actual_request_endpoint, node.actual_response_endpoint) as comm:
+            async def ask(rid: str) -> int:
+                return (await comm.request("VisionRequest", id=rid)).attributes["count"]
+
+            assert await ask("aaaaaaaa") == 1
+            hits = node.cache_hits
+            assert await ask("aaaaaaaa") == 1  # same id again: the cached answer
+            # The node handles requests in order, so once "b" is answered the repeat of "a" has been served.
+            assert await ask("bbbbbbbb") == 2
+            assert calls == ["aaaaaaaa", "bbbbbbbb"] and node.cache_hits > hits
+            # LRU of 2: after "b" and "c", "a" is evicted and processed again.
+            assert await ask("cccccccc") == 3
+            assert await ask("aaaaaaaa") == 4
+            assert calls == ["aaaaaaaa", "bbbbbbbb", "cccccccc", "aaaaaaaa"]
+            first = asyncio.create_task(ask("dddddddd"))
+            await asyncio.sleep(0)  # let it register its id (ordering, not readiness)
+            with pytest.raises(ClientStateError):  # an id may be outstanding only once
+                await ask("dddddddd")
+            assert await first == 5
+
+
+@pytest.mark.timeout(10)
+async def test_handler_errors_become_error_attribute_and_node_keeps_serving():
+    def handler(t, rid, attrs):
+        if attrs.get("fail"):
+            raise LookupError("no object found")
+        if attrs.get("bad"):
+            return {"flag": True}  # bool cannot be carried
+        return {"ok": 1}
+
+    async with Responder(ANY, ANY, handler) as node:
+        async with Communicator(node.actual_request_endpoint, node.actual_response_endpoint) as comm:
+            r1 = await comm.request("VisionRequest", {"fail": 1})
+            r2 = await comm.request("VisionRequest", {"bad": 1})
+            r3 = await comm.request("VisionRequest", {})
+    assert r1.error == "no object found" and r1.attributes == {"error": "no object found"}
+    with pytest.raises(VisionError) as info:
+        r1.raise_for_error()
+    assert info.value.attributes == {"error": "no object found"}
+    assert r2.error.startswith("response not encodable")
+    assert r3.attributes == {"ok": 1} and r3.raise_for_error() is r3 and node.errors == 2
+
+
+@pytest.mark.timeout(10)
+async def test_sync_handler_in_thread_does_not_block_the_loop():
+    release = threading.Event()
+    threads = []
+
+    def slow_graph(t, rid, attrs):
+        threads.append(threading.current_thread().name)
+        release.wait(5)
+        return {"sharpness": 1.0}
+
+    async with Responder(ANY, ANY, slow_graph, in_thread=True) as node:
+        async with Communicator(node.actual_request_endpoint, node.actual_response_endpoint) as comm:
+            task = asyncio.create_task(comm.request("VisionRequest", {}))
+            # The loop stays responsive while the handler blocks its worker thread.
+            while not threads:
+                await asyncio.sleep(0.001)
+            ticks = 0
+            for _ in range(10):
+                await asyncio.sleep(0)
+                ticks += 1
+            assert ticks == 10 and not task.done()
+            release.set()
+            resp = await task
+    assert resp.attributes == {"sharpness": 1.0} and threads[0].startswith("aioadept-responder")
+    assert node.handled == 1  # re-publications during the slow run were not processed again
+
+
+@pytest.mark.timeout(10)
+async def test_paper_style_send_recv_and_topics():
+    async with Responder(ANY, ANY, lambda t, i, a: {"sharpness": 2.0}, request_topic="vision.req",
+                         response_topic="vision.resp") as node:
+        async with Communicator(node.actual_request_endpoint, node.actual_response_endpoint,
+                                request_topic="vision.req", response_topic="vision.resp") as comm:
+            pb_req = epypes_pb2.Event(type="VisionRequest")
+            rid = await comm.send(pb_req)
+            rid2 = await comm.send(EventMessage("VisionRequest", "0000abcd"))
+            pb_resp = await comm.recv()
+            assert isinstance(pb_resp, epypes_pb2.Event) and pb_resp.id == rid
+            assert {e.key: e.double_val for e in pb_resp.attributes.entries} == {"sharpness": 2.0}
+            assert (await comm.recv()).id == rid2 == "0000abcd"
+            with pytest.raises(ClientStateError):
+                await comm.recv()
+
+
+@pytest.mark.timeout(10)
+async def test_close_fails_outstanding_and_state_errors():
+    async with Subscriber(ANY, bind=True) as req_sub, Publisher(ANY) as resp_pub:
+        comm = Communicator(req_sub.actual_endpoint, resp_pub.actual_endpoint)
+        with pytest.raises(ClientStateError):
+            await comm.request()
+        async with comm:
+            task = asyncio.create_task(comm.request(timeout_s=5))
+            await req_sub.recv()  # it was published
+            with pytest.raises(ClientStateError):
+                await comm.__aenter__()
+        with pytest.raises(BusError, match="closed"):
+            await task
+        with pytest.raises(ClientStateError):
+            await comm.request()
