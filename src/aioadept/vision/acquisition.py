@@ -1,0 +1,291 @@
+"""Continuous acquisition into ring buffers, and the frame nearest in time to a request (FxIS, Semeniuta 2018).
+
+Where it sits: one :class:`Acquisition` owns one grabbing thread per source (:mod:`aioadept.vision.sources`); each
+thread pushes timestamped frames into that source's :class:`FrameRing`. The processing node asks for the frame (or
+the set of frames, one per camera) that belongs to a request time:
+
+- policy ``"nearest"`` (the paper's): the buffered frame whose timestamp is nearest ``t_request``, found by binary
+  search; it answers at once. **Tie rule:** when two frames are equally far, the later one wins (the robot has
+  stopped before the request is sent, so the later frame is the safer picture of the stopped robot);
+- policy ``"after"``: the first frame stamped at or after ``t_request``, waiting for it up to a timeout. Correct
+  when the request is sent right after the robot stopped: no frame taken during the motion can be chosen, at the
+  price of up to one frame period of latency.
+
+CPU is bounded: each thread grabs at most ``fps`` frames per second, sleeping (interruptibly) until the next frame
+deadline; when a grab takes longer than the period the thread does not try to catch up in a burst.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+from aioadept.errors import VisionError
+from aioadept.vision.sources import Camera, Frame
+
+log = logging.getLogger(__name__)
+
+Policy = Literal["nearest", "after"]
+POLICIES: tuple[str, ...] = ("nearest", "after")
+
+
+class FrameRing:
+    """A fixed-capacity ring buffer of frames in timestamp order, thread-safe.
+
+    :meth:`push` overwrites the oldest frame when full. Frames must come with non-decreasing ``t_s``; a frame older
+    than the newest (a replay that starts over) clears the ring first, so the order invariant always holds and the
+    binary searches stay valid.
+    """
+
+    def __init__(self, capacity: int) -> None:
+        if capacity < 1:
+            raise ValueError("FrameRing capacity must be >= 1")
+        self.capacity = capacity
+        self._frames: list[Frame | None] = [None] * capacity
+        self._times: list[float] = [0.0] * capacity
+        self._start = 0   # physical index of the oldest frame
+        self._count = 0
+        self._cond = threading.Condition()
+        self.pushed = 0
+
+    def __len__(self) -> int:
+        return self._count
+
+    def _phys(self, i: int) -> int:
+        return (self._start + i) % self.capacity
+
+    def push(self, frame: Frame) -> None:
+        with self._cond:
+            if self._count and frame.t_s < self._times[self._phys(self._count - 1)]:
+                log.info("%s: timestamps went back (%.6f); ring cleared", frame.camera_id, frame.t_s)
+                self._start = self._count = 0
+            if self._count < self.capacity:
+                j = self._phys(self._count)
+                self._count += 1
+            else:  # full: overwrite the oldest, which makes the next one the oldest
+                j = self._start
+                self._start = (self._start + 1) % self.capacity
+            self._frames[j] = frame
+            self._times[j] = frame.t_s
+            self.pushed += 1
+            self._cond.notify_all()
+
+    def frames(self) -> list[Frame]:
+        """All buffered frames, oldest first."""
+        with self._cond:
+            return [self._frames[self._phys(i)] for i in range(self._count)]  # type: ignore[misc]
+
+    def latest(self) -> Frame | None:
+        with self._cond:
+            return self._frames[self._phys(self._count - 1)] if self._count else None
+
+    def _bisect_left(self, t_s: float) -> int:
+        """Logical index of the first frame with ``t >= t_s`` (``count`` if none); binary search over the ring."""
+        lo, hi = 0, self._count
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if self._times[self._phys(mid)] < t_s:
+                lo = mid + 1
+            else:
+                hi = mid
+        return lo
+
+    def _bisect_right(self, t_s: float) -> int:
+        """Logical index of the first frame with ``t > t_s`` (``count`` if none)."""
+        lo, hi = 0, self._count
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if self._times[self._phys(mid)] <= t_s:
+                lo = mid + 1
+            else:
+                hi = mid
+        return lo
+
+    def nearest(self, t_s: float) -> Frame | None:
+        """The frame whose timestamp is nearest ``t_s``. On a tie the later frame: of two frames equally far before
+        and after, the one after; of frames with equal timestamps, the last pushed. None when empty."""
+        with self._cond:
+            if not self._count:
+                return None
+            i = self._bisect_left(t_s)  # frames [0, i) are before t_s, [i, count) at or after it
+            if i > 0 and (i == self._count or
+                          t_s - self._times[self._phys(i - 1)] < self._times[self._phys(i)] - t_s):
+                return self._frames[self._phys(i - 1)]  # strictly nearer before; the last frame before t_s
+            # At or after (strictly nearer, or a tie): the last of the frames sharing that timestamp.
+            j = self._bisect_right(self._times[self._phys(i)]) - 1
+            return self._frames[self._phys(j)]
+
+    def first_at_or_after(self, t_s: float) -> Frame | None:
+        """The oldest frame with ``t >= t_s``, or None when no such frame is buffered."""
+        with self._cond:
+            i = self._bisect_left(t_s)
+            return self._frames[self._phys(i)] if i < self._count else None
+
+    def wait_at_or_after(self, t_s: float, timeout_s: float) -> Frame | None:
+        """Like :meth:`first_at_or_after`, waiting up to ``timeout_s`` for such a frame to be pushed."""
+        deadline = time.monotonic() + timeout_s
+        with self._cond:
+            while True:
+                i = self._bisect_left(t_s)
+                if i < self._count:
+                    return self._frames[self._phys(i)]
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return None
+                self._cond.wait(remaining)
+
+
+@dataclass(frozen=True, slots=True)
+class SourceStats:
+    """Counters of one grabbing thread."""
+
+    camera_id: str
+    grabbed: int
+    errors: int
+    exhausted: bool
+    running: bool
+
+
+class Acquisition:
+    """Grabs continuously from ``sources`` (one owned thread each) into ring buffers of ``buffer_size`` frames.
+
+    ``fps`` caps each source's grab rate (None: as fast as ``grab()`` returns, for sources that block on real
+    hardware). ``on_frame(frame)`` is called in the grabbing thread after each push (e.g. a recorder); it must be
+    quick, and its exceptions are logged. Use as a context manager, or :meth:`start` / :meth:`stop`; ``stop``
+    joins every thread and closes the sources.
+    """
+
+    def __init__(self, sources: Sequence[Camera], *, buffer_size: int = 64, fps: float | None = 15.0,
+                 on_frame: Callable[[Frame], None] | None = None, close_sources: bool = True) -> None:
+        if not sources:
+            raise ValueError("Acquisition needs at least one source")
+        ids = [s.camera_id for s in sources]
+        if len(set(ids)) != len(ids):
+            raise ValueError(f"camera ids must be unique, got {ids}")
+        if fps is not None and fps <= 0:
+            raise ValueError("fps must be > 0")
+        self.sources = tuple(sources)
+        self.buffer_size = buffer_size
+        self.fps = fps
+        self._on_frame = on_frame
+        self._close_sources = close_sources
+        self.rings: dict[str, FrameRing] = {s.camera_id: FrameRing(buffer_size) for s in sources}
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self._errors = {cid: 0 for cid in ids}
+        self._exhausted = {cid: False for cid in ids}
+
+    @property
+    def camera_ids(self) -> tuple[str, ...]:
+        return tuple(self.rings)
+
+    # ------------------------------------------------------------------------------------------- threads
+    def start(self) -> Acquisition:
+        if self._threads:
+            raise RuntimeError("Acquisition already started")
+        for src in self.sources:
+            t = threading.Thread(target=self._grab_loop, args=(src,), name=f"grab:{src.camera_id}")
+            t.start()
+            self._threads.append(t)
+        return self
+
+    def _grab_loop(self, src: Camera) -> None:
+        ring = self.rings[src.camera_id]
+        period = 1.0 / self.fps if self.fps else 0.0
+        deadline = time.monotonic()
+        while not self._stop.is_set():
+            try:
+                frame = src.grab()
+            except Exception:
+                self._errors[src.camera_id] += 1
+                log.exception("%s: grab failed", src.camera_id)
+                self._stop.wait(max(period, 0.05))  # do not spin on a broken device
+                continue
+            if frame is None:
+                self._exhausted[src.camera_id] = True
+                log.info("%s: source exhausted after %d frames", src.camera_id, ring.pushed)
+                return
+            ring.push(frame)
+            if self._on_frame is not None:
+                try:
+                    self._on_frame(frame)
+                except Exception:
+                    log.exception("%s: on_frame callback failed", src.camera_id)
+            if period:
+                deadline += period
+                now = time.monotonic()
+                if deadline > now:
+                    self._stop.wait(deadline - now)  # pacing (bounded CPU), woken at once by stop()
+                else:
+                    deadline = now  # behind: skip the missed slots instead of bursting
+
+    def stop(self) -> None:
+        """Stop and join every grabbing thread, then close the sources (idempotent)."""
+        self._stop.set()
+        for t in self._threads:
+            t.join()
+        self._threads.clear()
+        if self._close_sources:
+            for s in self.sources:
+                try:
+                    s.close()
+                except Exception:
+                    log.exception("%s: close failed", s.camera_id)
+
+    def __enter__(self) -> Acquisition:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def stats(self) -> list[SourceStats]:
+        alive = {t.name for t in self._threads if t.is_alive()}
+        return [SourceStats(cid, self.rings[cid].pushed, self._errors[cid], self._exhausted[cid],
+                            f"grab:{cid}" in alive) for cid in self.rings]
+
+    # ------------------------------------------------------------------------------------------- lookup
+    def _ring(self, camera_id: str | None) -> FrameRing:
+        if camera_id is None:
+            return next(iter(self.rings.values()))
+        try:
+            return self.rings[camera_id]
+        except KeyError:
+            raise VisionError(f"unknown camera {camera_id!r}; have {list(self.rings)}") from None
+
+    def frame_at(self, t_s: float, *, camera_id: str | None = None, policy: Policy = "nearest",
+                 timeout_s: float = 1.0) -> Frame:
+        """The frame of ``camera_id`` (default: the first source) for request time ``t_s`` under ``policy``.
+
+        Raises :class:`VisionError` when there is none: no frame yet (``nearest``), or none at/after ``t_s``
+        within ``timeout_s`` (``after``), or an unknown camera or policy.
+        """
+        ring = self._ring(camera_id)
+        if policy == "nearest":
+            frame = ring.nearest(t_s)
+            if frame is None:
+                raise VisionError(f"no frame from {camera_id or self.camera_ids[0]} yet")
+            return frame
+        if policy == "after":
+            frame = ring.wait_at_or_after(t_s, timeout_s)
+            if frame is None:
+                raise VisionError(f"no frame at or after t={t_s:.3f} from {camera_id or self.camera_ids[0]} "
+                                  f"within {timeout_s:.3f} s")
+            return frame
+        raise VisionError(f"unknown policy {policy!r}; use one of {POLICIES}")
+
+    def frame_set(self, t_s: float, *, policy: Policy = "nearest", timeout_s: float = 1.0,
+                  camera_ids: Sequence[str] | None = None) -> dict[str, Frame]:
+        """One frame per camera for the same request time (FxIS frame sets), keyed by camera id.
+
+        With ``after`` the timeout is shared: the whole set waits at most ``timeout_s``.
+        """
+        deadline = time.monotonic() + timeout_s
+        out: dict[str, Frame] = {}
+        for cid in camera_ids or self.camera_ids:
+            out[cid] = self.frame_at(t_s, camera_id=cid, policy=policy,
+                                     timeout_s=max(0.0, deadline - time.monotonic()))
+        return out
