@@ -1,0 +1,106 @@
+"""``aioadept sim``: run the simulated Adept controller (RobotServer + Viper s850) until SIGINT/SIGTERM.
+
+Prints ``READY host=H port=P state=ENDPOINT`` on stdout once it listens (the real port when started with
+``--port 0``; ``state=none`` without a state stream), so starters wait for that line instead of sleeping.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import logging
+import signal
+import sys
+
+from aioadept.geometry import NULL, Pose
+from aioadept.sim.server import DEFAULT_PORT, DEFAULT_STATE_ENDPOINT, Faults, SimOptions, SimServer
+
+
+def _six(text: str) -> tuple[float, ...]:
+    vals = tuple(float(v) for v in text.split(","))
+    if len(vals) != 6:
+        raise argparse.ArgumentTypeError(f"expected 6 comma-separated numbers, got {text!r}")
+    return vals
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="aioadept sim", description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("--host", default="127.0.0.1", help="address to bind")
+    p.add_argument("--port", type=int, default=DEFAULT_PORT, help="TCP port (0: pick a free one)")
+    p.add_argument("--time-scale", type=float, default=1.0, dest="time_scale",
+                   help="motions run this many times faster (the ack clock stays real time)")
+    p.add_argument("--instant", action="store_true", help="motions complete at once (for tests)")
+    p.add_argument("--monitor-speed", type=float, default=100.0, dest="monitor_speed",
+                   help="controller monitor speed in %% (effective speed = program speed x this / 100)")
+    p.add_argument("--max-clients", type=int, default=16, dest="max_clients",
+                   help="connections served at once; more are refused with a SERVER_BUSY error ack")
+    p.add_argument("--allow", action="append", default=[], metavar="ADDR",
+                   help="accept clients only from this IP address (repeatable; default: any)")
+    p.add_argument("--state-endpoint", default=DEFAULT_STATE_ENDPOINT, dest="state_endpoint",
+                   help="ZeroMQ PUB endpoint of the robot state stream ('none' to disable)")
+    p.add_argument("--state-rate-hz", type=float, default=100.0, dest="state_rate_hz",
+                   help="robot state samples per second")
+    p.add_argument("--fault", action="append", default=[], metavar="SPEC",
+                   help="inject a fault: ack-delay=SECONDS, drop-after=N (messages), silent (repeatable)")
+    p.add_argument("--tool", type=_six, default=None, metavar="X,Y,Z,YAW,PITCH,ROLL",
+                   help="TOOL transform (mm, degrees); default NULL")
+    p.add_argument("--joints", type=_six, default=None, metavar="J1,...,J6",
+                   help="initial joint angles in degrees (default: home 0,-90,180,0,90,0)")
+    p.add_argument("--log-level", default="WARNING", dest="log_level", help="logging level on stderr")
+    return p
+
+
+def options_from_args(args: argparse.Namespace) -> SimOptions:
+    """Raises ``ValueError`` for inconsistent values."""
+    state = None if args.state_endpoint.lower() == "none" else args.state_endpoint
+    extra = {}
+    if args.joints is not None:
+        extra["joints_deg"] = args.joints
+    return SimOptions(host=args.host, port=args.port, time_scale=args.time_scale, instant=args.instant,
+                      monitor_speed_pct=args.monitor_speed, max_clients=args.max_clients, allow=tuple(args.allow),
+                      state_endpoint=state, state_rate_hz=args.state_rate_hz, faults=Faults.parse(args.fault),
+                      tool=Pose(*args.tool) if args.tool else NULL, **extra)
+
+
+async def run(options: SimOptions) -> int:
+    loop = asyncio.get_running_loop()
+    stop = asyncio.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(sig, stop.set)
+    try:
+        async with SimServer(options) as sim:
+            state = sim.state_endpoint or "none"
+            print(f"READY host={sim.host} port={sim.port} state={state}", flush=True)
+            await stop.wait()
+    finally:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            loop.remove_signal_handler(sig)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
+                        format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    try:
+        options = options_from_args(args)
+    except ValueError as exc:
+        parser.error(str(exc))
+    try:
+        return asyncio.run(run(options))
+    except OSError as exc:  # e.g. the port is taken
+        print(f"aioadept sim: {exc}", file=sys.stderr)
+        return 1
+    except Exception as exc:  # BusError binding the state endpoint, etc.
+        from aioadept.errors import AdeptError
+
+        if isinstance(exc, AdeptError):
+            print(f"aioadept sim: {exc}", file=sys.stderr)
+            return 1
+        raise
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,374 @@
+"""The asyncio TCP adapter of the simulated controller: sockets, the server clock, timers, the state stream.
+
+It owns everything with I/O and leaves the behaviour to the pure :class:`aioadept.sim.controller.Controller`:
+
+- every chunk read from a client goes through the protocol core's :class:`LineFramer` (V+ READ is not line-framed
+  either), each line to :meth:`Controller.handle` with the server time it was read;
+- one timer asks :meth:`Controller.step` to run whatever is due next (a break completing, a move getting its slot);
+- acks are encoded with :func:`encode_ack` and written to the connection that sent the command;
+- a :class:`aioadept.bus.pubsub.Publisher` sends :class:`aioadept.bus.messages.RobotState` on ``robot.state``.
+
+The clock is ``TIMER(-3)``: real seconds since the server started (acks show it with 1 ms resolution). The time
+scale speeds up motions only, never this clock. Fault injection (:class:`Faults`) delays acks, drops a connection
+after N messages, or makes the server silent, for testing clients against a misbehaving controller.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import ipaddress
+import itertools
+import logging
+import time
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+from aioadept.geometry import NULL, Pose
+from aioadept.protocol import MAX_LINE, NO_ID, Ack, ErrorCode, LineFramer, encode_ack
+from aioadept.sim import kinematics as kin
+from aioadept.sim.controller import Controller, Outgoing
+
+log = logging.getLogger(__name__)
+
+DEFAULT_PORT = 1234
+DEFAULT_STATE_ENDPOINT = "tcp://127.0.0.1:5560"
+
+
+@dataclass(frozen=True, slots=True)
+class Faults:
+    """Misbehaviour to inject.
+
+    ``ack_delay_s``: every ack is written this much later (order kept). ``drop_after``: a connection is closed by
+    the server right after its Nth message has been handled (acks already due are flushed first; its queued
+    commands are discarded). ``silent``: commands execute but no ack is ever written.
+    """
+
+    ack_delay_s: float = 0.0
+    drop_after: int | None = None
+    silent: bool = False
+
+    def __post_init__(self) -> None:
+        if self.ack_delay_s < 0:
+            raise ValueError("ack_delay_s: must be >= 0")
+        if self.drop_after is not None and self.drop_after < 1:
+            raise ValueError("drop_after: must be >= 1")
+
+    @classmethod
+    def parse(cls, specs: Sequence[str]) -> Faults:
+        """From CLI words: ``ack-delay=0.5``, ``drop-after=3``, ``silent``. Raises ``ValueError``."""
+        delay, drop, silent = 0.0, None, False
+        for spec in specs:
+            key, _, value = spec.partition("=")
+            if key == "ack-delay":
+                delay = float(value)
+            elif key == "drop-after":
+                drop = int(value)
+            elif key == "silent" and not value:
+                silent = True
+            else:
+                raise ValueError(f"unknown fault {spec!r} (ack-delay=S, drop-after=N, silent)")
+        return cls(delay, drop, silent)
+
+
+@dataclass(frozen=True, slots=True)
+class SimOptions:
+    """Everything ``aioadept sim`` can be told. ``state_endpoint=None`` disables the state stream."""
+
+    host: str = "127.0.0.1"
+    port: int = DEFAULT_PORT
+    time_scale: float = 1.0
+    instant: bool = False
+    monitor_speed_pct: float = 100.0
+    max_clients: int = 16
+    allow: tuple[str, ...] = ()
+    state_endpoint: str | None = DEFAULT_STATE_ENDPOINT
+    state_rate_hz: float = 100.0
+    faults: Faults = field(default_factory=Faults)
+    tool: Pose = NULL
+    joints_deg: tuple[float, ...] = kin.HOME_JOINTS_DEG
+
+    def __post_init__(self) -> None:
+        if not self.time_scale > 0:
+            raise ValueError("time_scale: must be > 0")
+        if not 0 < self.monitor_speed_pct <= 100:
+            raise ValueError("monitor_speed_pct: must be in (0, 100]")
+        if self.max_clients < 1:
+            raise ValueError("max_clients: must be >= 1")
+        if not self.state_rate_hz > 0:
+            raise ValueError("state_rate_hz: must be > 0")
+        for addr in self.allow:
+            ipaddress.ip_address(addr)  # ValueError for a malformed address
+
+
+class _Conn:
+    """One client connection and its delayed-ack outbox."""
+
+    __slots__ = ("id", "peer", "writer", "outbox", "timer", "messages")
+
+    def __init__(self, id: int, peer: str, writer: asyncio.StreamWriter) -> None:
+        self.id = id
+        self.peer = peer
+        self.writer = writer
+        self.outbox: deque[tuple[float, bytes]] = deque()
+        self.timer: asyncio.TimerHandle | None = None
+        self.messages = 0
+
+
+class SimServer:
+    """The simulated RobotServer on TCP. ``async with SimServer(SimOptions(port=0)) as sim: sim.port``.
+
+    ``controller`` is the pure controller it drives (inspect it in tests, register skills on it).
+    """
+
+    def __init__(self, options: SimOptions = SimOptions(), *, controller: Controller | None = None) -> None:
+        self.options = options
+        self.controller = controller or Controller(
+            joints_deg=options.joints_deg, tool=options.tool, monitor_speed_pct=options.monitor_speed_pct,
+            time_scale=options.time_scale, instant=options.instant)
+        self.host = options.host
+        self.port = options.port
+        self.state_endpoint: str | None = None
+        self.connections_total = 0
+        self.rejected_total = 0
+        self._server: asyncio.base_events.Server | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._t0 = 0.0
+        self._wall0 = 0.0
+        self._conns: dict[int, _Conn] = {}
+        self._handlers: set[asyncio.Task[None]] = set()
+        self._timer: asyncio.TimerHandle | None = None
+        self._timer_at: float | None = None
+        self._publisher = None
+        self._state_task: asyncio.Task[None] | None = None
+        self._ids = itertools.count(1)
+        self._closed = False
+
+    # -- lifecycle -----------------------------------------------------------------------------------------
+    async def start(self) -> None:
+        """Bind, start serving and publishing. ``host``/``port``/``state_endpoint`` then hold the real values."""
+        self._loop = asyncio.get_running_loop()
+        self._t0 = self._loop.time()
+        self._wall0 = time.time()
+        if self.options.state_endpoint is not None:
+            from aioadept.bus.pubsub import Publisher
+
+            self._publisher = Publisher(self.options.state_endpoint, bind=True)
+            self.state_endpoint = self._publisher.actual_endpoint
+        try:
+            self._server = await asyncio.start_server(self._serve, self.options.host, self.options.port,
+                                                      limit=MAX_LINE * 64)
+        except BaseException:
+            if self._publisher is not None:
+                self._publisher.close()
+            raise
+        sock = self._server.sockets[0].getsockname()
+        self.host, self.port = sock[0], sock[1]
+        if self._publisher is not None:
+            self._state_task = asyncio.create_task(self._publish_state(), name="sim-state")
+
+    async def close(self) -> None:
+        """Stop serving: close the listener and every connection, cancel timers and tasks, close the publisher."""
+        if self._closed:
+            return
+        self._closed = True
+        if self._server is not None:
+            self._server.close()
+        if self._timer is not None:
+            self._timer.cancel()
+        if self._state_task is not None:
+            self._state_task.cancel()
+            await asyncio.gather(self._state_task, return_exceptions=True)
+        # Abort the connections rather than cancel their handlers: each handler then sees EOF and returns
+        # normally (asyncio's start_server logs handler tasks that end cancelled as errors).
+        for conn in list(self._conns.values()):
+            if conn.timer is not None:
+                conn.timer.cancel()
+            conn.writer.transport.abort()
+        if self._handlers:
+            _, stuck = await asyncio.wait(set(self._handlers), timeout=2.0)
+            for t in stuck:
+                t.cancel()
+            await asyncio.gather(*stuck, return_exceptions=True)
+        if self._server is not None:
+            with contextlib.suppress(Exception):
+                await self._server.wait_closed()
+        if self._publisher is not None:
+            self._publisher.close()
+
+    async def __aenter__(self) -> SimServer:
+        await self.start()
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.close()
+
+    async def serve_forever(self) -> None:
+        """Serve until cancelled."""
+        await asyncio.Event().wait()
+
+    # -- the clock ----------------------------------------------------------------------------------------
+    def now(self) -> float:
+        """Server time: seconds since start (V+ ``TIMER(-3)``)."""
+        assert self._loop is not None
+        return self._loop.time() - self._t0
+
+    @property
+    def wall_time_at_start_s(self) -> float:
+        return self._wall0
+
+    # -- connections --------------------------------------------------------------------------------------
+    def _admit(self, peer_ip: str) -> str | None:
+        if self.options.allow and peer_ip not in self.options.allow:
+            return "address not allowed"
+        if len(self._conns) >= self.options.max_clients:
+            return "too many clients"
+        return None
+
+    async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        task = asyncio.current_task()
+        assert task is not None
+        self._handlers.add(task)
+        peer = writer.get_extra_info("peername") or ("?", 0)
+        refusal = self._admit(str(peer[0]))
+        if refusal is not None or self._closed:
+            self.rejected_total += 1
+            now = self.now()
+            ack = Ack.error(NO_ID, ErrorCode.SERVER_BUSY, refusal or "closing", now, now, self.controller.here)
+            with contextlib.suppress(OSError):
+                writer.write(encode_ack(ack))
+                await writer.drain()
+            writer.close()
+            self._handlers.discard(task)
+            log.info("refused %s: %s", peer, refusal)
+            return
+        conn = _Conn(next(self._ids), f"{peer[0]}:{peer[1]}", writer)
+        self._conns[conn.id] = conn
+        self.connections_total += 1
+        self.controller.connect(conn.id)
+        log.info("client %s connected (id %d)", conn.peer, conn.id)
+        framer = LineFramer(MAX_LINE)
+        drop_after = self.options.faults.drop_after
+        try:
+            while True:
+                data = await reader.read(65536)
+                if not data:
+                    break
+                now = self.now()
+                dropped = False
+                for item in framer.feed(data):
+                    conn.messages += 1
+                    try:
+                        out = self.controller.handle(item, conn.id, now)
+                    except Exception:  # the controller's own bug: keep serving the others
+                        log.exception("controller failed on %r", item)
+                        out = []
+                    self._dispatch(out)
+                    if drop_after is not None and conn.messages >= drop_after:
+                        dropped = True
+                        break
+                self._reschedule()
+                if dropped:
+                    log.info("fault: dropping %s after %d messages", conn.peer, conn.messages)
+                    break
+                await writer.drain()
+        except (ConnectionError, OSError) as exc:
+            log.info("client %s: %s", conn.peer, exc)
+        finally:
+            self._conns.pop(conn.id, None)
+            if conn.timer is not None:
+                conn.timer.cancel()
+            if not self._closed:
+                self.controller.disconnect(conn.id, self.now())
+                self._reschedule()
+            writer.close()
+            with contextlib.suppress(Exception):
+                await writer.wait_closed()
+            self._handlers.discard(task)
+            log.info("client %s disconnected", conn.peer)
+
+    # -- acks ---------------------------------------------------------------------------------------------
+    def _dispatch(self, out: list[Outgoing]) -> None:
+        if self.options.faults.silent:
+            return
+        delay = self.options.faults.ack_delay_s
+        for o in out:
+            conn = self._conns.get(o.conn)  # type: ignore[arg-type]
+            if conn is None or conn.writer.is_closing():
+                continue
+            data = encode_ack(o.ack)
+            if delay <= 0 and not conn.outbox:
+                conn.writer.write(data)
+            else:
+                conn.outbox.append((self.now() + delay, data))
+                self._arm_outbox(conn)
+
+    def _arm_outbox(self, conn: _Conn) -> None:
+        if conn.timer is None and conn.outbox:
+            assert self._loop is not None
+            conn.timer = self._loop.call_at(self._t0 + conn.outbox[0][0], self._flush_outbox, conn)
+
+    def _flush_outbox(self, conn: _Conn) -> None:
+        conn.timer = None
+        now = self.now() + 1e-4  # the loop may fire a timer a hair before its time
+        while conn.outbox and conn.outbox[0][0] <= now:
+            data = conn.outbox.popleft()[1]
+            if not conn.writer.is_closing():
+                conn.writer.write(data)
+        self._arm_outbox(conn)
+
+    # -- the controller's timer ----------------------------------------------------------------------------
+    def _reschedule(self) -> None:
+        wake = self.controller.next_wake_s()
+        if wake == self._timer_at:
+            return
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer = None
+        self._timer_at = wake
+        if wake is not None and not self._closed:
+            assert self._loop is not None
+            self._timer = self._loop.call_at(self._t0 + wake, self._on_timer, wake)
+
+    def _on_timer(self, wake: float) -> None:
+        self._timer = None
+        self._timer_at = None
+        try:
+            # asyncio may run a timer up to one clock tick early; the event is due at its own time.
+            out = self.controller.step(max(self.now(), wake))
+        except Exception:
+            log.exception("controller step failed")
+            out = []
+        self._dispatch(out)
+        self._reschedule()
+
+    # -- state stream -------------------------------------------------------------------------------------
+    def robot_state(self):  # -> aioadept.bus.messages.RobotState
+        """The state sample for now (what the stream publishes)."""
+        from aioadept.bus.messages import RobotState
+
+        now = self.now()
+        st = self.controller.state(now)
+        program_speed = st.speed_pct * 100.0 / self.controller.monitor_speed_pct
+        return RobotState(t_s=now, wall_time_s=self._wall0 + now, joints_deg=st.joints_deg, pose=st.pose,
+                          in_motion=st.in_motion, speed_pct=int(round(program_speed)), air=st.air)
+
+    async def _publish_state(self) -> None:
+        from aioadept.bus.messages import ROBOT_STATE_TOPIC
+
+        assert self._loop is not None and self._publisher is not None
+        period = 1.0 / self.options.state_rate_hz
+        next_t = self._loop.time()
+        while True:
+            try:
+                self._publisher.publish_nowait(ROBOT_STATE_TOPIC, self.robot_state().to_bytes())
+            except Exception:
+                log.exception("state publish failed")
+            # A fixed schedule, not sleep(period) after the work, so the rate does not drift.
+            next_t += period
+            delay = next_t - self._loop.time()
+            if delay < -period:  # fell behind (suspended, overloaded): skip the missed samples
+                next_t = self._loop.time()
+                delay = 0.0
+            await asyncio.sleep(max(delay, 0.0))
