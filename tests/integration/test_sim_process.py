@@ -1,0 +1,122 @@
+"""``aioadept sim`` as a real subprocess: READY line, RobotClient over TCP, state stream, clean exit on signals."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import signal
+import sys
+from pathlib import Path
+
+import pytest
+
+from aioadept import MoveJoints, MoveRelJoints, MoveRelTool, MoveTo, SetSpeed, Skill
+from aioadept.client import RobotClient
+from aioadept.errors import CommandError
+from aioadept.geometry import Pose, poses_close, rel_tool
+from aioadept.protocol import ErrorCode
+from aioadept.sim import kinematics as kin
+
+AIOADEPT = str(Path(sys.executable).parent / "aioadept")
+
+
+@contextlib.asynccontextmanager
+async def sim_process(*args: str):
+    """Start ``aioadept sim --port 0 ...``; yield (process, READY fields); SIGTERM it on exit."""
+    proc = await asyncio.create_subprocess_exec(
+        AIOADEPT, "sim", "--port", "0", *args, stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE)
+    try:
+        line = (await proc.stdout.readline()).decode()
+        if not line.startswith("READY"):
+            err = await proc.stderr.read()
+            raise AssertionError(f"no READY line: {line!r} {err.decode()}")
+        fields = dict(f.split("=", 1) for f in line.split()[1:])
+        yield proc, fields
+    finally:
+        if proc.returncode is None:
+            proc.send_signal(signal.SIGTERM)
+            with contextlib.suppress(TimeoutError):
+                async with asyncio.timeout(5):
+                    await proc.wait()
+        if proc.returncode is None:
+            proc.kill()
+            await proc.wait()
+
+
+@pytest.mark.timeout(30)
+async def test_sim_subprocess_runs_the_paper_init_move_and_exits_cleanly_on_sigterm():
+    async with sim_process("--time-scale", "50", "--state-endpoint", "none") as (proc, ready):
+        assert ready["host"] == "127.0.0.1" and int(ready["port"]) > 0 and ready["state"] == "none"
+        async with RobotClient(ready["host"], int(ready["port"])) as robot:
+            version, name = await robot.hello()
+            assert version == 1 and name.startswith("aioadept-sim ")
+            res = await robot.cmdexec(MoveJoints([0, -90, 180, 0, 90, 0]), MoveRelJoints([-90, 60, 30, -90, 0, 0]),
+                                      MoveRelTool([40, -25, 185, 0, 0, 0]), MoveRelJoints([0, 0, 0, 0, 0, 1.5]))
+        expected = rel_tool(kin.forward([-90, -30, 210, -90, 90, 0]), (40, -25, 185, 0, 0, 0)) @ Pose(0, 0, 0, 0, 0, 1.5)
+        assert poses_close(res.pose, expected, tol_mm=2e-3, tol_deg=2e-3)
+        # Ack clock: seconds since the server started, increasing.
+        times = [t for m in res.messages for t in (m.ack.t_start_s, m.ack.t_done_s)]
+        assert times == sorted(times) and 0 <= times[0] < 30
+        proc.send_signal(signal.SIGTERM)
+        async with asyncio.timeout(5):
+            assert await proc.wait() == 0
+
+
+@pytest.mark.timeout(30)
+async def test_sim_subprocess_two_clients_and_errors_then_sigint():
+    async with sim_process("--instant", "--state-endpoint", "none", "--monitor-speed", "50") as (proc, ready):
+        host, port = ready["host"], int(ready["port"])
+        async with RobotClient(host, port) as a, RobotClient(host, port) as b:
+            ra, rb = await asyncio.gather(a.cmdexec(SetSpeed(30), MoveJoints([10, -90, 180, 0, 90, 0])),
+                                          b.cmdexec(MoveJoints([-10, -90, 180, 0, 90, 0])))
+            assert ra.messages[-1].ok and rb.messages[-1].ok
+            for cmd, code in [(Skill("fly"), ErrorCode.UNKNOWN_SKILL),
+                              (Skill("move_to", 1.0), ErrorCode.WRONG_ARGUMENT_COUNT),
+                              (Skill("set_speed", 101), ErrorCode.ILLEGAL_VALUE),
+                              (MoveTo([0, 0, 2000, 0, 180, 0]), ErrorCode.OUT_OF_REACH),
+                              (MoveRelJoints([0, 0, 0, 0, -300, 0]), ErrorCode.JOINT_LIMIT)]:
+                with pytest.raises(CommandError) as info:
+                    await a.cmdexec(cmd)
+                assert info.value.code == code
+            before = await b.here()
+            assert (await a.here()) == before  # nothing moved on errors
+        # An oversize line over a raw socket.
+        reader, writer = await asyncio.open_connection(host, port)
+        writer.write(b"abcd0001:move_to:" + b"9" * 200 + b"\r\nabcd0002:here\r\n")
+        first = await reader.readuntil(b"\r\n")
+        second = await reader.readuntil(b"\r\n")
+        assert first.startswith(b"abcd0001:error:") and b":-402:" in first
+        assert second.startswith(b"abcd0002:done:")
+        writer.close()
+        await writer.wait_closed()
+        proc.send_signal(signal.SIGINT)
+        async with asyncio.timeout(5):
+            assert await proc.wait() == 0
+
+
+@pytest.mark.timeout(30)
+async def test_sim_subprocess_publishes_state_and_injects_faults():
+    from aioadept.bus.messages import ROBOT_STATE_TOPIC, RobotState
+    from aioadept.bus.pubsub import Subscriber
+
+    async with sim_process("--instant", "--state-endpoint", "tcp://127.0.0.1:0", "--state-rate-hz", "50",
+                           "--fault", "ack-delay=0.15") as (proc, ready):
+        assert ready["state"].startswith("tcp://127.0.0.1:")
+        async with Subscriber(ready["state"], topics=[ROBOT_STATE_TOPIC]) as sub:
+            st = RobotState.from_bytes((await sub.recv())[1])
+            assert st.joints_deg == pytest.approx(kin.HOME_JOINTS_DEG) and not st.in_motion
+            async with RobotClient(ready["host"], int(ready["port"])) as robot:
+                res = await robot.cmdexec(MoveJoints([20, -90, 180, 0, 90, 0]))
+                assert min(m.rtt_s for m in res.messages) >= 0.14
+            while not st.joints_deg[0] == pytest.approx(20, abs=1e-6):
+                st = RobotState.from_bytes((await sub.recv())[1])
+
+
+def test_bad_options_exit_with_usage_error():
+    from aioadept.sim.__main__ import main
+
+    with pytest.raises(SystemExit) as info:
+        main(["--fault", "explode"])
+    assert info.value.code == 2
+    with pytest.raises(SystemExit):
+        main(["--time-scale", "0"])
