@@ -150,3 +150,24 @@ def test_load_run_errors(tmp_path) -> None:
     (out / "vision.csv").write_text("seq,id\n0,x\n")
     with pytest.raises(ValueError, match="missing columns"):
         load_run(out)
+
+
+def test_parquet_copies_when_pyarrow_imports(tmp_path, monkeypatch) -> None:
+    # pyarrow is optional and not installed here: a stand-in records what would be written.
+    import sys
+    import types
+
+    written = {}
+    pa = types.ModuleType("pyarrow")
+    pa.table = lambda data: data
+    pq = types.ModuleType("pyarrow.parquet")
+    pq.write_table = lambda table, path: written.__setitem__(path.name, table)
+    pa.parquet = pq
+    monkeypatch.setitem(sys.modules, "pyarrow", pa)
+    monkeypatch.setitem(sys.modules, "pyarrow.parquet", pq)
+    out = _filled().save(tmp_path / "pq")
+    assert sorted(written) == ["marks.parquet", "robot.parquet", "vision.parquet"]
+    assert tuple(written["robot.parquet"]) == ROBOT_COLUMNS
+    assert written["robot.parquet"]["t_recv_s"] == [100.0523, 100.0531, None, 100.41]
+    info = json.loads((out / "run.json").read_text())
+    assert "robot.parquet" in info["files"]

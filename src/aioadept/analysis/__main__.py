@@ -1,0 +1,63 @@
+"""``aioadept analyze RUN_DIR...``: the paper's timing metrics, fits and figures for one or many recorded runs.
+
+Exit codes: 0 analysed; 1 no complete approach iteration in the runs (outputs are still written, with n = 0);
+2 bad arguments or a path that holds no readable run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+__all__ = ["main"]
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="aioadept analyze",
+        description="Compute the paper's timing quantities (tau_r, switching durations; eqs. 1-5) over run folders "
+                    "written by aioadept.capture, pool them across runs, fit their distributions and write figures "
+                    "like the paper's Figs. 9-13, summary.json and iterations.csv.")
+    p.add_argument("run_dirs", nargs="+", metavar="RUN_DIR",
+                   help="a run folder (with run.json), or a folder whose subfolders are runs")
+    p.add_argument("--out", metavar="DIR", default=None,
+                   help="output folder (default: the run folder for one run, ./analysis for several)")
+    p.add_argument("--no-plots", action="store_true", help="skip the figures (stats and summary only)")
+    p.add_argument("--gantt-first", type=int, default=1, metavar="K",
+                   help="first complete iteration shown in the Gantt chart (default 1, as i >= 1 has tau r->v)")
+    p.add_argument("--gantt-count", type=int, default=2, metavar="N",
+                   help="number of iterations in the Gantt chart (default 2, as the paper's Fig. 10)")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(sys.argv[1:] if argv is None else argv)
+    from rich.console import Console
+
+    from aioadept.analysis.report import analyze_runs, fits_table, summary_table
+
+    console = Console()
+    try:
+        summary = analyze_runs(args.run_dirs, args.out, plots=not args.no_plots, gantt_first=args.gantt_first,
+                               gantt_count=args.gantt_count)
+    except (FileNotFoundError, ValueError) as exc:
+        print(f"aioadept analyze: {exc}", file=sys.stderr)
+        return 2
+    console.print(summary_table(summary))
+    console.print(fits_table(summary))
+    if len(summary.runs) <= 8:  # beyond that the list drowns the table; summary.json has every run
+        for run in summary.runs:
+            params = ", ".join(f"{k}={v}" for k, v in run.parameters.items())
+            console.print(f"  {run.name}: {run.n_complete}/{run.n_iterations} complete iterations  {params}",
+                          markup=False, highlight=False)
+    console.print(f"wrote {', '.join(sorted(p.name for p in summary.files.values()))} to {summary.out_dir}",
+                  markup=False, highlight=False)
+    if summary.n_complete == 0:
+        print("aioadept analyze: no complete approach iteration (vision request + set_speed/move_rel_tool/break) "
+              "in these runs", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

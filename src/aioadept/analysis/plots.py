@@ -1,0 +1,167 @@
+"""Figures like the paper's Figs. 9-13, written as PNG files.
+
+- :func:`plot_sharpness`  Fig. 9: sharpness after each motion increment, red line at the maximum;
+- :func:`plot_gantt`      Fig. 10: vision (orange) and robot (blue) requests as bars from send to receive;
+- :func:`plot_normal_hist` Fig. 11: histogram of tau_r with the fitted Gaussian PDF;
+- :func:`plot_lognormal_pair` Figs. 12 and 13: two histograms (A, B) with fitted log-normal PDFs and min/max lines.
+
+matplotlib is imported inside the functions and only through its object API (``Figure`` + Agg canvas), so
+importing this module is cheap and no pyplot global state or GUI backend is involved.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["DPI", "ROBOT_COLOR", "VISION_COLOR", "plot_gantt", "plot_lognormal_pair", "plot_normal_hist",
+           "plot_sharpness"]
+
+DPI = 110
+VISION_COLOR = "#f28e2b"  # orange, as the paper's vision requests
+ROBOT_COLOR = "#4e79a7"   # blue, as the paper's robot requests
+HIST_COLOR = "#a0c4e8"
+FIT_COLOR = "#1f3b73"
+MINMAX_COLOR = "#c0392b"
+
+
+def _figure(width_in: float, height_in: float) -> Any:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width_in, height_in), layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig: Any, path: str | os.PathLike[str]) -> Path:
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=DPI)
+    return out
+
+
+def _bins(x: np.ndarray) -> int:
+    # Freedman-Diaconis-like count, bounded so small samples still show a shape and big ones are not noisy.
+    return int(min(60, max(8, math.ceil(2 * x.size ** (1 / 3)))))
+
+
+def plot_sharpness(sharpness: Sequence[float], path: str | os.PathLike[str], *, title: str | None = None,
+                   delta_z_mm: float | None = None) -> Path:
+    """Fig. 9: sharpness per step (step 0 = the approach pose), red vertical line at the maximum."""
+    s = np.asarray([v for v in sharpness if v is not None], dtype=float)
+    fig = _figure(6.4, 3.8)
+    ax = fig.add_subplot()
+    steps = np.arange(s.size)
+    ax.plot(steps, s, "o-", color="#333333", markersize=4, linewidth=1.2, label="sharpness")
+    if s.size:
+        k = int(np.argmax(s))
+        ax.axvline(k, color="red", linewidth=1.5, label=f"maximum (step {k})")
+    xlabel = "step (motion increments from the approach pose)"
+    if delta_z_mm is not None:
+        xlabel += f", Δz = {delta_z_mm:g} mm"
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("sharpness (std of Sobel-x profile)")
+    ax.set_title(title or "Sharpness after consecutive robot motions (cf. paper Fig. 9)")
+    ax.xaxis.get_major_locator().set_params(integer=True)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="best", fontsize=9)
+    return _save(fig, path)
+
+
+def plot_gantt(bars: Sequence[tuple[str, str, float, float | None]], path: str | os.PathLike[str], *,
+               title: str | None = None) -> Path:
+    """Fig. 10: one row per request, a bar from send to receive (ms from the first send).
+
+    ``bars`` are ``(kind, label, t_send_s, t_recv_s)`` in send order, ``kind`` "vision" or "robot"; a request
+    never answered (``t_recv_s`` None) is drawn hatched to the end of the window.
+    """
+    if not bars:
+        raise ValueError("bars: nothing to draw")
+    t0 = min(b[2] for b in bars)
+    t_end = max((b[3] if b[3] is not None else b[2]) for b in bars)
+    n = len(bars)
+    fig = _figure(9.0, max(2.6, 0.36 * n + 1.4))
+    ax = fig.add_subplot()
+    for row, (kind, _label, ts, tr) in enumerate(bars):
+        color = VISION_COLOR if kind == "vision" else ROBOT_COLOR
+        start = (ts - t0) * 1000.0
+        end = ((tr if tr is not None else t_end) - t0) * 1000.0
+        # A bar shorter than a pixel still shows as a tick: the send-to-send gaps are ~0.2 ms in a ~300 ms window.
+        width = max(end - start, (t_end - t0) * 1000.0 * 0.002)
+        ax.barh(row, width, left=start, height=0.6, color=color, edgecolor=color if tr is not None else "black",
+                hatch=None if tr is not None else "//", linewidth=0.8)
+    ax.set_yticks(range(n), [b[1] for b in bars], fontsize=9)
+    ax.invert_yaxis()  # first request on top, time flows down and right like the paper's chart
+    ax.set_xlabel("time since the first request in the window, ms (client loop clock)")
+    ax.set_xlim(left=-(t_end - t0) * 1000.0 * 0.01)
+    ax.grid(axis="x", alpha=0.3)
+    from matplotlib.patches import Patch
+
+    ax.legend(handles=[Patch(color=VISION_COLOR, label="vision request"),
+                       Patch(color=ROBOT_COLOR, label="robot request")], loc="upper right", fontsize=9)
+    ax.set_title(title or "Vision (orange) and robot (blue) requests in the approach loop (cf. paper Fig. 10)")
+    return _save(fig, path)
+
+
+def plot_normal_hist(values_ms: Sequence[float] | np.ndarray, fit: Any, path: str | os.PathLike[str], *,
+                     xlabel: str, title: str) -> Path:
+    """Fig. 11: density histogram of ``values_ms`` with the fitted Gaussian PDF (``fit`` may be None)."""
+    x = np.asarray(values_ms, dtype=float)
+    fig = _figure(6.4, 4.0)
+    ax = fig.add_subplot()
+    if x.size:
+        ax.hist(x, bins=_bins(x), density=True, color=HIST_COLOR, edgecolor="white", label=f"measured (n={x.size})")
+    if fit is not None:
+        pad = 4 * fit.sigma_ms
+        grid = np.linspace(min(x.min(), fit.mu_ms - pad), max(x.max(), fit.mu_ms + pad), 400)
+        ax.plot(grid, fit.pdf(grid), color=FIT_COLOR, linewidth=2,
+                label=f"Gaussian fit: μ = {fit.mu_ms:.3f} ms, σ = {fit.sigma_ms:.3f} ms")
+    if not x.size:
+        ax.text(0.5, 0.5, "no data", transform=ax.transAxes, ha="center", va="center", color="gray")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("probability density, 1/ms")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    if x.size:
+        ax.legend(loc="upper right", fontsize=9)
+    return _save(fig, path)
+
+
+def _lognormal_panel(ax: Any, x: np.ndarray, fit: Any, *, letter: str, xlabel: str, title: str) -> None:
+    if x.size:
+        ax.hist(x, bins=_bins(x), density=True, color=HIST_COLOR, edgecolor="white", label=f"measured (n={x.size})")
+        for v, name, dx, ha in ((x.min(), "min", 3, "left"), (x.max(), "max", -3, "right")):
+            ax.axvline(v, color=MINMAX_COLOR, linestyle="--", linewidth=1.2)
+            # Labels inside the lines, so the max label is never cut at the right edge.
+            ax.annotate(f"{name} {v:.3f} ms", (v, 1.0), xycoords=("data", "axes fraction"), xytext=(dx, -12),
+                        textcoords="offset points", fontsize=8, color=MINMAX_COLOR, ha=ha)
+    if fit is not None and x.size:
+        grid = np.linspace(max(x.min() * 0.5, 1e-6), x.max() * 1.05, 400)
+        ax.plot(grid, fit.pdf(grid), color=FIT_COLOR, linewidth=2,
+                label=f"log-normal fit: s = {fit.shape:.3f}, median = {fit.scale_ms:.3f} ms")
+    elif not x.size:
+        ax.text(0.5, 0.5, "no data", transform=ax.transAxes, ha="center", va="center", color="gray")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("probability density, 1/ms")
+    ax.set_title(f"({letter}) {title}", loc="left")
+    ax.grid(alpha=0.3)
+    if x.size:
+        # Below the min/max labels, over the thin tail of the distribution.
+        ax.legend(loc="upper right", bbox_to_anchor=(1.0, 0.9), fontsize=8)
+
+
+def plot_lognormal_pair(a: tuple[np.ndarray, Any, str, str], b: tuple[np.ndarray, Any, str, str],
+                        path: str | os.PathLike[str], *, title: str) -> Path:
+    """Figs. 12/13: panels (A) and (B), each ``(values_ms, fit or None, xlabel, panel title)``."""
+    fig = _figure(11.0, 4.0)
+    axes = fig.subplots(1, 2)
+    for ax, letter, (x, fit, xlabel, panel) in zip(axes, "AB", (a, b)):
+        _lognormal_panel(ax, np.asarray(x, dtype=float), fit, letter=letter, xlabel=xlabel, title=panel)
+    fig.suptitle(title)
+    return _save(fig, path)

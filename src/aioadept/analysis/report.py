@@ -1,0 +1,299 @@
+"""Analyse one or many run folders: pooled metrics, fits, figures, ``summary.json`` and ``iterations.csv``.
+
+This is what ``aioadept analyze RUN_DIR...`` runs and what the demo calls after a run::
+
+    summary = analyze_runs(["runs/0001", "runs/0002"], "analysis")
+    summary.stats["tau_r_ms"].mean_ms
+
+Iterations are found per run (:func:`aioadept.analysis.metrics.iterations_of_run`), then pooled; each keeps its
+run's name and parameters (approach speed, delta_z, ...) as columns of ``iterations.csv``.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import time
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+from aioadept.analysis.fits import fit_for
+from aioadept.analysis.metrics import QUANTITIES, Iteration, Stats, describe, iterations_of_run, quantity_values
+from aioadept.capture import Run, load_run
+
+__all__ = ["FIGURES", "RunInfo", "Summary", "analyze_runs", "expand_run_dirs", "fits_table", "gantt_bars", "summary_table",
+           "write_figures"]
+
+FIGURES = {
+    "sharpness": "fig09_sharpness.png",
+    "gantt": "fig10_gantt.png",
+    "tau_r": "fig11_tau_r.png",
+    "switching_rv": "fig12_switching_robot_vision.png",
+    "switching_send": "fig13_switching_sends.png",
+}
+"""Figure key -> file name written into the output folder."""
+
+ITERATION_COLUMNS = (
+    "index", "vision_id", "batch", "complete", "sharpness", "t_vreq_s", "t_vresp_s", "t_ss_rreq_s", "t_mrt_rreq_s",
+    "t_b_rreq_s", "t_b_rresp_s", "t_ss_rstart_s", "t_b_rstart_s", "t_b_rdone_s",
+    *(q.name for q in QUANTITIES),
+)
+
+
+@dataclass(frozen=True, slots=True)
+class RunInfo:
+    """One analysed run: where it is, its parameters, and how many iterations it gave."""
+
+    name: str
+    path: str
+    parameters: Mapping[str, Any]
+    n_robot: int
+    n_vision: int
+    n_iterations: int
+    n_complete: int
+
+    def as_dict(self) -> dict[str, Any]:
+        return {k: getattr(self, k) if k != "parameters" else dict(self.parameters) for k in self.__slots__}
+
+
+@dataclass(frozen=True, slots=True)
+class Summary:
+    """The result of :func:`analyze_runs`: per-quantity stats (ms) and fits over the pooled complete iterations."""
+
+    runs: tuple[RunInfo, ...]
+    stats: Mapping[str, Stats]
+    fits: Mapping[str, Any]
+    iterations: tuple[Iteration, ...]
+    out_dir: Path
+    files: Mapping[str, Path] = field(default_factory=dict)
+
+    @property
+    def n_complete(self) -> int:
+        return sum(1 for it in self.iterations if it.complete)
+
+    def as_dict(self) -> dict[str, Any]:
+        """The content of ``summary.json``."""
+        from aioadept import __version__
+
+        return {
+            "aioadept_version": __version__,
+            "created_utc": datetime.fromtimestamp(time.time(), tz=timezone.utc).isoformat(timespec="seconds"),
+            "units": "ms",
+            "n_runs": len(self.runs),
+            "n_iterations": len(self.iterations),
+            "n_complete": self.n_complete,
+            "runs": [r.as_dict() for r in self.runs],
+            "quantities": {
+                q.name: {
+                    "symbol": q.symbol, "label": q.label, "equation": q.equation, "figure": q.figure,
+                    "fit_family": q.family,
+                    "stats": self.stats[q.name].as_dict(),
+                    "fit": self.fits[q.name].as_dict() if self.fits.get(q.name) is not None else None,
+                }
+                for q in QUANTITIES
+            },
+            "files": {k: p.name for k, p in self.files.items()},
+        }
+
+
+def expand_run_dirs(paths: Iterable[str | os.PathLike[str]]) -> list[Path]:
+    """Run folders from the given paths: a folder with ``run.json`` is a run; a folder without one stands for the
+    run folders below it (searched recursively, sorted), as an experiment writes them. Raises
+    ``FileNotFoundError`` when a path holds no run."""
+    out: list[Path] = []
+    for p in map(Path, paths):
+        if (p / "run.json").is_file():
+            out.append(p)
+            continue
+        found = sorted(q.parent for q in p.rglob("run.json")) if p.is_dir() else []
+        if not found:
+            raise FileNotFoundError(f"{p}: no run folder (run.json) here or below")
+        out.extend(found)
+    return out
+
+
+def _names(paths: Sequence[Path]) -> list[str]:
+    base = [p.name for p in paths]
+    if len(set(base)) == len(base):
+        return base
+    # Same folder names under different parents (experiment grids): use the shortest distinguishing path.
+    common = Path(os.path.commonpath([str(p.resolve()) for p in paths]))
+    return [str(p.resolve().relative_to(common)) or p.name for p in paths]
+
+
+def gantt_bars(run: Run, iterations: Sequence[Iteration], *, first: int = 1,
+               count: int = 2) -> tuple[list[tuple[str, str, float, float | None]], tuple[int, int]]:
+    """The requests of ``count`` complete iterations of ``run`` from position ``first`` (clamped to what exists),
+    as ``(kind, label, t_send_s, t_recv_s)`` bars for :func:`plots.plot_gantt`, and the iteration indices shown."""
+    done = [it for it in iterations if it.complete and it.run == run.name]
+    if not done:
+        return [], (0, 0)
+    first = max(0, min(first, len(done) - 1))
+    window = done[first:first + max(1, count)]
+    t0, t1 = window[0].t_vreq_s, window[-1].t_b_rresp_s
+    label_of = {it.vision_id: it.index for it in window}
+    bars: list[tuple[str, str, float, float | None]] = []
+    for v in run.vision:
+        if v.t_send_s is not None and t0 <= v.t_send_s <= t1:
+            i = label_of.get(v.id)
+            bars.append(("vision", f"vision (i={i})" if i is not None else "vision", v.t_send_s, v.t_recv_s))
+    for r in run.robot:
+        if r.t_send_s is not None and t0 <= r.t_send_s <= t1:
+            bars.append(("robot", r.skill, r.t_send_s, r.t_recv_s))
+    bars.sort(key=lambda b: b[2])
+    return bars, (window[0].index, window[-1].index)
+
+
+def write_figures(runs: Sequence[Run], iterations: Sequence[Iteration], stats: Mapping[str, Stats],
+                  fits: Mapping[str, Any], out_dir: Path, *, gantt_first: int = 1,
+                  gantt_count: int = 2) -> dict[str, Path]:
+    """Write the figures that the data allows into ``out_dir``; returns figure key -> path (see FIGURES)."""
+    from aioadept.analysis import plots
+
+    files: dict[str, Path] = {}
+    # Figs. 9 and 10 show one run: the first one with a complete iteration (else the first one).
+    shown = next((r for r in runs if any(it.complete and it.run == r.name for it in iterations)), runs[0])
+    sharp = [v.sharpness for v in shown.vision if v.sharpness is not None]
+    if sharp:
+        files["sharpness"] = plots.plot_sharpness(
+            sharp, out_dir / FIGURES["sharpness"], delta_z_mm=_delta_z(shown.parameters),
+            title=f"Sharpness after consecutive robot motions (cf. paper Fig. 9)\nrun {shown.name}")
+    bars, (a, b) = gantt_bars(shown, iterations, first=gantt_first, count=gantt_count)
+    if bars:
+        span = f"iteration {a}" if a == b else f"iterations {a}-{b}"
+        files["gantt"] = plots.plot_gantt(
+            bars, out_dir / FIGURES["gantt"],
+            title=f"Vision (orange) and robot (blue) requests (cf. paper Fig. 10)\nrun {shown.name}, approach {span}")
+
+    def vals(name: str) -> Any:
+        return quantity_values(iterations, name)
+
+    if stats["tau_r_ms"].n:
+        files["tau_r"] = plots.plot_normal_hist(
+            vals("tau_r_ms"), fits.get("tau_r_ms"), out_dir / FIGURES["tau_r"],
+            xlabel="τ_r, ms  (eq. 1: client wait − server time from set_speed start to break start)",
+            title=f"Travel time of robot motion increments, {len(runs)} run(s) (cf. paper Fig. 11)")
+    if stats["tau_r_to_v_ms"].n or stats["tau_v_to_r_ms"].n:
+        files["switching_rv"] = plots.plot_lognormal_pair(
+            (vals("tau_r_to_v_ms"), fits.get("tau_r_to_v_ms"), "τ(r→v), ms  (eq. 2)", "robot → vision"),
+            (vals("tau_v_to_r_ms"), fits.get("tau_v_to_r_ms"), "τ(v→r), ms  (eq. 3)", "vision → robot"),
+            out_dir / FIGURES["switching_rv"],
+            title="Switching durations between robot and vision requests (cf. paper Fig. 12)")
+    if stats["tau_ss_to_mrt_ms"].n or stats["tau_mrt_to_b_ms"].n:
+        files["switching_send"] = plots.plot_lognormal_pair(
+            (vals("tau_ss_to_mrt_ms"), fits.get("tau_ss_to_mrt_ms"), "τ(ss→mrt), ms  (eq. 4)",
+             "set_speed → move_rel_tool"),
+            (vals("tau_mrt_to_b_ms"), fits.get("tau_mrt_to_b_ms"), "τ(mrt→b), ms  (eq. 5)", "move_rel_tool → break"),
+            out_dir / FIGURES["switching_send"],
+            title="Durations between starting consecutive sends to the RobotServer (cf. paper Fig. 13)")
+    return files
+
+
+def _delta_z(params: Mapping[str, Any]) -> float | None:
+    for key in ("delta_z_mm", "delta_z"):
+        if isinstance(params.get(key), (int, float)):
+            return float(params[key])
+    return None
+
+
+def _write_iterations(path: Path, iterations: Sequence[Iteration]) -> Path:
+    param_keys = sorted({k for it in iterations for k, v in it.parameters.items()
+                         if isinstance(v, (str, int, float, bool)) or v is None})
+    with path.open("w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow(["run", *param_keys, *ITERATION_COLUMNS])
+        for it in iterations:
+            row = [it.run, *(it.parameters.get(k) for k in param_keys), *(getattr(it, c) for c in ITERATION_COLUMNS)]
+            w.writerow(["" if c is None else repr(c) if isinstance(c, float) else c for c in row])
+    return path
+
+
+def analyze_runs(run_dirs: Iterable[str | os.PathLike[str]], out_dir: str | os.PathLike[str] | None = None, *,
+                 plots: bool = True, gantt_first: int = 1, gantt_count: int = 2) -> Summary:
+    """Load the runs, pool their approach iterations, compute stats and fits, write the outputs; return them.
+
+    ``out_dir`` defaults to the run folder for one run and ``./analysis`` for several. Writes ``summary.json``,
+    ``iterations.csv`` and (``plots=True``) the figures in :data:`FIGURES`; the Gantt chart shows ``gantt_count``
+    complete iterations from position ``gantt_first`` of the first run. Raises ``FileNotFoundError`` for a path
+    with no run and ``ValueError`` for a run folder that does not parse. A run with no complete iteration is not
+    an error: its stats have ``n = 0``.
+    """
+    paths = expand_run_dirs(run_dirs)
+    if not paths:
+        raise ValueError("run_dirs: no run folder given")
+    names = _names(paths)
+    runs = [_renamed(load_run(p), n) for p, n in zip(paths, names)]
+    out = Path(out_dir) if out_dir is not None else (paths[0] if len(paths) == 1 else Path("analysis"))
+    out.mkdir(parents=True, exist_ok=True)
+
+    per_run = [iterations_of_run(r) for r in runs]
+    iterations = tuple(it for its in per_run for it in its)
+    infos = tuple(RunInfo(r.name, str(r.path), r.parameters, len(r.robot), len(r.vision), len(its),
+                          sum(1 for it in its if it.complete)) for r, its in zip(runs, per_run))
+    stats: dict[str, Stats] = {}
+    fits: dict[str, Any] = {}
+    for q in QUANTITIES:
+        values = quantity_values(iterations, q.name)
+        stats[q.name] = describe(values)
+        fits[q.name] = fit_for(q.family, values)
+    files: dict[str, Path] = {}
+    if plots:
+        files.update(write_figures(runs, iterations, stats, fits, out, gantt_first=gantt_first,
+                                   gantt_count=gantt_count))
+    files["iterations"] = _write_iterations(out / "iterations.csv", iterations)
+    files["summary"] = out / "summary.json"
+    summary = Summary(infos, stats, fits, iterations, out, files)
+    tmp = out / "summary.json.tmp"
+    tmp.write_text(json.dumps(summary.as_dict(), indent=2, default=repr) + "\n", encoding="utf-8")
+    tmp.replace(out / "summary.json")
+    return summary
+
+
+def _renamed(run: Run, name: str) -> Run:
+    from dataclasses import replace
+
+    return replace(run, metadata={**run.metadata, "name": name}) if run.name != name else run
+
+
+def _fmt_ms(v: float | None) -> str:
+    # About four significant digits, so the table fits an 80-column terminal from 0.05 ms to 999 ms.
+    if v is None:
+        return "—"
+    a = abs(v)
+    return f"{v:.1f}" if a >= 100 else f"{v:.2f}" if a >= 10 else f"{v:.3f}"
+
+
+def summary_table(summary: Summary) -> Any:
+    """A rich ``Table`` of the stats (ms): n, mean, std, min, median, p99, max per quantity."""
+    from rich.table import Table
+
+    table = Table(title=f"Approach-loop timing, ms: {summary.n_complete} iterations, {len(summary.runs)} run(s)")
+    for col in ("quantity", "eq", "n", "mean", "std", "min", "median", "p99", "max"):
+        table.add_column(col, justify="left" if col == "quantity" else "right", no_wrap=True)
+    for q in QUANTITIES:
+        s = summary.stats[q.name]
+        table.add_row(q.symbol, str(q.equation or "—"), str(s.n), *(_fmt_ms(v) for v in (
+            s.mean_ms, s.std_ms, s.min_ms, s.median_ms, s.p99_ms, s.max_ms)))
+    return table
+
+
+def fits_table(summary: Summary) -> Any:
+    """A rich ``Table`` of the distribution fits (Gaussian for tau_r, log-normal with loc 0 for the others)."""
+    from rich.table import Table
+
+    table = Table(title="Distribution fits (maximum likelihood), ms")
+    for col in ("quantity", "family", "parameters", "n"):
+        table.add_column(col, justify="right" if col == "n" else "left", no_wrap=True)
+    for q in QUANTITIES:
+        fit = summary.fits.get(q.name)
+        if fit is None:
+            table.add_row(q.symbol, q.family, "— (too few values)", str(summary.stats[q.name].n))
+        elif fit.family == "normal":
+            table.add_row(q.symbol, "Gaussian", f"μ = {fit.mu_ms:.4g}, σ = {fit.sigma_ms:.4g}", str(fit.n))
+        else:
+            table.add_row(q.symbol, "log-normal", f"s = {fit.shape:.4g}, median = {fit.scale_ms:.4g}", str(fit.n))
+    return table
