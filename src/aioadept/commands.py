@@ -12,6 +12,7 @@ motion before the next command runs, and the break's ack marks the motion's comp
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Iterable, Sequence
 
 from aioadept.geometry import Pose
@@ -52,7 +53,7 @@ def _six(name: str, values: Sequence[float] | Pose) -> tuple[float, ...]:
         raise ValueError(f"{name}: expected 6 numbers, got {len(vals)}")
     out = []
     for i, v in enumerate(vals):
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
+        if isinstance(v, bool) or not isinstance(v, numbers.Real):
             raise ValueError(f"{name}[{i}]: {v!r} is not a number")
         if not math.isfinite(v):
             raise ValueError(f"{name}[{i}]: {v!r} is not finite")
@@ -130,6 +131,10 @@ class MoveToolZ(MoveRelTool):
     __slots__ = ()
 
     def __init__(self, delta_z_mm: float, *, break_move: bool = True) -> None:
+        if isinstance(delta_z_mm, bool) or not isinstance(delta_z_mm, numbers.Real):
+            raise ValueError(f"delta_z_mm: {delta_z_mm!r} is not a number")
+        if not math.isfinite(delta_z_mm):
+            raise ValueError(f"delta_z_mm: {delta_z_mm!r} is not finite")
         super().__init__((0.0, 0.0, delta_z_mm, 0.0, 0.0, 0.0), break_move=break_move)
 
     @property
@@ -147,11 +152,14 @@ class SetSpeed(Command):
     __slots__ = ()
 
     def __init__(self, speed: int) -> None:
-        if isinstance(speed, bool) or not isinstance(speed, int):
-            if isinstance(speed, float) and speed.is_integer():
-                speed = int(speed)
-            else:
-                raise ValueError(f"speed: {speed!r} is not an integer")
+        if isinstance(speed, bool) or not isinstance(speed, numbers.Real):
+            raise ValueError(f"speed: {speed!r} is not an integer")
+        if isinstance(speed, numbers.Integral):
+            speed = int(speed)
+        elif math.isfinite(speed) and float(speed).is_integer():
+            speed = int(speed)
+        else:
+            raise ValueError(f"speed: {speed!r} is not an integer")
         if not 0 <= speed <= 100:
             raise ValueError(f"speed: {speed} is outside 0..100")
         self._init((SkillCall("set_speed", (speed,)),))

@@ -16,6 +16,7 @@ as trailing fields. See ``docs/protocol.md`` for the grammar. Nothing here does 
 from __future__ import annotations
 
 import math
+import numbers
 import re
 from dataclasses import dataclass, field
 from enum import Enum
@@ -79,6 +80,13 @@ def check_skill_name(skill: str) -> None:
         )
 
 
+def _plain_number(i: int, a: object) -> int | float:
+    # numpy scalars and other Real/Integral types become plain int/float, so the wire text is the same for all.
+    if isinstance(a, bool) or not isinstance(a, numbers.Real):
+        raise ValueError(f"args[{i}]: {a!r} is not a number")
+    return int(a) if isinstance(a, numbers.Integral) else float(a)
+
+
 @dataclass(frozen=True, slots=True)
 class SkillCall:
     """A skill name and its numeric arguments: one command message without its ID.
@@ -94,10 +102,10 @@ class SkillCall:
     def __post_init__(self) -> None:
         check_skill_name(self.skill)
         args = tuple(self.args)
+        if not all(type(a) is float or type(a) is int for a in args):
+            args = tuple(_plain_number(i, a) for i, a in enumerate(args))
         for i, a in enumerate(args):
-            if isinstance(a, bool) or not isinstance(a, (int, float)):
-                raise ValueError(f"args[{i}]: {a!r} is not a number")
-            if isinstance(a, float) and not math.isfinite(a):
+            if type(a) is float and not math.isfinite(a):
                 raise ValueError(f"args[{i}]: {a!r} is not finite")
         object.__setattr__(self, "args", args)
         wire = self.skill + (":" + ",".join(map(format_arg, args)) if args else "")
@@ -116,7 +124,12 @@ class CommandMessage:
 
 
 def encode_command(id: str, call: SkillCall) -> bytes:
-    """``ID:SKILL[:ARGS]\\r\\n``. The caller owns ID uniqueness (see :class:`IdAllocator`)."""
+    """``ID:SKILL[:ARGS]\\r\\n``. The caller owns ID uniqueness (see :class:`IdAllocator`).
+
+    Raises :class:`LocalProtocolError` for an ID that is not 8 letters/digits.
+    """
+    if not _ID_RE.match(id):
+        raise LocalProtocolError(f"id: {id!r} is not 8 letters or digits")
     return f"{id}:{call.wire}\r\n".encode("ascii")
 
 
@@ -230,11 +243,17 @@ def sanitize_text(text: str) -> str:
 def encode_ack(ack: Ack) -> bytes:
     """``ID:STATUS:T_START,T_DONE:X,Y,Z,YAW,PITCH,ROLL[:EXTRA...]\\r\\n`` with ``%.3f`` numbers."""
     p = ack.pose
-    head = "%s:%s:%.3f,%.3f:%.3f,%.3f,%.3f,%.3f,%.3f,%.3f" % (
-        ack.id, ack.status.value, ack.t_start_s, ack.t_done_s, p.x, p.y, p.z, p.yaw, p.pitch, p.roll)
+    nums = (ack.t_start_s, ack.t_done_s, p.x, p.y, p.z, p.yaw, p.pitch, p.roll)
+    if not _ID_RE.match(ack.id):
+        raise LocalProtocolError(f"id: {ack.id!r} is not 8 letters or digits")
+    if not all(map(math.isfinite, nums)):
+        raise LocalProtocolError(f"ack {ack.id}: times and pose must be finite numbers")
+    head = "%s:%s:%.3f,%.3f:%.3f,%.3f,%.3f,%.3f,%.3f,%.3f" % (ack.id, Status(ack.status).value, *nums)
     for f in ack.extra:
-        if ":" in f or "\r" in f or "\n" in f:
-            raise LocalProtocolError(f"extra field {f!r} contains ':' or a line break")
+        if ":" in f or "\r" in f or "\n" in f or not f.isascii():
+            raise LocalProtocolError(f"extra field {f!r} contains ':', a line break or non-ASCII")
+    if ack.status is Status.ERROR and not (ack.extra and _INT_RE.match(ack.extra[0])):
+        raise LocalProtocolError(f"ack {ack.id}: an error ack needs an integer code as its first extra field")
     if ack.extra:
         head += ":" + ":".join(ack.extra)
     return head.encode("ascii") + DELIMITER

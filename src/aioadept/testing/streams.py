@@ -14,6 +14,7 @@ framing against fragmentation.
 from __future__ import annotations
 
 import asyncio
+from collections import deque
 from collections.abc import Awaitable, Callable
 from typing import Any
 
@@ -36,21 +37,46 @@ class MemoryTransport(asyncio.Transport):
         self._eof_sent = False
         self._lost = False
         self.bytes_written = 0
+        self._outbox: deque[tuple[str, bytes]] = deque()
+        self._pumping = False
 
     # --- Transport API used by StreamWriter
     def write(self, data: bytes | bytearray | memoryview) -> None:
         if self._closing or self._eof_sent:
-            raise RuntimeError("write on a closed memory transport")
+            return  # like a socket transport after close: the bytes go nowhere
         data = bytes(data)
         if not data:
             return
         self.bytes_written += len(data)
-        peer = self.peer
-        if peer is None:
-            return
         step = self._chunk_size or len(data)
         for i in range(0, len(data), step):
-            self._loop.call_soon(peer._deliver, data[i:i + step])
+            self._post("data", data[i:i + step])
+
+    def _post(self, kind: str, data: bytes = b"") -> None:
+        # Everything (data, EOF, close) goes out in order, one item per loop turn (each pump schedules the next),
+        # so a reader really sees fragments one by one instead of finding them all buffered at its next wake-up.
+        self._outbox.append((kind, data))
+        if not self._pumping:
+            self._pumping = True
+            self._loop.call_soon(self._pump)
+
+    def _pump(self) -> None:
+        if not self._outbox:
+            self._pumping = False
+            return
+        kind, data = self._outbox.popleft()
+        peer = self.peer
+        if kind == "data":
+            if peer is not None:
+                peer._deliver(data)
+        elif kind == "eof":
+            if peer is not None:
+                peer._deliver_eof()
+        elif kind == "close":
+            self._connection_lost(None)
+            if peer is not None:
+                peer._peer_closed()
+        self._loop.call_soon(self._pump)
 
     def writelines(self, list_of_data: Any) -> None:
         self.write(b"".join(list_of_data))
@@ -62,31 +88,29 @@ class MemoryTransport(asyncio.Transport):
         if self._eof_sent:
             return
         self._eof_sent = True
-        if self.peer is not None:
-            self._loop.call_soon(self.peer._deliver_eof)
+        self._post("eof")
 
     def is_closing(self) -> bool:
         return self._closing
 
     def close(self) -> None:
-        """Close both directions: the peer reads EOF, then both ends see ``connection_lost``."""
+        """Close both directions after what was written: the peer reads EOF, then both ends see
+        ``connection_lost``."""
         if self._closing:
             return
         self._closing = True
-        peer = self.peer
-        if peer is not None and not self._eof_sent:
+        if not self._eof_sent:
             self._eof_sent = True
-            self._loop.call_soon(peer._deliver_eof)
-        self._loop.call_soon(self._connection_lost, None)
-        if peer is not None:
-            self._loop.call_soon(peer._peer_closed)
+            self._post("eof")
+        self._post("close")
 
     def abort(self) -> None:
-        """Like a reset: the peer sees ``connection_lost`` with ConnectionResetError."""
-        if self._closing:
+        """Like a reset: unsent bytes are dropped and the peer sees ``connection_lost(ConnectionResetError)``."""
+        if self._lost:
             return
         self._closing = True
         self._eof_sent = True
+        self._outbox.clear()
         self._loop.call_soon(self._connection_lost, None)
         if self.peer is not None:
             self._loop.call_soon(self.peer._connection_lost, ConnectionResetError("memory peer aborted"))
