@@ -1,0 +1,363 @@
+"""Static checks of the V+ RobotServer in vplus/ (nothing here can run V+; docs/vplus.md says what is untested).
+
+They check what can go wrong without a controller: the .V2 structure the loader expects, V+ name limits, the
+skill table against the Python side, the error codes against the one table, and the block structure of every
+program (IF/WHILE/FOR/DO/CASE closed in order), so that an edit that breaks one of these fails CI.
+"""
+
+from __future__ import annotations
+
+import inspect
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+
+import aioadept.commands as commands
+from aioadept.protocol import HELLO_SKILL, HERE_SKILL, PROTOCOL_VERSION, STOP_SKILL, ErrorCode
+
+VPLUS = Path(__file__).resolve().parents[2] / "vplus"
+FILES = sorted(VPLUS.glob("*.V2"))
+
+MAX_NAME = 15          # V+ program and variable names (longer variable names are silently truncated)
+MAX_STRING = 128       # V+ string values and constants
+MAX_LINE = 120         # the original AdeptServer's longest line is about 110 characters
+
+# The skills of the paper and our extensions, as the client (commands.py) and protocol core know them.
+PAPER_SKILLS = {"move_to", "move_joints", "move_rel_world", "move_rel_tool", "move_rel_joints", "break",
+                "set_speed", "enable_air", "disable_air"}
+EXTENSION_SKILLS = {STOP_SKILL, HERE_SKILL, HELLO_SKILL}
+# Argument counts, for when the simulator's table cannot be imported.
+FALLBACK_NARGS = {"move_to": 6, "move_joints": 6, "move_rel_world": 6, "move_rel_tool": 6, "move_rel_joints": 6,
+                  "break": 0, "set_speed": 1, "enable_air": 0, "disable_air": 0, "here": 0, "hello": 0}
+
+SECTION_KINDS = {".LOCATIONS", ".PRECISIONPOINTS", ".REALS", ".DOUBLES", ".STRINGS"}
+PROGRAM_RE = re.compile(r"\.PROGRAM ([A-Za-z][A-Za-z0-9._]*)\((.*)\)(?:\s*;.*)?\Z")
+NAME_RE = re.compile(r"[a-z][a-z0-9._]*\Z")
+# Keywords we use that are also V+ names; a variable may not be called like one (V+ names are case-blind).
+RESERVED = {"abs", "and", "any", "asc", "attach", "brake", "break", "call", "calls", "case", "decompose", "defined",
+            "detach", "do", "else", "end", "error", "execute", "false", "fclose", "fopen", "for", "global", "here",
+            "if", "inrange", "int", "iostat", "len", "mod", "move", "not", "of", "or", "pos", "read", "reacte",
+            "return", "returne", "set", "sig", "signal", "speed", "status", "step", "stop", "task", "then",
+            "timer", "to", "tool", "trans", "true", "type", "until", "val", "value", "wait", "while", "write"}
+
+
+@dataclass
+class Program:
+    name: str
+    params: str
+    file: str
+    line: int
+    body: list[tuple[int, str]] = field(default_factory=list)   # (line number, raw line)
+
+
+def strip_comment(line: str) -> str:
+    """The line without its ';' comment (a ';' inside a string constant does not start one)."""
+    in_str = False
+    for i, ch in enumerate(line):
+        if ch == '"':
+            in_str = not in_str
+        elif ch == ";" and not in_str:
+            return line[:i]
+    return line
+
+
+def code_and_strings(line: str) -> tuple[str, list[str]]:
+    """Code with string constants blanked out, and the string constants."""
+    code = strip_comment(line)
+    strings = re.findall(r'"([^"]*)"', code)
+    return re.sub(r'"[^"]*"', '""', code), strings
+
+
+def parse(path: Path) -> tuple[list[Program], list[str]]:
+    """Programs of one .V2 file, and structural problems (empty if well formed)."""
+    problems: list[str] = []
+    programs: list[Program] = []
+    current: Program | None = None
+    section: str | None = None
+    for n, raw in enumerate(path.read_text(encoding="ascii").split("\n"), 1):
+        line = raw.rstrip("\r")
+        head = line.strip()
+        if current is None and section is None:
+            if not head:
+                continue
+            m = PROGRAM_RE.match(head)
+            if m:
+                current = Program(m.group(1), m.group(2), path.name, n)
+            elif head in SECTION_KINDS:
+                section = head
+            else:
+                problems.append(f"{path.name}:{n}: outside .PROGRAM/.END: {head[:40]!r}")
+            continue
+        if head.startswith(".END") and head == ".END":
+            if current is not None:
+                programs.append(current)
+            current, section = None, None
+            continue
+        if head.startswith("."):
+            problems.append(f"{path.name}:{n}: {head.split()[0]} before .END of the open section")
+            continue
+        if current is not None:
+            current.body.append((n, line))
+    if current is not None or section is not None:
+        problems.append(f"{path.name}: last section is not closed by .END")
+    return programs, problems
+
+
+def all_programs() -> dict[str, Program]:
+    out: dict[str, Program] = {}
+    for f in FILES:
+        progs, _ = parse(f)
+        for p in progs:
+            assert p.name not in out, f"{p.name} defined twice ({out[p.name].file}, {p.file})"
+            out[p.name] = p
+    return out
+
+
+def python_skills() -> set[str]:
+    """Every skill name the client's command classes and the protocol core know."""
+    names = set(EXTENSION_SKILLS)
+    for _, cls in inspect.getmembers(commands, inspect.isclass):
+        skill = getattr(cls, "skill", "")
+        if issubclass(cls, commands.Command) and isinstance(skill, str) and skill:
+            names.add(skill)
+    # skills built directly as SkillCall("name", ...) (set_speed, break)
+    names |= set(re.findall(r'SkillCall\("([a-z][a-z0-9._]*)"', inspect.getsource(commands)))
+    return names
+
+
+def expected_nargs() -> dict[str, set[int]]:
+    """Argument counts per skill, from the simulator's skill table if it is there."""
+    try:
+        from aioadept.sim.controller import default_skills
+    except Exception:  # the simulator is built elsewhere; fall back to the paper's counts
+        return {k: {v} for k, v in FALLBACK_NARGS.items()}
+    out: dict[str, set[int]] = {}
+    for spec in default_skills():
+        counts = getattr(spec, "nargs", None) or getattr(spec, "arg_counts", None)
+        if counts is None:
+            counts = next((v for v in vars(spec).values() if isinstance(v, tuple)
+                           and all(isinstance(x, int) for x in v)), None)
+        if counts is not None and spec.name != STOP_SKILL:
+            out[spec.name] = set(counts)
+    return out or {k: {v} for k, v in FALLBACK_NARGS.items()}
+
+
+# ------------------------------------------------------------------------------------------------------------
+
+def test_there_are_v2_modules():
+    assert FILES, "no .V2 files in vplus/"
+    assert {"rserver.V2", "rsskills.V2", "rsconfig.V2"} <= {f.name for f in FILES}
+
+
+@pytest.mark.parametrize("path", FILES, ids=lambda p: p.name)
+def test_v2_structure_is_well_formed(path: Path):
+    data = path.read_bytes()
+    bad = sorted({b for b in data if not (32 <= b <= 126 or b in (9, 10, 13))})
+    assert not bad, f"{path.name}: non-printable or non-ASCII bytes {bad}"
+    programs, problems = parse(path)
+    assert not problems, "\n".join(problems)
+    assert programs, f"{path.name}: no programs"
+    # AdeptServer convention: the first program names the module and does nothing
+    first = programs[0]
+    assert first.name == path.stem.lower() and first.params == "", f"{path.name}: first program must be {path.stem.lower()}()"
+    for n, raw in enumerate(path.read_text(encoding="ascii").split("\n"), 1):
+        assert len(raw.expandtabs(8)) <= MAX_LINE, f"{path.name}:{n}: line longer than {MAX_LINE}"
+
+
+def test_program_names_are_v_plus_names():
+    for name, prog in all_programs().items():
+        assert NAME_RE.match(name), f"{prog.file}:{prog.line}: {name!r} is not a lowercase V+ name"
+        assert len(name) <= MAX_NAME, f"{prog.file}:{prog.line}: program name {name!r} over {MAX_NAME} characters"
+
+
+def test_every_python_skill_is_a_v_plus_program():
+    skills = python_skills()
+    assert PAPER_SKILLS | EXTENSION_SKILLS <= skills, "commands.py lost a skill"
+    missing = skills - set(all_programs())
+    assert not missing, f"skills without a .PROGRAM in vplus/: {sorted(missing)}"
+
+
+def test_skill_table_matches_the_python_side():
+    """rs.init registers each skill (except stop, which the reader serves) with the simulator's argument count."""
+    init = all_programs()["rs.init"]
+    registered: dict[str, int] = {}
+    for _, raw in init.body:
+        m = re.search(r'CALL rs\.addskill\("([^"]+)", (-?\d+)\)', strip_comment(raw))
+        if m:
+            registered[m.group(1)] = int(m.group(2))
+    expected = expected_nargs()
+    assert set(registered) == set(expected), (sorted(registered), sorted(expected))
+    for name, n in registered.items():
+        assert n in expected[name], f"{name}: registered with {n} arguments, the simulator takes {expected[name]}"
+    assert STOP_SKILL not in registered
+    online = "\n".join(raw for _, raw in all_programs()["rs.online"].body)
+    assert f'$sk == "{STOP_SKILL}"' in online, "the reader must serve stop itself"
+
+
+def test_error_code_table_is_the_python_table():
+    codes = all_programs()["rs.codes"]
+    seen: dict[str, int] = {}
+    members: set[str] = set()
+    for n, raw in codes.body:
+        m = re.match(r"\s*(rs\.e\.[a-z]+) = (-\d+)\s*;\s*ErrorCode\.([A-Z_]+)\s*\Z", raw)
+        if not raw.strip() or raw.strip().startswith(";"):
+            continue
+        assert m, f"rsserver rs.codes line {n}: expected 'rs.e.name = -N ; ErrorCode.NAME', got {raw.strip()!r}"
+        var, value, member = m.group(1), int(m.group(2)), m.group(3)
+        assert member in ErrorCode.__members__, f"{member} is not in ErrorCode"
+        assert ErrorCode[member] == value, f"{var} = {value}, but ErrorCode.{member} = {int(ErrorCode[member])}"
+        seen[var] = value
+        members.add(member)
+    assert members == set(ErrorCode.__members__), f"table incomplete: {set(ErrorCode.__members__) - members}"
+    assert len(set(seen.values())) == len(seen)
+
+
+def test_error_acks_use_only_codes_of_the_table():
+    progs = all_programs()
+    defined = {m.group(1) for _, raw in progs["rs.codes"].body
+               if (m := re.match(r"\s*(rs\.e\.[a-z]+) =", raw))}
+    for prog in progs.values():
+        for n, raw in prog.body:
+            code, _ = code_and_strings(raw)
+            for var in re.findall(r"\brs\.e\.[a-z]+\b", code):
+                assert var in defined, f"{prog.file}:{n}: {var} is not in rs.codes"
+            if prog.name == "rs.codes":
+                continue
+            assert not re.search(r"rs\.xcode\s*=\s*(-|[1-9])", code), f"{prog.file}:{n}: literal error code"
+            m = re.search(r"CALL rs\.enqerr\(([^)]*)\)", code)
+            if m:
+                code_arg = [a.strip() for a in m.group(1).split(",")][2]
+                assert code_arg.startswith("rs.e."), f"{prog.file}:{n}: enqerr code must be one of rs.e.*"
+
+
+def test_error_messages_fit_an_ack_field():
+    """Messages are one trailing field: no ':' (the Python side would read a second field), at most 80."""
+    count = 0
+    for prog in all_programs().values():
+        for n, raw in prog.body:
+            code = strip_comment(raw)
+            for s in re.findall(r'CALL rs\.enqerr\([^,]+,[^,]+,[^,]+, "([^"]*)"\)', code) + \
+                    re.findall(r'\$rs\.xmsg = "([^"]+)"', code):
+                count += 1
+                assert ":" not in s and 0 < len(s) <= 80, f"{prog.file}:{n}: {s!r} cannot be an ack field"
+    assert count >= 10
+
+
+def test_hello_reports_the_protocol_version():
+    body = "\n".join(raw for _, raw in all_programs()[HELLO_SKILL].body)
+    m = re.search(r'\$rs\.xtra = "([^"]*)"', body)
+    assert m, "hello must set $rs.xtra"
+    fields = m.group(1).split(":")
+    assert len(fields) == 2 and fields[0] == str(PROTOCOL_VERSION) and fields[1], fields
+
+
+def test_names_and_strings_respect_v_plus_limits():
+    progs = all_programs()
+    for prog in progs.values():
+        params = [p.strip().lstrip("$#").split("[")[0] for p in prog.params.split(",") if p.strip()]
+        for p in params:
+            assert NAME_RE.match(p) and len(p) <= MAX_NAME, f"{prog.name}: parameter {p!r}"
+        for n, raw in prog.body:
+            code, strings = code_and_strings(raw)
+            for s in strings:
+                assert len(s) <= MAX_STRING, f"{prog.file}:{n}: string constant over {MAX_STRING} characters"
+            # lowercase words are user names (keywords are written in uppercase)
+            for tok in re.findall(r"[$#]?\b[a-z][a-z0-9._]*", code):
+                name = tok.lstrip("$#").rstrip(".")
+                assert len(name) <= MAX_NAME, f"{prog.file}:{n}: name {name!r} over {MAX_NAME} characters"
+                if name not in progs:
+                    assert name not in RESERVED, f"{prog.file}:{n}: variable {name!r} is a V+ keyword"
+            for tok in re.findall(r"\b[A-Z][A-Za-z]*[a-z][A-Za-z]*\b", code):
+                pytest.fail(f"{prog.file}:{n}: mixed-case word {tok!r} (keywords upper, names lower)")
+
+
+def test_called_programs_exist():
+    progs = all_programs()
+    for prog in progs.values():
+        for n, raw in prog.body:
+            code, _ = code_and_strings(raw)
+            for target in re.findall(r"\bCALL\s+([a-z][a-z0-9._]*)\s*\(", code):
+                assert target in progs, f"{prog.file}:{n}: CALL of undefined program {target}"
+            for target in re.findall(r"\b(?:REACTE|EXECUTE\s+\d+)\s+([a-z][a-z0-9._]*)", code):
+                assert target in progs, f"{prog.file}:{n}: {target} is not defined"
+
+
+def block_problems(prog: Program) -> list[str]:
+    """Check that control structures open and close in order (a multi-line IF needs END, DO needs UNTIL)."""
+    stack: list[tuple[str, int]] = []
+    problems = []
+    declarations_over = False
+    for n, raw in prog.body:
+        code = code_and_strings(raw)[0].strip()
+        if not code:
+            continue
+        word = code.split()[0]
+        if word in ("AUTO", "LOCAL", "GLOBAL"):
+            if declarations_over:
+                problems.append(f"{n}: {word} after an executable instruction")
+            continue
+        declarations_over = True
+        if word == "IF":
+            if not code.endswith("THEN"):
+                problems.append(f"{n}: IF without THEN at the end of the line")
+            stack.append(("IF", n))
+        elif word == "WHILE":
+            if not code.endswith("DO"):
+                problems.append(f"{n}: WHILE without DO")
+            stack.append(("WHILE", n))
+        elif word == "FOR":
+            if not re.match(r"FOR [a-z][a-z0-9._]* = .+ TO .+", code):
+                problems.append(f"{n}: malformed FOR")
+            stack.append(("FOR", n))
+        elif word == "CASE":
+            if not code.endswith("OF"):
+                problems.append(f"{n}: CASE without OF")
+            stack.append(("CASE", n))
+        elif code == "DO":
+            stack.append(("DO", n))
+        elif word == "ELSE":
+            if not stack or stack[-1][0] != "IF":
+                problems.append(f"{n}: ELSE outside IF")
+        elif word in ("VALUE", "ANY"):
+            if not stack or stack[-1][0] != "CASE":
+                problems.append(f"{n}: {word} outside CASE")
+        elif word == "UNTIL":
+            if not stack or stack.pop()[0] != "DO":
+                problems.append(f"{n}: UNTIL without DO")
+        elif code == "END":
+            if not stack:
+                problems.append(f"{n}: END without an open block")
+            elif stack.pop()[0] == "DO":
+                problems.append(f"{n}: DO closed by END instead of UNTIL")
+    problems += [f"{n}: {kind} not closed" for kind, n in stack]
+    return problems
+
+
+def test_control_blocks_are_balanced():
+    problems = []
+    for prog in all_programs().values():
+        problems += [f"{prog.file} {prog.name} line {p}" for p in block_problems(prog)]
+    assert not problems, "\n".join(problems)
+
+
+def test_block_checker_catches_mistakes():
+    """The checks above are only worth something if they fail on broken programs."""
+    def prog(*lines: str) -> Program:
+        return Program("p", "", "x.V2", 1, [(i, "\t" + s) for i, s in enumerate(lines, 2)])
+
+    assert block_problems(prog("IF a THEN", "b = 1")) == ["2: IF not closed"]
+    assert block_problems(prog("DO", "a = 1", "END"))
+    assert block_problems(prog("a = 1", "AUTO b"))
+    assert not block_problems(prog("AUTO i", "FOR i = 0 TO 5", "IF i THEN", "a = 1", "ELSE", "a = 2", "END", "END"))
+
+
+def test_parser_catches_structure_mistakes(tmp_path: Path):
+    bad = tmp_path / "bad.V2"
+    bad.write_text(".PROGRAM bad()\n\tTYPE 1\n\n.PROGRAM other()\n.END\n")
+    assert parse(bad)[1]
+    bad.write_text(".PROGRAM bad()\n.END\n; stray\n")
+    assert parse(bad)[1]
+    bad.write_text(".PROGRAM bad()\n\tTYPE 1\n")
+    assert parse(bad)[1]
