@@ -23,14 +23,15 @@ import asyncio
 import collections
 import inspect
 import logging
+import os
 import time
-import uuid
 from collections.abc import Awaitable, Callable, Iterable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any, Protocol
 
 import zmq
+import zmq.asyncio
 
 from aioadept.bus import epypes_pb2
 from aioadept.bus.messages import (
@@ -41,7 +42,12 @@ from aioadept.bus.messages import (
     event_from_pb,
     event_to_pb,
 )
-from aioadept.bus.pubsub import DEFAULT_REQUEST_ENDPOINT, DEFAULT_RESPONSE_ENDPOINT, Publisher, Subscriber
+from aioadept.bus.pubsub import (
+    DEFAULT_REQUEST_ENDPOINT,
+    DEFAULT_RESPONSE_ENDPOINT,
+    as_topic,
+    open_socket,
+)
 from aioadept.errors import BusEncodeError, BusError, ClientStateError, RequestTimeout, VisionError
 
 __all__ = [
@@ -61,8 +67,9 @@ ID_LENGTH = 8
 
 
 def new_request_id() -> str:
-    """A fresh request id: the first 8 hex characters of ``uuid4()``, as the robot protocol's message IDs."""
-    return uuid.uuid4().hex[:ID_LENGTH]
+    """A fresh request id: 8 random lowercase hex characters, the format of the robot protocol's message IDs
+    (``uuid4().hex[:8]``). Drawn from ``os.urandom`` directly: same 32 random bits, a tenth of uuid4's cost."""
+    return os.urandom(ID_LENGTH // 2).hex()
 
 
 def response_type_for(request_type: str) -> str:
@@ -120,7 +127,7 @@ class BusObserver(Protocol):
 class _Pending:
     """One outstanding request: its future, its exact bytes (re-published unchanged) and its backoff timer."""
 
-    __slots__ = ("future", "payload", "event_type", "t_send_s", "interval_s", "handle", "publishes")
+    __slots__ = ("future", "payload", "event_type", "t_send_s", "interval_s", "handle", "deadline", "publishes")
 
     def __init__(self, future: asyncio.Future, payload: bytes, event_type: str, t_send_s: float,
                  interval_s: float) -> None:
@@ -129,16 +136,23 @@ class _Pending:
         self.event_type = event_type
         self.t_send_s = t_send_s
         self.interval_s = interval_s
-        self.handle: asyncio.TimerHandle | None = None
+        self.handle: asyncio.TimerHandle | None = None  # next re-publication
+        self.deadline: asyncio.TimerHandle | None = None  # fails the future with RequestTimeout
         self.publishes = 1
+
+    def cancel_timers(self) -> None:
+        if self.handle is not None:
+            self.handle.cancel()
+        if self.deadline is not None:
+            self.deadline.cancel()
 
 
 class Communicator:
     """Publish request events and await the matching responses (the MasterControlNode side).
 
     ``async with Communicator(request_endpoint, response_endpoint) as comm:`` connects a PUB to the node's request
-    endpoint and a SUB to its response endpoint (``bind=True`` binds both instead) and starts the one reader task;
-    leaving the block cancels it, fails outstanding requests with :class:`BusError` and closes the sockets.
+    endpoint and a SUB to its response endpoint (``bind=True`` binds both instead) and starts reading responses;
+    leaving the block stops reading, fails outstanding requests with :class:`BusError` and closes the sockets.
 
     ``timeout_s`` is the default per-request timeout. Until answered, a request is re-published with the same id
     after ``republish_interval_s``, then at intervals growing by ``republish_backoff`` up to
@@ -169,16 +183,18 @@ class Communicator:
         self.republish_interval_s = republish_interval_s
         self.republish_backoff = republish_backoff
         self.republish_max_interval_s = republish_max_interval_s
-        self._request_topic = request_topic
-        self._response_topic = response_topic
+        self._request_topic = None if request_topic is None else as_topic(request_topic)
+        self._response_topic = None if response_topic is None else as_topic(response_topic)
         self._bind = bind
         self._context = context
         self._observers: list[Any] = list(observers)
         self._pending: dict[str, _Pending] = {}
         self._sent_order: collections.deque[str] = collections.deque()  # for the paper-style send()/recv()
-        self._pub: Publisher | None = None
-        self._sub: Subscriber | None = None
-        self._reader: asyncio.Task | None = None
+        self._pub: zmq.Socket | None = None
+        self._sub: zmq.Socket | None = None
+        self._actual_req = self._actual_resp = ""
+        self._fd: int | None = None  # registered with loop.add_reader
+        self._reader: asyncio.Task | None = None  # fallback reader where the loop has no add_reader
         self._loop: asyncio.AbstractEventLoop | None = None
         self._state = "new"  # new -> open -> closed; not reentrant, not reopenable
         self._reader_error: BaseException | None = None
@@ -192,14 +208,17 @@ class Communicator:
     @property
     def actual_request_endpoint(self) -> str:
         self._require_open()
-        assert self._pub is not None
-        return self._pub.actual_endpoint
+        return self._actual_req
 
     @property
     def actual_response_endpoint(self) -> str:
         self._require_open()
-        assert self._sub is not None
-        return self._sub.actual_endpoint
+        return self._actual_resp
+
+    @property
+    def pending_ids(self) -> tuple[str, ...]:
+        """Ids of the requests still waiting for a response."""
+        return tuple(self._pending)
 
     async def __aenter__(self) -> Communicator:
         await self.open()
@@ -209,37 +228,55 @@ class Communicator:
         await self.aclose()
 
     async def open(self) -> None:
-        """Create the sockets and start the reader task. Raises ClientStateError if already opened."""
+        """Create the sockets and start reading. Raises ClientStateError if already opened, BusError on bad
+        endpoints."""
         if self._state != "new":
             raise ClientStateError(f"Communicator is {self._state}; create a new one")
-        self._loop = asyncio.get_running_loop()
-        sub_topics = (b"",) if self._response_topic is None else (self._response_topic,)
-        self._sub = Subscriber(self.response_endpoint, topics=sub_topics, bind=self._bind, context=self._context)
+        loop = self._loop = asyncio.get_running_loop()
+        topics = (b"",) if self._response_topic is None else (self._response_topic,)
+        self._sub, self._actual_resp = open_socket(zmq.SUB, self.response_endpoint, bind=self._bind,
+                                                   context=self._context, topics=topics)
         try:
-            self._pub = Publisher(self.request_endpoint, bind=self._bind, context=self._context)
+            self._pub, self._actual_req = open_socket(zmq.PUB, self.request_endpoint, bind=self._bind,
+                                                      context=self._context)
         except BaseException:
-            self._sub.close()
+            self._sub.close(linger=0)
             raise
         self._state = "open"
-        self._reader = asyncio.create_task(self._read_loop(), name=f"Communicator reader {self.response_endpoint}")
+        # The hot path: ZeroMQ's FD wakes the loop and _on_readable routes every queued response straight to its
+        # future. Compared with a reader task awaiting zmq.asyncio futures this saves a task switch and a future
+        # per message, which is most of our overhead over a raw ping-pong (benchmarks/bench_bus.py).
+        fd = self._sub.getsockopt(zmq.FD)
+        try:
+            loop.add_reader(fd, self._on_readable)
+        except NotImplementedError:  # e.g. the Windows proactor loop: let zmq.asyncio do the polling
+            self._reader = asyncio.create_task(self._read_loop(), name=f"Communicator reader {self._actual_resp}")
+        else:
+            self._fd = fd
+            # The FD is edge-triggered: anything queued before registration would never signal. Drain once.
+            loop.call_soon(self._on_readable)
 
     async def aclose(self) -> None:
-        """Stop the reader, fail outstanding requests with BusError, close the sockets. Idempotent."""
+        """Stop reading, fail outstanding requests with BusError, close the sockets. Idempotent."""
         if self._state == "closed":
             return
         self._state = "closed"
+        self._stop_reading()
         if self._reader is not None:
             self._reader.cancel()
             try:
                 await self._reader
-            except asyncio.CancelledError:
-                pass
-            except Exception:  # already recorded by the reader itself
+            except BaseException:  # cancelled, or a failure already recorded by the reader
                 pass
         self._fail_all(BusError("communicator closed"))
-        for s in (self._pub, self._sub):
-            if s is not None:
-                s.close()
+        for sock in (self._pub, self._sub):
+            if sock is not None:
+                sock.close(linger=0)
+
+    def _stop_reading(self) -> None:
+        if self._fd is not None and self._loop is not None:
+            self._loop.remove_reader(self._fd)
+            self._fd = None
 
     def add_observer(self, observer: Any) -> None:
         self._observers.append(observer)
@@ -254,15 +291,16 @@ class Communicator:
         """Publish a request event and return the matching :class:`Response`.
 
         ``attributes`` get ``t_request`` (``time.time()``, epoch s) unless they carry one. ``timeout_s=None`` means
-        the communicator's default. Raises :class:`RequestTimeout` (with ``request_id``) when nothing matching
-        arrives in time, :class:`BusEncodeError` for attributes the schema cannot carry, :class:`BusError` if the
-        communicator closes meanwhile. A node's ``error`` attribute is returned, not raised: see
-        :meth:`Response.raise_for_error`.
+        the communicator's default. ``id`` reuses a given id instead of a fresh one (it must not be outstanding).
+        Raises :class:`RequestTimeout` (with ``request_id``) when nothing matching arrives in time,
+        :class:`BusEncodeError` for attributes the schema cannot carry, :class:`BusError` if the communicator
+        closes meanwhile. A node's ``error`` attribute is returned, not raised: see :meth:`Response.raise_for_error`.
         """
-        rid = self._start(event_type, id, attributes)
-        return await self._finish(rid, timeout_s)
+        rid = self._start(event_type, id, attributes, timeout_s)
+        return await self._finish(rid)
 
-    def _start(self, event_type: str, rid: str | None, attributes: Mapping[str, Any] | None) -> str:
+    def _start(self, event_type: str, rid: str | None, attributes: Mapping[str, Any] | None,
+               timeout_s: float | None) -> str:
         self._require_open()
         if self._reader_error is not None:
             raise BusError(f"communicator reader failed: {self._reader_error!r}") from self._reader_error
@@ -273,10 +311,11 @@ class Communicator:
         elif rid in self._pending:
             raise ClientStateError(f"request id {rid!r} is already outstanding")
         attrs = dict(attributes) if attributes else {}
-        attrs.setdefault("t_request", time.time())
+        if "t_request" not in attrs:
+            attrs["t_request"] = time.time()
         payload = encode_event(event_type, rid, attrs)  # BusEncodeError before anything is registered
         loop = self._loop
-        assert loop is not None and self._pub is not None
+        assert loop is not None
         pend = _Pending(loop.create_future(), payload, event_type, 0.0, self.republish_interval_s)
         # Registered before the bytes leave, so even an instant answer finds its future.
         self._pending[rid] = pend
@@ -286,27 +325,34 @@ class Communicator:
             del self._pending[rid]
             raise
         pend.t_send_s = loop.time()
-        pend.handle = loop.call_later(pend.interval_s, self._republish, rid)
+        pend.handle = loop.call_at(pend.t_send_s + pend.interval_s, self._republish, rid)
+        self._arm_deadline(rid, pend, timeout_s)
         if self._observers:
             self._notify("on_request", Request(rid, event_type, attrs, pend.t_send_s))
         return rid
 
-    async def _finish(self, rid: str, timeout_s: float | None) -> Response:
-        pend = self._pending[rid]
+    def _arm_deadline(self, rid: str, pend: _Pending, timeout_s: float | None) -> None:
+        # A timer that fails the future, rather than an asyncio.timeout() scope around the await: one timer per
+        # request either way, but no cancellation round trip through the awaiting task.
+        if pend.deadline is not None:
+            pend.deadline.cancel()
         timeout = self.timeout_s if timeout_s is None else timeout_s
+        assert self._loop is not None
+        pend.deadline = self._loop.call_later(timeout, self._expire, rid, timeout)
+
+    def _expire(self, rid: str, timeout: float) -> None:
+        pend = self._pending.get(rid)
+        if pend is not None and not pend.future.done():
+            pend.future.set_exception(RequestTimeout(
+                f"no response to {pend.event_type} {rid} within {timeout:g} s (published {pend.publishes} times)",
+                request_id=rid, publishes=pend.publishes))
+
+    async def _finish(self, rid: str) -> Response:
+        pend = self._pending[rid]
         try:
-            async with asyncio.timeout(timeout):
-                response_type, attrs, t_recv_s = await pend.future
-        except TimeoutError:
-            if pend.future.done() and not pend.future.cancelled() and pend.future.exception() is None:
-                response_type, attrs, t_recv_s = pend.future.result()  # answered as the timer fired: take it
-            else:
-                raise RequestTimeout(
-                    f"no response to {pend.event_type} {rid} within {timeout:g} s "
-                    f"(published {pend.publishes} times)", request_id=rid, publishes=pend.publishes) from None
+            response_type, attrs, t_recv_s = await pend.future
         finally:
-            if pend.handle is not None:
-                pend.handle.cancel()
+            pend.cancel_timers()
             self._pending.pop(rid, None)
         response = Response(rid, response_type, attrs, pend.t_send_s, t_recv_s)
         if self._observers:
@@ -315,10 +361,15 @@ class Communicator:
 
     def _send(self, payload: bytes) -> None:
         assert self._pub is not None
-        if self._request_topic is None:
-            self._pub.send_nowait(payload)
-        else:
-            self._pub.publish_nowait(self._request_topic, payload)
+        try:
+            if self._request_topic is None:
+                self._pub.send(payload, zmq.NOBLOCK)
+            else:
+                self._pub.send_multipart((self._request_topic, payload), zmq.NOBLOCK)
+        except zmq.Again:
+            log.debug("Communicator: request dropped at the high-water mark; the re-publication will retry")
+        except zmq.ZMQError as exc:
+            raise BusError(f"publishing a request on {self._actual_req} failed: {exc}") from exc
 
     def _republish(self, rid: str) -> None:
         pend = self._pending.get(rid)
@@ -327,8 +378,7 @@ class Communicator:
         try:
             self._send(pend.payload)
         except BusError as exc:
-            if not pend.future.done():
-                pend.future.set_exception(exc)
+            pend.future.set_exception(exc)
             return
         pend.publishes += 1
         self.republished += 1
@@ -338,37 +388,60 @@ class Communicator:
 
     # -------------------------------------------------------------------------------------------- reader
 
+    def _on_readable(self) -> None:
+        """Reader callback: drain every queued response (the FD is edge-triggered) and route it by id."""
+        sub = self._sub
+        if sub is None or sub.closed or self._fd is None:
+            return
+        loop = self._loop
+        assert loop is not None
+        while True:
+            try:
+                frames = sub.recv_multipart(zmq.NOBLOCK)
+            except zmq.Again:
+                return
+            except zmq.ZMQError as exc:
+                self._reader_failed(exc)
+                return
+            self._route(frames, loop.time())
+
     async def _read_loop(self) -> None:
         assert self._sub is not None and self._loop is not None
-        sub, loop, pending = self._sub, self._loop, self._pending
+        sub = zmq.asyncio.Socket.from_socket(self._sub)
+        loop = self._loop
         try:
             while True:
-                _topic, payload = await sub.recv()
-                t_recv_s = loop.time()
-                try:
-                    event_type, rid, attrs = decode_event(payload)
-                except BusError as exc:
-                    # Garbage on a shared endpoint must not kill the reader of everybody's requests.
-                    log.warning("Communicator: ignoring undecodable message on %s: %s", sub.actual_endpoint, exc)
-                    self.ignored_responses += 1
-                    continue
-                pend = pending.get(rid) if rid is not None else None
-                if pend is None or pend.future.done():
-                    self.ignored_responses += 1
-                    continue
-                pend.future.set_result((event_type, attrs, t_recv_s))
+                frames = await sub.recv_multipart()
+                self._route(frames, loop.time())
         except asyncio.CancelledError:
             raise
-        except BaseException as exc:
-            self._reader_error = exc
-            log.error("Communicator reader on %s failed: %r", self.response_endpoint, exc)
-            self._fail_all(BusError(f"communicator reader failed: {exc!r}"))
-            raise
+        except Exception as exc:
+            self._reader_failed(exc)
+
+    def _route(self, frames: list[bytes], t_recv_s: float) -> None:
+        payload = frames[-1]
+        try:
+            event_type, rid, attrs = decode_event(payload)
+        except BusError as exc:
+            # Garbage on a shared endpoint must not stop the reader of everybody's requests.
+            log.warning("Communicator: ignoring undecodable message on %s: %s", self._actual_resp, exc)
+            self.ignored_responses += 1
+            return
+        pend = self._pending.get(rid) if rid is not None else None
+        if pend is None or pend.future.done():
+            self.ignored_responses += 1
+            return
+        pend.future.set_result((event_type, attrs, t_recv_s))
+
+    def _reader_failed(self, exc: BaseException) -> None:
+        self._reader_error = exc
+        log.error("Communicator reader on %s failed: %r", self._actual_resp, exc)
+        self._stop_reading()
+        self._fail_all(BusError(f"communicator reader failed: {exc!r}"))
 
     def _fail_all(self, exc: BusError) -> None:
         for pend in self._pending.values():
-            if pend.handle is not None:
-                pend.handle.cancel()
+            pend.cancel_timers()
             if not pend.future.done():
                 pend.future.set_exception(exc)
 
@@ -392,7 +465,8 @@ class Communicator:
         """Publish a request the way the paper's ``pbcomm.send(pb_req)`` does; returns its id.
 
         The event keeps its id if it has one (else gets a fresh one) and gets ``t_request`` unless present. It is
-        re-published until answered, like :meth:`request`. Pair each ``send`` with one :meth:`recv`.
+        re-published until answered, like :meth:`request`, and times out after the default ``timeout_s`` unless
+        :meth:`recv` gives another timeout (counted from the recv call). Pair each ``send`` with one ``recv``.
         """
         if isinstance(event, EventMessage):
             event_type, rid, attrs = event.event_type, event.id, event.attributes
@@ -400,7 +474,7 @@ class Communicator:
             event_type, rid, attrs = event_from_pb(event)
         else:
             raise BusEncodeError(f"send() takes an epypes Event or EventMessage, got {type(event).__name__}")
-        rid = self._start(event_type, rid, attrs)
+        rid = self._start(event_type, rid, attrs, None)
         self._sent_order.append(rid)
         return rid
 
@@ -409,8 +483,11 @@ class Communicator:
         (``pb_resp.attributes.entries`` as in the paper). Raises RequestTimeout / ClientStateError."""
         while self._sent_order:
             rid = self._sent_order.popleft()
-            if rid in self._pending:
-                response = await self._finish(rid, timeout_s)
+            pend = self._pending.get(rid)
+            if pend is not None:
+                if timeout_s is not None:
+                    self._arm_deadline(rid, pend, timeout_s)
+                response = await self._finish(rid)
                 return event_to_pb(response.event_type, response.id, response.attributes)
         raise ClientStateError("recv() without an outstanding send()")
 
@@ -434,9 +511,11 @@ class Responder:
       responder keeps serving.
     - The last ``cache_size`` answers are kept by (type, id): a repeated request (the requester re-publishing
       against the slow joiner) is answered from the cache, never processed twice.
-    - Requests are handled one at a time, in arrival order; repeats that arrive meanwhile wait in ZeroMQ's queue
-      and are then answered from the cache.
+    - Requests are handled one at a time, in arrival order; a repeat that arrives while its request is being
+      processed waits and is then answered from the cache.
     - ``request_types`` restricts which event types are answered (others are ignored); None answers all.
+
+    ``async with Responder(...)`` (or ``start()``/``aclose()``, or ``await serve()``) runs it.
     """
 
     def __init__(
@@ -457,25 +536,33 @@ class Responder:
         if cache_size < 1:
             raise ValueError("cache_size must be >= 1")
         self._handler = handler
-        self._is_async = inspect.iscoroutinefunction(handler) or inspect.iscoroutinefunction(
+        is_async = inspect.iscoroutinefunction(handler) or inspect.iscoroutinefunction(
             getattr(handler, "__call__", None))
-        self._in_thread = in_thread and not self._is_async
+        self._in_thread = in_thread and not is_async
+        # A plain function not sent to a thread runs right in the reader callback: no queue, no task switch.
+        self._inline = not is_async and not self._in_thread
         self._response_type = response_type
         self._request_types = frozenset(request_types) if request_types is not None else None
         self._cache: collections.OrderedDict[tuple[str, str], bytes] = collections.OrderedDict()
         self._cache_size = cache_size
-        self._request_topic = request_topic
-        self._response_topic = response_topic
-        sub_topics = (b"",) if request_topic is None else (request_topic,)
-        self._sub = Subscriber(request_endpoint, topics=sub_topics, bind=bind, context=context)
+        self._response_topic = None if response_topic is None else as_topic(response_topic)
+        topics = (b"",) if request_topic is None else (request_topic,)
+        self._sub, self._actual_req = open_socket(zmq.SUB, request_endpoint, bind=bind, context=context,
+                                                  topics=topics)
         try:
-            self._pub = Publisher(response_endpoint, bind=bind, context=context)
+            self._pub, self._actual_resp = open_socket(zmq.PUB, response_endpoint, bind=bind, context=context)
         except BaseException:
-            self._sub.close()
+            self._sub.close(linger=0)
             raise
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._fd: int | None = None
+        self._queue: collections.deque[tuple[str, str | None, dict]] = collections.deque()
+        self._wakeup: asyncio.Event | None = None
+        self._tasks: list[asyncio.Task] = []  # worker (and fallback reader), owned and cancelled by aclose()
         self._executor: ThreadPoolExecutor | None = None
-        self._task: asyncio.Task | None = None
+        self._started = False
         self._closed = False
+        self._closed_event: asyncio.Event | None = None
         self.handled = 0
         """Requests processed by the handler."""
         self.cache_hits = 0
@@ -486,12 +573,12 @@ class Responder:
     @property
     def actual_request_endpoint(self) -> str:
         """Where requesters publish (the real port after binding to 0)."""
-        return self._sub.actual_endpoint
+        return self._actual_req
 
     @property
     def actual_response_endpoint(self) -> str:
         """Where requesters subscribe (the real port after binding to 0)."""
-        return self._pub.actual_endpoint
+        return self._actual_resp
 
     async def __aenter__(self) -> Responder:
         self.start()
@@ -501,65 +588,150 @@ class Responder:
         await self.aclose()
 
     def start(self) -> None:
-        """Start serving in a task owned by this responder (stopped by :meth:`aclose`)."""
+        """Start serving on the running loop (stopped by :meth:`aclose`)."""
         if self._closed:
             raise ClientStateError("Responder is closed")
-        if self._task is not None:
+        if self._started:
             raise ClientStateError("Responder already started")
-        self._task = asyncio.create_task(self.serve(), name=f"Responder {self.actual_request_endpoint}")
+        self._started = True
+        loop = self._loop = asyncio.get_running_loop()
+        self._closed_event = asyncio.Event()
+        self._wakeup = asyncio.Event()
+        if not self._inline:
+            self._tasks.append(asyncio.create_task(self._work(), name=f"Responder worker {self._actual_req}"))
+        fd = self._sub.getsockopt(zmq.FD)
+        try:
+            loop.add_reader(fd, self._on_readable)
+        except NotImplementedError:  # e.g. the Windows proactor loop: let zmq.asyncio do the polling
+            self._tasks.append(asyncio.create_task(self._read_loop(), name=f"Responder reader {self._actual_req}"))
+        else:
+            self._fd = fd
+            loop.call_soon(self._on_readable)  # edge-triggered FD: drain what came before registration
+
+    async def serve(self) -> None:
+        """Start and serve until cancelled or closed; closes on the way out."""
+        if not self._started:
+            self.start()
+        try:
+            await self.wait_closed()
+        finally:
+            await self.aclose()
 
     async def wait_closed(self) -> None:
-        """Wait until serving ends (after aclose(), or if it failed: then the error is raised here)."""
-        if self._task is not None:
-            await asyncio.shield(self._task)
+        """Wait until :meth:`aclose` has run."""
+        if self._closed_event is None:
+            raise ClientStateError("Responder not started")
+        await self._closed_event.wait()
 
     async def aclose(self) -> None:
         """Stop serving, close the sockets, shut the worker thread down (not waiting for a running handler)."""
         if self._closed:
             return
         self._closed = True
-        if self._task is not None:
-            self._task.cancel()
+        if self._fd is not None and self._loop is not None:
+            self._loop.remove_reader(self._fd)
+            self._fd = None
+        for task in self._tasks:
+            task.cancel()
+        for task in self._tasks:
             try:
-                await self._task
+                await task
             except asyncio.CancelledError:
                 pass
             except Exception:
                 log.exception("Responder task ended with an error")
-        self._sub.close()
-        self._pub.close()
+        self._sub.close(linger=0)
+        self._pub.close(linger=0)
         if self._executor is not None:
             self._executor.shutdown(wait=False, cancel_futures=True)
+        if self._closed_event is not None:
+            self._closed_event.set()
 
-    async def serve(self) -> None:
-        """Serve until cancelled. Use either this or ``start()``/``async with``."""
+    # -------------------------------------------------------------------------------------------- reading
+
+    def _on_readable(self) -> None:
         sub = self._sub
-        while True:
-            _topic, payload = await sub.recv()
+        while self._fd is not None and not sub.closed:
             try:
-                event_type, rid, attrs = decode_event(payload)
-            except BusError as exc:
-                log.warning("Responder: ignoring undecodable request on %s: %s", sub.actual_endpoint, exc)
-                continue
-            if self._request_types is not None and event_type not in self._request_types:
-                continue
-            key = (event_type, rid) if rid is not None else None
-            if key is not None:
-                cached = self._cache.get(key)
-                if cached is not None:
-                    self._cache.move_to_end(key)
-                    self.cache_hits += 1
-                    self._send(cached)
-                    continue
-            response = await self._process(event_type, rid, attrs)
-            if key is not None:
-                self._cache[key] = response
-                if len(self._cache) > self._cache_size:
-                    self._cache.popitem(last=False)
-            self._send(response)
+                frames = sub.recv_multipart(zmq.NOBLOCK)
+            except zmq.Again:
+                return
+            except zmq.ZMQError as exc:
+                log.error("Responder on %s: receive failed: %r", self._actual_req, exc)
+                return
+            self._dispatch(frames[-1])
 
-    async def _process(self, event_type: str, rid: str | None, attrs: dict[str, AttributeValue]) -> bytes:
-        rtype = self._response_type or response_type_for(event_type)
+    async def _read_loop(self) -> None:
+        sub = zmq.asyncio.Socket.from_socket(self._sub)
+        while True:
+            frames = await sub.recv_multipart()
+            self._dispatch(frames[-1])
+
+    def _dispatch(self, payload: bytes) -> None:
+        try:
+            event_type, rid, attrs = decode_event(payload)
+        except BusError as exc:
+            log.warning("Responder: ignoring undecodable request on %s: %s", self._actual_req, exc)
+            return
+        if self._request_types is not None and event_type not in self._request_types:
+            return
+        if self._answer_from_cache(event_type, rid):
+            return
+        if self._inline:
+            self._answer(event_type, rid, self._process_sync(event_type, rid, attrs))
+        else:
+            self._queue.append((event_type, rid, attrs))
+            assert self._wakeup is not None
+            self._wakeup.set()
+
+    async def _work(self) -> None:
+        queue, wakeup = self._queue, self._wakeup
+        assert wakeup is not None
+        while True:
+            while not queue:
+                wakeup.clear()
+                await wakeup.wait()
+            event_type, rid, attrs = queue.popleft()
+            # A repeat queued while its request was processed is answered from the cache now.
+            if self._answer_from_cache(event_type, rid):
+                continue
+            self._answer(event_type, rid, await self._process_async(event_type, rid, attrs))
+
+    # -------------------------------------------------------------------------------------------- answering
+
+    def _answer_from_cache(self, event_type: str, rid: str | None) -> bool:
+        if rid is None:
+            return False
+        key = (event_type, rid)
+        cached = self._cache.get(key)
+        if cached is None:
+            return False
+        self._cache.move_to_end(key)
+        self.cache_hits += 1
+        self._send(cached)
+        return True
+
+    def _answer(self, event_type: str, rid: str | None, response: bytes) -> None:
+        if rid is not None:
+            self._cache[(event_type, rid)] = response
+            if len(self._cache) > self._cache_size:
+                self._cache.popitem(last=False)
+        self._send(response)
+
+    def _process_sync(self, event_type: str, rid: str | None, attrs: dict[str, AttributeValue]) -> bytes:
+        try:
+            result = self._handler(event_type, rid, attrs)
+            if inspect.isawaitable(result):  # a plain function returned an awaitable: not supported inline
+                close = getattr(result, "close", None)
+                if close is not None:
+                    close()
+                raise TypeError("handler returned an awaitable; make it an 'async def' handler")
+            self.handled += 1
+            return encode_event(self._response_type or response_type_for(event_type), rid, result)
+        except Exception as exc:
+            return self._error_response(event_type, rid, exc)
+
+    async def _process_async(self, event_type: str, rid: str | None, attrs: dict[str, AttributeValue]) -> bytes:
         try:
             if self._in_thread:
                 if self._executor is None:
@@ -571,20 +743,26 @@ class Responder:
             if inspect.isawaitable(result):
                 result = await result
             self.handled += 1
-            return encode_event(rtype, rid, result)
-        except asyncio.CancelledError:
-            raise
+            return encode_event(self._response_type or response_type_for(event_type), rid, result)
         except Exception as exc:
-            self.errors += 1
-            text = str(exc) or type(exc).__name__
-            if isinstance(exc, BusEncodeError):
-                text = f"response not encodable: {text}"
-            else:
-                log.warning("Responder handler failed on %s %s: %r", event_type, rid, exc, exc_info=exc)
-            return encode_event(rtype, rid, {"error": text})
+            return self._error_response(event_type, rid, exc)
+
+    def _error_response(self, event_type: str, rid: str | None, exc: Exception) -> bytes:
+        self.errors += 1
+        text = str(exc) or type(exc).__name__
+        if isinstance(exc, BusEncodeError):
+            text = f"response not encodable: {text}"
+        else:
+            log.warning("Responder handler failed on %s %s: %r", event_type, rid, exc, exc_info=exc)
+        return encode_event(self._response_type or response_type_for(event_type), rid, {"error": text})
 
     def _send(self, payload: bytes) -> None:
-        if self._response_topic is None:
-            self._pub.send_nowait(payload)
-        else:
-            self._pub.publish_nowait(self._response_topic, payload)
+        try:
+            if self._response_topic is None:
+                self._pub.send(payload, zmq.NOBLOCK)
+            else:
+                self._pub.send_multipart((self._response_topic, payload), zmq.NOBLOCK)
+        except zmq.Again:
+            log.debug("Responder: response dropped at the high-water mark")
+        except zmq.ZMQError as exc:
+            log.error("Responder on %s: publish failed: %r", self._actual_resp, exc)

@@ -33,6 +33,7 @@ __all__ = [
     "SyncPublisher",
     "Subscriber",
     "as_topic",
+    "open_socket",
 ]
 
 log = logging.getLogger(__name__)
@@ -75,6 +76,24 @@ def _attach(sock: zmq.Socket, endpoint: str, bind: bool) -> str:
         sock.close(linger=0)
         verb = "bind" if bind else "connect"
         raise BusError(f"cannot {verb} {endpoint!r}: {exc}") from exc
+
+
+def open_socket(kind: int, endpoint: str, *, bind: bool, context: zmq.Context | None = None,
+                topics: Iterable[bytes | str] = (), hwm: int = 1000) -> tuple[zmq.Socket, str]:
+    """A plain (synchronous) ZeroMQ socket with ``LINGER 0``, subscribed to ``topics`` if it is a SUB, bound or
+    connected; returns ``(socket, actual_endpoint)``. The caller owns it and must close it.
+
+    For code that drives a socket from the loop's reader callbacks rather than through zmq.asyncio futures (the
+    Communicator's response reader). Raises :class:`BusError`.
+    """
+    ctx = _async_context(context)
+    sock = zmq.Socket(ctx, kind)
+    sock.setsockopt(zmq.LINGER, 0)
+    sock.setsockopt(zmq.RCVHWM if kind == zmq.SUB else zmq.SNDHWM, hwm)
+    if kind == zmq.SUB:
+        for t in topics:
+            sock.setsockopt(zmq.SUBSCRIBE, as_topic(t))
+    return sock, _attach(sock, endpoint, bind)
 
 
 class _Owned:

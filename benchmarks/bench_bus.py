@@ -1,0 +1,189 @@
+"""Request -> response latency through Communicator + Responder (no-op handler) vs raw pyzmq PUB/SUB ping-pong.
+
+Both are measured in the same run with the same topology: the server side (Responder, or a raw asyncio echo) runs
+in a child process that binds a SUB for requests and a PUB for responses on 127.0.0.1 port 0 and reports its real
+endpoints through a pipe (a handshake, no sleep); the client side connects a PUB and a SUB from an asyncio loop.
+The raw ping-pong sends a pre-encoded request Event of the same size and awaits the echoed bytes, so the ratio is
+what the Communicator/Responder machinery costs: Protobuf encode/decode, ids, futures, the reader task, caching.
+
+Prints one JSON object. Usage: ``python benchmarks/bench_bus.py [--n 3000] [--warmup 300] [--rounds 3]``.
+Target: ours p50 <= 1.3 x raw p50.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import multiprocessing as mp
+import platform
+import statistics
+import sys
+import time
+
+import zmq
+import zmq.asyncio
+
+from aioadept.bus.communicator import Communicator, Responder
+from aioadept.bus.messages import encode_event
+from aioadept.errors import RequestTimeout
+
+ANY = "tcp://127.0.0.1:*"
+
+
+# ------------------------------------------------------------------------------------------------ server processes
+
+def _raw_server(conn) -> None:
+    async def main() -> None:
+        ctx = zmq.asyncio.Context()
+        sub = ctx.socket(zmq.SUB)
+        sub.setsockopt(zmq.SUBSCRIBE, b"")
+        sub.bind(ANY)
+        pub = ctx.socket(zmq.PUB)
+        pub.bind(ANY)
+        conn.send((sub.getsockopt_string(zmq.LAST_ENDPOINT), pub.getsockopt_string(zmq.LAST_ENDPOINT)))
+        try:
+            while True:
+                msg = await sub.recv()
+                await pub.send(msg)
+                if msg == b"STOP":
+                    break
+        finally:
+            sub.close(0)
+            pub.close(0)
+            ctx.term()
+
+    asyncio.run(main())
+
+
+def _responder_server(conn) -> None:
+    async def main() -> None:
+        stop = asyncio.Event()
+
+        def handler(event_type, rid, attrs):
+            if event_type == "STOP":
+                stop.set()
+            return None  # no-op: empty attributes
+
+        async with Responder(ANY, ANY, handler) as node:
+            conn.send((node.actual_request_endpoint, node.actual_response_endpoint))
+            await stop.wait()
+            await asyncio.sleep(0.05)  # shutdown grace so the STOP answer can leave; not on the measured path
+
+    asyncio.run(main())
+
+
+def _start(target) -> tuple[mp.Process, str, str]:
+    parent, child = mp.Pipe()
+    proc = mp.get_context("spawn").Process(target=target, args=(child,), daemon=True)
+    proc.start()
+    if not parent.poll(20):
+        proc.kill()
+        raise RuntimeError(f"{target.__name__} did not report its endpoints")
+    req, resp = parent.recv()
+    return proc, req, resp
+
+
+# ------------------------------------------------------------------------------------------------ clients
+
+async def _raw_client(req_ep: str, resp_ep: str, n: int, warmup: int) -> list[float]:
+    ctx = zmq.asyncio.Context()
+    pub = ctx.socket(zmq.PUB)
+    pub.connect(req_ep)
+    sub = ctx.socket(zmq.SUB)
+    sub.setsockopt(zmq.SUBSCRIBE, b"")
+    sub.connect(resp_ep)
+    payload = encode_event("VisionRequest", "0123abcd", {"t_request": time.time()})
+    try:
+        # Slow joiner: ping until the first echo comes back, then drain the duplicates.
+        first = asyncio.ensure_future(sub.recv())
+        while not first.done():
+            await pub.send(payload)
+            await asyncio.wait({first}, timeout=0.01)
+        while await sub.poll(50):
+            await sub.recv()
+        loop = asyncio.get_running_loop()
+        samples = []
+        for i in range(warmup + n):
+            t0 = loop.time()
+            await pub.send(payload)
+            await sub.recv()
+            if i >= warmup:
+                samples.append(loop.time() - t0)
+        # Stop the server: the echo of STOP tells us it got it (so closing with linger 0 loses nothing).
+        while True:
+            await pub.send(b"STOP")
+            if await sub.poll(100) and await sub.recv() == b"STOP":
+                break
+        return samples
+    finally:
+        pub.close(0)
+        sub.close(0)
+        ctx.term()
+
+
+async def _communicator_client(req_ep: str, resp_ep: str, n: int, warmup: int) -> list[float]:
+    async with Communicator(req_ep, resp_ep, timeout_s=10) as comm:
+        await comm.request("VisionRequest")  # joins (re-publishing as needed)
+        loop = asyncio.get_running_loop()
+        samples = []
+        for i in range(warmup + n):
+            t0 = loop.time()
+            await comm.request("VisionRequest")
+            if i >= warmup:
+                samples.append(loop.time() - t0)
+        # Ask the node to stop. It may close before its answer leaves (linger 0), so a timeout here is fine.
+        try:
+            await comm.request("STOP", timeout_s=0.5)
+        except RequestTimeout:
+            pass
+        return samples
+
+
+def _run(kind: str, n: int, warmup: int) -> list[float]:
+    server = _raw_server if kind == "raw" else _responder_server
+    client = _raw_client if kind == "raw" else _communicator_client
+    proc, req, resp = _start(server)
+    try:
+        return asyncio.run(client(req, resp, n, warmup))
+    finally:
+        proc.join(5)
+        if proc.is_alive():
+            proc.kill()
+
+
+def _stats(samples: list[float]) -> dict[str, float]:
+    s = sorted(samples)
+    q = statistics.quantiles(s, n=100, method="inclusive")
+    return {"n": len(s), "p50_us": round(q[49] * 1e6, 1), "p99_us": round(q[98] * 1e6, 1),
+            "mean_us": round(statistics.fmean(s) * 1e6, 1), "min_us": round(s[0] * 1e6, 1)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=3000, help="measured round trips per round")
+    ap.add_argument("--warmup", type=int, default=300)
+    ap.add_argument("--rounds", type=int, default=3, help="alternating raw/ours rounds; samples are pooled")
+    args = ap.parse_args()
+
+    raw: list[float] = []
+    ours: list[float] = []
+    for _ in range(args.rounds):  # alternate so drifting machine load hits both alike
+        raw += _run("raw", args.n, args.warmup)
+        ours += _run("ours", args.n, args.warmup)
+    r, o = _stats(raw), _stats(ours)
+    print(json.dumps({
+        "benchmark": "bus request->response latency, 127.0.0.1, server in a child process",
+        "python": sys.version.split()[0], "pyzmq": zmq.__version__, "libzmq": zmq.zmq_version(),
+        "machine": platform.machine(),
+        "raw_pyzmq_pubsub_pingpong": r,
+        "communicator_responder_noop": o,
+        "ratio_p50": round(o["p50_us"] / r["p50_us"], 3),
+        "ratio_p99": round(o["p99_us"] / r["p99_us"], 3),
+        "ratio_mean": round(o["mean_us"] / r["mean_us"], 3),
+        "target_ratio_p50": 1.3,
+    }, indent=2))
+
+
+if __name__ == "__main__":
+    main()
