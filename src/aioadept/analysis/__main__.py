@@ -47,7 +47,9 @@ def main(argv: list[str] | None = None) -> int:
     console.print(fits_table(summary))
     if len(summary.runs) <= 8:  # beyond that the list drowns the table; summary.json has every run
         for run in summary.runs:
-            params = ", ".join(f"{k}={v}" for k, v in run.parameters.items())
+            # Scalars only: a run's parameters may hold whole cell configurations and results.
+            params = ", ".join(f"{k}={v}" for k, v in run.parameters.items()
+                               if isinstance(v, (int, float, bool)) or (isinstance(v, str) and len(v) <= 24))
             console.print(f"  {run.name}: {run.n_complete}/{run.n_iterations} complete iterations  {params}",
                           markup=False, highlight=False)
     console.print(f"wrote {', '.join(sorted(p.name for p in summary.files.values()))} to {summary.out_dir}",
