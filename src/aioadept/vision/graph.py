@@ -286,11 +286,11 @@ def draw_graph(graph: CompGraph, path: str | None = None, *, ax: Any = None, tit
     n_layers = max(lay for _, lay, _ in layout.values()) + 1
     width = max(sum(1 for _, lay, _ in layout.values() if lay == L) for L in range(n_layers))
     if ax is None:
-        fig, ax = plt.subplots(figsize=(2.6 * max(width, 2) + 1.0, 0.62 * n_layers + 0.6))
+        fig, ax = plt.subplots(figsize=(2.9 * max(width, 2) + 1.0, 0.62 * n_layers + 0.6))
     else:
         fig = ax.figure
     ax.set_axis_off()
-    ax.set_xlim(-0.6, max(width, 2) - 0.4)
+    ax.set_xlim(-1.0, 1.35 * (max(width, 2) - 1) + 0.6)
     ax.set_ylim(-n_layers + 0.5, 0.5)
     texts: dict[str, Any] = {}
     for key, (kind, lay, pos) in layout.items():
@@ -301,16 +301,24 @@ def draw_graph(graph: CompGraph, path: str | None = None, *, ax: Any = None, tit
             style = dict(boxstyle="ellipse,pad=0.25", fc="#c8c8c8", ec="black", lw=0.9)
         else:
             style = dict(boxstyle="ellipse,pad=0.25", fc="white", ec="black", lw=0.9)
-        texts[key] = ax.text(pos, -lay, label, ha="center", va="center", fontsize=9, family="monospace",
+        texts[key] = ax.text(pos * 1.35, -lay, label, ha="center", va="center", fontsize=9, family="monospace",
                              bbox=style, zorder=3)
+    from matplotlib.patches import FancyArrowPatch
+
     for fname in graph.order:
         ins, outs = graph.io(fname)
         fkey = f"f:{fname}"
         for src, dst in [(f"t:{t}", fkey) for t in ins] + [(fkey, f"t:{t}") for t in outs]:
-            ax.annotate("", xy=texts[dst].get_position(), xytext=texts[src].get_position(), zorder=2,
-                        arrowprops=dict(arrowstyle="-|>", lw=0.9, color="black", shrinkA=0, shrinkB=0,
-                                        patchA=texts[src].get_bbox_patch(), patchB=texts[dst].get_bbox_patch(),
-                                        connectionstyle="arc3,rad=0.0"))
+            (x0, y0), (x1, y1) = texts[src].get_position(), texts[dst].get_position()
+            # An edge skipping layers would run through the nodes between: route it as a bracket on the left.
+            if abs(y1 - y0) > 1.5 and abs(x1 - x0) < 0.5:
+                conn = "arc,angleA=180,angleB=180,armA=95,armB=95,rad=8"
+            else:
+                conn = "arc3,rad=0.0"
+            ax.add_patch(FancyArrowPatch((x0, y0), (x1, y1), arrowstyle="-|>", mutation_scale=11, lw=0.9,
+                                         color="black", patchA=texts[src].get_bbox_patch(),
+                                         patchB=texts[dst].get_bbox_patch(), shrinkA=1, shrinkB=1,
+                                         connectionstyle=conn, zorder=4))
     if title:
         ax.set_title(title, fontsize=10)
     if path is not None:

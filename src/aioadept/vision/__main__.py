@@ -1,0 +1,220 @@
+"""``aioadept vision``: image acquisition + processing in one process (the paper's ImAcqService + ImProcNode).
+
+Data path: sources -> one grabbing thread each -> ring buffers -> (VisionRequest over ZeroMQ) -> frame for
+``t_request`` -> sharpness graph in a worker thread -> VisionResponse. With the ``virtual`` source a
+:class:`RobotStateFollower` subscribes to the sim's robot state stream and the virtual camera renders the
+calibration object at the tool pose of each frame's time.
+
+Prints one line ``READY request=<endpoint> response=<endpoint> ...`` on stdout once it serves (real ports when
+bound to port 0); logs every request it serves on stderr; exits 0 on SIGINT/SIGTERM. Options may come from a TOML
+file (``--config``; keys are the long option names with ``_`` or ``-``, top level or in a ``[vision]`` table);
+command-line options override it. ``--figures OUTDIR`` writes the Fig. 7-9 pictures and exits.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import logging
+import signal
+import sys
+import tomllib
+from pathlib import Path
+from typing import Any
+
+log = logging.getLogger("aioadept.vision")
+
+DEFAULTS: dict[str, Any] = {
+    "source": ["virtual"],
+    "state_endpoint": "tcp://127.0.0.1:5560",
+    "request_endpoint": "tcp://127.0.0.1:5555",
+    "response_endpoint": "tcp://127.0.0.1:5556",
+    "fps": 15.0,
+    "buffer_size": 64,
+    "focus_offset_mm": 20.0,
+    "working_distance_mm": 300.0,
+    "f_number": 2.8,
+    "noise_sigma": 2.0,
+    "seed": None,
+    "policy": "nearest",
+    "frame_timeout": 1.0,
+    "graph": "sharpness",
+    "save_frames": None,
+    "figures": None,
+    "log_level": "INFO",
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="aioadept vision", description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--config", metavar="FILE", help="TOML file with any of these options (CLI overrides it)")
+    p.add_argument("--source", action="append", metavar="SPEC",
+                   help="virtual | folder:PATH | opencv:SPEC (device index, video file or URL); repeat for several "
+                        "cameras (default: virtual)")
+    p.add_argument("--state-endpoint", help="robot state stream to follow (virtual source; default %(default)s)")
+    p.add_argument("--request-endpoint", help="bind SUB for VisionRequest events (port 0: any free port)")
+    p.add_argument("--response-endpoint", help="bind PUB for VisionResponse events (port 0: any free port)")
+    p.add_argument("--fps", type=float, help="grab rate cap per source (default 15)")
+    p.add_argument("--buffer-size", type=int, help="frames kept per source (default 64)")
+    p.add_argument("--focus-offset-mm", type=float,
+                   help="virtual camera: focal plane this far along tool +z from the approach pose (default 20)")
+    p.add_argument("--working-distance-mm", type=float,
+                   help="virtual camera: lens to target at the approach pose (default 300)")
+    p.add_argument("--f-number", type=float, help="virtual camera: lens f-number (default 2.8)")
+    p.add_argument("--noise-sigma", type=float, help="virtual camera: sensor noise, grey levels (default 2)")
+    p.add_argument("--seed", type=int, help="virtual camera: noise seed")
+    p.add_argument("--policy", choices=("nearest", "after"),
+                   help="frame for a request: nearest in time (the paper; default) or first at/after t_request")
+    p.add_argument("--frame-timeout", type=float, help="policy 'after': max wait for the frame, s (default 1)")
+    p.add_argument("--graph", choices=("sharpness", "noop"), help="processing graph (noop: for latency tests)")
+    p.add_argument("--save-frames", metavar="DIR", help="save every served frame (PNG + frames.csv) into DIR")
+    p.add_argument("--figures", metavar="OUTDIR", help="write the graph / intermediate results / sweep pictures "
+                                                         "(Figs. 7-9) into OUTDIR and exit")
+    p.add_argument("--log-level", help="DEBUG, INFO (default), WARNING")
+    return p
+
+
+def load_config(path: str) -> dict[str, Any]:
+    """Options from a TOML file: keys normalised to ``snake_case``; raises ValueError for unknown keys."""
+    with open(path, "rb") as fh:
+        data = tomllib.load(fh)
+    if isinstance(data.get("vision"), dict):
+        data = data["vision"]
+    out = {k.replace("-", "_"): v for k, v in data.items()}
+    unknown = sorted(set(out) - set(DEFAULTS))
+    if unknown:
+        raise ValueError(f"{path}: unknown options {unknown}")
+    if isinstance(out.get("source"), str):
+        out["source"] = [out["source"]]
+    return out
+
+
+def resolve_options(argv: list[str]) -> argparse.Namespace:
+    """Defaults < config file < command line."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    merged = dict(DEFAULTS)
+    if args.config:
+        try:
+            merged.update(load_config(args.config))
+        except (OSError, ValueError, tomllib.TOMLDecodeError) as exc:
+            parser.error(str(exc))
+    for key, value in vars(args).items():
+        if key != "config" and value is not None:
+            merged[key] = value
+    if merged["policy"] not in ("nearest", "after"):
+        parser.error(f"policy must be nearest or after, got {merged['policy']!r}")
+    return argparse.Namespace(**merged)
+
+
+def make_sources(opts: argparse.Namespace, pose_at: Any) -> list[Any]:
+    """Camera objects for the ``--source`` specs (unique camera ids)."""
+    from aioadept.vision.sources import ImageFolderSource, OpenCVSource
+    from aioadept.vision.virtual_camera import LensOptics, paper_camera
+
+    sources: list[Any] = []
+    seen: set[str] = set()
+
+    def unique(cid: str) -> str:
+        base, n = cid, 1
+        while cid in seen:
+            cid, n = f"{base}{n}", n + 1
+        seen.add(cid)
+        return cid
+
+    for spec in opts.source:
+        kind, _, arg = spec.partition(":")
+        if kind == "virtual":
+            sources.append(paper_camera(pose_at, focus_offset_mm=opts.focus_offset_mm,
+                                        working_distance_mm=opts.working_distance_mm,
+                                        optics=LensOptics(f_number=opts.f_number), noise_sigma=opts.noise_sigma,
+                                        seed=opts.seed, camera_id=unique("virtual")))
+        elif kind == "folder" and arg:
+            csv_path = Path(arg) / "frames.csv"
+            # A recorded folder (--save-frames) replays with its times; any other folder loops, stamped live.
+            sources.append(ImageFolderSource(arg, camera_id=unique("folder"),
+                                             timestamps_csv=csv_path if csv_path.exists() else None,
+                                             loop=not csv_path.exists()))
+        elif kind == "opencv" and arg:
+            sources.append(OpenCVSource(arg, camera_id=unique(f"opencv:{arg}")))
+        else:
+            raise ValueError(f"bad --source {spec!r}: use virtual, folder:PATH or opencv:SPEC")
+    return sources
+
+
+async def serve(opts: argparse.Namespace) -> int:
+    from aioadept.bus.communicator import Responder
+    from aioadept.vision.acquisition import Acquisition
+    from aioadept.vision.node import VisionNode, noop_graph
+    from aioadept.vision.sharpness import sharpness_graph
+    from aioadept.vision.sources import FrameRecorder
+    from aioadept.vision.virtual_camera import RobotStateFollower
+
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(sig, stop.set)
+
+    follower = None
+    if any(s.split(":", 1)[0] == "virtual" for s in opts.source):
+        follower = RobotStateFollower(opts.state_endpoint).start()
+    recorder = FrameRecorder(opts.save_frames) if opts.save_frames else None
+    acq = node = responder = None
+    try:
+        sources = make_sources(opts, follower.pose_at if follower else None)
+        acq = Acquisition(sources, buffer_size=opts.buffer_size, fps=opts.fps).start()
+        graph = noop_graph() if opts.graph == "noop" else sharpness_graph()
+        node = VisionNode(acq, graph, policy=opts.policy, timeout_s=opts.frame_timeout, recorder=recorder)
+        responder = Responder(opts.request_endpoint, opts.response_endpoint, node.handle)
+        responder.start()
+        cams = ",".join(acq.camera_ids)
+        print(f"READY request={responder.actual_request_endpoint} response={responder.actual_response_endpoint} "
+              f"cameras={cams} fps={opts.fps:g} policy={opts.policy} graph={opts.graph}", flush=True)
+        log.info("serving %s requests on %s, responses on %s; cameras %s at %g fps, policy %s%s",
+                 opts.graph, responder.actual_request_endpoint, responder.actual_response_endpoint, cams, opts.fps,
+                 opts.policy, f", following robot state on {opts.state_endpoint}" if follower else "")
+        stop_task = asyncio.create_task(stop.wait())
+        serve_task = asyncio.create_task(responder.wait_closed())
+        done, _ = await asyncio.wait({stop_task, serve_task}, return_when=asyncio.FIRST_COMPLETED)
+        stop_task.cancel()
+        if serve_task in done and serve_task.exception() is not None:
+            log.error("responder failed: %r", serve_task.exception())
+            return 1
+        serve_task.cancel()
+        log.info("stopping: %d requests served (%d failed)", node.served, node.failed)
+        return 0
+    finally:
+        if responder is not None:
+            await responder.aclose()
+        if node is not None:
+            node.close()
+        if acq is not None:
+            acq.stop()
+        if follower is not None:
+            follower.stop()
+        if recorder is not None:
+            recorder.close()
+
+
+def main(argv: list[str] | None = None) -> int:
+    opts = resolve_options(list(sys.argv[1:] if argv is None else argv))
+    logging.basicConfig(level=getattr(logging, str(opts.log_level).upper(), logging.INFO), stream=sys.stderr,
+                        format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    if opts.figures:
+        from aioadept.vision.figures import write_figures
+
+        for path in write_figures(opts.figures, focus_offset_mm=opts.focus_offset_mm):
+            print(path)
+        return 0
+    from aioadept.errors import AdeptError
+
+    try:
+        return asyncio.run(serve(opts))
+    except (ValueError, OSError, AdeptError) as exc:
+        log.error("%s", exc)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
