@@ -165,6 +165,7 @@ class Controller:
         self._running: _Running | None = None
         self._conns: set[ConnId] = set()
         self._out: list[Outgoing] = []
+        self._fk_cache: tuple[tuple[float, ...], Pose, Pose] | None = None  # (joints, tool, pose) of the last FK
         self.executed = 0
         """Skills run to completion (done or error), for inspection in tests and benchmarks."""
 
@@ -374,7 +375,16 @@ class Controller:
 
     def here_at(self, t_s: float) -> Pose:
         """V+ ``HERE`` at ``t_s``: the tool pose in the world frame."""
-        return kin.forward(self.trajectory.position(t_s), self.tool)
+        return self._forward(self.trajectory.position(t_s))
+
+    def _forward(self, joints: tuple[float, ...]) -> Pose:
+        # At rest every ack asks for the same pose: remember the last one.
+        cache = self._fk_cache
+        if cache is not None and cache[0] == joints and cache[1] == self.tool:
+            return cache[2]
+        pose = kin.forward(joints, self.tool)
+        self._fk_cache = (joints, self.tool, pose)
+        return pose
 
     @property
     def joints_deg(self) -> tuple[float, ...]:
@@ -394,7 +404,7 @@ class Controller:
         speed = self.trajectory.current_speed_pct(t_s)
         if speed is None:
             speed = (self.pending_speed_pct or self.always_speed_pct) * self.monitor_speed_pct / 100.0
-        return ControllerState(t_s, joints, kin.forward(joints, self.tool), self.trajectory.in_motion(t_s),
+        return ControllerState(t_s, joints, self._forward(joints), self.trajectory.in_motion(t_s),
                                float(speed), self.air)
 
     def take_speed_pct(self) -> float:

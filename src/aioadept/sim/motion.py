@@ -180,11 +180,14 @@ class Trajectory:
         self.time_scale = float(time_scale)
         self.instant = instant
         self._base = np.array(joints_deg, dtype=float)
+        self._base_t = tuple(float(v) for v in self._base)  # at rest this is the answer; no arrays needed
         self._segments: list[Segment | StopSegment] = []
 
     # -- queries ---------------------------------------------------------------------------------------------
     def position(self, t_s: float) -> tuple[float, ...]:
         """Joint angles (deg) at ``t_s``."""
+        if not self._segments:
+            return self._base_t
         p = self._base.copy()
         for seg in self._segments:
             p += seg.offset(t_s)
@@ -238,6 +241,7 @@ class Trajectory:
             else:
                 keep.append(seg)
         self._segments = keep
+        self._base_t = tuple(float(v) for v in self._base)
 
     def add(self, target_deg: Sequence[float], t_s: float, *, speed_pct: float,
             accel_pct: float = 100.0) -> Segment:
@@ -269,6 +273,7 @@ class Trajectory:
         p0 = self.position(t_s)
         v0 = np.array(self.velocity(t_s))
         self._base = np.array(p0)
+        self._base_t = tuple(p0)
         self._segments = []
         if self.instant or not np.any(v0):
             return t_s
