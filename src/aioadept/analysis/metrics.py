@@ -116,8 +116,25 @@ def _batches(robot: Sequence[Any]) -> list[list[Any]]:
     return sorted(out, key=lambda g: g[0].t_send_s)
 
 
-def _is_approach(group: Sequence[Any], skills: Sequence[str]) -> bool:
-    return tuple(r.skill for r in group) == tuple(skills)
+def _approach_groups(groups: Sequence[list[Any]], skills: Sequence[str]) -> list[list[Any]]:
+    """The increments: batches whose skills are exactly ``skills`` or, written by ``cmdexec`` instead of
+    ``cmdexec_joined`` (``set_speed`` acked before ``move_rel_tool`` + ``break`` are written), consecutive batches
+    that together are."""
+    want = tuple(skills)
+    out: list[list[Any]] = []
+    i = 0
+    while i < len(groups):
+        acc = list(groups[i])
+        j = i + 1
+        while len(acc) < len(want) and j < len(groups) and tuple(r.skill for r in acc) == want[:len(acc)]:
+            acc += groups[j]
+            j += 1
+        if tuple(r.skill for r in acc) == want:
+            out.append(acc)
+            i = j
+        else:
+            i += 1
+    return out
 
 
 def _z_step(group: Sequence[Any]) -> float:
@@ -131,14 +148,14 @@ def find_iterations(robot: Sequence[Any], vision: Sequence[Any], *, marks: Seque
     """Reconstruct the approach iterations of one run and compute their taus (ms).
 
     Pairing: each vision request (in send order) owns the first ``skills`` batch sent after it and before the next
-    vision request. The final retract (the same three skills, the other z direction) is not an iteration: it is
+    vision request (``skills`` split over consecutive batches, as ``cmdexec`` sends them, count as one). The final retract (the same three skills, the other z direction) is not an iteration: it is
     recognised as a batch sent after a mark named ``"retract"`` when the run has one (``apps.focus.ufloop`` writes
     it), otherwise as a batch whose ``move_rel_tool`` z step has the sign opposite to the run's first approach
     batch. Vision requests with no approach batch after them (the last one, or one that failed) are dropped.
     """
     params = dict(parameters or {})
     reqs = sorted((v for v in vision if v.t_send_s is not None), key=lambda v: v.t_send_s)
-    groups = [g for g in _batches(robot) if _is_approach(g, skills)]
+    groups = _approach_groups(_batches(robot), skills)
     retract_marks = [m.t_s for m in marks if m.name == "retract"]
     t_retract = min(retract_marks) if retract_marks else math.inf
     groups = [g for g in groups if g[0].t_send_s < t_retract]

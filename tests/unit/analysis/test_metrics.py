@@ -130,6 +130,24 @@ def test_a_batch_before_the_first_request_is_not_an_iteration() -> None:
     assert _iters(log) == ()
 
 
+def test_cmdexec_split_batches_count_as_one_increment() -> None:
+    # cmdexec(SetSpeed, MoveToolZ): set_speed in one batch, move_rel_tool + break in the next.
+    log = Log()
+    log.vis(1.0, 1.05, 3.0)
+    log.approach(1, 1.051, 1.0535, 1.0535, 1.21, s_ss=10.0, s_b=10.003, s_b_done=10.15)
+    log.robot[1] = RobotRecord(1, "m", "move_rel_tool", APPROACH, 2, 1.0535, 1.055, 10.003, 10.003, "done")
+    log.robot[2] = RobotRecord(2, "b", "break", (), 2, 1.0535, 1.21, 10.003, 10.15, "done")
+    (it,) = _iters(log)
+    assert it.complete and it.tau_ss_to_mrt_ms == pytest.approx(2.5) and it.tau_mrt_to_b_ms == 0.0
+    assert it.tau_r_ms == pytest.approx((1.21 - 1.051 - 0.003) * 1000)
+    # a lone set_speed followed by something else is no increment
+    log2 = Log()
+    log2.vis(1.0, 1.05, 3.0)
+    log2.msg(1, "set_speed", 1.051, 1.052, 10.0, 10.0, (25,))
+    log2.msg(2, "move_to", 1.053, 1.2, 10.0, 10.1, (1, 2, 3, 4, 5, 6))
+    assert _iters(log2) == ()
+
+
 def test_iterations_of_run_uses_name_and_parameters() -> None:
     log = paper_log()
     run = Run(tuple(log.robot), tuple(log.vision), tuple(log.marks), {"parameters": {"delta_z_mm": 2.0},
