@@ -16,6 +16,7 @@ import argparse
 import asyncio
 import json
 import multiprocessing as mp
+import os
 import platform
 import statistics
 import sys
@@ -168,9 +169,13 @@ def main() -> None:
 
     raw: list[float] = []
     ours: list[float] = []
+    per_round = []
     for _ in range(args.rounds):  # alternate so drifting machine load hits both alike
-        raw += _run("raw", args.n, args.warmup)
-        ours += _run("ours", args.n, args.warmup)
+        r_i = _run("raw", args.n, args.warmup)
+        o_i = _run("ours", args.n, args.warmup)
+        raw += r_i
+        ours += o_i
+        per_round.append(round(statistics.median(o_i) / statistics.median(r_i), 3))
     r, o = _stats(raw), _stats(ours)
     print(json.dumps({
         "benchmark": "bus request->response latency, 127.0.0.1, server in a child process",
@@ -181,6 +186,9 @@ def main() -> None:
         "ratio_p50": round(o["p50_us"] / r["p50_us"], 3),
         "ratio_p99": round(o["p99_us"] / r["p99_us"], 3),
         "ratio_mean": round(o["mean_us"] / r["mean_us"], 3),
+        "ratio_p50_per_round": per_round,
+        "cpu_count": os.cpu_count(),
+        "load_avg_1min": round(os.getloadavg()[0], 2),
         "target_ratio_p50": 1.3,
     }, indent=2))
 
