@@ -5,31 +5,13 @@ from __future__ import annotations
 import asyncio
 import csv
 import json
-from dataclasses import dataclass
-
 import pytest
 
+from aioadept.bus import Request, Response
 from aioadept.capture import MARK_COLUMNS, ROBOT_COLUMNS, VISION_COLUMNS, Recorder, load_run
 from aioadept.client import MessageResult, SentMessage
 from aioadept.geometry import Pose
 from aioadept.protocol import Ack, Status
-
-
-@dataclass(frozen=True, slots=True)
-class Request:  # the fields of bus.Request (docs/interfaces.md)
-    id: str
-    event_type: str
-    attributes: dict
-    t_send_s: float
-
-
-@dataclass(frozen=True, slots=True)
-class Response:  # the fields of bus.Response
-    id: str
-    event_type: str
-    attributes: dict
-    t_send_s: float
-    t_recv_s: float
 
 
 POSE = Pose(480.014, -0.038, 709.975, 0.0, 179.995, 0.004)

@@ -19,53 +19,17 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from aioadept.bus import Request, Response
 from aioadept.capture import Recorder
+from aioadept.client import MessageResult, SentMessage
 from aioadept.geometry import Pose
 from aioadept.protocol import Ack, Status
 
 __all__ = ["synthetic_recorder"]
-
-
-@dataclass(frozen=True, slots=True)
-class _Sent:  # the fields of client.SentMessage (docs/interfaces.md)
-    id: str
-    skill: str
-    args: tuple
-    batch: int
-    t_send_s: float
-
-
-@dataclass(frozen=True, slots=True)
-class _Result:  # the fields of client.MessageResult
-    id: str
-    skill: str
-    args: tuple
-    batch: int
-    t_send_s: float
-    t_recv_s: float
-    ack: Ack
-
-
-@dataclass(frozen=True, slots=True)
-class _Request:  # bus.Request
-    id: str
-    event_type: str
-    attributes: dict
-    t_send_s: float
-
-
-@dataclass(frozen=True, slots=True)
-class _Response:  # bus.Response
-    id: str
-    event_type: str
-    attributes: dict
-    t_send_s: float
-    t_recv_s: float
 
 
 def _lognormal_ms(rng: np.random.Generator, median_ms: float, shape: float) -> float:
@@ -105,7 +69,7 @@ def synthetic_recorder(*, seed: int = 0, appr_speed: int = 25, delta_z_mm: float
         for k, (skill, args) in enumerate(calls):
             if k:
                 ts += _lognormal_ms(rng, send_median_ms, switch_shape) / 1000.0
-            sends.append(_Sent(next(ids), skill, args, batch, ts))
+            sends.append(SentMessage(next(ids), skill, args, batch, ts))
             rec.on_send(sends[-1])
         # Server side: each non-final skill acks at once, the last (break) acks when the motion ends.
         t_srv_first = sends[0].t_send_s + lat_in
@@ -125,7 +89,7 @@ def synthetic_recorder(*, seed: int = 0, appr_speed: int = 25, delta_z_mm: float
                 t_done = max(t_in, (t_move_start if t_move_start is not None else t_in) + motion_s)
             ack = Ack(s.id, Status.DONE, server(t_start), server(t_done), pose)
             t_recv = t_done + lat_out + 0.00002 * k
-            rec.on_ack(_Result(s.id, s.skill, s.args, s.batch, s.t_send_s, t_recv, ack))
+            rec.on_ack(MessageResult(s.id, s.skill, s.args, s.batch, s.t_send_s, t_recv, ack))
             last_recv = max(last_recv, t_recv)
         return last_recv
 
@@ -144,11 +108,11 @@ def synthetic_recorder(*, seed: int = 0, appr_speed: int = 25, delta_z_mm: float
         t += _lognormal_ms(rng, switch_median_ms, switch_shape) / 1000.0  # eq. 2
         vid = f"v{next(ids)[1:]}"
         t_vreq = t
-        rec.on_request(_Request(vid, "VisionRequest", {"t_request": 1.7e9 + t}, t_vreq))
+        rec.on_request(Request(vid, "VisionRequest", {"t_request": 1.7e9 + t}, t_vreq))
         t += max(rng.normal(vision_mean_ms, vision_mean_ms * 0.15), 5.0) / 1000.0
         width = (focus + 2) / 2.0  # wide enough that the rise beats the noise from the first step
         s = sharp_peak * math.exp(-((step - focus) / width) ** 2) + 5.0 + rng.normal(0, 0.05)
-        rec.on_response(_Response(vid, "VisionResponse",
+        rec.on_response(Response(vid, "VisionResponse",
                                   {"sharpness": s, "frame_t": 1.7e9 + t - 0.02,
                                    "proc_time_ms": float(rng.normal(12.0, 1.5))}, t_vreq, t))
         if step > focus:  # the first fall: leave the loop, retract one step

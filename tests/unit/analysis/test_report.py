@@ -11,6 +11,7 @@ from aioadept.analysis import FIGURES, analyze_runs
 from aioadept.analysis.__main__ import main
 from aioadept.analysis.report import gantt_bars
 from aioadept.analysis.synthetic import synthetic_recorder
+from aioadept.bus import Request, Response
 from aioadept.capture import Recorder, load_run
 from aioadept.client import MessageResult, SentMessage
 from aioadept.geometry import Pose
@@ -85,22 +86,9 @@ def test_single_write_batches_give_zero_send_gaps_and_no_lognormal_fit(tmp_path)
     rec = Recorder(clock=lambda: 0.0)
     pose = Pose()
     t = 1.0
-    from dataclasses import dataclass
-
-    @dataclass(frozen=True)
-    class Req:
-        id: str
-        event_type: str
-        attributes: dict
-        t_send_s: float
-
-    @dataclass(frozen=True)
-    class Resp(Req):
-        t_recv_s: float
-
     for i in range(3):
-        rec.on_request(Req(f"v{i}", "VisionRequest", {}, t))
-        rec.on_response(Resp(f"v{i}", "VisionResponse", {"sharpness": float(i)}, t, t + 0.05))
+        rec.on_request(Request(f"v{i}", "VisionRequest", {}, t))
+        rec.on_response(Response(f"v{i}", "VisionResponse", {"sharpness": float(i)}, t, t + 0.05))
         t += 0.051 + 0.0003 * i  # v->r: 1.0, 1.3, 1.6 ms
         for k, skill in enumerate(("set_speed", "move_rel_tool", "break")):
             mid = f"{i}{k}000000"
