@@ -78,29 +78,32 @@ async def test_responder_started_after_request_was_published_slow_joiner():
 
 @pytest.mark.timeout(10)
 async def test_stale_and_foreign_responses_are_ignored():
-    # A hand-made node: for each request it first publishes an answer to an old id and to someone else's id.
+    # A hand-made node: before each right answer it publishes an answer to the previously answered id (stale) and
+    # to an id nobody asked for (foreign). It answers every copy it receives, so lost answers are repaired by the
+    # communicator's re-publication like with a real node.
     async with Subscriber(ANY, bind=True) as req_sub, Publisher(ANY) as resp_pub:
-        async with Communicator(req_sub.actual_endpoint, resp_pub.actual_endpoint) as comm:
-            first = asyncio.create_task(comm.request("VisionRequest", {"k": 1}))
-            seen: set[str] = set()
-            old_id = None
-            results = []
-            for k in (1, 2):
-                if k == 2:
-                    second = asyncio.create_task(comm.request("VisionRequest", {"k": 2}))
-                while True:
-                    etype, rid, attrs = decode_event((await req_sub.recv())[1])
-                    if attrs["k"] == k and rid not in seen:
-                        break
-                seen.add(rid)
-                if old_id is not None:
-                    resp_pub.send_nowait(encode_event("VisionResponse", old_id, {"v": "stale"}))
+        async def node():
+            answered: list[str] = []
+            while True:
+                _, rid, attrs = decode_event((await req_sub.recv())[1])
+                if answered and answered[-1] != rid:
+                    resp_pub.send_nowait(encode_event("VisionResponse", answered[-1], {"v": "stale"}))
                 resp_pub.send_nowait(encode_event("VisionResponse", "f0reign1", {"v": "foreign"}))
-                resp_pub.send_nowait(encode_event("VisionResponse", rid, {"v": f"right-{k}"}))
-                results.append(await (first if k == 1 else second))
-                old_id = rid
-            assert [r.attributes["v"] for r in results] == ["right-1", "right-2"]
-            assert comm.ignored_responses >= 2  # at least the foreign one and the stale one reached us
+                resp_pub.send_nowait(encode_event("VisionResponse", rid, {"v": f"right-{attrs['k']}"}))
+                if rid not in answered:
+                    answered.append(rid)
+
+        async with Communicator(req_sub.actual_endpoint, resp_pub.actual_endpoint) as comm:
+            task = asyncio.create_task(node())
+            try:
+                r1 = await comm.request("VisionRequest", {"k": 1})
+                r2 = await comm.request("VisionRequest", {"k": 2})
+            finally:
+                task.cancel()
+            assert (r1.attributes["v"], r2.attributes["v"]) == ("right-1", "right-2")
+            assert r1.id != r2.id
+            # At least the foreign answer before r1 and the stale + foreign answers before r2 reached us.
+            assert comm.ignored_responses >= 3
 
 
 @pytest.mark.timeout(10)
@@ -126,28 +129,46 @@ async def test_timeout_raises_request_timeout_and_republishes_same_id():
             # What the node received: one id, re-published as identical bytes.
             assert len(got) >= 2 and len(set(got)) == 1 and decode_event(got[0])[1] == rid
             # A late answer to the timed-out request is stale: ignored, and the next request still works.
-            resp_pub.send_nowait(encode_event("VisionResponse", rid, {"late": 1}))
-            nxt = asyncio.create_task(comm.request("VisionRequest", {"x": 2.0}, timeout_s=5))
-            while True:
-                etype, rid2, attrs = decode_event((await req_sub.recv())[1])
-                if rid2 != rid:
-                    break
-            resp_pub.send_nowait(encode_event("VisionResponse", rid2, {"ok": 1}))
-            assert (await nxt).attributes == {"ok": 1}
+            async def answering_node():  # answers each new request, after a late answer to the timed-out one
+                while True:
+                    _, rid2, _ = decode_event((await req_sub.recv())[1])
+                    if rid2 != rid:
+                        resp_pub.send_nowait(encode_event("VisionResponse", rid, {"late": 1}))
+                        resp_pub.send_nowait(encode_event("VisionResponse", rid2, {"ok": 1}))
+
+            ignored = comm.ignored_responses
+            task = asyncio.create_task(answering_node())
+            try:
+                nxt = await comm.request("VisionRequest", {"x": 2.0}, timeout_s=5)
+            finally:
+                task.cancel()
+            assert nxt.attributes == {"ok": 1} and nxt.id != rid and comm.ignored_responses > ignored
 
 
 @pytest.mark.timeout(10)
 async def test_concurrent_requests_are_routed_by_id_when_answered_out_of_order():
     async with Subscriber(ANY, bind=True) as req_sub, Publisher(ANY) as resp_pub:
-        async with Communicator(req_sub.actual_endpoint, resp_pub.actual_endpoint) as comm:
-            tasks = [asyncio.create_task(comm.request("VisionRequest", {"n": n})) for n in range(5)]
-            ids: dict[int, str] = {}
-            while len(ids) < 5:
+        ids: dict[int, str] = {}
+
+        async def node():  # collects all five, answers them in reverse order, then answers any repeat at once
+            while True:
                 _, rid, attrs = decode_event((await req_sub.recv())[1])
-                ids[attrs["n"]] = rid
-            for n in reversed(range(5)):  # answer in reverse order
-                resp_pub.send_nowait(encode_event("VisionResponse", ids[n], {"n2": n * n}))
-            results = await asyncio.gather(*tasks)
+                n = attrs["n"]
+                if len(ids) == 5:
+                    resp_pub.send_nowait(encode_event("VisionResponse", rid, {"n2": n * n}))
+                    continue
+                ids[n] = rid
+                if len(ids) == 5:
+                    for m in reversed(range(5)):
+                        resp_pub.send_nowait(encode_event("VisionResponse", ids[m], {"n2": m * m}))
+
+        async with Communicator(req_sub.actual_endpoint, resp_pub.actual_endpoint) as comm:
+            task = asyncio.create_task(node())
+            try:
+                results = await asyncio.gather(
+                    *(comm.request("VisionRequest", {"n": n}) for n in range(5)))
+            finally:
+                task.cancel()
     assert [r.attributes["n2"] for r in results] == [n * n for n in range(5)]
     assert [r.id for r in results] == [ids[n] for n in range(5)] and len(set(ids.values())) == 5
 
