@@ -22,11 +22,15 @@ class Recorder:
     def __init__(self) -> None:
         self.requests: list[Request] = []
         self.responses: list[Response] = []
+        self.republished: list[Request] = []
         self.first_request = asyncio.Event()
 
     def on_request(self, r: Request) -> None:
         self.requests.append(r)
         self.first_request.set()
+
+    def on_republish(self, r: Request) -> None:
+        self.republished.append(r)
 
     def on_response(self, r: Response) -> None:
         self.responses.append(r)
@@ -47,10 +51,16 @@ async def test_request_gets_matching_response_with_observers_and_t_request():
         calls.append((event_type, rid, attrs))
         return {"sharpness": 12.5, "frame_t": attrs["t_request"], "proc_time_ms": 0.1}
 
+    class Broken:  # observer failures are logged, never propagated into the request path
+        def on_request(self, r):
+            raise RuntimeError("observer bug")
+
+        on_response = on_request
+
     rec = Recorder()
     async with Responder(ANY, ANY, handler) as node:
         async with Communicator(node.actual_request_endpoint, node.actual_response_endpoint,
-                                observers=[rec]) as comm:
+                                observers=[Broken(), rec]) as comm:
             t0 = time.time()
             resp = await comm.request("VisionRequest", {"camera": "c0"})
     assert resp.event_type == "VisionResponse" and resp.attributes["sharpness"] == 12.5
@@ -74,6 +84,10 @@ async def test_responder_started_after_request_was_published_slow_joiner():
             resp = await pending
         assert resp.attributes == {"echo": 1}
         assert comm.republished >= 1 and node.handled == 1
+        # Observers saw one request, its re-publications (same id, later times) and one response.
+        assert [r.id for r in rec.requests] == [resp.id] and [r.id for r in rec.responses] == [resp.id]
+        assert len(rec.republished) == comm.republished
+        assert all(r.id == resp.id and r.t_send_s > resp.t_send_s for r in rec.republished)
 
 
 @pytest.mark.timeout(10)

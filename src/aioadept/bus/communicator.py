@@ -117,9 +117,15 @@ class Response:
 
 
 class BusObserver(Protocol):
-    """Timing hooks (e.g. aioadept.capture). Both methods are optional; they must not block."""
+    """Timing hooks (e.g. aioadept.capture). Every method is optional; none may block; exceptions are logged.
+
+    ``on_request`` is called once per request, at its first publish; ``on_republish`` (an aioadept extension) at
+    each re-publication of the same id, with that moment as ``t_send_s``; ``on_response`` when it is matched.
+    """
 
     def on_request(self, request: Request) -> None: ...
+
+    def on_republish(self, request: Request) -> None: ...
 
     def on_response(self, response: Response) -> None: ...
 
@@ -127,13 +133,15 @@ class BusObserver(Protocol):
 class _Pending:
     """One outstanding request: its future, its exact bytes (re-published unchanged) and its backoff timer."""
 
-    __slots__ = ("future", "payload", "event_type", "t_send_s", "interval_s", "handle", "deadline", "publishes")
+    __slots__ = ("future", "payload", "event_type", "attributes", "t_send_s", "interval_s", "handle", "deadline",
+                 "publishes")
 
     def __init__(self, future: asyncio.Future, payload: bytes, event_type: str, t_send_s: float,
                  interval_s: float) -> None:
         self.future = future
         self.payload = payload
         self.event_type = event_type
+        self.attributes: dict = {}
         self.t_send_s = t_send_s
         self.interval_s = interval_s
         self.handle: asyncio.TimerHandle | None = None  # next re-publication
@@ -325,6 +333,7 @@ class Communicator:
             del self._pending[rid]
             raise
         pend.t_send_s = loop.time()
+        pend.attributes = attrs
         pend.handle = loop.call_at(pend.t_send_s + pend.interval_s, self._republish, rid)
         self._arm_deadline(rid, pend, timeout_s)
         if self._observers:
@@ -382,6 +391,9 @@ class Communicator:
             return
         pend.publishes += 1
         self.republished += 1
+        if self._observers:
+            assert self._loop is not None
+            self._notify("on_republish", Request(rid, pend.event_type, pend.attributes, self._loop.time()))
         pend.interval_s = min(pend.interval_s * self.republish_backoff, self.republish_max_interval_s)
         assert self._loop is not None
         pend.handle = self._loop.call_later(pend.interval_s, self._republish, rid)
