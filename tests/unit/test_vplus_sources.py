@@ -361,3 +361,204 @@ def test_parser_catches_structure_mistakes(tmp_path: Path):
     assert parse(bad)[1]
     bad.write_text(".PROGRAM bad()\n\tTYPE 1\n")
     assert parse(bad)[1]
+
+
+# ------------------------------------------------------------------------------------------------------------
+# Running the reader's pure programs (framing, parsing, queueing) in vplus/tools/vsubset.py, a small interpreter
+# of the V+ subset they use, against aioadept.protocol. It encodes our reading of $DECODE, ASC, $MID (see its
+# docstring); it finds logic errors in the V+ programs, not errors in our reading of V+.
+
+import importlib.util  # noqa: E402
+import random  # noqa: E402
+
+from aioadept.errors import RemoteProtocolError  # noqa: E402
+from aioadept.protocol import NO_ID, LineFramer, Oversize, parse_command, recover_id  # noqa: E402
+
+
+def _vsubset():
+    import sys
+    spec = importlib.util.spec_from_file_location("aioadept_vplus_vsubset", VPLUS / "tools" / "vsubset.py")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+vsubset = _vsubset()
+CODE_BY_VAR: dict[str, int] = {}
+
+
+@pytest.fixture
+def machine():
+    m = vsubset.Machine(vsubset.load(FILES))
+    m.call("rs.init")
+    return m
+
+
+def drain(m) -> list[tuple]:
+    """The command-ring entries the reader queued since the last drain, as comparable tuples."""
+    g = m.globals
+    out = []
+    i = g["rs.qhead"]
+    while i != g["rs.qtail"]:
+        kind = int(g["rs.qk"][i])
+        ident = g["$rs.qid"][i]
+        if kind == 0:
+            out.append(("error", ident, int(g["rs.qc"][i])))
+        elif kind == -1:
+            out.append(("stop", ident))
+        else:
+            n = int(g["rs.qn"][i])
+            args = tuple(g["rs.qa"][i * int(g["rs.maxarg"]) + j] for j in range(n))
+            out.append(("cmd", ident, g["$rs.skn"][kind], args))
+        i = (i + 1) % int(g["rs.qcap"])
+    g["rs.qhead"] = g["rs.qtail"]
+    return out
+
+
+def expected_entry(line: bytes, table: dict[str, set[int]]) -> tuple:
+    """What a server built on aioadept.protocol would queue for one complete line."""
+    try:
+        msg = parse_command(line)
+    except RemoteProtocolError as e:
+        return ("error", e.id or NO_ID, int(e.code))
+    if len(msg.args) > 16:
+        return ("error", msg.id, int(ErrorCode.WRONG_ARGUMENT_COUNT))
+    if msg.skill == STOP_SKILL:
+        return ("stop", msg.id) if not msg.args else ("error", msg.id, int(ErrorCode.WRONG_ARGUMENT_COUNT))
+    if msg.skill not in table:
+        return ("error", msg.id, int(ErrorCode.UNKNOWN_SKILL))
+    if len(msg.args) not in table[msg.skill]:
+        return ("error", msg.id, int(ErrorCode.WRONG_ARGUMENT_COUNT))
+    return ("cmd", msg.id, msg.skill, tuple(float(a) for a in msg.args))
+
+
+def expected_stream(data: bytes, table) -> list[tuple]:
+    out = []
+    for item in LineFramer(128).feed(data):
+        if isinstance(item, Oversize):
+            out.append(("error", recover_id(item.head) or NO_ID, int(ErrorCode.LINE_TOO_LONG)))
+        else:
+            out.append(expected_entry(item, table))
+    return out
+
+
+def feed(m, data: bytes, chunks: list[int], handle: float = 7.0) -> list[tuple]:
+    """Feed data as READs of the given sizes (then of 128, the most a V+ string holds) to rs.onchunk."""
+    got, pos = [], 0
+    sizes = iter(chunks)
+    while pos < len(data):
+        piece = data[pos:pos + min(next(sizes, 128), 128)]
+        pos += len(piece)
+        m.call("rs.onchunk", piece.decode("ascii"), handle)
+        got += drain(m)
+    return got
+
+
+def _close(a: tuple, b: tuple) -> bool:
+    if a[:3] != b[:3] and not (a[0] == b[0] == "cmd" and a[:3] == b[:3]):
+        return False
+    if a[0] == "cmd":
+        return len(a[3]) == len(b[3]) and all(abs(x - y) < 1e-9 for x, y in zip(a[3], b[3]))
+    return a == b
+
+
+PAPER_CHAIN = (b"eae86869:move_to:-80.000,-481.000,112.500,180.000,90.000,180.000\r\nee861124:break\r\n"
+               b"3f2a0b11:set_speed:20\r\n3f2a0b12:move_rel_tool:0.000,0.000,2.500,0.000,0.000,0.000\r\n"
+               b"3f2a0b13:enable_air\r\n0a000020:here\r\n0a000001:hello\r\n0a000013:stop\r\n")
+
+
+def test_reader_parses_the_papers_chain_like_the_protocol_core(machine):
+    table = expected_nargs()
+    got = feed(machine, PAPER_CHAIN, [])
+    assert got[0] == ("cmd", "eae86869", "move_to", (-80.0, -481.0, 112.5, 180.0, 90.0, 180.0))
+    assert got[-1] == ("stop", "0a000013")
+    want = expected_stream(PAPER_CHAIN, table)
+    assert len(got) == len(want) and all(map(_close, got, want)), (got, want)
+    assert "BRAKE" in machine.log and machine.globals["rs.stopin"] == 1
+
+
+BAD_LINES = [
+    b"nee861124:break", b"eae8686:break", b"eae86869", b"eae86869:", b"eae86869::break", b"eae86869:Break",
+    b"eae86869:break:", b"eae86869:move_to:1,2,3,4,5", b"eae86869:move_to:1,2,,4,5,6", b"eae86869:move_to:1,2,3,4,5,6,",
+    b"eae86869:move_to:1,2,3,4,5,x", b"eae86869:move_to:1e3,2,3,4,5,6", b"eae86869:nosuch", b"eae86869:break:1",
+    b"eae86869:set_speed: 20 ", b"eae86869:set_speed:2 0", b"eae86869:set_speed:+.5", b"eae86869:set_speed:5.",
+    b"eae86869:set_speed:.", b"eae86869:a:b:c", b"eae86869:stop:1", b":break", b"eae8686!:break",
+    b"eae86869:move_to:" + b",".join([b"1"] * 20), b"eae86869:move_to:" + b",".join([b"1"] * 17) + b",x",
+    b"eae86869:abcdefghijklmnop", b"eae86869:abcdefghijklmno", b"EAE86869:here", b"eae86869:here ",
+]
+
+
+@pytest.mark.parametrize("line", BAD_LINES, ids=lambda b: b.decode()[:40])
+def test_reader_answers_bad_lines_as_the_protocol_core(machine, line):
+    got = feed(machine, line + b"\r\n", [])
+    want = expected_stream(line + b"\r\n", expected_nargs())
+    assert len(got) == 1 and _close(got[0], want[0]), (got, want)
+
+
+def test_oversize_lines_resynchronise(machine):
+    long_with_id = b"0a0b0c0d:move_to:" + b"1.000," * 30 + b"1.000"
+    long_garbage = b"x" * 300
+    data = long_with_id + b"\r\n" + long_garbage + b"\r\n0a000001:here\r\n" + b"y" * 129 + b"\r\n"
+    for chunks in ([], [128] * 10, [1] * 40 + [50] * 20, [7, 129 - 7, 3]):
+        m = vsubset.Machine(machine.progs)
+        m.call("rs.init")
+        sizes = [min(c, 128) for c in chunks]
+        got = feed(m, data, sizes)
+        assert got == [("error", "0a0b0c0d", -402), ("error", NO_ID, -402), ("cmd", "0a000001", "here", ()),
+                       ("error", NO_ID, -402)], (chunks, got)
+
+
+def test_random_streams_and_splits_match_the_protocol_core(machine):
+    rng = random.Random(20260511)
+    table = expected_nargs()
+    good = [c for c in PAPER_CHAIN.split(b"\r\n") if c]
+    for _ in range(60):
+        lines = []
+        for _ in range(rng.randint(1, 8)):
+            r = rng.random()
+            if r < 0.4:
+                lines.append(rng.choice(good))
+            elif r < 0.8:
+                lines.append(rng.choice(BAD_LINES))
+            elif r < 0.9:
+                lines.append(b"%08x:move_joints:%s" % (rng.getrandbits(32), b",".join(
+                    b"%.3f" % rng.uniform(-400, 400) for _ in range(6))))
+            else:
+                lines.append(bytes(rng.choice(b"abc:,.0123456789-") for _ in range(rng.randint(0, 200))))
+        data = b"".join(line + rng.choice([b"\r\n", b"\n", b"\r\n\r\n"]) for line in lines)
+        chunks = []
+        while sum(chunks) < len(data):
+            chunks.append(rng.randint(1, 128))
+        m = vsubset.Machine(machine.progs)
+        m.call("rs.init")
+        got = feed(m, data, chunks)
+        want = expected_stream(data, table)
+        assert len(got) == len(want) and all(map(_close, got, want)), (data, chunks, got, want)
+
+
+def test_disconnect_discards_queued_commands(machine):
+    m = machine
+    feed(m, b"0a000001:here\r\n", [], handle=3.0)
+    m.globals["rs.qhead"] = 0          # keep the entry queued, as if task 1 were busy
+    slot = int(m.globals["rs.qs"][0])
+    assert m.globals["rs.qg"][0] == m.globals["rs.cgen"][slot]
+    m.call("rs.ondisc", 3.0)
+    assert m.globals["rs.qg"][0] != m.globals["rs.cgen"][slot], "task 1 would still run it"
+    m.call("rs.onconn", 3.0)           # a new client with the same handle gets a new generation too
+    assert m.globals["rs.qg"][0] != m.globals["rs.cgen"][slot]
+
+
+@pytest.mark.parametrize("x", [0, 7, -7, 10, -300, -401, -1003, -1200, 123456])
+def test_itoa(machine, x):
+    out = vsubset.Ref({"s": ""}, "s")
+    machine.call("rs.itoa", float(x), out)
+    assert out.container["s"] == str(x)
+
+
+@pytest.mark.parametrize("text", ["*Joint 1 limit* : at step 3", "a::b", "", "x" * 100, ":lead", "trail:"])
+def test_clean_makes_an_ack_field(machine, text):
+    out = vsubset.Ref({"s": ""}, "s")
+    machine.call("rs.clean", text, out)
+    s = out.container["s"]
+    assert ":" not in s and len(s) <= 60 and s.replace(";", "") == text.replace(":", "")[:len(s.replace(";", ""))]
