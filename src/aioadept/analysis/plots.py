@@ -47,8 +47,13 @@ def _save(fig: Any, path: str | os.PathLike[str]) -> Path:
 
 
 def _bins(x: np.ndarray) -> int:
-    # Freedman-Diaconis-like count, bounded so small samples still show a shape and big ones are not noisy.
-    return int(min(60, max(8, math.ceil(2 * x.size ** (1 / 3)))))
+    # Freedman-Diaconis (robust to the heavy tails of the switching durations), bounded so small samples still
+    # show a shape and big ones are not noisy.
+    try:
+        fd = len(np.histogram_bin_edges(x, bins="fd")) - 1
+    except (ValueError, MemoryError):
+        fd = 0
+    return int(min(60, max(6, fd, math.ceil(2 * x.size ** (1 / 3)))))
 
 
 def plot_sharpness(sharpness: Sequence[float], path: str | os.PathLike[str], *, title: str | None = None,
@@ -129,11 +134,24 @@ def plot_normal_hist(values_ms: Sequence[float] | np.ndarray, fit: Any, path: st
     ax.set_title(title)
     ax.grid(alpha=0.3)
     if x.size:
+        ax.set_ylim(top=ax.get_ylim()[1] * 1.3)  # headroom, so the legend does not cover the bars
         ax.legend(loc="upper right", fontsize=9)
     return _save(fig, path)
 
 
 def _lognormal_panel(ax: Any, x: np.ndarray, fit: Any, *, letter: str, xlabel: str, title: str) -> None:
+    if x.size and np.ptp(x) == 0:
+        # No spread (e.g. a batch written in one write: every send gap is 0): a histogram would be one
+        # meaningless block, so say what the values are instead.
+        ax.axvline(x[0], color=MINMAX_COLOR, linestyle="--", linewidth=1.2)
+        ax.text(0.5, 0.5, f"all {x.size} values = {x[0]:.3f} ms\n(min = max, no distribution to fit)",
+                transform=ax.transAxes, ha="center", va="center", color="#333333",
+                bbox={"facecolor": "white", "edgecolor": "#cccccc"})
+        ax.set_xlim(x[0] - 1.0, x[0] + 1.0)
+        ax.set_yticks([])
+        ax.set_xlabel(xlabel)
+        ax.set_title(f"({letter}) {title}", loc="left")
+        return
     if x.size:
         ax.hist(x, bins=_bins(x), density=True, color=HIST_COLOR, edgecolor="white", label=f"measured (n={x.size})")
         for v, name, dx, ha in ((x.min(), "min", 3, "left"), (x.max(), "max", -3, "right")):
@@ -152,8 +170,9 @@ def _lognormal_panel(ax: Any, x: np.ndarray, fit: Any, *, letter: str, xlabel: s
     ax.set_title(f"({letter}) {title}", loc="left")
     ax.grid(alpha=0.3)
     if x.size:
-        # Below the min/max labels, over the thin tail of the distribution.
-        ax.legend(loc="upper right", bbox_to_anchor=(1.0, 0.9), fontsize=8)
+        # Headroom above the bars; the legend sits below the min/max labels, over the thin tail.
+        ax.set_ylim(top=ax.get_ylim()[1] * 1.3)
+        ax.legend(loc="upper right", bbox_to_anchor=(1.0, 0.92), fontsize=8)
 
 
 def plot_lognormal_pair(a: tuple[np.ndarray, Any, str, str], b: tuple[np.ndarray, Any, str, str],
