@@ -257,3 +257,32 @@ async def test_state_stream_publishes_robot_state():
             assert seen_motion and st.air and st.joints_deg[0] == pytest.approx(90, abs=1e-6)
             assert poses_close(st.pose, kin.forward(st.joints_deg), tol_mm=1e-6)
             assert abs(st.wall_time_s - (sim.wall_time_at_start_s + st.t_s)) < 1e-6
+
+
+@pytest.mark.timeout(20)
+async def test_lines_split_anywhere_and_bare_lf_are_served():
+    async with running_sim(instant=True) as sim:
+        reader, writer = await asyncio.open_connection(sim.host, sim.port)
+        data = b"abcd0001:move_rel_joints:1.000,0,0,0,0,0\r\nabcd0002:break\nabcd0003:here\r\n"
+        for i in range(len(data)):  # one byte per write: the server must not care how TCP cuts the stream
+            writer.write(data[i:i + 1])
+            await writer.drain()
+        lines = [await reader.readuntil(b"\r\n") for _ in range(3)]
+        assert [line[:14] for line in lines] == [b"abcd0001:done:", b"abcd0002:done:", b"abcd0003:done:"]
+        assert sim.controller.joints_at(sim.now())[0] == pytest.approx(1.0)
+        writer.close()
+        await writer.wait_closed()
+
+
+@pytest.mark.timeout(20)
+async def test_closing_the_server_with_a_client_waiting_ends_cleanly(caplog):
+    sim_cm = running_sim()
+    sim = await sim_cm.__aenter__()
+    reader, writer = await asyncio.open_connection(sim.host, sim.port)
+    writer.write(b"abcd0001:move_joints:100,-90,180,0,90,0\r\nabcd0002:break\r\n")
+    assert (await reader.readuntil(b"\r\n")).startswith(b"abcd0001:done:")
+    assert sim.controller.busy  # the break waits for the motion
+    await sim_cm.__aexit__(None, None, None)
+    assert await reader.read() == b""  # the connection was closed; the break never acked
+    writer.close()
+    assert not [r for r in caplog.records if r.levelname in ("ERROR", "CRITICAL")]
