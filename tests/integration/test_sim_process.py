@@ -82,11 +82,14 @@ async def test_sim_subprocess_two_clients_and_errors_then_sigint():
             assert (await a.here()) == before  # nothing moved on errors
         # An oversize line over a raw socket.
         reader, writer = await asyncio.open_connection(host, port)
-        writer.write(b"abcd0001:move_to:" + b"9" * 200 + b"\r\nabcd0002:here\r\n")
-        first = await reader.readuntil(b"\r\n")
-        second = await reader.readuntil(b"\r\n")
-        assert first.startswith(b"abcd0001:error:") and b":-402:" in first
-        assert second.startswith(b"abcd0002:done:")
+        # Oversize, a bad number, no ID at all, then a good line: errors in order, and the server goes on.
+        writer.write(b"abcd0001:move_to:" + b"9" * 200 + b"\r\nabcd0003:move_to:1,2,x,4,5,6\r\ngarbage line\r\n"
+                     b"abcd0002:here\r\n")
+        lines = [await reader.readuntil(b"\r\n") for _ in range(4)]
+        assert lines[0].startswith(b"abcd0001:error:") and b":-402:" in lines[0]
+        assert lines[1].startswith(b"abcd0003:error:") and b":-410:" in lines[1]
+        assert lines[2].startswith(b"00000000:error:") and b":-401:" in lines[2]
+        assert lines[3].startswith(b"abcd0002:done:")
         writer.close()
         await writer.wait_closed()
         proc.send_signal(signal.SIGINT)
@@ -100,7 +103,7 @@ async def test_sim_subprocess_publishes_state_and_injects_faults():
     from aioadept.bus.pubsub import Subscriber
 
     async with sim_process("--instant", "--state-endpoint", "tcp://127.0.0.1:0", "--state-rate-hz", "50",
-                           "--fault", "ack-delay=0.15") as (proc, ready):
+                           "--fault", "ack-delay=0.15", "--max-clients", "1") as (proc, ready):
         assert ready["state"].startswith("tcp://127.0.0.1:")
         async with Subscriber(ready["state"], topics=[ROBOT_STATE_TOPIC]) as sub:
             st = RobotState.from_bytes((await sub.recv())[1])
@@ -108,6 +111,11 @@ async def test_sim_subprocess_publishes_state_and_injects_faults():
             async with RobotClient(ready["host"], int(ready["port"])) as robot:
                 res = await robot.cmdexec(MoveJoints([20, -90, 180, 0, 90, 0]))
                 assert min(m.rtt_s for m in res.messages) >= 0.14
+                # A second client is one too many: refused with a SERVER_BUSY error ack, then closed.
+                reader, writer = await asyncio.open_connection(ready["host"], int(ready["port"]))
+                refusal = await reader.read()
+                assert refusal.startswith(b"00000000:error:") and b":-530:" in refusal
+                writer.close()
             while not st.joints_deg[0] == pytest.approx(20, abs=1e-6):
                 st = RobotState.from_bytes((await sub.recv())[1])
 
