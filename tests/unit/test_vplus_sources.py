@@ -562,3 +562,87 @@ def test_clean_makes_an_ack_field(machine, text):
     machine.call("rs.clean", text, out)
     s = out.container["s"]
     assert ":" not in s and len(s) <= 60 and s.replace(";", "") == text.replace(":", "")[:len(s.replace(";", ""))]
+
+
+# -- the executor (task 1) in the interpreter: acks, refusals, stop --------------------------------------------
+
+from aioadept.protocol import Status, parse_ack  # noqa: E402
+
+
+def queue(m, data: bytes, handle: float = 7.0) -> None:
+    """Task 2 reads data (READs of up to 128 characters) and queues entries; nothing is drained."""
+    for pos in range(0, len(data), 128):
+        m.call("rs.onchunk", data[pos:pos + 128].decode("ascii"), handle)
+
+
+def run_queue(m) -> list:
+    """Let task 1 take every queued entry (rs.step), then return the acks the reader would write."""
+    g = m.globals
+    while g["rs.qhead"] != g["rs.qtail"]:
+        m.call("rs.step")
+    acks = []
+    i = g["rs.ohead"]
+    while i != g["rs.otail"]:
+        line = (g["$rs.oa"][i] + g["$rs.ob"][i]).encode("ascii")
+        acks.append(parse_ack(line))
+        i = (i + 1) % int(g["rs.ocap"])
+    g["rs.ohead"] = g["rs.otail"]
+    return acks
+
+
+def test_executor_acks_parse_and_carry_the_pose(machine):
+    queue(machine, PAPER_CHAIN.replace(b"0a000013:stop\r\n", b""))
+    acks = run_queue(machine)
+    assert [a.id for a in acks] == ["eae86869", "ee861124", "3f2a0b11", "3f2a0b12", "3f2a0b13", "0a000020",
+                                    "0a000001"]
+    assert all(a.status is Status.DONE for a in acks)
+    assert acks[0].pose.x == pytest.approx(480.014) and acks[0].pose.y == pytest.approx(-0.038)
+    assert acks[-1].extra == (str(PROTOCOL_VERSION), "aioadept-vplus 0.1.0")
+    calls = [c for c in machine.log if c.startswith(("CALLS", "MOVE", "SPEED", "SIGNAL", "BREAK"))]
+    assert calls[:3] == ["CALLS move_to", "MOVE rs.tgt", "CALLS break"]
+    assert "SPEED sp" in calls and "SIGNAL rs.airsig" in calls
+
+
+def test_executor_refusals_are_error_acks_without_motion(machine):
+    m = machine
+    queue(m, b"00000001:set_speed:101\r\n00000002:move_joints:0,-90,300,0,90,0\r\n00000003:nosuch\r\n")
+    m.inrange = 2.0
+    queue(m, b"00000004:move_to:1000,0,0,0,180,0\r\n00000005:move_rel_joints:0,0,0,0,200,0\r\n")
+    acks = run_queue(m)
+    assert [(a.id, a.status, a.error_code) for a in acks] == [
+        ("00000001", Status.ERROR, ErrorCode.ILLEGAL_VALUE), ("00000002", Status.ERROR, ErrorCode.JOINT_LIMIT),
+        ("00000003", Status.ERROR, ErrorCode.UNKNOWN_SKILL), ("00000004", Status.ERROR, ErrorCode.OUT_OF_REACH),
+        ("00000005", Status.ERROR, ErrorCode.JOINT_LIMIT)]
+    assert [a.error_message for a in acks][:2] == ["speed outside 0..100", "joint limit"]
+    assert not [c for c in m.log if c.startswith(("MOVE", "SPEED"))], "a refused skill moved the robot"
+
+
+def test_stop_during_break_aborts_in_order_then_acks_done(machine):
+    """docs/protocol.md 4.2: the waiting break and the queued commands aborted, then the stop done."""
+    m = machine
+    queue(m, b"0a000010:move_rel_tool:0.000,0.000,50.000,0.000,0.000,0.000\r\n0a000011:break\r\n"
+            b"0a000012:set_speed:5\r\n")
+    m.call("rs.step")                                   # the move: acked done at once (forward processing)
+    # while task 1 waits in BREAK, task 2 reads the stop (and brakes)
+    m.on_break = lambda: queue(m, b"0a000013:stop\r\n0a000014:here\r\n", handle=7.0) and None
+    acks = run_queue(m)
+    assert [(a.id, a.status) for a in acks] == [
+        ("0a000010", Status.DONE), ("0a000011", Status.ABORTED), ("0a000012", Status.ABORTED),
+        ("0a000013", Status.DONE), ("0a000014", Status.DONE)]
+    assert m.log.count("BRAKE") >= 2 and "SPEED sp" not in m.log
+    assert m.globals["rs.stopin"] == m.globals["rs.stopout"] == 1
+
+
+def test_stop_with_nothing_to_abort_is_done_at_once(machine):
+    queue(machine, b"0a000013:stop\r\n")
+    assert [(a.id, a.status) for a in run_queue(machine)] == [("0a000013", Status.DONE)]
+
+
+def test_gone_client_commands_never_run(machine):
+    m = machine
+    queue(m, b"0b000001:enable_air\r\n", handle=3.0)
+    queue(m, b"0b000002:here\r\n", handle=4.0)
+    m.call("rs.ondisc", 3.0)
+    acks = run_queue(m)
+    assert [a.id for a in acks] == ["0b000002"]
+    assert "SIGNAL rs.airsig" not in m.log

@@ -26,6 +26,7 @@ TRUE, FALSE = -1.0, 0.0
 _TOKEN = re.compile(r"""\s*(?:
     (?P<num>\d+\.\d*|\.\d+|\d+)
   | (?P<str>"[^"]*")
+  | (?P<fmt>/[A-Z]\d+(?:\.\d+)?)
   | (?P<name>[$#]?[A-Za-z][A-Za-z0-9._]*)
   | (?P<op><>|<=|>=|==|[-+*/(),\[\]<>=:])
 )""", re.VERBOSE)
@@ -113,6 +114,10 @@ class Machine:
         self.progs = progs
         self.globals: dict[str, Any] = {}
         self.log: list[str] = []
+        self.pose = [480.014, -0.038, 709.975, 0.0, 179.995, 0.004]   # what HERE + DECOMPOSE give
+        self.joints = [0.0, -90.0, 180.0, 0.0, 90.0, 0.0]
+        self.inrange = 0.0                                          # what INRANGE returns
+        self.on_break = None                                        # called at BREAK (the other task runs)
 
     # -- variables ---------------------------------------------------------------------------------------------
     def _scope(self, frame: dict, name: str) -> dict:
@@ -282,6 +287,21 @@ class Machine:
         return name, self._val(f, toks[2:-1])
 
     def _func(self, f, name, args):
+        if name == "$ENCODE":
+            out, fmt = "", None
+            for a in args:
+                if len(a) == 1 and a[0][0] == "fmt":
+                    fmt = a[0][1]
+                    continue
+                v = self._val(f, a)
+                if isinstance(v, str):
+                    out += v
+                else:
+                    m = re.match(r"/F(\d+)\.(\d+)", fmt or "")
+                    if not m:
+                        raise VError(f"number without a /F format in $ENCODE: {fmt}")
+                    out += "%*.*f" % (int(m.group(1)), int(m.group(2)), v)
+            return out
         if name == "$DECODE":
             var, idx = self._ref(f, args[0])
             s = self.get(f, var, idx)
@@ -307,6 +327,10 @@ class Machine:
             return float(m.group(0)) if m else 0.0
         if name == "INT":
             return float(int(vals[0]))
+        if name == "INRANGE":
+            return self.inrange
+        if name == "SIG":
+            return self.globals.get("__sig_%d" % int(vals[0]), FALSE)
         if name == "DEFINED":
             return TRUE
         if name == "$ERROR":
@@ -406,8 +430,31 @@ class Machine:
                     self._call_stmt(frame, code)
                 elif w == "RETURN":
                     raise _Return
-                elif w in ("BRAKE", "BREAK", "WAIT", "TYPE", "SET", "REACTE", "ATTACH", "DETACH", "MOVE",
-                           "SPEED", "SIGNAL", "TOOL", "EXECUTE"):
+                elif w == "CALLS":
+                    m = re.match(r"CALLS (\$[a-z][a-z0-9._]*)\((.*)\)\Z", code)
+                    target = self.get(frame, m.group(1))
+                    self.log.append(f"CALLS {target}")
+                    self._call_stmt(frame, f"CALL {target}({m.group(2)})")
+                elif w in ("SET", "HERE"):
+                    self.log.append(code)
+                    target = code.split()[1]
+                    self.put(frame, target, "location")
+                elif w == "DECOMPOSE":
+                    m = re.match(r"DECOMPOSE ([a-z][a-z0-9._]*)\[\] = (#?)", code)
+                    values = self.joints if m.group(2) else self.pose
+                    for j, v in enumerate(values):
+                        self.put(frame, m.group(1), float(v), float(j))
+                elif w == "SIGNAL":
+                    self.log.append(code)
+                    v = self.eval(frame, code[6:])
+                    self.globals["__sig_%d" % abs(int(v))] = TRUE if v > 0 else FALSE
+                elif w == "BREAK":
+                    self.log.append(code)
+                    if self.on_break is not None:
+                        hook, self.on_break = self.on_break, None
+                        hook()
+                elif w in ("BRAKE", "WAIT", "TYPE", "REACTE", "ATTACH", "DETACH", "MOVE", "SPEED", "TOOL",
+                           "EXECUTE", "RETURNE"):
                     self.log.append(code)
                 else:
                     m = re.match(r"([$#]?[a-z][a-z0-9._]*)(\[(.+)\])? = (.+)\Z", code)
