@@ -34,5 +34,11 @@ def test_histograms_with_and_without_fits(tmp_path) -> None:
     assert _png(out)
 
 
+def test_a_panel_without_spread_is_drawn(tmp_path) -> None:
+    zeros = np.zeros(5)  # one-write batches: every send gap is 0
+    assert _png(plots.plot_lognormal_pair((zeros, None, "a, ms", "A"), (zeros, None, "b, ms", "B"),
+                                          tmp_path / "z.png", title="zeros"))
+
+
 def test_sharpness_curve(tmp_path) -> None:
     assert _png(plots.plot_sharpness([1.0, 2.0, 4.0, 3.0], tmp_path / "s.png", delta_z_mm=2.0))
