@@ -154,7 +154,7 @@ def _wrap_pi(a: float) -> float:
     return math.atan2(math.sin(a), math.cos(a))
 
 
-def _solutions_rad(m: np.ndarray, j4_hint: float, j6_hint: float) -> list[tuple[tuple[float, ...], Configuration]]:
+def _solutions_rad(m: np.ndarray, j4_hint: float) -> list[tuple[tuple[float, ...], Configuration]]:
     """All closed-form solutions (radians, each angle in (-pi, pi]) for a flange transform.
 
     Raises ``RobotError(OUT_OF_REACH)`` when the wrist centre cannot be reached by any configuration.
@@ -232,7 +232,7 @@ def inverse(pose: Pose, current_joints_deg: Sequence[float], tool: Pose = NULL, 
         m = m @ inverse_transform(tool.to_matrix())
     cur = [float(v) for v in current_joints_deg]
     conf = configuration(cur)
-    sols = _solutions_rad(m, math.radians(cur[3]), math.radians(cur[5]))
+    sols = _solutions_rad(m, math.radians(cur[3]))
 
     def same(flag: int, want: int) -> bool:
         return want == 0 or flag == 0 or flag == want

@@ -84,7 +84,7 @@ def test_tool_offsets_along_the_flange_z():
 def test_inverse_keeps_the_elbow_configuration():
     q = [10.0, -40.0, 120.0, 20.0, 50.0, 10.0]
     target = forward(q)
-    sols = [s for s, _ in kin._solutions_rad(target.to_matrix(), 0.0, 0.0)]
+    sols = [s for s, _ in kin._solutions_rad(target.to_matrix(), 0.0)]
     assert len(sols) >= 4  # shoulder x elbow x wrist branches exist for this pose
     assert configuration(inverse(target, q)) == configuration(q)
 
@@ -155,3 +155,13 @@ def test_paper_init_move_sequence_is_reachable_and_within_limits():
     LIM.check(q3)
     final = forward(q3)
     assert (final.x, final.y, final.z) == pytest.approx((target.x, target.y, target.z), abs=1e-6)
+
+
+def test_wrist_singularity_keeps_j4_and_puts_the_rest_in_j6():
+    target = forward([0.0, -90.0, 180.0, 30.0, 0.0, 20.0])  # j5 = 0: only j4 + j6 = 50 is defined
+    sol = inverse(target, [0.0, -90.0, 180.0, 10.0, 30.0, 0.0])
+    assert sol[4] == pytest.approx(0.0, abs=1e-9)
+    assert sol[3] == pytest.approx(10.0) and sol[5] == pytest.approx(40.0)
+    # Reachable from the flipped wrist as well (the singular solution belongs to both).
+    sol = inverse(target, [0.0, -90.0, 180.0, 10.0, -30.0, 0.0])
+    assert poses_close(forward(sol), target, tol_mm=1e-6, tol_deg=1e-6)
