@@ -164,6 +164,9 @@ async def serve(opts: argparse.Namespace) -> int:
     try:
         sources = make_sources(opts, follower.pose_at if follower else None)
         acq = Acquisition(sources, buffer_size=opts.buffer_size, fps=opts.fps).start()
+        # Serve only once every camera has a frame: the first render/read pays one-off costs (imports, caches).
+        if not await asyncio.to_thread(acq.wait_ready, 10.0):
+            log.warning("not every camera delivered a frame within 10 s; serving anyway")
         graph = noop_graph() if opts.graph == "noop" else sharpness_graph()
         node = VisionNode(acq, graph, policy=opts.policy, timeout_s=opts.frame_timeout, recorder=recorder)
         responder = Responder(opts.request_endpoint, opts.response_endpoint, node.handle)

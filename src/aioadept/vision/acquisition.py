@@ -18,6 +18,7 @@ deadline; when a grab takes longer than the period the thread does not try to ca
 from __future__ import annotations
 
 import logging
+import math
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -241,6 +242,14 @@ class Acquisition:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+    def wait_ready(self, timeout_s: float) -> bool:
+        """Wait until every source has buffered a frame (a node announces READY only then); False on timeout."""
+        deadline = time.monotonic() + timeout_s
+        for ring in self.rings.values():
+            if ring.wait_at_or_after(-math.inf, max(0.0, deadline - time.monotonic())) is None:
+                return False
+        return True
 
     def stats(self) -> list[SourceStats]:
         alive = {t.name for t in self._threads if t.is_alive()}

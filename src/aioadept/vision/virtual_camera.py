@@ -2,7 +2,8 @@
 
 Where it sits: the sim publishes :class:`aioadept.bus.messages.RobotState` at 100 Hz; a
 :class:`RobotStateFollower` (one owned thread) keeps a short :class:`PoseHistory` of tool poses stamped on receipt;
-:class:`VirtualCamera` renders a frame at ``time.time()`` from the pose interpolated at that time, and the
+:class:`VirtualCamera` renders a frame at ``time.time()`` from the pose interpolated at that time (once a state sample
+at or after that time has arrived, so a frame taken just after the robot stopped never shows it mid-motion), and the
 acquisition service buffers the frames like those of a real camera.
 
 Model:
@@ -182,20 +183,27 @@ def camera_facing_tool(tool_pose: Pose, distance_mm: float) -> Pose:
 
 
 # ------------------------------------------------------------------------------------------ the camera
+_DIRECT_BLUR_PX = 16.0
+"""Blur diameters up to this are filtered at full resolution; larger ones on a shrunk copy (same result, bounded cost)."""
+
+
 class VirtualCamera(Camera):
     """Renders the calibration object on the robot's tool as a mono8 frame (see the module docstring).
 
     ``pose_source(t_s)`` returns the tool pose at epoch time ``t_s`` or ``None`` when unknown (no robot state yet;
     the frame then shows the empty background). :meth:`render` takes a pose directly (tests, figures).
-    ``seed`` makes the noise reproducible.
+    ``seed`` makes the noise reproducible. ``max_blur_px`` caps the blur diameter: far from focus (the robot on its
+    way to the approach pose) the target is a smear anyway, and the cap bounds the rendering time.
     """
 
     def __init__(self, pose_source: Callable[[float], Pose | None] | None = None, *, camera_pose: Pose,
                  focus_distance_mm: float, optics: LensOptics = LensOptics(),
                  target: CalibrationTarget = CalibrationTarget(), target_offset: Pose = NULL,
                  noise_sigma: float = 2.0, background: int = 18, seed: int | None = None,
-                 camera_id: str = "virtual", clock: Callable[[], float] = time.time) -> None:
+                 max_blur_px: float = 48.0, camera_id: str = "virtual",
+                 clock: Callable[[], float] = time.time) -> None:
         self.camera_id = camera_id
+        self.max_blur_px = float(max_blur_px)
         self.camera_pose = camera_pose
         self.focus_distance_mm = float(focus_distance_mm)
         self.optics = optics
@@ -262,14 +270,26 @@ class VirtualCamera(Camera):
             k = self._kernels[key] = disk_kernel(key / 4.0)
         return k
 
+    def _blur(self, roi: np.ndarray, diameter_px: float) -> np.ndarray:
+        """Disk blur of ``roi``. Beyond :data:`_DIRECT_BLUR_PX` it blurs a proportionally shrunk copy and scales it
+        back: the result is smooth at that scale anyway, and the cost stays that of a small kernel."""
+        if diameter_px <= _DIRECT_BLUR_PX:
+            k = self._kernel(diameter_px)
+            return roi if k.shape[0] == 1 else cv2.filter2D(roi, -1, k, borderType=cv2.BORDER_REPLICATE)
+        f = _DIRECT_BLUR_PX / diameter_px
+        h, w = roi.shape
+        small = cv2.resize(roi, (max(1, round(w * f)), max(1, round(h * f))), interpolation=cv2.INTER_AREA)
+        small = cv2.filter2D(small, -1, self._kernel(_DIRECT_BLUR_PX), borderType=cv2.BORDER_REPLICATE)
+        return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
+
     def render(self, tool_pose: Pose | None) -> np.ndarray:
         """A mono8 frame of the target at ``tool_pose`` (None: background only), with blur and noise."""
         o = self.optics
         frame = np.full((o.height_px, o.width_px), self.background, np.uint8)
         corners = self.project(tool_pose) if tool_pose is not None else None
         if corners is not None:
-            kernel = self._kernel(self.blur_diameter_px(tool_pose))
-            pad = kernel.shape[0] // 2 + 2
+            diameter = min(self.blur_diameter_px(tool_pose), self.max_blur_px)
+            pad = int(math.ceil(diameter / 2)) + 2
             x0 = max(0, int(math.floor(corners[:, 0].min())) - pad)
             y0 = max(0, int(math.floor(corners[:, 1].min())) - pad)
             x1 = min(o.width_px, int(math.ceil(corners[:, 0].max())) + pad + 1)
@@ -278,9 +298,7 @@ class VirtualCamera(Camera):
                 h = cv2.getPerspectiveTransform(self._tex_corners, corners - np.float32([x0, y0]))
                 roi = cv2.warpPerspective(self._texture, h, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR,
                                           borderMode=cv2.BORDER_CONSTANT, borderValue=self.background)
-                if kernel.shape[0] > 1:
-                    roi = cv2.filter2D(roi, -1, kernel, borderType=cv2.BORDER_REPLICATE)
-                frame[y0:y1, x0:x1] = roi
+                frame[y0:y1, x0:x1] = self._blur(roi, diameter)
         if self._noise is not None:
             with self._lock:  # the Generator is not thread-safe
                 dy, dx = (int(v) for v in self._rng.integers(0, self._noise_pad, size=2))
@@ -325,7 +343,7 @@ class PoseHistory:
         self.max_age_s = max_age_s
         self._t: deque[float] = deque(maxlen=max_len)
         self._m: deque[np.ndarray] = deque(maxlen=max_len)
-        self._lock = threading.Lock()
+        self._lock = threading.Condition()
 
     def __len__(self) -> int:
         return len(self._t)
@@ -340,6 +358,22 @@ class PoseHistory:
             while self._t and self._t[0] < t_s - self.max_age_s and len(self._t) > 2:
                 self._t.popleft()
                 self._m.popleft()
+            self._lock.notify_all()
+
+    def wait_covering(self, t_s: float, timeout_s: float) -> bool:
+        """Wait up to ``timeout_s`` until a sample at or after ``t_s`` exists; True if one does.
+
+        A camera exposing at ``t_s`` waits for this before rendering, so the pose comes from samples on both sides
+        of ``t_s`` instead of the last one before it (which can be up to one state period stale: mid-motion).
+        """
+        deadline = time.monotonic() + timeout_s
+        with self._lock:
+            while not self._t or self._t[-1] < t_s:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return False
+                self._lock.wait(remaining)
+            return True
 
     def at(self, t_s: float) -> Pose | None:
         with self._lock:
@@ -360,27 +394,30 @@ class PoseHistory:
 
 
 def _interpolate(m0: np.ndarray, m1: np.ndarray, a: float) -> np.ndarray:
-    from scipy.spatial.transform import Rotation, Slerp
-
+    """Rigid transform a fraction ``a`` of the way from ``m0`` to ``m1``: position linearly, rotation along the
+    geodesic (slerp), via the axis-angle vector of the relative rotation (``cv2.Rodrigues``; no scipy import on the
+    frame path)."""
     out = np.eye(4)
     out[:3, 3] = (1 - a) * m0[:3, 3] + a * m1[:3, 3]
-    rots = Rotation.from_matrix(np.stack([m0[:3, :3], m1[:3, :3]]))
-    out[:3, :3] = Slerp([0.0, 1.0], rots)([a]).as_matrix()[0]
+    rvec, _ = cv2.Rodrigues(m0[:3, :3].T @ m1[:3, :3])
+    step, _ = cv2.Rodrigues(rvec * a)
+    out[:3, :3] = m0[:3, :3] @ step
     return out
 
 
 class RobotStateFollower:
     """Subscribes to the sim's robot state stream and fills a :class:`PoseHistory`, stamped on receipt.
 
-    One owned daemon-less thread with its own ZeroMQ SUB socket (linger 0). :meth:`start` connects, :meth:`stop`
+    One owned non-daemon thread with its own ZeroMQ SUB socket (linger 0). :meth:`start` connects, :meth:`stop`
     sets the stop flag, joins the thread and closes the socket; also a context manager. Samples are stamped with
     ``time.time()`` at receipt (the frame clock), so the camera and the history share one clock even if the sim's
     clock drifts; the state's own ``wall_time_s`` is kept as :attr:`last_state`.
     """
 
     def __init__(self, endpoint: str, *, history: PoseHistory | None = None, topic: bytes = b"robot.state",
-                 clock: Callable[[], float] = time.time) -> None:
+                 max_wait_s: float = 0.05, clock: Callable[[], float] = time.time) -> None:
         self.endpoint = endpoint
+        self.max_wait_s = max_wait_s
         self.topic = topic
         self.history = history if history is not None else PoseHistory()
         self.received = 0
@@ -440,6 +477,10 @@ class RobotStateFollower:
             sock.close(0)
 
     def pose_at(self, t_s: float) -> Pose | None:
+        """The tool pose at epoch ``t_s``: waits (up to ``max_wait_s``) for a state sample received at or after
+        ``t_s``, then interpolates; without any sample yet, None at once; if the stream stalls, the last pose."""
+        if len(self.history):
+            self.history.wait_covering(t_s, self.max_wait_s)
         return self.history.at(t_s)
 
     def stop(self) -> None:

@@ -114,6 +114,7 @@ def test_acquisition_paces_grabs_and_stops_its_threads():
     cam = CountingCamera("a")
     acq = Acquisition([cam], buffer_size=8, fps=50.0)
     with acq:
+        assert acq.wait_ready(5.0)
         first = acq.rings["a"].wait_at_or_after(time.time() + 0.3, timeout_s=5.0)
         assert first is not None
     assert not any(t.is_alive() for t in threading.enumerate() if t.name == "grab:a")
@@ -152,3 +153,4 @@ def test_acquisition_rejects_bad_options():
     acq = Acquisition([CountingCamera("a")])
     with pytest.raises(VisionError, match="no frame"):
         acq.frame_at(1.0)
+    assert not acq.wait_ready(0.01)  # not started: no frame comes
