@@ -646,3 +646,14 @@ def test_gone_client_commands_never_run(machine):
     acks = run_queue(m)
     assert [a.id for a in acks] == ["0b000002"]
     assert "SIGNAL rs.airsig" not in m.log
+
+
+def test_v_plus_error_in_a_skill_becomes_an_error_ack(machine):
+    """REACTE rs.onerr: a robot error in a skill answers -300 with the V+ code, and the next command runs."""
+    m = machine
+    m.move_error = -1003
+    queue(m, b"0c000001:move_to:500,0,500,0,180,0\r\n0c000002:here\r\n")
+    acks = run_queue(m)
+    assert [(a.id, a.status) for a in acks] == [("0c000001", Status.ERROR), ("0c000002", Status.DONE)]
+    assert acks[0].error_code == ErrorCode.SKILL_FAILED
+    assert acks[0].error_message.startswith("V+ -1003 ") and ":" not in acks[0].error_message

@@ -118,6 +118,9 @@ class Machine:
         self.joints = [0.0, -90.0, 180.0, 0.0, 90.0, 0.0]
         self.inrange = 0.0                                          # what INRANGE returns
         self.on_break = None                                        # called at BREAK (the other task runs)
+        self.move_error = 0                                         # V+ error code the next MOVE raises
+        self.reacte: str | None = None
+        self.last_error = 0
 
     # -- variables ---------------------------------------------------------------------------------------------
     def _scope(self, frame: dict, name: str) -> dict:
@@ -327,6 +330,8 @@ class Machine:
             return float(m.group(0)) if m else 0.0
         if name == "INT":
             return float(int(vals[0]))
+        if name == "ERROR":
+            return float(self.last_error)
         if name == "INRANGE":
             return self.inrange
         if name == "SIG":
@@ -453,8 +458,18 @@ class Machine:
                     if self.on_break is not None:
                         hook, self.on_break = self.on_break, None
                         hook()
-                elif w in ("BRAKE", "WAIT", "TYPE", "REACTE", "ATTACH", "DETACH", "MOVE", "SPEED", "TOOL",
-                           "EXECUTE", "RETURNE"):
+                elif w == "REACTE":
+                    self.reacte = code.split()[1]
+                elif w == "MOVE" and self.move_error:
+                    # a robot error: V+ calls the REACTE program; RETURNE resumes after this step
+                    self.last_error, self.move_error = self.move_error, 0
+                    self.log.append(f"ERROR {self.last_error} at {code}")
+                    if self.reacte is None:
+                        raise VError(f"error {self.last_error} with no REACTE: the task would halt")
+                    handler, self.reacte = self.reacte, None
+                    self._call_stmt(frame, f"CALL {handler}()")
+                elif w in ("BRAKE", "WAIT", "TYPE", "ATTACH", "DETACH", "MOVE", "SPEED", "TOOL", "EXECUTE",
+                           "RETURNE"):
                     self.log.append(code)
                 else:
                     m = re.match(r"([$#]?[a-z][a-z0-9._]*)(\[(.+)\])? = (.+)\Z", code)
