@@ -286,3 +286,18 @@ async def test_closing_the_server_with_a_client_waiting_ends_cleanly(caplog):
     assert await reader.read() == b""  # the connection was closed; the break never acked
     writer.close()
     assert not [r for r in caplog.records if r.levelname in ("ERROR", "CRITICAL")]
+
+
+@pytest.mark.timeout(20)
+async def test_state_stream_rate():
+    import statistics
+
+    from aioadept.bus.messages import ROBOT_STATE_TOPIC, RobotState
+    from aioadept.bus.pubsub import Subscriber
+
+    async with running_sim(instant=True, state_endpoint="tcp://127.0.0.1:0", state_rate_hz=50) as sim, \
+            Subscriber(sim.state_endpoint, topics=[ROBOT_STATE_TOPIC]) as sub:
+        ts = [RobotState.from_bytes((await sub.recv())[1]).t_s for _ in range(16)]
+        gaps = [b - a for a, b in zip(ts, ts[1:])]
+        assert all(g > 0 for g in gaps)
+        assert statistics.median(gaps) == pytest.approx(0.02, rel=0.3)
