@@ -114,7 +114,14 @@ def expand_run_dirs(paths: Iterable[str | os.PathLike[str]]) -> list[Path]:
         if not found:
             raise FileNotFoundError(f"{p}: no run folder (run.json) here or below")
         out.extend(found)
-    return out
+    seen: set[Path] = set()
+    unique = []
+    for p in out:  # a run named twice (directly and through its parent) is analysed once
+        key = p.resolve()
+        if key not in seen:
+            seen.add(key)
+            unique.append(p)
+    return unique
 
 
 def _names(paths: Sequence[Path]) -> list[str]:

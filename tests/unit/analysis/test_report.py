@@ -108,7 +108,8 @@ def test_single_write_batches_give_zero_send_gaps_and_no_lognormal_fit(tmp_path)
 def test_cli_pools_runs_and_reports(two_runs, tmp_path, capsys) -> None:
     base, a, b = two_runs
     out = tmp_path / "analysis"
-    assert main([str(base), "--out", str(out)]) == 0  # a parent folder stands for the runs below it
+    # a parent folder stands for the runs below it; a run named twice is analysed once
+    assert main([str(base), str(a), "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "τ(v→r)" in printed and "speed75/000" in printed
     info = json.loads((out / "summary.json").read_text())
