@@ -187,7 +187,9 @@ def decode_event(data: bytes) -> tuple[str, str | None, dict[str, AttributeValue
 class ImageMessage:
     """An EPypes ``Image``: encoded image ``data`` (e.g. PNG bytes or raw pixels), optional id, format, attributes.
 
-    ``format`` is free text in EPypes; aioadept nodes write e.g. ``"png"`` or ``"mono8:1024x768"`` for raw pixels.
+    ``format`` is free text in EPypes (whose nodes put ``cv2.imencode`` output in ``bytes``). aioadept writes
+    ``"png"``/``"jpg"`` for encoded images and ``"mono8:WxH"`` / ``"bgr8:WxH"`` for raw 8-bit pixels; see
+    :meth:`from_array` and :meth:`to_array`.
     """
 
     data: bytes
@@ -201,6 +203,57 @@ class ImageMessage:
     @classmethod
     def from_bytes(cls, data: bytes) -> ImageMessage:
         return decode_image(data)
+
+    @classmethod
+    def from_array(cls, image: Any, *, encoding: str = "raw", id: str | None = None,
+                   attributes: Mapping[str, Any] | None = None) -> ImageMessage:
+        """An 8-bit mono (H x W) or BGR (H x W x 3) numpy image as a message.
+
+        ``encoding="raw"`` stores the pixels (format ``mono8:WxH`` / ``bgr8:WxH``: no codec cost, the choice on one
+        machine); ``"png"`` or ``"jpg"`` encode with OpenCV (smaller, and what EPypes nodes decode with
+        ``cv2.imdecode``). Raises :class:`BusEncodeError` for other shapes/dtypes or encodings.
+        """
+        import numpy as np
+
+        arr = np.asarray(image)
+        if arr.dtype != np.uint8 or not (arr.ndim == 2 or (arr.ndim == 3 and arr.shape[2] == 3)):
+            raise BusEncodeError(f"image must be uint8 HxW or HxWx3, got {arr.dtype} {arr.shape}")
+        attrs = dict(attributes or {})
+        if encoding == "raw":
+            kind = "mono8" if arr.ndim == 2 else "bgr8"
+            return cls(np.ascontiguousarray(arr).tobytes(), id, f"{kind}:{arr.shape[1]}x{arr.shape[0]}", attrs)
+        if encoding in ("png", "jpg"):
+            import cv2
+
+            ok, buf = cv2.imencode("." + encoding, arr)
+            if not ok:
+                raise BusEncodeError(f"OpenCV could not encode the image as {encoding}")
+            return cls(buf.tobytes(), id, encoding, attrs)
+        raise BusEncodeError(f"unknown image encoding {encoding!r}; use 'raw', 'png' or 'jpg'")
+
+    def to_array(self) -> Any:
+        """The pixels as a numpy array: raw ``mono8``/``bgr8`` formats are reshaped, anything else is decoded with
+        ``cv2.imdecode`` (as EPypes nodes do). Raises :class:`BusError` if the data does not fit its format."""
+        import numpy as np
+
+        fmt = self.format or ""
+        kind, _, size = fmt.partition(":")
+        if kind in ("mono8", "bgr8") and size:
+            try:
+                w, h = (int(v) for v in size.split("x"))
+            except ValueError:
+                raise BusError(f"bad raw image format {fmt!r}") from None
+            channels = 1 if kind == "mono8" else 3
+            if len(self.data) != w * h * channels:
+                raise BusError(f"{fmt}: expected {w * h * channels} bytes, got {len(self.data)}")
+            shape = (h, w) if channels == 1 else (h, w, 3)
+            return np.frombuffer(self.data, dtype=np.uint8).reshape(shape)
+        import cv2
+
+        img = cv2.imdecode(np.frombuffer(self.data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
+        if img is None:
+            raise BusError(f"image data ({len(self.data)} bytes, format {fmt!r}) does not decode")
+        return img
 
 
 def encode_image(data: bytes, *, id: str | None = None, format: str | None = None,

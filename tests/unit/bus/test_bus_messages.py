@@ -167,3 +167,27 @@ def test_robot_state_errors():
         RobotState.from_bytes(b"\xff")
     with pytest.raises(BusEncodeError):
         RobotState(math.nan, 0.0, (0,) * 6, Pose()).to_bytes()
+
+
+@pytest.mark.parametrize("shape", [(4, 6), (4, 6, 3)])
+@pytest.mark.parametrize("encoding", ["raw", "png"])
+def test_image_arrays_round_trip_through_the_wire(shape, encoding):
+    rng = np.random.default_rng(0)
+    arr = rng.integers(0, 256, size=shape, dtype=np.uint8)
+    msg = ImageMessage.from_array(arr, encoding=encoding, id="f1", attributes={"frame_t": 1.5})
+    back = ImageMessage.from_bytes(msg.to_bytes())
+    assert back == msg and back.attributes == {"frame_t": 1.5}
+    assert np.array_equal(back.to_array(), arr)  # png is lossless
+    if encoding == "raw":
+        assert back.format == ("mono8:6x4" if len(shape) == 2 else "bgr8:6x4")
+
+
+def test_image_array_errors():
+    with pytest.raises(BusEncodeError):
+        ImageMessage.from_array(np.zeros((2, 2), dtype=np.float32))
+    with pytest.raises(BusEncodeError):
+        ImageMessage.from_array(np.zeros((2, 2), dtype=np.uint8), encoding="gif")
+    with pytest.raises(BusError):
+        ImageMessage(b"\x00" * 5, format="mono8:2x2").to_array()
+    with pytest.raises(BusError):
+        ImageMessage(b"not an image", format="png").to_array()
