@@ -27,6 +27,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="first complete iteration shown in the Gantt chart (default 1, as i >= 1 has tau r->v)")
     p.add_argument("--gantt-count", type=int, default=2, metavar="N",
                    help="number of iterations in the Gantt chart (default 2, as the paper's Fig. 10)")
+    p.add_argument("--group-by", default="approach_speed,delta_z_mm", metavar="KEYS",
+                   help="comma-separated run parameters to split the stats by in summary.json "
+                        "(default: approach_speed,delta_z_mm; '' for none)")
     return p
 
 
@@ -39,7 +42,8 @@ def main(argv: list[str] | None = None) -> int:
     console = Console()
     try:
         summary = analyze_runs(args.run_dirs, args.out, plots=not args.no_plots, gantt_first=args.gantt_first,
-                               gantt_count=args.gantt_count)
+                               gantt_count=args.gantt_count,
+                               group_by=[k for k in args.group_by.split(",") if k.strip()])
     except (FileNotFoundError, ValueError) as exc:
         print(f"aioadept analyze: {exc}", file=sys.stderr)
         return 2

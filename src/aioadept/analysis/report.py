@@ -25,7 +25,7 @@ from aioadept.analysis.fits import fit_for
 from aioadept.analysis.metrics import QUANTITIES, Iteration, Stats, describe, iterations_of_run, quantity_values
 from aioadept.capture import Run, load_run
 
-__all__ = ["FIGURES", "RunInfo", "Summary", "analyze_runs", "expand_run_dirs", "fits_table", "gantt_bars", "summary_table",
+__all__ = ["DEFAULT_GROUP_BY", "FIGURES", "Group", "RunInfo", "Summary", "analyze_runs", "expand_run_dirs", "fits_table", "gantt_bars", "group_stats", "summary_table",
            "write_figures"]
 
 FIGURES = {
@@ -61,6 +61,23 @@ class RunInfo:
         return {k: getattr(self, k) if k != "parameters" else dict(self.parameters) for k in self.__slots__}
 
 
+DEFAULT_GROUP_BY = ("approach_speed", "delta_z_mm")
+"""Run parameters that split the pooled statistics into groups (the paper's experiment grid)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Group:
+    """The stats of the iterations of the runs that share ``parameters`` (e.g. one cell of the speed x dz grid)."""
+
+    parameters: Mapping[str, Any]
+    runs: tuple[str, ...]
+    stats: Mapping[str, Stats]
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"parameters": dict(self.parameters), "runs": list(self.runs), "n_runs": len(self.runs),
+                "stats": {k: v.as_dict() for k, v in self.stats.items()}}
+
+
 @dataclass(frozen=True, slots=True)
 class Summary:
     """The result of :func:`analyze_runs`: per-quantity stats (ms) and fits over the pooled complete iterations."""
@@ -71,6 +88,7 @@ class Summary:
     iterations: tuple[Iteration, ...]
     out_dir: Path
     files: Mapping[str, Path] = field(default_factory=dict)
+    groups: tuple[Group, ...] = ()
 
     @property
     def n_complete(self) -> int:
@@ -97,6 +115,7 @@ class Summary:
                 }
                 for q in QUANTITIES
             },
+            "groups": [g.as_dict() for g in self.groups],
             "files": {k: p.name for k, p in self.files.items()},
         }
 
@@ -227,13 +246,34 @@ def _write_iterations(path: Path, iterations: Sequence[Iteration]) -> Path:
     return path
 
 
+def group_stats(runs: Sequence[RunInfo], iterations: Sequence[Iteration], keys: Sequence[str]) -> tuple[Group, ...]:
+    """Stats per combination of the run parameters ``keys`` (runs lacking all of them are left out), sorted."""
+    by: dict[tuple, list[str]] = {}
+    for r in runs:
+        present = tuple((k, r.parameters[k]) for k in keys if k in r.parameters)
+        if present and all(isinstance(v, (int, float, str, bool)) for _, v in present):
+            by.setdefault(present, []).append(r.name)
+    groups = []
+    def order(combo: tuple) -> tuple:  # numbers by value, then text
+        return tuple((0, float(v), "") if isinstance(v, (int, float)) else (1, 0.0, str(v)) for _, v in combo)
+
+    for combo in sorted(by, key=order):
+        names = set(by[combo])
+        its = [it for it in iterations if it.run in names]
+        groups.append(Group(dict(combo), tuple(by[combo]),
+                            {q.name: describe(quantity_values(its, q.name)) for q in QUANTITIES}))
+    return tuple(groups)
+
+
 def analyze_runs(run_dirs: Iterable[str | os.PathLike[str]], out_dir: str | os.PathLike[str] | None = None, *,
-                 plots: bool = True, gantt_first: int = 1, gantt_count: int = 2) -> Summary:
+                 plots: bool = True, gantt_first: int = 1, gantt_count: int = 2,
+                 group_by: Sequence[str] = DEFAULT_GROUP_BY) -> Summary:
     """Load the runs, pool their approach iterations, compute stats and fits, write the outputs; return them.
 
     ``out_dir`` defaults to the run folder for one run and ``./analysis`` for several. Writes ``summary.json``,
     ``iterations.csv`` and (``plots=True``) the figures in :data:`FIGURES`; the Gantt chart shows ``gantt_count``
-    complete iterations from position ``gantt_first`` of the first run. Raises ``FileNotFoundError`` for a path
+    complete iterations from position ``gantt_first`` of the first run. ``summary.json`` also holds the stats per
+    combination of the run parameters named in ``group_by`` (the paper's speed x delta_z grid). Raises ``FileNotFoundError`` for a path
     with no run and ``ValueError`` for a run folder that does not parse. A run with no complete iteration is not
     an error: its stats have ``n = 0``.
     """
@@ -261,7 +301,7 @@ def analyze_runs(run_dirs: Iterable[str | os.PathLike[str]], out_dir: str | os.P
                                    gantt_count=gantt_count))
     files["iterations"] = _write_iterations(out / "iterations.csv", iterations)
     files["summary"] = out / "summary.json"
-    summary = Summary(infos, stats, fits, iterations, out, files)
+    summary = Summary(infos, stats, fits, iterations, out, files, group_stats(infos, iterations, group_by))
     tmp = out / "summary.json.tmp"
     tmp.write_text(json.dumps(summary.as_dict(), indent=2, default=repr) + "\n", encoding="utf-8")
     tmp.replace(out / "summary.json")

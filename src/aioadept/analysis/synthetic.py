@@ -7,7 +7,7 @@ Timing model (all seeded):
 
 - switching durations (eqs. 2-5) are log-normal: robot↔vision around ``switch_median_ms`` (paper: ~1 ms),
   consecutive sends around ``send_median_ms`` (paper: ~0.2 ms);
-- each robot increment takes the motion time of ``delta_z_mm`` at ``appr_speed`` plus a Gaussian network and
+- each robot increment takes the motion time of ``delta_z_mm`` at ``approach_speed`` plus a Gaussian network and
   scheduling overhead (paper Fig. 11: 5.2 ± 1.0 ms), split between the two directions;
 - the server clock is offset from the client clock and ticks in 1 ms steps, like V+ ``TIMER(-3)``;
 - sharpness rises towards the focus plane and falls after it, so the loop ends as the paper's does.
@@ -36,7 +36,7 @@ def _lognormal_ms(rng: np.random.Generator, median_ms: float, shape: float) -> f
     return float(median_ms * math.exp(shape * rng.standard_normal()))
 
 
-def synthetic_recorder(*, seed: int = 0, appr_speed: int = 25, delta_z_mm: float = 2.0, n_steps: int = 12,
+def synthetic_recorder(*, seed: int = 0, approach_speed: int = 25, delta_z_mm: float = 2.0, n_steps: int = 12,
                        switch_median_ms: float = 0.9, send_median_ms: float = 0.2, switch_shape: float = 0.55,
                        overhead_mean_ms: float = 5.2, overhead_std_ms: float = 1.0,
                        vision_mean_ms: float = 45.0, focus_step: int | None = None,
@@ -45,7 +45,7 @@ def synthetic_recorder(*, seed: int = 0, appr_speed: int = 25, delta_z_mm: float
 
     The sharpness peaks at step ``focus_step`` (default ``n_steps - 1``, so the loop sends ``n_steps`` approach
     batches), then one more vision request sees the first fall and the retract batch follows. Robot increments last
-    ``delta_z_mm / (2.5 mm/s * appr_speed) + 100 ms`` (~100-300 ms over the paper's parameter grid).
+    ``delta_z_mm / (2.5 mm/s * approach_speed) + 100 ms`` (~100-300 ms over the paper's parameter grid).
     """
     rng = np.random.default_rng(seed)
     focus = n_steps - 1 if focus_step is None else focus_step
@@ -94,7 +94,7 @@ def synthetic_recorder(*, seed: int = 0, appr_speed: int = 25, delta_z_mm: float
         return last_recv
 
     def motion_time_s(dz_mm: float) -> float:
-        speed_mm_s = 2.5 * max(appr_speed, 1)  # ~250 mm/s at 100 %, scaled like V+ SPEED
+        speed_mm_s = 2.5 * max(approach_speed, 1)  # ~250 mm/s at 100 %, scaled like V+ SPEED
         return abs(dz_mm) / speed_mm_s + 0.1  # + acceleration, deceleration and settling
 
     # init_move: one cmdexec of four motions (each its own batch of motion + break)
@@ -118,11 +118,11 @@ def synthetic_recorder(*, seed: int = 0, appr_speed: int = 25, delta_z_mm: float
         if step > focus:  # the first fall: leave the loop, retract one step
             break
         t += _lognormal_ms(rng, switch_median_ms, switch_shape) / 1000.0  # eq. 3
-        t = robot_batch([("set_speed", (appr_speed,)), ("move_rel_tool", (0.0, 0.0, delta_z_mm, 0.0, 0.0, 0.0)),
+        t = robot_batch([("set_speed", (approach_speed,)), ("move_rel_tool", (0.0, 0.0, delta_z_mm, 0.0, 0.0, 0.0)),
                          ("break", ())], t, motion_time_s(delta_z_mm))
         step += 1
     rec.mark("retract", step + 1, t_s=t)
     t += 0.001
-    robot_batch([("set_speed", (appr_speed,)), ("move_rel_tool", (0.0, 0.0, -delta_z_mm, 0.0, 0.0, 0.0)),
+    robot_batch([("set_speed", (approach_speed,)), ("move_rel_tool", (0.0, 0.0, -delta_z_mm, 0.0, 0.0, 0.0)),
                  ("break", ())], t, motion_time_s(delta_z_mm))
-    return rec, {"appr_speed": appr_speed, "delta_z_mm": delta_z_mm, "seed": seed, "synthetic": True}
+    return rec, {"approach_speed": approach_speed, "delta_z_mm": delta_z_mm, "seed": seed, "synthetic": True}

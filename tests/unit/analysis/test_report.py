@@ -28,8 +28,8 @@ def _save(path, **kw):
 @pytest.fixture(scope="module")
 def two_runs(tmp_path_factory):
     base = tmp_path_factory.mktemp("runs")
-    a = _save(base / "speed25" / "000", seed=1, appr_speed=25, delta_z_mm=2.0, n_steps=6)
-    b = _save(base / "speed75" / "000", seed=2, appr_speed=75, delta_z_mm=1.5, n_steps=4)
+    a = _save(base / "speed25" / "000", seed=1, approach_speed=25, delta_z_mm=2.0, n_steps=6)
+    b = _save(base / "speed75" / "000", seed=2, approach_speed=75, delta_z_mm=1.5, n_steps=4)
     return base, a, b
 
 
@@ -48,7 +48,7 @@ def test_analyze_one_run_writes_figures_and_summary_into_the_run_dir(tmp_path) -
     assert q["tau_ss_to_mrt_ms"]["equation"] == 4 and q["tau_mrt_to_b_ms"]["figure"] == "13B"
     assert set(q["tau_r_ms"]["stats"]) == {"n", "mean_ms", "std_ms", "min_ms", "median_ms", "p99_ms", "max_ms"}
     assert info["n_runs"] == 1 and info["n_complete"] == 5
-    assert info["runs"][0]["parameters"]["appr_speed"] == 25
+    assert info["runs"][0]["parameters"]["approach_speed"] == 25
     assert info["files"]["gantt"] == FIGURES["gantt"]
 
 
@@ -59,11 +59,19 @@ def test_summary_stats_agree_with_the_iterations_written(two_runs) -> None:
         rows = list(csv.DictReader(f))
     assert len(rows) == 6 + 4
     assert {r["run"] for r in rows} == {"speed25/000", "speed75/000"}  # same folder names: parent kept
-    assert {(r["appr_speed"], r["delta_z_mm"]) for r in rows} == {("25", "2.0"), ("75", "1.5")}
+    assert {(r["approach_speed"], r["delta_z_mm"]) for r in rows} == {("25", "2.0"), ("75", "1.5")}
     vals = [float(r["tau_v_to_r_ms"]) for r in rows]
     s = summary.stats["tau_v_to_r_ms"]
     assert s.n == 10 and s.mean_ms == pytest.approx(sum(vals) / 10) and s.max_ms == pytest.approx(max(vals))
     assert not (base / "out" / FIGURES["gantt"]).exists()  # plots=False
+    # per cell of the parameter grid
+    assert [(dict(g.parameters), g.runs, g.stats["tau_r_ms"].n) for g in summary.groups] == [
+        ({"approach_speed": 25, "delta_z_mm": 2.0}, ("speed25/000",), 6),
+        ({"approach_speed": 75, "delta_z_mm": 1.5}, ("speed75/000",), 4)]
+    g75 = [float(r["tau_v_to_r_ms"]) for r in rows if r["run"] == "speed75/000"]
+    assert summary.groups[1].stats["tau_v_to_r_ms"].mean_ms == pytest.approx(sum(g75) / 4)
+    info = json.loads((base / "out" / "summary.json").read_text())
+    assert info["groups"][0]["parameters"] == {"approach_speed": 25, "delta_z_mm": 2.0}
 
 
 def test_gantt_window_holds_the_requests_of_the_chosen_iterations(tmp_path) -> None:
