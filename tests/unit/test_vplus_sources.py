@@ -1,21 +1,39 @@
-"""Static checks of the V+ RobotServer in vplus/ (nothing here can run V+; docs/vplus.md says what is untested).
+"""Checks of the V+ RobotServer in vplus/ that need no controller (docs/vplus.md says what stays untested).
 
-They check what can go wrong without a controller: the .V2 structure the loader expects, V+ name limits, the
-skill table against the Python side, the error codes against the one table, and the block structure of every
-program (IF/WHILE/FOR/DO/CASE closed in order), so that an edit that breaks one of these fails CI.
+1. Static: the .V2 structure the loader expects, V+ name and string limits, the skill table against the
+   simulator's, the error codes against the one table, the block structure of every program.
+2. Behaviour: the programs run in vplus/tools/vsubset.py, a small interpreter of the V+ subset they use, against
+   aioadept.protocol (framing, parsing, acks, stop). That checks our logic, not V+ itself.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import inspect
+import random
 import re
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
 
 import aioadept.commands as commands
-from aioadept.protocol import HELLO_SKILL, HERE_SKILL, PROTOCOL_VERSION, STOP_SKILL, ErrorCode
+from aioadept.errors import RemoteProtocolError
+from aioadept.protocol import (
+    HELLO_SKILL,
+    HERE_SKILL,
+    NO_ID,
+    PROTOCOL_VERSION,
+    STOP_SKILL,
+    ErrorCode,
+    LineFramer,
+    Oversize,
+    Status,
+    parse_ack,
+    parse_command,
+    recover_id,
+)
 
 VPLUS = Path(__file__).resolve().parents[2] / "vplus"
 FILES = sorted(VPLUS.glob("*.V2"))
@@ -368,15 +386,8 @@ def test_parser_catches_structure_mistakes(tmp_path: Path):
 # of the V+ subset they use, against aioadept.protocol. It encodes our reading of $DECODE, ASC, $MID (see its
 # docstring); it finds logic errors in the V+ programs, not errors in our reading of V+.
 
-import importlib.util  # noqa: E402
-import random  # noqa: E402
-
-from aioadept.errors import RemoteProtocolError  # noqa: E402
-from aioadept.protocol import NO_ID, LineFramer, Oversize, parse_command, recover_id  # noqa: E402
-
 
 def _vsubset():
-    import sys
     spec = importlib.util.spec_from_file_location("aioadept_vplus_vsubset", VPLUS / "tools" / "vsubset.py")
     mod = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = mod
@@ -385,7 +396,6 @@ def _vsubset():
 
 
 vsubset = _vsubset()
-CODE_BY_VAR: dict[str, int] = {}
 
 
 @pytest.fixture
@@ -456,10 +466,9 @@ def feed(m, data: bytes, chunks: list[int], handle: float = 7.0) -> list[tuple]:
 
 
 def _close(a: tuple, b: tuple) -> bool:
-    if a[:3] != b[:3] and not (a[0] == b[0] == "cmd" and a[:3] == b[:3]):
-        return False
-    if a[0] == "cmd":
-        return len(a[3]) == len(b[3]) and all(abs(x - y) < 1e-9 for x, y in zip(a[3], b[3]))
+    """Entries equal; command arguments equal to within float rounding."""
+    if a[0] == b[0] == "cmd":
+        return a[:3] == b[:3] and len(a[3]) == len(b[3]) and all(abs(x - y) < 1e-9 for x, y in zip(a[3], b[3]))
     return a == b
 
 
@@ -565,8 +574,6 @@ def test_clean_makes_an_ack_field(machine, text):
 
 
 # -- the executor (task 1) in the interpreter: acks, refusals, stop --------------------------------------------
-
-from aioadept.protocol import Status, parse_ack  # noqa: E402
 
 
 def queue(m, data: bytes, handle: float = 7.0) -> None:
