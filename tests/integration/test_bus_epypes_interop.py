@@ -1,0 +1,100 @@
+"""Our Communicator against an EPypes-style node, and an EPypes-style requester against our Responder.
+
+The peer is written the way EPypes' zeromq.py and pbprocess.py work: plain pyzmq in a thread, single-frame messages,
+SUB with prefix "", and message classes built from EPypes' own definitions (not our generated code). It has no
+answer cache: it answers every copy it gets, so our re-publication still converges.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import importlib.util
+import threading
+from pathlib import Path
+
+import pytest
+import zmq
+
+from aioadept.bus.communicator import Communicator, Responder
+
+_spec = importlib.util.spec_from_file_location(
+    "epypes_reference", Path(__file__).parents[1] / "unit" / "bus" / "epypes_reference.py")
+ref = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(ref)
+
+
+def attrs_of(pb) -> dict:
+    """EPypes' get_attributes_dict."""
+    return {e.key: e.str_val if e.type == 1 else e.double_val if e.type == 2 else e.int_val
+            for e in pb.attributes.entries}
+
+
+@pytest.mark.timeout(10)
+async def test_communicator_with_an_epypes_style_node():
+    ctx = zmq.Context()
+    sub, pub = ctx.socket(zmq.SUB), ctx.socket(zmq.PUB)
+    for s in (sub, pub):
+        s.setsockopt(zmq.LINGER, 0)
+    sub.setsockopt_string(zmq.SUBSCRIBE, "")
+    sub.bind("tcp://127.0.0.1:*")
+    pub.bind("tcp://127.0.0.1:*")
+    stop = threading.Event()
+    seen = []
+
+    def epypes_node():
+        while not stop.is_set():
+            if not sub.poll(20):
+                continue
+            req = ref.Event()
+            req.ParseFromString(sub.recv())
+            seen.append(attrs_of(req))
+            resp = ref.Event(type="VisionResponse", id=req.id)
+            ref.add_attribute(resp, "sharpness", 7.25)
+            ref.add_attribute(resp, "camera", attrs_of(req).get("camera", ""))
+            pub.send(resp.SerializeToString())
+
+    th = threading.Thread(target=epypes_node)
+    th.start()
+    try:
+        async with Communicator(sub.getsockopt_string(zmq.LAST_ENDPOINT),
+                                pub.getsockopt_string(zmq.LAST_ENDPOINT)) as comm:
+            r = await comm.request("VisionRequest", {"camera": "left"})
+    finally:
+        stop.set()
+        await asyncio.to_thread(th.join)
+        sub.close()
+        pub.close()
+        ctx.term()
+    assert r.attributes == {"sharpness": 7.25, "camera": "left"}
+    assert seen[0]["camera"] == "left" and isinstance(seen[0]["t_request"], float)
+
+
+@pytest.mark.timeout(10)
+async def test_epypes_style_requester_with_our_responder():
+    async with Responder("tcp://127.0.0.1:*", "tcp://127.0.0.1:*",
+                         lambda t, i, a: {"sharpness": a["n"] * 2.0, "n": a["n"]}) as node:
+        def epypes_requester() -> dict:
+            ctx = zmq.Context()
+            pub, sub = ctx.socket(zmq.PUB), ctx.socket(zmq.SUB)
+            try:
+                for s in (sub, pub):
+                    s.setsockopt(zmq.LINGER, 0)
+                sub.setsockopt_string(zmq.SUBSCRIBE, "")
+                pub.connect(node.actual_request_endpoint)
+                sub.connect(node.actual_response_endpoint)
+                req = ref.Event(type="VisionRequest", id="e9e9e9e9")
+                ref.add_attribute(req, "n", 21)
+                while True:  # the same request until answered (slow joiner)
+                    pub.send(req.SerializeToString())
+                    if sub.poll(20):
+                        resp = ref.Event()
+                        resp.ParseFromString(sub.recv())
+                        return {"type": resp.type, "id": resp.id, **attrs_of(resp)}
+            finally:
+                pub.close()
+                sub.close()
+                ctx.term()
+
+        got = await asyncio.to_thread(epypes_requester)
+    assert got == {"type": "VisionResponse", "id": "e9e9e9e9", "sharpness": 42.0, "n": 21}
+    assert node.handled == 1
