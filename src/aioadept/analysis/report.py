@@ -346,7 +346,7 @@ def fits_table(summary: Summary) -> Any:
     for q in QUANTITIES:
         fit = summary.fits.get(q.name)
         if fit is None:
-            table.add_row(q.symbol, q.family, "— (too few values)", str(summary.stats[q.name].n))
+            table.add_row(q.symbol, q.family, "— (fewer than 2 distinct usable values)", str(summary.stats[q.name].n))
         elif fit.family == "normal":
             table.add_row(q.symbol, "Gaussian", f"μ = {fit.mu_ms:.4g}, σ = {fit.sigma_ms:.4g}", str(fit.n))
         else:
