@@ -148,10 +148,11 @@ def find_iterations(robot: Sequence[Any], vision: Sequence[Any], *, marks: Seque
     """Reconstruct the approach iterations of one run and compute their taus (ms).
 
     Pairing: each vision request (in send order) owns the first ``skills`` batch sent after it and before the next
-    vision request (``skills`` split over consecutive batches, as ``cmdexec`` sends them, count as one). The final retract (the same three skills, the other z direction) is not an iteration: it is
-    recognised as a batch sent after a mark named ``"retract"`` when the run has one (``apps.focus.ufloop`` writes
-    it), otherwise as a batch whose ``move_rel_tool`` z step has the sign opposite to the run's first approach
-    batch. Vision requests with no approach batch after them (the last one, or one that failed) are dropped.
+    vision request (``skills`` split over consecutive batches, as ``cmdexec`` sends them, count as one). The final
+    retract (the same three skills, the other z direction) is not an iteration: it is recognised as a batch sent
+    after a mark named ``"retract"`` when the run has one (``apps.focus.ufloop`` writes it), otherwise as a batch
+    whose ``move_rel_tool`` z step has the sign opposite to the run's first approach batch. Vision requests with no
+    approach batch after them (the last one, or one that failed) are dropped.
     """
     params = dict(parameters or {})
     reqs = sorted((v for v in vision if v.t_send_s is not None), key=lambda v: v.t_send_s)

@@ -25,7 +25,8 @@ from aioadept.analysis.fits import fit_for
 from aioadept.analysis.metrics import QUANTITIES, Iteration, Stats, describe, iterations_of_run, quantity_values
 from aioadept.capture import Run, load_run
 
-__all__ = ["DEFAULT_GROUP_BY", "FIGURES", "Group", "RunInfo", "Summary", "analyze_runs", "expand_run_dirs", "fits_table", "gantt_bars", "group_stats", "summary_table",
+__all__ = ["DEFAULT_GROUP_BY", "FIGURES", "Group", "RunInfo", "Summary", "analyze_runs", "expand_run_dirs",
+           "fits_table", "gantt_bars", "group_stats", "summary_table",
            "write_figures"]
 
 FIGURES = {
@@ -221,7 +222,8 @@ def write_figures(runs: Sequence[Run], iterations: Sequence[Iteration], stats: M
         files["switching_send"] = plots.plot_lognormal_pair(
             (vals("tau_ss_to_mrt_ms"), fits.get("tau_ss_to_mrt_ms"), "τ(ss→mrt), ms  (eq. 4)",
              "set_speed → move_rel_tool"),
-            (vals("tau_mrt_to_b_ms"), fits.get("tau_mrt_to_b_ms"), "τ(mrt→b), ms  (eq. 5)", "move_rel_tool → break"),
+            (vals("tau_mrt_to_b_ms"), fits.get("tau_mrt_to_b_ms"), "τ(mrt→b), ms  (eq. 5)",
+             "move_rel_tool → break"),
             out_dir / FIGURES["switching_send"],
             title="Durations between starting consecutive sends to the RobotServer (cf. paper Fig. 13)")
     return files
@@ -273,9 +275,9 @@ def analyze_runs(run_dirs: Iterable[str | os.PathLike[str]], out_dir: str | os.P
     ``out_dir`` defaults to the run folder for one run and ``./analysis`` for several. Writes ``summary.json``,
     ``iterations.csv`` and (``plots=True``) the figures in :data:`FIGURES`; the Gantt chart shows ``gantt_count``
     complete iterations from position ``gantt_first`` of the first run. ``summary.json`` also holds the stats per
-    combination of the run parameters named in ``group_by`` (the paper's speed x delta_z grid). Raises ``FileNotFoundError`` for a path
-    with no run and ``ValueError`` for a run folder that does not parse. A run with no complete iteration is not
-    an error: its stats have ``n = 0``.
+    combination of the run parameters named in ``group_by`` (the paper's speed x delta_z grid). Raises
+    ``FileNotFoundError`` for a path with no run and ``ValueError`` for a run folder that does not parse. A run
+    with no complete iteration is not an error: its stats have ``n = 0``.
     """
     paths = expand_run_dirs(run_dirs)
     if not paths:
@@ -346,7 +348,8 @@ def fits_table(summary: Summary) -> Any:
     for q in QUANTITIES:
         fit = summary.fits.get(q.name)
         if fit is None:
-            table.add_row(q.symbol, q.family, "— (fewer than 2 distinct usable values)", str(summary.stats[q.name].n))
+            table.add_row(q.symbol, q.family, "— (fewer than 2 distinct usable values)",
+                          str(summary.stats[q.name].n))
         elif fit.family == "normal":
             table.add_row(q.symbol, "Gaussian", f"μ = {fit.mu_ms:.4g}, σ = {fit.sigma_ms:.4g}", str(fit.n))
         else:

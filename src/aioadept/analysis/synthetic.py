@@ -40,7 +40,8 @@ def synthetic_recorder(*, seed: int = 0, approach_speed: int = 25, delta_z_mm: f
                        switch_median_ms: float = 0.9, send_median_ms: float = 0.2, switch_shape: float = 0.55,
                        overhead_mean_ms: float = 5.2, overhead_std_ms: float = 1.0,
                        vision_mean_ms: float = 45.0, focus_step: int | None = None,
-                       start_loop_s: float = 1000.0, server_offset_s: float = -990.0) -> tuple[Recorder, Mapping[str, Any]]:
+                       start_loop_s: float = 1000.0,
+                       server_offset_s: float = -990.0) -> tuple[Recorder, Mapping[str, Any]]:
     """A recorder filled with one synthetic run of ``n_steps`` approach iterations; returns it and its parameters.
 
     The sharpness peaks at step ``focus_step`` (default ``n_steps - 1``, so the loop sends ``n_steps`` approach
