@@ -64,7 +64,7 @@ async def test_error_and_aborted_statuses_become_typed_errors_with_results():
     assert [r.status for r in err.value.results] == [Status.ERROR, Status.DONE, Status.ABORTED]
     assert (err.value.code, err.value.message, err.value.skill) == (-1003, "joint limit", "move_to")
     assert ab.value.skill == "set_speed"
-    assert [c.command for c in ab.value.completed] == [Break()]   # commands done before the failing one
+    assert [c.command for c in ab.value.completed.commands] == [Break()]   # commands done before the failing one
     assert server.lines()[-1].endswith(b":set_speed:9")             # the last Break was never sent
 
 

@@ -20,6 +20,7 @@ from aioadept.protocol.messages import (
     PROTOCOL_VERSION,
     STOP_SKILL,
     Ack,
+    AckParser,
     CommandMessage,
     IdAllocator,
     SkillCall,
@@ -36,7 +37,7 @@ from aioadept.protocol.messages import (
 
 __all__ = [
     "DEFAULT_TEXT", "DELIMITER", "HELLO_SKILL", "HERE_SKILL", "ID_LENGTH", "MAX_ACK_LINE", "MAX_LINE", "MAX_SKILL_NAME", "NO_ID", "PROTOCOL_VERSION", "STOP_SKILL",
-    "Ack", "CommandMessage", "ErrorCode", "IdAllocator", "LineFramer", "Oversize", "SkillCall", "Status",
+    "Ack", "AckParser", "CommandMessage", "ErrorCode", "IdAllocator", "LineFramer", "Oversize", "SkillCall", "Status",
     "check_skill_name", "describe", "encode_ack", "encode_command", "format_arg", "parse_ack", "parse_command",
     "recover_id", "sanitize_text",
 ]

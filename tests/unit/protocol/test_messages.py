@@ -298,3 +298,24 @@ def test_garbage_raises_only_protocol_errors(data):
             parse(data)
         except ProtocolError:
             pass
+
+
+@settings(max_examples=300, deadline=None)
+@given(items=st.lists(st.one_of(ack_st.map(lambda a: encode_ack(a)[:-2]), garbage_st,
+                                st.sampled_from([b"0000000a:done:1.0,2.0:1,2,3,4,5,6",
+                                                 b"0000000b:done:1.5,x:1,2,3,4,5,6",
+                                                 b"000\xff000b:done:1.5,2:1,2,3,4,5,6",
+                                                 b"0000000c:done:nan,2:1,2,3,4,5,6"])), max_size=20))
+def test_ack_parser_gives_exactly_what_parse_ack_gives(items):
+    from aioadept.protocol import AckParser
+
+    parser = AckParser()
+    for line in items:
+        try:
+            want = parse_ack(line)
+        except RemoteProtocolError as exc:
+            with pytest.raises(RemoteProtocolError) as info:
+                parser.parse(line)
+            assert (info.value.code, info.value.id) == (exc.code, exc.id)
+        else:
+            assert parser.parse(line) == want
