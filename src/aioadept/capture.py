@@ -200,12 +200,16 @@ class Recorder:
         self._marks.append((self._clock() if t_s is None else t_s, name, value))
 
     # -- after the run
-    def snapshot(self) -> Run:
-        """The records so far as plain values, sends paired with acks by message id (in memory, no file)."""
+    def snapshot(self, *, metadata: Mapping[str, Any] | None = None) -> Run:
+        """The records so far as plain values, sends paired with acks by message id (in memory, no file).
+
+        ``metadata`` becomes the run's ``parameters``, as with :meth:`save`.
+        """
         return Run(robot=_robot_records(self._sends, self._acks),
                    vision=_vision_records(self._requests, self._responses),
                    marks=tuple(Mark(i, float(t), str(n), v) for i, (t, n, v) in enumerate(self._marks)),
-                   metadata={"start_wall_epoch_s": self.start_wall_epoch_s, "start_loop_s": self.start_loop_s})
+                   metadata={"start_wall_epoch_s": self.start_wall_epoch_s, "start_loop_s": self.start_loop_s,
+                             "parameters": dict(metadata or {})})
 
     def save(self, run_dir: str | os.PathLike[str], *, metadata: Mapping[str, Any] | None = None) -> Path:
         """Write ``robot.csv``, ``vision.csv``, ``marks.csv`` and ``run.json`` into ``run_dir`` (created if needed).

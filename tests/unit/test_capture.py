@@ -100,6 +100,11 @@ def test_run_json_and_csv_headers_follow_the_documented_format(tmp_path) -> None
     assert brk["t_recv_s"] == brk["t_start_s"] == brk["status"] == brk["pose_z_mm"] == ""
 
 
+def test_snapshot_carries_parameters_for_in_memory_analysis() -> None:
+    run = _filled().snapshot(metadata={"approach_speed": 5})
+    assert run.parameters == {"approach_speed": 5} and run.path is None and run.name == "run"
+
+
 def test_ack_without_a_seen_send_is_kept() -> None:
     rec = Recorder(clock=lambda: 0.0)
     rec.on_ack(MessageResult("0b000001", "here", (), 3, 5.0, 5.5, _ack("0b000001", 1.0, 1.0)))

@@ -17,7 +17,9 @@ def _parser() -> argparse.ArgumentParser:
         prog="aioadept analyze",
         description="Compute the paper's timing quantities (tau_r, switching durations; eqs. 1-5) over run folders "
                     "written by aioadept.capture, pool them across runs, fit their distributions and write figures "
-                    "like the paper's Figs. 9-13, summary.json and iterations.csv.")
+                    "like the paper's Figs. 9-13, summary.json and iterations.csv.",
+        epilog="Exit codes: 0 analysed; 1 no complete approach iteration (outputs still written); 2 a path with no "
+               "readable run or bad arguments. See docs/analysis.md.")
     p.add_argument("run_dirs", nargs="+", metavar="RUN_DIR",
                    help="a run folder (with run.json), or a folder whose subfolders are runs")
     p.add_argument("--out", metavar="DIR", default=None,
