@@ -129,3 +129,20 @@ async def test_vision_process_rejects_a_bad_source(tmp_path):
         stderr=asyncio.subprocess.PIPE)
     out, err = await proc.communicate()
     assert proc.returncode == 2 and b"READY" not in out and b"bad --source" in err
+
+
+@pytest.mark.timeout(30)
+async def test_vision_process_inline_mode_answers_repeated_ids_from_the_cache(tmp_path):
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    cv2.imwrite(str(folder / "0.png"), np.full((96, 128), 20, np.uint8))
+    async with vision_process(tmp_path, "--source", f"folder:{folder}", "--graph", "noop", "--inline",
+                              "--fps", "30") as (proc, ready):
+        assert ready["thread"] == "loop" and ready["graph"] == "noop"
+        async with Communicator(ready["request"], ready["response"], timeout_s=5.0) as comm:
+            first = await comm.request("VisionRequest", {"t_request": time.time()})
+            second = await comm.request("VisionRequest", {"t_request": time.time()})
+    assert first.attributes["sharpness"] == 0.0 and second.attributes["sharpness"] == 0.0
+    assert second.attributes["frame_t"] >= first.attributes["frame_t"]
+    log = (tmp_path / "vision.log").read_text()
+    assert log.count("VisionRequest") == 2  # each id processed (and logged) once, re-publications from the cache

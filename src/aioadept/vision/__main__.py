@@ -39,6 +39,7 @@ DEFAULTS: dict[str, Any] = {
     "policy": "nearest",
     "frame_timeout": 1.0,
     "graph": "sharpness",
+    "inline": False,
     "save_frames": None,
     "figures": None,
     "log_level": "INFO",
@@ -68,6 +69,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="frame for a request: nearest in time (the paper; default) or first at/after t_request")
     p.add_argument("--frame-timeout", type=float, help="policy 'after': max wait for the frame, s (default 1)")
     p.add_argument("--graph", choices=("sharpness", "noop"), help="processing graph (noop: for latency tests)")
+    p.add_argument("--inline", action="store_true",
+                   help="run the graph on the event loop thread instead of the node's worker thread: one thread "
+                        "hand-off less per request (lower latency); the loop does nothing else in this process")
     p.add_argument("--save-frames", metavar="DIR", help="save every served frame (PNG + frames.csv) into DIR")
     p.add_argument("--figures", metavar="OUTDIR", help="write the graph / intermediate results / sweep pictures "
                                                          "(Figs. 7-9) into OUTDIR and exit")
@@ -169,11 +173,15 @@ async def serve(opts: argparse.Namespace) -> int:
             log.warning("not every camera delivered a frame within 10 s; serving anyway")
         graph = noop_graph() if opts.graph == "noop" else sharpness_graph()
         node = VisionNode(acq, graph, policy=opts.policy, timeout_s=opts.frame_timeout, recorder=recorder)
-        responder = Responder(opts.request_endpoint, opts.response_endpoint, node.handle)
+        # Worker thread (default): the loop stays free while a graph runs. Inline: the Responder calls the blocking
+        # process() directly; requests are served one at a time either way.
+        handler = node.handle_inline if opts.inline else node.handle
+        responder = Responder(opts.request_endpoint, opts.response_endpoint, handler)
         responder.start()
         cams = ",".join(acq.camera_ids)
         print(f"READY request={responder.actual_request_endpoint} response={responder.actual_response_endpoint} "
-              f"cameras={cams} fps={opts.fps:g} policy={opts.policy} graph={opts.graph}", flush=True)
+              f"cameras={cams} fps={opts.fps:g} policy={opts.policy} graph={opts.graph} "
+              f"thread={'loop' if opts.inline else 'worker'}", flush=True)
         log.info("serving %s requests on %s, responses on %s; cameras %s at %g fps, policy %s%s",
                  opts.graph, responder.actual_request_endpoint, responder.actual_response_endpoint, cams, opts.fps,
                  opts.policy, f", following robot state on {opts.state_endpoint}" if follower else "")

@@ -60,7 +60,12 @@ class VisionNode:
 
     # ------------------------------------------------------------------------------------------ sync core
     def process(self, event_type: str, event_id: str | None, attributes: Mapping[str, Any]) -> dict[str, Any]:
-        """Answer one request (blocking: may wait for a frame and runs the graph)."""
+        """Answer one request (blocking: may wait for a frame and runs the graph), and log it."""
+        out = self._serve(attributes)
+        self._log(event_type, event_id, attributes, out)
+        return out
+
+    def _serve(self, attributes: Mapping[str, Any]) -> dict[str, Any]:
         t_request = float(attributes.get("t_request", time.time()))
         camera = attributes.get("camera")
         cameras = [str(camera)] if camera else list(self.acquisition.camera_ids)
@@ -83,11 +88,17 @@ class VisionNode:
         if "error" in out:
             self.failed += 1
         self.served += 1
-        log.info("%s %s t_request=%.3f camera=%s -> %s", event_type, event_id, t_request, out.get("camera"),
+        return out
+
+    def _log(self, event_type: str, event_id: str | None, attributes: Mapping[str, Any],
+             out: Mapping[str, Any]) -> None:
+        if not log.isEnabledFor(logging.INFO):
+            return
+        log.info("%s %s t_request=%.3f camera=%s -> %s", event_type, event_id,
+                 float(attributes.get("t_request", float("nan"))), out.get("camera"),
                  (f"error: {out['error']}" if "error" in out else
                   f"sharpness={out['sharpness']:.3f} frame_t={out['frame_t']:.3f} "
                   f"age={out['frame_age_ms']:.1f} ms proc={out['proc_time_ms']:.2f} ms"))
-        return out
 
     def _measure(self, frame: Frame, t_request: float) -> dict[str, Any]:
         res = measure(frame.image, self.graph)
@@ -107,12 +118,25 @@ class VisionNode:
         return attrs
 
     # ------------------------------------------------------------------------------------------ Responder side
+    # Both handlers log with loop.call_soon: the Responder publishes the answer in the same task step right after
+    # the handler returns, so the log line is written after the response has left (off the latency path).
     async def handle(self, event_type: str, event_id: str | None, attributes: Mapping[str, Any]) -> dict[str, Any]:
-        """The Responder handler: :meth:`process` in the node's worker thread."""
+        """The Responder handler: frame lookup and graph in the node's worker thread."""
         if self._executor is None:
             self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vision-node")
         loop = asyncio.get_running_loop()
-        return await loop.run_in_executor(self._executor, self.process, event_type, event_id, dict(attributes))
+        attrs = dict(attributes)
+        out = await loop.run_in_executor(self._executor, self._serve, attrs)
+        loop.call_soon(self._log, event_type, event_id, attrs, out)
+        return out
+
+    def handle_inline(self, event_type: str, event_id: str | None,
+                      attributes: Mapping[str, Any]) -> dict[str, Any]:
+        """The Responder handler that runs on the event loop thread (one thread hand-off less per request; the
+        Responder serves one request at a time either way). Call from the loop."""
+        out = self._serve(attributes)
+        asyncio.get_running_loop().call_soon(self._log, event_type, event_id, dict(attributes), out)
+        return out
 
     def close(self) -> None:
         """Join the worker thread (a running graph finishes first; it takes milliseconds)."""

@@ -69,11 +69,14 @@ async def test_node_handler_runs_in_its_worker_thread_and_reports_missing_frames
             late = await node.handle("VisionRequest", "x", {"t_request": 6.0})
             ok = await node.handle("VisionRequest", "y", {"t_request": 4.0})
             assert node._executor is not None
+            inline = node.handle_inline("VisionRequest", "z", {"t_request": 4.0})
         finally:
             node.close()
     assert node._executor is None
     assert "no frame at or after" in late["error"] and late["camera"] == "a"
     assert ok["sharpness"] == 0.0 and ok["frame_t"] == 5.0
+    assert {k: v for k, v in inline.items() if k != "proc_time_ms"} == {k: v for k, v in ok.items() if k != "proc_time_ms"}
+    assert node.served == 3 and node.failed == 1
 
 
 def test_options_from_config_file_and_command_line(tmp_path):

@@ -1,0 +1,278 @@
+"""Vision benchmarks, each with its baseline measured in the same run. Prints one JSON object.
+
+1. ``graph``: the sharpness graph (Fig. 7) per 1024 x 768 virtual-camera frame, median and p99, over frames at
+   several distances around the focal plane. Baseline: the same eight functions called directly in a row (no graph
+   runner), so ``ratio_graph_vs_direct`` is what the CompGraph costs. Target: median <= 5 ms.
+2. ``render``: the virtual camera's frame time in focus and far out of focus (>= 10 fps needs <= 100 ms).
+3. ``latency``: VisionRequest -> VisionResponse round trip through ``aioadept vision --graph noop`` (a child
+   process: virtual camera grabbing at 15 fps, ring buffer lookup, Responder; the graph in the node's worker thread,
+   or ``--inline`` on the loop thread), against a raw pyzmq PUB/SUB ping-pong with the same topology (child process
+   binds SUB + PUB on 127.0.0.1 port 0, the client connects a PUB and a SUB from an asyncio loop, same request
+   bytes). The raw echo server is asyncio-based as in ``bench_bus.py``; a blocking echo loop is reported too, as
+   a lower bound. Rounds alternate so machine load hits every kind alike. Target: node p50 <= 1.3 x raw p50.
+
+Usage: ``python benchmarks/bench_vision.py [--frames 300] [--n 1500] [--warmup 200] [--rounds 3]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import time
+
+import cv2
+import numpy as np
+import zmq
+import zmq.asyncio
+
+from aioadept.bus.communicator import Communicator
+from aioadept.bus.messages import encode_event
+from aioadept.geometry import Pose
+from aioadept.vision import sharpness as S
+from aioadept.vision.virtual_camera import paper_approach_pose, paper_camera
+
+
+def _stats_ms(samples: list[float]) -> dict[str, float]:
+    s = sorted(samples)
+    q = statistics.quantiles(s, n=100, method="inclusive")
+    return {"n": len(s), "median_ms": round(q[49] * 1e3, 3), "p99_ms": round(q[98] * 1e3, 3),
+            "mean_ms": round(statistics.fmean(s) * 1e3, 3), "min_ms": round(s[0] * 1e3, 3)}
+
+
+def _stats_us(samples: list[float]) -> dict[str, float]:
+    s = sorted(samples)
+    q = statistics.quantiles(s, n=100, method="inclusive")
+    return {"n": len(s), "p50_us": round(q[49] * 1e6, 1), "p99_us": round(q[98] * 1e6, 1),
+            "mean_us": round(statistics.fmean(s) * 1e6, 1), "min_us": round(s[0] * 1e6, 1)}
+
+
+# ------------------------------------------------------------------------------------------------ 1, 2: graph, render
+def bench_graph(n_frames: int) -> dict:
+    cam = paper_camera(seed=1)
+    approach = paper_approach_pose()
+    offsets = [0, 8, 14, 17, 19, 20, 21, 23, 26, 32]
+    frames = [cam.render(approach @ Pose(z=dz)) for dz in offsets]
+    graph = S.sharpness_graph()
+    hp = dict(S.DEFAULT_HYPERPARAMETERS)
+
+    def direct(img: np.ndarray) -> float:
+        t = S.highlight_light(img, hp["threshold"])
+        e = S.erosion(t, hp["erosion_kernel_px"], hp["erosion_iterations"])
+        c = S.find_ccomp(e)
+        r = S.identify_object_region(c, hp["wh_ratio_range"], hp["min_area_px"])
+        roi = S.crop_roi(img, r, hp["roi_margin_px"])
+        sx = S.sobel_x(roi, hp["sobel_ksize"])
+        return S.measure_sharpness(S.h_profile_sobelx(sx))
+
+    for img in frames:  # warm-up: first calls allocate
+        graph.run(image=img)
+        direct(img)
+    g_times, d_times = [], []
+    per_node: dict[str, list[float]] = {}
+    for i in range(n_frames):  # interleaved so load drift hits both alike
+        img = frames[i % len(frames)]
+        t0 = time.perf_counter()
+        run = graph.run(image=img)
+        g_times.append(time.perf_counter() - t0)
+        for k, v in run.node_time_s.items():
+            per_node.setdefault(k, []).append(v)
+        t0 = time.perf_counter()
+        direct(img)
+        d_times.append(time.perf_counter() - t0)
+    g, d = _stats_ms(g_times), _stats_ms(d_times)
+
+    render_focus, render_far = [], []
+    for _ in range(max(20, n_frames // 10)):
+        t0 = time.perf_counter()
+        cam.render(approach @ Pose(z=20))
+        render_focus.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        cam.render(approach)
+        render_far.append(time.perf_counter() - t0)
+    rf, rr = _stats_ms(render_focus), _stats_ms(render_far)
+    return {
+        "graph": {
+            "frame": "1024x768 mono8, virtual camera, 10 distances around the focal plane",
+            "sharpness_graph": g, "direct_calls_baseline": d,
+            "ratio_graph_vs_direct_median": round(g["median_ms"] / d["median_ms"], 3),
+            "per_node_median_ms": {k: round(statistics.median(v) * 1e3, 3) for k, v in per_node.items()},
+            "target_median_ms": 5.0, "meets_target": g["median_ms"] <= 5.0,
+        },
+        "render": {
+            "in_focus": rf, "approach_pose_20mm_out": rr,
+            "max_fps_at_median": round(1e3 / max(rf["median_ms"], rr["median_ms"]), 1), "target_fps": 10,
+        },
+    }
+
+
+# ------------------------------------------------------------------------------------------------ 3: latency
+# The raw baseline as in benchmarks/bench_bus.py: an asyncio echo server, the same event-loop style as the
+# Responder, so the ratio is what the node's machinery costs.
+_RAW_ECHO_ASYNC = r"""
+import asyncio, zmq, zmq.asyncio
+async def main():
+    ctx = zmq.asyncio.Context()
+    sub = ctx.socket(zmq.SUB); sub.setsockopt(zmq.SUBSCRIBE, b""); sub.bind("tcp://127.0.0.1:*")
+    pub = ctx.socket(zmq.PUB); pub.bind("tcp://127.0.0.1:*")
+    print("READY request=%s response=%s" % (sub.getsockopt_string(zmq.LAST_ENDPOINT),
+                                             pub.getsockopt_string(zmq.LAST_ENDPOINT)), flush=True)
+    while True:
+        msg = await sub.recv()
+        await pub.send(msg)
+        if msg == b"STOP":
+            break
+    sub.close(0); pub.close(0); ctx.term()
+asyncio.run(main())
+"""
+
+# A lower bound: a blocking echo loop in one thread (no event loop at all).
+_RAW_ECHO_BLOCKING = r"""
+import sys, zmq
+ctx = zmq.Context()
+sub = ctx.socket(zmq.SUB); sub.setsockopt(zmq.SUBSCRIBE, b""); sub.bind("tcp://127.0.0.1:*")
+pub = ctx.socket(zmq.PUB); pub.bind("tcp://127.0.0.1:*")
+print("READY request=%s response=%s" % (sub.getsockopt_string(zmq.LAST_ENDPOINT),
+                                         pub.getsockopt_string(zmq.LAST_ENDPOINT)), flush=True)
+while True:
+    msg = sub.recv()
+    pub.send(msg)
+    if msg == b"STOP":
+        break
+sub.close(0); pub.close(0); ctx.term()
+"""
+
+
+def _spawn(argv: list[str]) -> tuple[subprocess.Popen, str, str]:
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    line = proc.stdout.readline().decode()  # the READY handshake: no sleep
+    if not line.startswith("READY"):
+        proc.kill()
+        raise RuntimeError(f"{argv}: no READY line ({line!r})")
+    fields = dict(f.split("=", 1) for f in line.split()[1:])
+    return proc, fields["request"], fields["response"]
+
+
+async def _raw_client(req_ep: str, resp_ep: str, n: int, warmup: int) -> list[float]:
+    ctx = zmq.asyncio.Context()
+    pub, sub = ctx.socket(zmq.PUB), ctx.socket(zmq.SUB)
+    pub.connect(req_ep)
+    sub.setsockopt(zmq.SUBSCRIBE, b"")
+    sub.connect(resp_ep)
+    payload = encode_event("VisionRequest", "0123abcd", {"t_request": time.time()})
+    try:
+        first = asyncio.ensure_future(sub.recv())  # slow joiner: ping until the first echo, then drain
+        while not first.done():
+            await pub.send(payload)
+            await asyncio.wait({first}, timeout=0.01)
+        while await sub.poll(50):
+            await sub.recv()
+        loop = asyncio.get_running_loop()
+        samples = []
+        for i in range(warmup + n):
+            t0 = loop.time()
+            await pub.send(payload)
+            await sub.recv()
+            if i >= warmup:
+                samples.append(loop.time() - t0)
+        while True:
+            await pub.send(b"STOP")
+            if await sub.poll(100) and await sub.recv() == b"STOP":
+                break
+        return samples
+    finally:
+        pub.close(0)
+        sub.close(0)
+        ctx.term()
+
+
+async def _node_client(req_ep: str, resp_ep: str, n: int, warmup: int) -> list[float]:
+    async with Communicator(req_ep, resp_ep, timeout_s=10) as comm:
+        first = await comm.request("VisionRequest")  # joins (re-publishing the same id as needed)
+        assert "sharpness" in first.attributes, first.attributes
+        loop = asyncio.get_running_loop()
+        samples = []
+        for i in range(warmup + n):
+            t0 = loop.time()
+            await comm.request("VisionRequest")
+            if i >= warmup:
+                samples.append(loop.time() - t0)
+        return samples
+
+
+def _round(kind: str, n: int, warmup: int) -> list[float]:
+    if kind.startswith("raw"):
+        proc, req, resp = _spawn([sys.executable, "-c",
+                                  _RAW_ECHO_ASYNC if kind == "raw_async" else _RAW_ECHO_BLOCKING])
+        client = _raw_client
+    else:
+        proc, req, resp = _spawn([sys.executable, "-m", "aioadept.vision", "--graph", "noop", "--source", "virtual",
+                                  "--state-endpoint", "tcp://127.0.0.1:9", "--fps", "15",
+                                  "--request-endpoint", "tcp://127.0.0.1:0", "--response-endpoint",
+                                  "tcp://127.0.0.1:0", *(["--inline"] if kind == "node_inline" else [])])
+        client = _node_client
+    try:
+        return asyncio.run(client(req, resp, n, warmup))
+    finally:
+        if proc.poll() is None:
+            proc.terminate()
+        proc.wait(10)
+
+
+KINDS = ("raw_async", "raw_blocking", "node_worker", "node_inline")
+
+
+def bench_latency(n: int, warmup: int, rounds: int) -> dict:
+    samples: dict[str, list[float]] = {k: [] for k in KINDS}
+    per_round: dict[str, list[float]] = {"node_worker": [], "node_inline": []}
+    for _ in range(rounds):  # alternate so drifting machine load hits every kind alike
+        medians = {}
+        for kind in KINDS:
+            s_i = _round(kind, n, warmup)
+            samples[kind] += s_i
+            medians[kind] = statistics.median(s_i)
+        for k in per_round:
+            per_round[k].append(round(medians[k] / medians["raw_async"], 3))
+    st = {k: _stats_us(v) for k, v in samples.items()}
+    ratio = {k: round(st[k]["p50_us"] / st["raw_async"]["p50_us"], 3) for k in ("node_worker", "node_inline")}
+    return {
+        "setup": "127.0.0.1, server in a child process, client = Communicator (node) or raw zmq.asyncio (raw); "
+                 "node: aioadept vision --graph noop, virtual camera grabbing at 15 fps, INFO log per request",
+        "raw_pyzmq_pubsub_pingpong_asyncio": st["raw_async"],
+        "raw_pyzmq_pubsub_pingpong_blocking": st["raw_blocking"],
+        "vision_node_noop_worker_thread": st["node_worker"],
+        "vision_node_noop_inline": st["node_inline"],
+        "ratio_p50_worker_vs_raw_asyncio": ratio["node_worker"],
+        "ratio_p50_inline_vs_raw_asyncio": ratio["node_inline"],
+        "ratio_p50_inline_vs_raw_blocking": round(st["node_inline"]["p50_us"] / st["raw_blocking"]["p50_us"], 3),
+        "ratio_p50_per_round_vs_raw_asyncio": per_round,
+        "target_ratio_p50": 1.3,
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--frames", type=int, default=300, help="graph runs (and direct-call baseline runs)")
+    ap.add_argument("--n", type=int, default=1500, help="measured round trips per latency round")
+    ap.add_argument("--warmup", type=int, default=200)
+    ap.add_argument("--rounds", type=int, default=3, help="alternating raw/node latency rounds, pooled")
+    args = ap.parse_args()
+    out = {
+        "benchmark": "vision: sharpness graph per frame, virtual camera render, node request->response latency",
+        "python": sys.version.split()[0], "opencv": cv2.__version__, "numpy": np.__version__,
+        "pyzmq": zmq.__version__, "machine": platform.machine(), "cpu_count": os.cpu_count(),
+        "opencv_threads": cv2.getNumThreads(),
+    }
+    out.update(bench_graph(args.frames))
+    out["latency"] = bench_latency(args.n, args.warmup, args.rounds)
+    out["load_avg_1min"] = round(os.getloadavg()[0], 2)
+    print(json.dumps(out, indent=2))
+
+
+if __name__ == "__main__":
+    main()
