@@ -1,0 +1,103 @@
+"""``aioadept send``: send skill calls to a robot server from the shell and print one line per ack.
+
+    aioadept send --host 127.0.0.1 --port 1234 "move_to:300,0,500,0,180,0" break
+    aioadept send --joined "set_speed:20" "move_rel_tool:0,0,2.5,0,0,0" break
+    aioadept send --json here
+
+Each argument is ``SKILL[:ARG,ARG,...]`` (the wire syntax without the ID); integers stay integers (``set_speed:20``).
+By default each skill is its own command, awaited before the next is sent (``cmdexec``); ``--joined`` writes them
+all at once (``cmdexec_joined``). Exit status: 0 all done, 1 an ``error``/``aborted`` ack, 2 bad usage,
+3 connection failure or ack timeout.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import sys
+from collections.abc import Sequence
+
+from aioadept.client import ExecResult, MessageResult, RobotClient
+from aioadept.commands import Skill
+from aioadept.errors import AckTimeout, CommandAborted, CommandError, ConnectError, ConnectionLost
+
+
+def parse_skill(text: str) -> Skill:
+    """``"move_to:1,2,3,4,5,6"`` -> ``Skill("move_to", 1, 2, 3, 4, 5, 6)``; ValueError naming what is wrong."""
+    name, sep, rest = text.partition(":")
+    args: list[int | float] = []
+    if sep:
+        for i, tok in enumerate(rest.split(",")):
+            tok = tok.strip()
+            try:
+                args.append(int(tok))
+            except ValueError:
+                try:
+                    args.append(float(tok))
+                except ValueError:
+                    raise ValueError(f"{text!r}: argument {i} ({tok!r}) is not a number") from None
+    return Skill(name, *args)
+
+
+def _line(r: MessageResult) -> str:
+    a = r.ack
+    pose = ",".join("%.3f" % v for v in a.pose.as_tuple())
+    extra = (" " + ":".join(a.extra)) if a.extra else ""
+    return (f"{r.id} {r.skill:<15} {a.status.value:<7} t={a.t_start_s:.3f}..{a.t_done_s:.3f} pose={pose} "
+            f"rtt={r.rtt_s * 1e3:.2f}ms{extra}")
+
+
+def _record(r: MessageResult) -> dict:
+    a = r.ack
+    return {"id": r.id, "skill": r.skill, "args": list(r.args), "status": a.status.value,
+            "t_start_s": a.t_start_s, "t_done_s": a.t_done_s, "pose": list(a.pose.as_tuple()),
+            "extra": list(a.extra), "t_send_s": r.t_send_s, "t_recv_s": r.t_recv_s, "batch": r.batch}
+
+
+def _print(results: Sequence[MessageResult], as_json: bool) -> None:
+    for r in results:
+        print(json.dumps(_record(r)) if as_json else _line(r), flush=True)
+
+
+async def _run(args: argparse.Namespace, commands: list[Skill]) -> int:
+    robot = RobotClient(args.host, args.port, connect_timeout_s=args.connect_timeout,
+                        ack_timeout_s=args.timeout)
+    try:
+        async with robot:
+            try:
+                res: ExecResult = await (robot.cmdexec_joined(*commands) if args.joined
+                                         else robot.cmdexec(*commands))
+            except (CommandError, CommandAborted) as exc:
+                done = getattr(exc, "completed", None)
+                _print(done.messages if done is not None else (), args.json)
+                _print(getattr(exc, "results", ()), args.json)
+                print(f"aioadept send: {exc}", file=sys.stderr)
+                return 1
+            _print(res.messages, args.json)
+            return 0
+    except (ConnectError, ConnectionLost, AckTimeout) as exc:
+        print(f"aioadept send: {exc}", file=sys.stderr)
+        return 3
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="aioadept send", description=__doc__.splitlines()[0])
+    ap.add_argument("skills", nargs="+", metavar="SKILL[:ARGS]", help="skill calls, e.g. move_to:1,2,3,4,5,6")
+    ap.add_argument("--host", default="127.0.0.1", help="robot server address (default 127.0.0.1)")
+    ap.add_argument("--port", type=int, default=1234, help="robot server port (default 1234)")
+    ap.add_argument("--joined", action="store_true", help="write all messages at once (cmdexec_joined)")
+    ap.add_argument("--timeout", type=float, default=60.0, help="ack timeout per wait, seconds (default 60)")
+    ap.add_argument("--connect-timeout", type=float, default=5.0, help="connect timeout, seconds (default 5)")
+    ap.add_argument("--json", action="store_true", help="print one JSON object per ack")
+    args = ap.parse_args(list(sys.argv[1:] if argv is None else argv))
+    try:
+        commands = [parse_skill(s) for s in args.skills]
+    except ValueError as exc:
+        print(f"aioadept send: {exc}", file=sys.stderr)
+        return 2
+    return asyncio.run(_run(args, commands))
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
