@@ -44,7 +44,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from aioadept.geometry import NULL, Pose, inverse_transform, trans
+from aioadept.geometry import NULL, Pose, inverse_transform
 from aioadept.vision.sources import Camera, Frame
 
 log = logging.getLogger(__name__)
@@ -184,7 +184,7 @@ def camera_facing_tool(tool_pose: Pose, distance_mm: float) -> Pose:
 
 # ------------------------------------------------------------------------------------------ the camera
 _DIRECT_BLUR_PX = 16.0
-"""Blur diameters up to this are filtered at full resolution; larger ones on a shrunk copy (same result, bounded cost)."""
+"""Blur diameters up to this are filtered at full resolution; larger ones on a shrunk copy (bounded cost)."""
 
 
 class VirtualCamera(Camera):
