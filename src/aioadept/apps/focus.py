@@ -14,6 +14,7 @@ pose on any failure, and the found pose returned with the sharpness series. :fun
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -46,6 +47,14 @@ class FocusError(AdeptError):
         super().__init__(message)
         self.sharpness = tuple(sharpness)
         self.retracted = retracted
+
+
+class FocusStopped(FocusError):
+    """A stop event ended the run; the robot was stopped where it was and is NOT moved back."""
+
+    def __init__(self, message: str, *, stop_id: str = "") -> None:
+        super().__init__(message)
+        self.stop_id = stop_id
 
 
 class Robot(Protocol):
@@ -126,13 +135,14 @@ async def measure(comm: Vision, *, timeout_s: float | None = None) -> tuple[floa
 
 async def ufloop(rc: Robot, comm: Vision, delta_z: float, appr_speed: int, *, max_steps: int = 40,
                  vision_timeout_s: float | None = None, retract_speed: int = 25, recorder: Any = None,
-                 do_init_move: bool = True) -> FocusResult:
+                 do_init_move: bool = True, stop_event: asyncio.Event | None = None) -> FocusResult:
     """Approach the focus plane with vision feedback (the paper's ``ufloop``) and return what it found.
 
     Like the paper: measure, stop when sharpness falls, step back one ``delta_z``. Unlike it: at most ``max_steps``
     steps, and on any failure (vision error or timeout, robot error, step limit, cancellation) the robot is sent back
-    to the approach pose before the error propagates. Raises :class:`FocusError` (step limit, vision failure) or the
-    robot's own error.
+    to the approach pose before the error propagates, except after a stop (an ``aborted`` ack, or ``stop_event``
+    set): then the robot stays where the stop left it. Raises :class:`FocusError` (step limit, vision failure) or
+    the robot's own error.
     """
     if do_init_move:
         approach = _last_pose(await init_move(rc))
@@ -166,7 +176,8 @@ async def ufloop(rc: Robot, comm: Vision, delta_z: float, appr_speed: int, *, ma
         pose = _last_pose(await move_tool_z(rc, appr_speed, -delta_z))  # back to the sharpest position
     except BaseException as exc:
         # A stop (aborted commands) means someone wants the robot to stay where it is: no retract motion then.
-        retracted = False if isinstance(exc, CommandAborted) else await _retract(rc, approach, retract_speed)
+        stopped = isinstance(exc, CommandAborted) or (stop_event is not None and stop_event.is_set())
+        retracted = False if stopped else await _retract(rc, approach, retract_speed)
         if isinstance(exc, FocusError):
             raise FocusError(str(exc), sharpness=sharpness, retracted=retracted) from exc.__cause__
         raise
@@ -188,39 +199,61 @@ async def _retract(rc: Robot, approach: Pose | None, speed: int) -> bool:
     return True
 
 
-async def stop_listener(rc: Any, subscriber: Any, *, event_type: str = "StopRequest") -> str:
+async def stop_listener(rc: Any, subscriber: Any, *, event_type: str = "StopRequest",
+                        on_stop: Any = None) -> str:
     """Wait for a stop event on the bus, then stop the robot (the paper's ``listener_coro``).
 
-    ``subscriber`` is an :class:`aioadept.bus.Subscriber` of EPypes events; returns the id of the stop event.
-    Compose it with :func:`ufloop` in a TaskGroup: see :func:`ufloop_with_stop`.
+    ``subscriber`` is an :class:`aioadept.bus.Subscriber` of EPypes events; ``on_stop(event_id)`` is called before
+    the robot is stopped. Returns the id of the stop event. Compose it with :func:`ufloop`: see
+    :func:`ufloop_with_stop`.
     """
     from aioadept.bus.messages import decode_event
 
     while True:
         _topic, payload = await subscriber.recv()
-        etype, eid, _attrs = decode_event(payload)
+        try:
+            etype, eid, _attrs = decode_event(payload)
+        except AdeptError:
+            continue  # not an event of ours: a listener must not die of a stranger's message
         if etype == event_type:
             log.warning("stop event %s received: stopping the robot", eid)
+            if on_stop is not None:
+                on_stop(eid or "")
             await rc.stop()
             return eid or ""
 
 
 async def ufloop_with_stop(rc: Any, comm: Vision, subscriber: Any, params: FocusParams,
                            **kw: Any) -> FocusResult:
-    """:func:`ufloop` and :func:`stop_listener` as two concurrent coroutines; the first to finish wins.
+    """:func:`ufloop` and :func:`stop_listener` as two concurrent coroutines (the paper's composition).
 
-    A stop event aborts the robot's queued motions; ``ufloop`` then fails with the abort and retracts.
+    If the loop finishes first, the listener is cancelled and the result returned. If a stop event arrives first,
+    the robot is stopped (queued motions aborted), the loop is cancelled without a retract, and
+    :class:`FocusStopped` is raised.
     """
+    stopped = asyncio.Event()
+    stop_ids: list[str] = []
+
+    def on_stop(eid: str) -> None:
+        stop_ids.append(eid)
+        stopped.set()
+
+    loop_task = asyncio.create_task(ufloop(rc, comm, params.delta_z_mm, params.approach_speed,
+                                           max_steps=params.max_steps, vision_timeout_s=params.vision_timeout_s,
+                                           retract_speed=params.retract_speed, stop_event=stopped, **kw))
+    listener = asyncio.create_task(stop_listener(rc, subscriber, on_stop=on_stop))
     try:
-        async with asyncio.TaskGroup() as tg:
-            listener = tg.create_task(stop_listener(rc, subscriber))
-            loop_task = tg.create_task(ufloop(rc, comm, params.delta_z_mm, params.approach_speed,
-                                              max_steps=params.max_steps, vision_timeout_s=params.vision_timeout_s,
-                                              retract_speed=params.retract_speed, **kw))
-            loop_task.add_done_callback(lambda _t: listener.cancel())
-    except BaseExceptionGroup as group:
-        # One coroutine failed (the loop, normally with the abort caused by the stop): raise that error itself.
-        if len(group.exceptions) == 1:
-            raise group.exceptions[0] from None
-        raise
-    return loop_task.result()
+        await asyncio.wait({loop_task, listener}, return_when=asyncio.FIRST_COMPLETED)
+        if stopped.is_set():
+            with contextlib.suppress(AdeptError):
+                await listener  # let the stop itself complete before ending the loop
+            loop_task.cancel()
+            await asyncio.gather(loop_task, return_exceptions=True)
+            raise FocusStopped(f"stopped by stop event {stop_ids[0]!r}", stop_id=stop_ids[0])
+        if listener.done():
+            listener.result()  # the listener failed: raise its error
+        return await loop_task
+    finally:
+        for task in (loop_task, listener):
+            task.cancel()
+        await asyncio.gather(loop_task, listener, return_exceptions=True)
