@@ -440,12 +440,19 @@ class RobotClient:
 
     def _feed(self, data: bytes, t_recv: float) -> None:
         """Route every ack in ``data`` (read at loop time ``t_recv``). The hot path of the client."""
-        pending = self._pending
+        pending_pop = self._pending.pop
         parser = self._parser
+        pose_text, pose = parser._pose_text, parser._pose
         make_result = _make_result
         make_ack = _make_ack
         isfinite = math.isfinite
         notify = self._notify_ack if self._observers else None
+        cur = None  # the submission of the previous ack, and its fields: consecutive acks mostly share one
+        calls: Sequence[SkillCall] = ()
+        results: list[MessageResult | None] = []
+        futs = None
+        batch = 0
+        t_send = 0.0
         fast = 0
         for item in self._framer.feed(data):
             if type(item) is not bytes:
@@ -454,26 +461,29 @@ class RobotClient:
             # Fast path, inline because it runs once per ack: a plain `done` ack carrying the same pose text as
             # the previous ack, checked exactly as AckParser.parse checks it. Anything else takes _route().
             parts = item.split(b":")  # type: ignore[union-attr]
-            if len(parts) == 4 and parts[1] == b"done" and parts[3] == parser._pose_text:
-                mid_b = parts[0]
-                times = parts[2].split(b",")
-                if len(mid_b) == 8 and mid_b.isalnum() and len(times) == 2:
+            if len(parts) == 4 and parts[3] == pose_text and parts[1] == b"done":
+                mid_b, _, times_b, _ = parts
+                times = times_b.split(b",")
+                if len(times) == 2 and len(mid_b) == 8 and mid_b.isalnum():
                     try:
-                        t_start = float(times[0])
-                        t_done = float(times[1])
+                        t_start, t_done = map(float, times)
                     except ValueError:
                         t_start = t_done = math.nan
                     mid = mid_b.decode("ascii")
-                    entry = pending.pop(mid, None) if isfinite(t_start + t_done) else None
+                    entry = pending_pop(mid, None) if isfinite(t_start + t_done) else None
                     if entry is not None:
                         sub, i = entry
-                        call = sub.calls[i]
-                        result = make_result(mid, call.skill, call.args, sub.batch, sub.t_send_s, t_recv,
-                                             make_ack(mid, _DONE, t_start, t_done, parser._pose, ()))
-                        sub.results[i] = result
+                        if sub is not cur:
+                            cur = sub
+                            calls, results, futs = sub.calls, sub.results, sub.futures
+                            batch, t_send = sub.batch, sub.t_send_s
+                        call = calls[i]
+                        result = make_result(mid, call.skill, call.args, batch, t_send, t_recv,
+                                             make_ack(mid, _DONE, t_start, t_done, pose, ()))
+                        results[i] = result
                         fast += 1
-                        if sub.futures is not None and not sub.futures[i].done():
-                            sub.futures[i].set_result(result)
+                        if futs is not None and not futs[i].done():
+                            futs[i].set_result(result)
                         sub.remaining -= 1
                         if not sub.remaining and sub._waiter is not None and not sub._waiter.done():
                             sub._waiter.set_result(_ACKED)
@@ -481,6 +491,7 @@ class RobotClient:
                             notify(result)
                         continue
             self._route(item, t_recv)  # type: ignore[arg-type]
+            pose_text, pose = parser._pose_text, parser._pose
         self.stats.acks += fast
 
     def _route(self, line: bytes, t_recv: float) -> None:

@@ -1,0 +1,79 @@
+"""The client's inline ack fast path gives exactly what the general parser gives (no sockets)."""
+
+from __future__ import annotations
+
+import asyncio
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from aioadept.client import ClientState, RobotClient
+from aioadept.commands import Skill
+from aioadept.errors import RemoteProtocolError
+from aioadept.geometry import Pose
+from aioadept.protocol import Ack, Status, encode_ack, parse_ack
+
+POSES = [Pose(1, 2, 3, 4, 5, 6), Pose(480.014, -0.038, 709.975, 0.0, 179.995, 0.004)]
+
+
+def wired_client() -> tuple[RobotClient, list[bytes]]:
+    written: list[bytes] = []
+    robot = RobotClient()
+    robot._loop = asyncio.new_event_loop()
+    robot._write = written.append
+    robot._state = ClientState.CONNECTED
+    return robot, written
+
+
+line_kind = st.sampled_from(["done", "done_same", "error", "aborted", "bad_time", "inf_time", "unknown", "extra"])
+
+
+@settings(max_examples=150, deadline=None)
+@given(kinds=st.lists(st.tuples(line_kind, st.integers(0, 1), st.floats(-1e4, 1e4, allow_nan=False)),
+                      min_size=1, max_size=12),
+       split=st.integers(1, 7))
+def test_inline_fast_path_matches_parse_ack(kinds, split):
+    robot, written = wired_client()
+    try:
+        sub = robot.submit(*[Skill("noop", k) for k in range(len(kinds))])
+        lines = []
+        for mid, (kind, pose_i, t) in zip(sub.ids, kinds):
+            pose = POSES[pose_i]
+            if kind in ("done", "done_same"):
+                line = encode_ack(Ack(mid, Status.DONE, t, t + 1, pose))
+            elif kind == "error":
+                line = encode_ack(Ack.error(mid, -610, "out of range", t, t, pose))
+            elif kind == "aborted":
+                line = encode_ack(Ack(mid, Status.ABORTED, t, t, pose))
+            elif kind == "extra":
+                line = encode_ack(Ack(mid, Status.DONE, t, t, pose, ("1", "x")))
+            elif kind == "bad_time":
+                line = encode_ack(Ack(mid, Status.DONE, t, t, pose)).replace(b":done:", b":done:x", 1)
+            elif kind == "inf_time":
+                line = f"{mid}:done:inf,1.000:".encode() + encode_ack(Ack(mid, Status.DONE, 0, 0, pose)).split(
+                    b":")[3]
+            else:
+                line = encode_ack(Ack("ffffffff" if mid != "ffffffff" else "fffffffe", Status.DONE, t, t, pose))
+            lines.append(line)
+        stream = b"".join(lines)
+        for k in range(0, len(stream), split * 37):
+            robot._feed(stream[k:k + split * 37], 5.0)
+        for i, line in enumerate(lines):
+            try:
+                want = parse_ack(line.rstrip(b"\r\n"))
+            except RemoteProtocolError:
+                want = None
+            got = sub.results[i]
+            if want is None or want.id != sub.ids[i]:
+                assert got is None  # garbage or someone else's ID: not routed to this message
+            else:
+                assert got is not None and got.ack == want
+                assert (got.id, got.skill, got.args, got.t_recv_s) == (sub.ids[i], "noop", (i,), 5.0)
+                assert sub.futures[i].result() is got
+        routed = sum(r is not None for r in sub.results)
+        assert robot.stats.acks == routed
+        assert sub.remaining == len(kinds) - routed
+        assert robot.stats.bad_lines + robot.stats.unknown_acks == len(kinds) - routed
+    finally:
+        sub.cancel()
+        robot._loop.close()
