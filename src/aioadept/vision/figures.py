@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from aioadept.geometry import Pose
@@ -58,11 +59,15 @@ def write_figures(outdir: str | Path, *, focus_offset_mm: float = 20.0, delta_z_
         roi, sx, prof = run["roi"], run["sobelx_im"], run["profile_sx"]
         profiles.append(prof)
         dist = cam.object_distance_mm(pose)
-        axes[0, col].imshow(roi, cmap="gray", vmin=0, vmax=255)
-        axes[0, col].axhline(roi.shape[0] // 2, color="tab:red", lw=0.6)
+        axes[0, col].imshow(cv2.resize(roi, (320, max(1, round(roi.shape[0] * 320 / roi.shape[1]))),
+                                       interpolation=cv2.INTER_AREA), cmap="gray", vmin=0, vmax=255,
+                            interpolation="nearest")
+        axes[0, col].axhline(roi.shape[0] // 2 * 320 / roi.shape[1], color="tab:red", lw=0.6)
         axes[0, col].set_title(f"pose {col + 1}: {dist:.1f} mm\nsharpness {run['sharpness']:.1f}", fontsize=9)
-        axes[1, col].imshow(np.abs(sx), cmap="gray", vmin=0, vmax=600)
-        axes[1, col].set_title("|sobelx_im|", fontsize=8)
+        # Shrink by area averaging before display: thin gradient lines would alias at figure resolution.
+        shown = cv2.resize(sx, (320, max(1, round(sx.shape[0] * 320 / sx.shape[1]))), interpolation=cv2.INTER_AREA)
+        axes[1, col].imshow(shown, cmap="RdBu_r", vmin=-300, vmax=300, interpolation="nearest")
+        axes[1, col].set_title("sobelx_im (blue < 0 < red)", fontsize=8)
         for ax in axes[:2, col]:
             ax.set_xticks([])
             ax.set_yticks([])
@@ -75,10 +80,11 @@ def write_figures(outdir: str | Path, *, focus_offset_mm: float = 20.0, delta_z_
         ax.tick_params(labelsize=7)
         if col:
             ax.set_yticklabels([])
-    fig.suptitle(f"intermediate results at 5 object distances (focal plane at pose 3; cf. Fig. 8)", fontsize=10)
+    fig.suptitle("roi (red: the profile row), sobelx_im and profile_sx at 5 object distances "
+                 "(focal plane at pose 3; cf. Fig. 8)", fontsize=10)
     fig.tight_layout()
     p = out / "sharpness_intermediate.png"
-    fig.savefig(p, dpi=dpi)
+    fig.savefig(p, dpi=round(dpi * 0.85))  # the widest figure: keep the PNG small
     plt.close(fig)
     paths.append(p)
 
