@@ -76,6 +76,7 @@ Connector = Callable[[], Awaitable[tuple[asyncio.StreamReader, asyncio.StreamWri
 """An async callable that opens a (reader, writer) pair; the default opens TCP to ``host:port``."""
 
 _READ_SIZE = 1 << 16
+_CLOSE_FLUSH_S = 1.0
 _ABANDONED_MEMORY = 4096  # how many cancelled/timed-out IDs we remember to tell late acks from unknown ones
 _UNEXPECTED_MEMORY = 100
 
@@ -416,7 +417,13 @@ class RobotClient:
                 if current is not None and current.cancelling():
                     raise
         if closed is not None:
-            await asyncio.shield(closed)
+            try:  # close() waits to flush what we wrote; a peer that never reads must not hang us
+                async with asyncio.timeout(_CLOSE_FLUSH_S):
+                    await asyncio.shield(closed)
+            except TimeoutError:
+                assert transport is not None
+                transport.abort()  # type: ignore[attr-defined]
+                await closed
 
     # ------------------------------------------------------------------------------------------- reading
     async def _read_loop(self, reader: asyncio.StreamReader) -> None:
@@ -462,15 +469,16 @@ class RobotClient:
             # the previous ack, checked exactly as AckParser.parse checks it. Anything else takes _route().
             parts = item.split(b":")  # type: ignore[union-attr]
             if len(parts) == 4 and parts[3] == pose_text and parts[1] == b"done":
-                mid_b, _, times_b, _ = parts
-                times = times_b.split(b",")
-                if len(times) == 2 and len(mid_b) == 8 and mid_b.isalnum():
-                    try:
-                        t_start, t_done = map(float, times)
-                    except ValueError:
-                        t_start = t_done = math.nan
-                    mid = mid_b.decode("ascii")
-                    entry = pending_pop(mid, None) if isfinite(t_start + t_done) else None
+                # No ID syntax check needed: only IDs we issued are in the registry, so a hit proves it valid;
+                # UnicodeDecodeError and a wrong number of times are ValueErrors like a bad float.
+                try:
+                    t_start, t_done = map(float, parts[2].split(b","))
+                    mid = parts[0].decode("ascii")
+                except ValueError:
+                    mid = ""
+                    t_start = t_done = math.nan
+                if isfinite(t_start + t_done):
+                    entry = pending_pop(mid, None)
                     if entry is not None:
                         sub, i = entry
                         if sub is not cur:
