@@ -3,8 +3,8 @@
 Each part has a baseline measured in the same run, and the ratios against it. Prints one JSON object.
 
 1. **sim**: ``aioadept sim --state-endpoint none`` (real-time motion) as a child process, and N concurrent
-   ``RobotClient`` connections in this process, each doing ``here`` round trips one after another for ``--sim-seconds``, capped at
-   ``--sim-max-per-client``. The baseline is 1 client. Reported:
+   ``RobotClient`` connections in this process, each doing ``here`` round trips one after another for
+   ``--sim-seconds``, capped at ``--sim-max-per-client``. The baseline is 1 client. Reported:
    - p50/p99 round trip and throughput (acks/s), at rest and while one more client moves the arm (move + break,
      real-time motion), which shows what the single serial executor (V+'s one task) does to everyone else;
    - CPU of the sim process (``/proc/PID/stat``, all threads), of this process (the clients' event loop,
