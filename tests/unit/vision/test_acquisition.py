@@ -119,9 +119,10 @@ def test_acquisition_paces_grabs_and_stops_its_threads():
         assert first is not None
     assert not any(t.is_alive() for t in threading.enumerate() if t.name == "grab:a")
     assert cam.closed
-    # ~0.3 s at 50 fps is ~15 frames; a free-running loop would be thousands.
-    assert 8 <= cam.n <= 30
-    assert len(acq.rings["a"]) == 8
+    # ~0.3 s at 50 fps is ~15 frames; a free-running loop would be thousands (a starved one on a loaded CI box
+    # fewer, hence the loose lower bound).
+    assert 3 <= cam.n <= 30
+    assert len(acq.rings["a"]) == min(8, cam.n)
 
 
 @pytest.mark.timeout(10)
