@@ -53,9 +53,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--source", action="append", metavar="SPEC",
                    help="virtual | folder:PATH | opencv:SPEC (device index, video file or URL); repeat for several "
                         "cameras (default: virtual)")
-    p.add_argument("--state-endpoint", help="robot state stream to follow (virtual source; default %(default)s)")
-    p.add_argument("--request-endpoint", help="bind SUB for VisionRequest events (port 0: any free port)")
-    p.add_argument("--response-endpoint", help="bind PUB for VisionResponse events (port 0: any free port)")
+    p.add_argument("--state-endpoint", help="robot state stream to follow (virtual source; default tcp://127.0.0.1:5560)")
+    p.add_argument("--request-endpoint", help="bind SUB for VisionRequest events (default tcp://127.0.0.1:5555; port 0: any free port)")
+    p.add_argument("--response-endpoint", help="bind PUB for VisionResponse events (default tcp://127.0.0.1:5556; port 0: any free port)")
     p.add_argument("--fps", type=float, help="grab rate cap per source (default 15)")
     p.add_argument("--buffer-size", type=int, help="frames kept per source (default 64)")
     p.add_argument("--focus-offset-mm", type=float,
