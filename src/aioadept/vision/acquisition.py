@@ -225,7 +225,11 @@ class Acquisition:
                     deadline = now  # behind: skip the missed slots instead of bursting
 
     def stop(self) -> None:
-        """Stop and join every grabbing thread, then close the sources (idempotent)."""
+        """Stop and join every grabbing thread, then close the sources (idempotent).
+
+        A thread notices the stop between grabs, so stopping takes at most one ``grab()``; a device whose read
+        never returns keeps ``stop()`` waiting (closing a capture under a reading thread is not safe in OpenCV).
+        """
         self._stop.set()
         for t in self._threads:
             t.join()
