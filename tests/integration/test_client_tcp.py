@@ -431,3 +431,18 @@ def test_same_behaviour_on_asyncio_and_uvloop(loop_name):
     assert skills == ["set_speed", "move_rel_tool"]
     assert pending == ()
     assert loop_module.startswith("uvloop" if loop_name == "uvloop" else "asyncio")
+
+
+@pytest.mark.timeout(10)
+async def test_scripted_server_close_right_after_accept_drops_the_connection():
+    # A connection accepted just before close() must not be left open (its handler had not started yet).
+    for _ in range(5):
+        server = await ScriptedServer(silent_after=1).start()
+        robot = RobotClient(server.host, server.port)
+        await robot.connect()
+        sub = robot.submit(Break())
+        await server.close()
+        with pytest.raises(ConnectionLost) as info:
+            await sub.wait(timeout_s=3)
+        assert info.value.unresolved == sub.ids
+        await robot.close()

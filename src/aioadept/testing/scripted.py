@@ -150,6 +150,9 @@ class ScriptedServer:
         """Stop listening, cancel every connection task and await it."""
         if self._server is not None:
             self._server.close()
+            # Connections accepted just before have their handler task scheduled but not started; one loop turn
+            # lets them register, so they are cancelled and closed below instead of being left open.
+            await asyncio.sleep(0)
         tasks = list(self._tasks)
         for t in tasks:
             t.cancel()
@@ -211,6 +214,8 @@ class ScriptedServer:
                 raise
         finally:
             self._serving.discard(outer)
+            if not writer.is_closing():  # the inner task was cancelled before it ran: close here instead
+                writer.close()
 
     def _reply_for(self, msg: CommandMessage, index: int, conn_count: int) -> Reply:
         if self.drop_after is not None and conn_count >= self.drop_after:

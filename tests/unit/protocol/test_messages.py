@@ -251,7 +251,7 @@ def test_ack_round_trip(ack):
     assert encode_ack(back) == encode_ack(ack)  # a second trip is exact
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(pairs=st.lists(st.tuples(id_st, call_st), min_size=1, max_size=20),
        cuts=st.lists(st.integers(0, 100_000), max_size=30))
 def test_any_split_of_a_valid_command_stream_gives_identical_messages(pairs, cuts):
@@ -264,7 +264,7 @@ def test_any_split_of_a_valid_command_stream_gives_identical_messages(pairs, cut
     assert got == [parse_command(encode_command(mid, call)[:-2]) for mid, call in pairs]
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(acks=st.lists(ack_st, min_size=1, max_size=20), cuts=st.lists(st.integers(0, 100_000), max_size=30))
 def test_any_split_of_a_valid_ack_stream_gives_identical_acks(acks, cuts):
     stream = b"".join(map(encode_ack, acks))
@@ -300,7 +300,7 @@ def test_garbage_raises_only_protocol_errors(data):
             pass
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=150, deadline=None)
 @given(items=st.lists(st.one_of(ack_st.map(lambda a: encode_ack(a)[:-2]), garbage_st,
                                 st.sampled_from([b"0000000a:done:1.0,2.0:1,2,3,4,5,6",
                                                  b"0000000b:done:1.5,x:1,2,3,4,5,6",
