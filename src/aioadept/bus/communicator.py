@@ -46,8 +46,10 @@ from aioadept.bus.pubsub import (
     DEFAULT_REQUEST_ENDPOINT,
     DEFAULT_RESPONSE_ENDPOINT,
     as_topic,
+    close_socket,
     open_socket,
 )
+from aioadept.bus.security import Curve
 from aioadept.errors import BusEncodeError, BusError, ClientStateError, RequestTimeout, VisionError
 
 __all__ = [
@@ -165,7 +167,9 @@ class Communicator:
     ``timeout_s`` is the default per-request timeout. Until answered, a request is re-published with the same id
     after ``republish_interval_s``, then at intervals growing by ``republish_backoff`` up to
     ``republish_max_interval_s``. ``request_topic``/``response_topic`` None means single-frame messages, as EPypes
-    sends and expects; give topics to share endpoints between services.
+    sends and expects; give topics to share endpoints between services. ``curve`` (default None: off) secures
+    both sockets with CURVE: normally a :class:`aioadept.bus.security.CurveClient` holding the node's public key
+    (docs/security.md).
     """
 
     def __init__(
@@ -182,6 +186,7 @@ class Communicator:
         response_topic: bytes | str | None = None,
         bind: bool = False,
         context: zmq.Context | None = None,
+        curve: Curve | None = None,
     ) -> None:
         if timeout_s <= 0 or republish_interval_s <= 0 or republish_backoff < 1 or republish_max_interval_s <= 0:
             raise ValueError("timeouts and intervals must be > 0 and backoff >= 1")
@@ -195,6 +200,7 @@ class Communicator:
         self._response_topic = None if response_topic is None else as_topic(response_topic)
         self._bind = bind
         self._context = context
+        self._curve = curve
         self._observers: list[Any] = list(observers)
         self._pending: dict[str, _Pending] = {}
         self._sent_order: collections.deque[str] = collections.deque()  # for the paper-style send()/recv()
@@ -243,12 +249,12 @@ class Communicator:
         loop = self._loop = asyncio.get_running_loop()
         topics = (b"",) if self._response_topic is None else (self._response_topic,)
         self._sub, self._actual_resp = open_socket(zmq.SUB, self.response_endpoint, bind=self._bind,
-                                                   context=self._context, topics=topics)
+                                                   context=self._context, topics=topics, curve=self._curve)
         try:
             self._pub, self._actual_req = open_socket(zmq.PUB, self.request_endpoint, bind=self._bind,
-                                                      context=self._context)
+                                                      context=self._context, curve=self._curve)
         except BaseException:
-            self._sub.close(linger=0)
+            close_socket(self._sub)
             raise
         self._state = "open"
         # The hot path: ZeroMQ's FD wakes the loop and _on_readable routes every queued response straight to its
@@ -279,7 +285,7 @@ class Communicator:
         self._fail_all(BusError("communicator closed"))
         for sock in (self._pub, self._sub):
             if sock is not None:
-                sock.close(linger=0)
+                close_socket(sock)
 
     def _stop_reading(self) -> None:
         if self._fd is not None and self._loop is not None:
@@ -527,7 +533,9 @@ class Responder:
       processed waits and is then answered from the cache.
     - ``request_types`` restricts which event types are answered (others are ignored); None answers all.
 
-    ``async with Responder(...)`` (or ``start()``/``aclose()``, or ``await serve()``) runs it.
+    ``async with Responder(...)`` (or ``start()``/``aclose()``, or ``await serve()``) runs it. ``curve`` (default
+    None: off) secures both sockets with CURVE, normally a :class:`aioadept.bus.security.CurveServer` listing the
+    requesters' public keys (docs/security.md).
     """
 
     def __init__(
@@ -544,6 +552,7 @@ class Responder:
         request_topic: bytes | str | None = None,
         response_topic: bytes | str | None = None,
         context: zmq.Context | None = None,
+        curve: Curve | None = None,
     ) -> None:
         if cache_size < 1:
             raise ValueError("cache_size must be >= 1")
@@ -560,11 +569,12 @@ class Responder:
         self._response_topic = None if response_topic is None else as_topic(response_topic)
         topics = (b"",) if request_topic is None else (request_topic,)
         self._sub, self._actual_req = open_socket(zmq.SUB, request_endpoint, bind=bind, context=context,
-                                                  topics=topics)
+                                                  topics=topics, curve=curve)
         try:
-            self._pub, self._actual_resp = open_socket(zmq.PUB, response_endpoint, bind=bind, context=context)
+            self._pub, self._actual_resp = open_socket(zmq.PUB, response_endpoint, bind=bind, context=context,
+                                                       curve=curve)
         except BaseException:
-            self._sub.close(linger=0)
+            close_socket(self._sub)
             raise
         self._loop: asyncio.AbstractEventLoop | None = None
         self._fd: int | None = None
@@ -652,8 +662,8 @@ class Responder:
                 pass
             except Exception:
                 log.exception("Responder task ended with an error")
-        self._sub.close(linger=0)
-        self._pub.close(linger=0)
+        close_socket(self._sub)
+        close_socket(self._pub)
         if self._executor is not None:
             self._executor.shutdown(wait=False, cancel_futures=True)
         if self._closed_event is not None:

@@ -11,6 +11,9 @@ Every socket is created in the constructor (so a bound socket's real port is kno
 ``actual_endpoint``), has ``LINGER 0`` and is closed by ``close()`` / ``async with``. Without an explicit
 ``context`` the process-wide ``zmq.asyncio.Context.instance()`` is used and never terminated by us: terminating a
 shared context would break every other socket in the process. ZeroMQ errors become :class:`BusError`.
+
+Every constructor takes ``curve=`` (default None: plain TCP, as EPypes). A :class:`aioadept.bus.security.CurveServer`
+or :class:`~aioadept.bus.security.CurveClient` turns on CURVE authentication and encryption (docs/security.md).
 """
 
 from __future__ import annotations
@@ -23,6 +26,8 @@ from typing import Any
 import zmq
 import zmq.asyncio
 
+from aioadept.bus import security
+from aioadept.bus.security import Curve
 from aioadept.errors import BusError
 
 __all__ = [
@@ -33,6 +38,7 @@ __all__ = [
     "SyncPublisher",
     "Subscriber",
     "as_topic",
+    "close_socket",
     "open_socket",
 ]
 
@@ -64,27 +70,33 @@ def _async_context(context: zmq.Context | None) -> zmq.asyncio.Context:
     return zmq.asyncio.Context.shadow(context.underlying)
 
 
-def _attach(sock: zmq.Socket, endpoint: str, bind: bool) -> str:
-    """Bind or connect ``sock``; return the endpoint actually in use (the real port after binding to 0 or *)."""
+def _attach(sock: zmq.Socket, endpoint: str, bind: bool, curve: Curve | None = None) -> str:
+    """Set up CURVE if asked, then bind or connect ``sock``; return the endpoint actually in use (the real port
+    after binding to 0 or *)."""
     try:
+        security.apply_curve(sock, curve)
         if bind:
             sock.bind(endpoint)
             return sock.getsockopt_string(zmq.LAST_ENDPOINT)
         sock.connect(endpoint)
         return endpoint
-    except zmq.ZMQError as exc:
+    except BaseException as exc:
+        security.release(sock)
         sock.close(linger=0)
+        if not isinstance(exc, zmq.ZMQError):
+            raise
         verb = "bind" if bind else "connect"
         raise BusError(f"cannot {verb} {endpoint!r}: {exc}") from exc
 
 
 def open_socket(kind: int, endpoint: str, *, bind: bool, context: zmq.Context | None = None,
-                topics: Iterable[bytes | str] = (), hwm: int = 1000) -> tuple[zmq.Socket, str]:
+                topics: Iterable[bytes | str] = (), hwm: int = 1000,
+                curve: Curve | None = None) -> tuple[zmq.Socket, str]:
     """A plain (synchronous) ZeroMQ socket with ``LINGER 0``, subscribed to ``topics`` if it is a SUB, bound or
     connected; returns ``(socket, actual_endpoint)``. The caller owns it and must close it.
 
     For code that drives a socket from the loop's reader callbacks rather than through zmq.asyncio futures (the
-    Communicator's response reader). Raises :class:`BusError`.
+    Communicator's response reader). Raises :class:`BusError`. With ``curve``, close it with :func:`close_socket`.
     """
     ctx = _async_context(context)
     sock = zmq.Socket(ctx, kind)
@@ -93,7 +105,13 @@ def open_socket(kind: int, endpoint: str, *, bind: bool, context: zmq.Context | 
     if kind == zmq.SUB:
         for t in topics:
             sock.setsockopt(zmq.SUBSCRIBE, as_topic(t))
-    return sock, _attach(sock, endpoint, bind)
+    return sock, _attach(sock, endpoint, bind, curve)
+
+
+def close_socket(sock: zmq.Socket) -> None:
+    """Close a socket from :func:`open_socket` (linger 0), releasing its CURVE authenticator share if any."""
+    security.release(sock)
+    sock.close(linger=0)
 
 
 class _Owned:
@@ -125,7 +143,7 @@ class _Owned:
     def close(self) -> None:
         """Close the socket at once (linger 0: unsent messages are dropped). Idempotent."""
         if not self._sock.closed:
-            self._sock.close(linger=0)
+            close_socket(self._sock)
 
     def __repr__(self) -> str:
         state = "closed" if self.closed else ("bound" if self._bind else "connected")
@@ -161,7 +179,7 @@ class Publisher(_PublisherBase):
     """
 
     def __init__(self, endpoint: str, *, bind: bool = True, context: zmq.Context | None = None,
-                 sndhwm: int = 1000) -> None:
+                 sndhwm: int = 1000, curve: Curve | None = None) -> None:
         ctx = _async_context(context)
         # A plain (synchronous) socket on the same context: sends never wait, so the asyncio machinery of
         # zmq.asyncio (a future per send) would be pure overhead on the hot path.
@@ -169,7 +187,7 @@ class Publisher(_PublisherBase):
         self._sock.setsockopt(zmq.LINGER, 0)
         self._sock.setsockopt(zmq.SNDHWM, sndhwm)
         self._endpoint, self._bind = endpoint, bind
-        self._actual = _attach(self._sock, endpoint, bind)
+        self._actual = _attach(self._sock, endpoint, bind, curve)
 
     def publish_nowait(self, topic: bytes | str, payload: bytes) -> None:
         """Send ``[topic, payload]``. Raises :class:`BusError` if the socket is closed."""
@@ -202,13 +220,13 @@ class SyncPublisher(_PublisherBase):
     """
 
     def __init__(self, endpoint: str, *, bind: bool = True, context: zmq.Context | None = None,
-                 sndhwm: int = 1000) -> None:
+                 sndhwm: int = 1000, curve: Curve | None = None) -> None:
         ctx = context if context is not None else zmq.Context.instance()
         self._sock = zmq.Socket(ctx, zmq.PUB)
         self._sock.setsockopt(zmq.LINGER, 0)
         self._sock.setsockopt(zmq.SNDHWM, sndhwm)
         self._endpoint, self._bind = endpoint, bind
-        self._actual = _attach(self._sock, endpoint, bind)
+        self._actual = _attach(self._sock, endpoint, bind, curve)
 
     def publish(self, topic: bytes | str, payload: bytes) -> None:
         """Send ``[topic, payload]``; never blocks."""
@@ -233,7 +251,7 @@ class Subscriber(_Owned):
     """
 
     def __init__(self, endpoint: str, *, topics: Iterable[bytes | str] = (b"",), bind: bool = False,
-                 context: zmq.Context | None = None, rcvhwm: int = 1000) -> None:
+                 context: zmq.Context | None = None, rcvhwm: int = 1000, curve: Curve | None = None) -> None:
         ctx = _async_context(context)
         self._sock = ctx.socket(zmq.SUB)
         self._sock.setsockopt(zmq.LINGER, 0)
@@ -242,7 +260,7 @@ class Subscriber(_Owned):
         for t in topics:
             self.subscribe(t)
         self._endpoint, self._bind = endpoint, bind
-        self._actual = _attach(self._sock, endpoint, bind)
+        self._actual = _attach(self._sock, endpoint, bind, curve)
 
     @property
     def topics(self) -> tuple[bytes, ...]:
