@@ -33,6 +33,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--instant", action="store_true", help="motions complete at once (for tests)")
     p.add_argument("--monitor-speed", type=float, default=100.0, dest="monitor_speed",
                    help="controller monitor speed in %% (effective speed = program speed x this / 100)")
+    p.add_argument("--max-speed", type=float, default=100.0, dest="max_speed",
+                   help="cap on the effective speed in %% (a safety limit: no motion runs faster)")
     p.add_argument("--max-clients", type=int, default=16, dest="max_clients",
                    help="connections served at once; more are refused with a SERVER_BUSY error ack")
     p.add_argument("--allow", action="append", default=[], metavar="ADDR",
@@ -58,7 +60,8 @@ def options_from_args(args: argparse.Namespace) -> SimOptions:
     if args.joints is not None:
         extra["joints_deg"] = args.joints
     return SimOptions(host=args.host, port=args.port, time_scale=args.time_scale, instant=args.instant,
-                      monitor_speed_pct=args.monitor_speed, max_clients=args.max_clients, allow=tuple(args.allow),
+                      monitor_speed_pct=args.monitor_speed, max_speed_pct=args.max_speed,
+                      max_clients=args.max_clients, allow=tuple(args.allow),
                       state_endpoint=state, state_rate_hz=args.state_rate_hz, faults=Faults.parse(args.fault),
                       tool=Pose(*args.tool) if args.tool else NULL, **extra)
 

@@ -20,7 +20,8 @@ Semantics, following the original V+ AdeptServer (FACTS.md):
   ahead of the executing one, so a third move waits until the second starts. Consecutive motions without
   ``break`` blend.
 - ``set_speed`` applies to the next motion instruction only (V+ ``SPEED`` without ``ALWAYS``), which consumes it
-  whether it succeeds or fails. Effective speed = program speed x monitor speed / 100.
+  whether it succeeds or fails. Effective speed = program speed x monitor speed / 100, capped at
+  ``max_speed_pct`` (a safety limit of the cell, docs/security.md; 100 = no cap).
 - Relative moves read ``HERE`` when they run, as the V+ program does: without a ``break`` before them they start
   from wherever the arm is at that moment, not from the previous motion's target.
 - Errors never halt the server: a bad line, unknown skill, wrong argument count or value, unreachable target or
@@ -139,12 +140,16 @@ class Controller:
                  monitor_speed_pct: float = 100.0, time_scale: float = 1.0, instant: bool = False,
                  motion_limits: MotionLimits = MotionLimits(), joint_limits: kin.JointLimits = kin.VIPER_S850_LIMITS,
                  max_queued_per_conn: int = 10_000, skills: Iterable[SkillSpec] | None = None,
-                 version: str | None = None) -> None:
+                 version: str | None = None, max_speed_pct: float = 100.0) -> None:
         if not 0 < monitor_speed_pct <= 100:
             raise ValueError(f"monitor_speed_pct: {monitor_speed_pct} outside (0, 100]")
+        if not 0 < max_speed_pct <= 100:
+            raise ValueError(f"max_speed_pct: {max_speed_pct} outside (0, 100]")
         joint_limits.check(joints_deg)
         self.tool = tool
         self.monitor_speed_pct = float(monitor_speed_pct)
+        self.max_speed_pct = float(max_speed_pct)
+        """Cap on the effective speed, whatever the program and monitor speeds ask for."""
         self.joint_limits = joint_limits
         self.trajectory = Trajectory(joints_deg, limits=motion_limits, time_scale=time_scale, instant=instant)
         self.max_queued_per_conn = max_queued_per_conn
@@ -408,10 +413,11 @@ class Controller:
                                float(speed), self.air)
 
     def take_speed_pct(self) -> float:
-        """The effective speed (program x monitor) for the next motion; consumes a one-shot ``set_speed``."""
+        """The effective speed (program x monitor, at most ``max_speed_pct``) for the next motion; consumes a
+        one-shot ``set_speed``."""
         program = self.always_speed_pct if self.pending_speed_pct is None else self.pending_speed_pct
         self.pending_speed_pct = None
-        return program * self.monitor_speed_pct / 100.0
+        return min(program * self.monitor_speed_pct / 100.0, self.max_speed_pct)
 
     def move_joints(self, target_deg: Sequence[float]) -> SkillGen:
         """Generator for skills: check the path, wait for a motion slot, start the motion (V+ ``MOVE``)."""

@@ -81,6 +81,7 @@ class SimOptions:
     time_scale: float = 1.0
     instant: bool = False
     monitor_speed_pct: float = 100.0
+    max_speed_pct: float = 100.0
     max_clients: int = 16
     allow: tuple[str, ...] = ()
     state_endpoint: str | None = DEFAULT_STATE_ENDPOINT
@@ -94,6 +95,8 @@ class SimOptions:
             raise ValueError("time_scale: must be > 0")
         if not 0 < self.monitor_speed_pct <= 100:
             raise ValueError("monitor_speed_pct: must be in (0, 100]")
+        if not 0 < self.max_speed_pct <= 100:
+            raise ValueError("max_speed_pct: must be in (0, 100]")
         if self.max_clients < 1:
             raise ValueError("max_clients: must be >= 1")
         if not self.state_rate_hz > 0:
@@ -126,7 +129,7 @@ class SimServer:
         self.options = options
         self.controller = controller or Controller(
             joints_deg=options.joints_deg, tool=options.tool, monitor_speed_pct=options.monitor_speed_pct,
-            time_scale=options.time_scale, instant=options.instant)
+            time_scale=options.time_scale, instant=options.instant, max_speed_pct=options.max_speed_pct)
         self.host = options.host
         self.port = options.port
         self.state_endpoint: str | None = None
