@@ -841,7 +841,11 @@ class _AckProtocol(asyncio.Protocol):
         self._client = client
         self._feed = client._feed
         self._time = loop.time
+        self._transport: asyncio.BaseTransport | None = None
         self.closed: asyncio.Future[None] = loop.create_future()
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        self._transport = transport
 
     def data_received(self, data: bytes) -> None:
         try:
@@ -855,7 +859,8 @@ class _AckProtocol(asyncio.Protocol):
     def connection_lost(self, exc: Exception | None) -> None:
         if not self.closed.done():
             self.closed.set_result(None)
-        self._client._on_lost(exc)
+        if self._client._transport is self._transport:  # never a later connection's business
+            self._client._on_lost(exc)
 
 
 def _lost(reason: str, *, acked: tuple[str, ...] = (), unresolved: tuple[str, ...] = ()) -> ConnectionLost:
