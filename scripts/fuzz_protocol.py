@@ -174,6 +174,10 @@ def _mem_sample() -> int:
     return tracemalloc.get_traced_memory()[0]
 
 
+def _progress(text: str) -> None:
+    print(f"{time.strftime('%H:%M:%S')} {text}", file=sys.stderr, flush=True)
+
+
 def rss_kib(pid: int) -> tuple[int, int]:
     """(VmRSS, VmHWM) of a process in KiB, from /proc."""
     rss = hwm = 0
@@ -256,8 +260,11 @@ def run_core(n: int, seed: int, *, trace_memory: bool = True) -> dict[str, Any]:
             if ack.status is Status.ERROR:
                 error_acks += 1
                 codes[ack.error_code or 0] += 1
-        if trace_memory and i % 10000 == 0:
-            mem.append(_mem_sample())
+        if i % 10000 == 0:
+            if trace_memory:
+                mem.append(_mem_sample())
+            if i % 100_000 == 0:
+                _progress(f"core {i}/{n}")
     elapsed = time.perf_counter() - t0
     result: dict[str, Any] = {
         "inputs": n, "input_kinds": dict(kinds), "framed_items": framed, "acks": acks,
@@ -381,6 +388,8 @@ async def _drive_sim(proc: subprocess.Popen[str], host: str, port: int, n: int, 
                     codes[ack.error_code or 0] += 1
         if sent // batch % 20 == 0:
             rss.append(rss_kib(proc.pid))
+        if sent % 100_000 < batch:
+            _progress(f"sim {sent}/{n}")
     elapsed = time.perf_counter() - t0
     rss.append(rss_kib(proc.pid))
     # The connection must still be usable: a valid here, acked done.
