@@ -1,7 +1,7 @@
 """RobotClient: the asyncio side of the robot line protocol (the paper's MasterControlNode ↔ RobotServer link).
 
-It sits between the commands (:mod:`aioadept.commands`, values that expand to skill calls) and the TCP stream, and
-drives the sans-IO core (:mod:`aioadept.protocol`) over asyncio streams::
+It sits between the commands (:mod:`aioadept.commands`, values that expand to skill calls) and the TCP connection,
+and drives the sans-IO core (:mod:`aioadept.protocol`) over asyncio::
 
     async with RobotClient("127.0.0.1", 1234) as robot:
         await robot.cmdexec(MoveJoints([0, -90, 180, 0, 90, 0]))          # one command at a time
@@ -10,13 +10,17 @@ drives the sans-IO core (:mod:`aioadept.protocol`) over asyncio streams::
 
 How it works, and the promises it keeps:
 
-- One write path (:meth:`RobotClient._send`): IDs are allocated, a future per message is registered in the pending
-  registry *before* the bytes are written, then the batch goes out in one ``write``.
-- One reader task routes acks to futures by ID. It owns no other work, so the ack path stays short: no per-message
-  logging, no per-message task.
+- One write path (:meth:`RobotClient._send`): IDs are allocated, every message of the batch is registered in the
+  pending registry (ID -> submission, index) *before* the bytes are written, then the batch goes out in one write.
+- One place routes acks (:meth:`RobotClient._feed`): on TCP it runs in the transport's ``data_received`` (a
+  protocol, not a reader task: one loop turn less per round trip); with a ``connector`` that returns asyncio
+  streams (tests, in-memory pairs) a single reader task feeds it. It does nothing else: no per-message logging, no
+  per-message task. A waiter waits on one future per batch; ``submit`` adds a future per message.
+- Every wait has a timeout. The default timeouts share one watchdog timer (their deadlines come in order); a
+  per-call ``timeout_s`` gets its own timer.
 - Every waiter removes its messages from the registry in ``finally``; an ack that arrives later for a cancelled or
   timed-out message is dropped quietly and counted (:attr:`ClientStats.late_acks`).
-- Nothing is ever re-sent. When the connection drops, every pending future fails with :class:`ConnectionLost`,
+- Nothing is ever re-sent. When the connection drops, every pending wait fails with :class:`ConnectionLost`,
   whose ``acked`` / ``unresolved`` say what is known done and what may or may not have run on the robot.
   Reconnecting is an explicit :meth:`connect` (or the opt-in ``auto_reconnect=True``, which reconnects before the
   *next* new command and still re-sends nothing).
