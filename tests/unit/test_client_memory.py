@@ -154,3 +154,29 @@ async def test_cmdexec_needs_a_command_and_rejects_non_commands():
     with pytest.raises(TypeError, match=r"commands\[0\]"):
         await robot.cmdexec_joined("break")  # type: ignore[arg-type]
     assert asyncio.get_running_loop() is not None
+
+
+@pytest.mark.timeout(10)
+async def test_default_timeouts_share_one_watchdog_and_custom_ones_do_not_wait_for_it():
+    server = ScriptedServer(silent_after=1)
+    try:
+        async with RobotClient(connector=server.connector(), ack_timeout_s=0.3) as robot:
+            loop = asyncio.get_running_loop()
+            t0 = loop.time()
+            slow = [asyncio.create_task(robot.submit(Break()).wait()) for _ in range(3)]
+            # a shorter per-call timeout and a lowered default are not held up behind the 0.3 s deadlines
+            with pytest.raises(AckTimeout):
+                await robot.submit(Break()).wait(timeout_s=0.05)
+            assert loop.time() - t0 < 0.25
+            robot.ack_timeout_s = 0.05
+            t1 = loop.time()
+            with pytest.raises(AckTimeout):
+                await robot.cmdexec(Break())
+            assert loop.time() - t1 < 0.25
+            for task in slow:
+                with pytest.raises(AckTimeout):
+                    await task
+            assert 0.29 <= loop.time() - t0 < 1.0
+            assert robot.pending_ids == ()
+    finally:
+        await server.close()
