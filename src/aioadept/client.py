@@ -119,7 +119,7 @@ class MessageResult:
 
     @property
     def ok(self) -> bool:
-        return self.ack.status is Status.DONE
+        return self.ack.status is _DONE
 
     @property
     def pose(self) -> Pose:
@@ -187,6 +187,11 @@ class ClientState(str, enum.Enum):
     CONNECTED = "connected"
     LOST = "lost"          # the peer closed or the socket failed; connect() again to go on
     CLOSED = "closed"      # close() was called; connect() again to reuse
+
+
+_DONE = Status.DONE
+# Enum member lookups cost ~0.3 us each in 3.11; the hot paths compare against these module constants instead.
+_NEW, _CONNECTED, _LOST, _CLOSED = ClientState.NEW, ClientState.CONNECTED, ClientState.LOST, ClientState.CLOSED
 
 
 @dataclass(slots=True)
@@ -304,7 +309,7 @@ class RobotClient:
         # IDs given up by their waiter (cancel/timeout), to count their late acks; dict as an ordered set.
         self._abandoned: dict[str, None] = {}
         self._batch = 0
-        self._state = ClientState.NEW
+        self._state = _NEW
         self._transport: asyncio.BaseTransport | None = None
         self._write: Callable[[bytes], None] | None = None
         self._transport_closed: asyncio.Future[None] | None = None
@@ -322,7 +327,7 @@ class RobotClient:
 
     @property
     def connected(self) -> bool:
-        return self._state is ClientState.CONNECTED
+        return self._state is _CONNECTED
 
     @property
     def pending_ids(self) -> tuple[str, ...]:
@@ -354,7 +359,7 @@ class RobotClient:
 
     async def connect(self) -> None:
         """Open the connection and start reading. Raises ConnectError, or ClientStateError if connected."""
-        if self._state is ClientState.CONNECTED:
+        if self._state is _CONNECTED:
             raise ClientStateError(f"already connected to {self.host}:{self.port}")
         await self._teardown()  # a lost connection's reader task and transport, if any
         loop = asyncio.get_running_loop()
@@ -386,15 +391,15 @@ class RobotClient:
         self._transport, self._write, self._transport_closed = transport, write, closed
         self._framer.reset()
         self._lost_reason = None
-        self._state = ClientState.CONNECTED
+        self._state = _CONNECTED
         if reader is not None:
             self._reader_task = loop.create_task(self._read_loop(reader), name=f"RobotClient reader {self.host}")
 
     async def close(self) -> None:
         """Close the connection; pending waits fail with ConnectionLost. Idempotent."""
         was = self._state
-        self._state = ClientState.CLOSED
-        if was is ClientState.CONNECTED:
+        self._state = _CLOSED
+        if was is _CONNECTED:
             self._fail_pending("client closed the connection")
         await self._teardown()
 
@@ -553,9 +558,9 @@ class RobotClient:
         log.warning("robot server %s:%s sent %s: %r", self.host, self.port, kind.replace("_", " "), line[:80])
 
     def _on_lost(self, reason: BaseException | None) -> None:
-        if self._state is not ClientState.CONNECTED:
+        if self._state is not _CONNECTED:
             return
-        self._state = ClientState.LOST
+        self._state = _LOST
         self._lost_reason = reason
         why = f"connection to {self.host}:{self.port} lost" + (f": {reason}" if reason else " (closed by peer)")
         log.warning("%s with %d message(s) unacked", why, len(self._pending))
@@ -577,7 +582,7 @@ class RobotClient:
     # ------------------------------------------------------------------------------------------- writing
     def _send(self, calls: Sequence[SkillCall], *, futures: bool = False) -> Submission:
         """The one write path: allocate IDs, register the messages, then write the batch in one call."""
-        if self._state is not ClientState.CONNECTED:
+        if self._state is not _CONNECTED:
             self._raise_not_connected()
         loop = self._loop
         write = self._write
@@ -613,17 +618,17 @@ class RobotClient:
         return sub
 
     def _raise_not_connected(self) -> None:
-        if self._state is ClientState.LOST:
+        if self._state is _LOST:
             raise _lost(f"connection to {self.host}:{self.port} is lost, nothing was sent "
                         "(call connect() to reconnect)")
         raise ClientStateError(f"not connected (state {self._state.value})")
 
     async def _ensure_connected(self) -> None:
-        if self._state is ClientState.LOST and self.auto_reconnect:
+        if self._state is _LOST and self.auto_reconnect:
             if self._connect_lock is None:
                 self._connect_lock = asyncio.Lock()
             async with self._connect_lock:
-                if self._state is ClientState.LOST:
+                if self._state is _LOST:
                     log.info("reconnecting to %s:%s (nothing is re-sent)", self.host, self.port)
                     await self.connect()
 
@@ -743,7 +748,7 @@ class RobotClient:
             per_command = [_calls_of((c,)) for c in commands]
         if not per_command:
             raise ValueError("commands: at least one command is required")
-        if self._state is not ClientState.CONNECTED:
+        if self._state is not _CONNECTED:
             await self._ensure_connected()
         if len(per_command) == 1:  # one command: no merging of per-command results needed
             try:
@@ -779,7 +784,7 @@ class RobotClient:
             per_command = [_calls_of((c,)) for c in commands]
         if not per_command:
             raise ValueError("commands: at least one command is required")
-        if self._state is not ClientState.CONNECTED:
+        if self._state is not _CONNECTED:
             await self._ensure_connected()
         calls = list(chain.from_iterable(per_command))
         if not calls:
@@ -873,7 +878,6 @@ def _lost(reason: str, *, acked: tuple[str, ...] = (), unresolved: tuple[str, ..
     return exc
 
 
-_DONE = Status.DONE
 _make_exec = fast_constructor(ExecResult, ("messages", "sent", "sizes"))
 _make_result = fast_constructor(MessageResult, ("id", "skill", "args", "batch", "t_send_s", "t_recv_s", "ack"))
 _STOP = SkillCall(STOP_SKILL)
