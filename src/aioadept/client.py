@@ -218,9 +218,9 @@ class Observer(Protocol):
 
 
 # ------------------------------------------------------------------------------------------------ submission
-_ACKED = 0       # waiter results: why a batch's waiter woke up
-_TIMED_OUT = 1
-_LOST = 2
+_W_ACKED = 0       # waiter results: why a batch's waiter woke up
+_W_TIMED_OUT = 1
+_W_LOST = 2
 
 
 class Submission:
@@ -503,7 +503,7 @@ class RobotClient:
                             futs[i].set_result(result)
                         sub.remaining -= 1
                         if not sub.remaining and sub._waiter is not None and not sub._waiter.done():
-                            sub._waiter.set_result(_ACKED)
+                            sub._waiter.set_result(_W_ACKED)
                         if notify is not None:
                             notify(result)
                         continue
@@ -532,7 +532,7 @@ class RobotClient:
             sub.futures[i].set_result(result)
         sub.remaining -= 1
         if not sub.remaining and sub._waiter is not None and not sub._waiter.done():
-            sub._waiter.set_result(_ACKED)
+            sub._waiter.set_result(_W_ACKED)
         self.stats.acks += 1
         if self._observers:
             self._notify_ack(result)
@@ -577,7 +577,7 @@ class RobotClient:
         for sub in subs.values():
             sub._lost_reason = why
             if sub._waiter is not None and not sub._waiter.done():
-                sub._waiter.set_result(_LOST)
+                sub._waiter.set_result(_W_LOST)
 
     # ------------------------------------------------------------------------------------------- writing
     def _send(self, calls: Sequence[SkillCall], *, futures: bool = False) -> Submission:
@@ -643,7 +643,7 @@ class RobotClient:
                 waiter = sub._waiter = loop.create_future()
                 self._arm(sub, self.ack_timeout_s if timeout_s is None else timeout_s, timeout_s is None)
                 why = await waiter
-                if why == _TIMED_OUT:
+                if why == _W_TIMED_OUT:
                     missing = tuple(mid for mid, r in zip(sub.ids, sub.results) if r is None)
                     raise AckTimeout(f"no ack within {self.ack_timeout_s if timeout_s is None else timeout_s} s "
                                      f"for {len(missing)} of {len(sub.ids)} message(s) {list(missing)}",
@@ -699,7 +699,7 @@ class RobotClient:
     def _time_out(sub: Submission) -> None:
         waiter = sub._waiter
         if waiter is not None and not waiter.done():
-            waiter.set_result(_TIMED_OUT)
+            waiter.set_result(_W_TIMED_OUT)
 
     def _release(self, sub: Submission) -> None:
         """Remove a submission's messages from the registry (idempotent); remember the unacked ones."""
