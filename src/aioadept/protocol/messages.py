@@ -63,7 +63,9 @@ class Status(str, Enum):
 
 
 _STATUS_BY_WIRE = {s.value: s for s in Status}
-_DONE = Status.DONE
+# Enum member lookups (Status.DONE) and .value cost ~0.3 us each in 3.11; the per-message paths use these.
+_DONE, _ERROR = Status.DONE, Status.ERROR
+_WIRE_BY_STATUS = {s: s.value for s in Status}
 
 
 def format_arg(value: int | float) -> str:
@@ -206,12 +208,12 @@ class Ack:
 
     @property
     def ok(self) -> bool:
-        return self.status is Status.DONE
+        return self.status is _DONE
 
     @property
     def error_code(self) -> int | None:
         """The code of an ``error`` ack (None otherwise)."""
-        if self.status is not Status.ERROR or not self.extra:
+        if self.status is not _ERROR or not self.extra:
             return None
         try:
             return int(self.extra[0])
@@ -221,7 +223,7 @@ class Ack:
     @property
     def error_message(self) -> str | None:
         """The short text of an ``error`` ack (None otherwise)."""
-        if self.status is not Status.ERROR:
+        if self.status is not _ERROR:
             return None
         return self.extra[1] if len(self.extra) > 1 else ""
 
@@ -252,11 +254,14 @@ def encode_ack(ack: Ack) -> bytes:
         raise LocalProtocolError(f"id: {ack.id!r} is not 8 letters or digits")
     if not all(map(math.isfinite, nums)):
         raise LocalProtocolError(f"ack {ack.id}: times and pose must be finite numbers")
-    head = "%s:%s:%.3f,%.3f:%.3f,%.3f,%.3f,%.3f,%.3f,%.3f" % (ack.id, Status(ack.status).value, *nums)
+    wire_status = _WIRE_BY_STATUS.get(ack.status)
+    if wire_status is None:
+        raise LocalProtocolError(f"ack {ack.id}: status {ack.status!r} is not one of {list(_WIRE_BY_STATUS.values())}")
+    head = "%s:%s:%.3f,%.3f:%.3f,%.3f,%.3f,%.3f,%.3f,%.3f" % (ack.id, wire_status, *nums)
     for f in ack.extra:
         if ":" in f or "\r" in f or "\n" in f or not f.isascii():
             raise LocalProtocolError(f"extra field {f!r} contains ':', a line break or non-ASCII")
-    if ack.status is Status.ERROR and not (ack.extra and _INT_RE.match(ack.extra[0])):
+    if ack.status is _ERROR and not (ack.extra and _INT_RE.match(ack.extra[0])):
         raise LocalProtocolError(f"ack {ack.id}: an error ack needs an integer code as its first extra field")
     if ack.extra:
         head += ":" + ":".join(ack.extra)
@@ -301,9 +306,9 @@ def parse_ack(line: bytes) -> Ack:
         raise RemoteProtocolError(ErrorCode.MALFORMED_MESSAGE, "non-finite number in ack", id=mid, line=line)
     if len(parts) > 4:
         extra = tuple(parts[4:])
-        if status is Status.ERROR and not _INT_RE.match(extra[0]):
+        if status is _ERROR and not _INT_RE.match(extra[0]):
             raise RemoteProtocolError(ErrorCode.MALFORMED_MESSAGE, "error ack without a code", id=mid, line=line)
-    elif status is Status.ERROR:
+    elif status is _ERROR:
         raise RemoteProtocolError(ErrorCode.MALFORMED_MESSAGE, "error ack without a code", id=mid, line=line)
     else:
         extra = ()

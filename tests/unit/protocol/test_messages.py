@@ -190,6 +190,7 @@ def test_bad_ack_lines(line):
         Ack("0000000a", Status.DONE, 0, 0, P0, ("é",)),
         Ack("0000000a", Status.ERROR, 0, 0, P0, ()),
         Ack("0000000a", Status.ERROR, 0, 0, P0, ("text",)),
+        Ack("0000000a", "finished", 0, 0, P0),  # type: ignore[arg-type]
     ],
 )
 def test_encode_ack_rejects_what_cannot_be_parsed_back(ack):
