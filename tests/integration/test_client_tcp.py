@@ -446,3 +446,21 @@ async def test_scripted_server_close_right_after_accept_drops_the_connection():
             await sub.wait(timeout_s=3)
         assert info.value.unresolved == sub.ids
         await robot.close()
+
+
+@pytest.mark.timeout(10)
+async def test_oversize_command_line_gets_an_error_ack_with_its_id():
+    # A client bypassing validation (raw write) sends a 200-character line; the error ack carries the ID.
+    async with ScriptedServer() as server:
+        reader, writer = await asyncio.open_connection(server.host, server.port)
+        writer.write(b"0000abcd:set_speed:" + b"1" * 200 + b"\r\n0000abce:break\r\n")
+        framer = LineFramer(1024)
+        acks = []
+        while len(acks) < 2:
+            acks += [parse_ack_line for parse_ack_line in framer.feed(await reader.read(4096))]
+        writer.close()
+        await writer.wait_closed()
+    from aioadept.protocol import parse_ack
+    first, second = (parse_ack(a) for a in acks)
+    assert (first.id, first.status, first.error_code) == ("0000abcd", Status.ERROR, -402)
+    assert (second.id, second.status) == ("0000abce", Status.DONE)

@@ -38,6 +38,7 @@ from aioadept.protocol import (
     Status,
     encode_ack,
     parse_command,
+    recover_id,
 )
 from aioadept.testing.streams import StreamEnd, stream_pair
 
@@ -295,7 +296,7 @@ class ScriptedServer:
                 for item in framer.feed(data):
                     if isinstance(item, Oversize):
                         conn.events.append(Event("bad", "", now(), item.head))
-                        ack_err = Ack.error(None, ErrorCode.LINE_TOO_LONG, None, 0.0, 0.0, self.pose)
+                        ack_err = Ack.error(recover_id(item.head), ErrorCode.LINE_TOO_LONG, None, 0.0, 0.0, self.pose)
                         writer.write(encode_ack(ack_err))
                         continue
                     try:
