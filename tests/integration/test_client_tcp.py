@@ -18,7 +18,7 @@ from aioadept.errors import (
     ConnectionLost,
 )
 from aioadept.geometry import Pose
-from aioadept.protocol import Ack, LineFramer, Status, encode_ack, parse_command
+from aioadept.protocol import Ack, LineFramer, Status, encode_ack, parse_ack, parse_command
 from aioadept.testing import Reply, ScriptedServer
 
 POSE = Pose(480.014, -0.038, 709.975, 0.0, 179.995, 0.004)
@@ -457,10 +457,9 @@ async def test_oversize_command_line_gets_an_error_ack_with_its_id():
         framer = LineFramer(1024)
         acks = []
         while len(acks) < 2:
-            acks += [parse_ack_line for parse_ack_line in framer.feed(await reader.read(4096))]
+            acks += framer.feed(await reader.read(4096))
         writer.close()
         await writer.wait_closed()
-    from aioadept.protocol import parse_ack
     first, second = (parse_ack(a) for a in acks)
     assert (first.id, first.status, first.error_code) == ("0000abcd", Status.ERROR, -402)
     assert (second.id, second.status) == ("0000abce", Status.DONE)
