@@ -414,7 +414,17 @@ def _scenario():
                 await robot.stop()
                 with pytest.raises(CommandAborted):
                     await task
-                return [m.skill for m in joined], robot.pending_ids, type(asyncio.get_running_loop()).__module__
+                pending_after_stop = robot.pending_ids
+            # connection loss and explicit reconnect on this loop too
+            async with ScriptedServer(drop_after=2) as dropper:
+                async with RobotClient(dropper.host, dropper.port) as robot:
+                    with pytest.raises(ConnectionLost) as info:
+                        await robot.cmdexec_joined(SetSpeed(1), SetSpeed(2))
+                    assert len(info.value.acked) == 1 and len(info.value.unresolved) == 1
+                    dropper.drop_after = None
+                    await robot.connect()
+                    assert (await robot.cmdexec(Break())).messages[0].ok
+            return [m.skill for m in joined], pending_after_stop, type(asyncio.get_running_loop()).__module__
     return run
 
 
