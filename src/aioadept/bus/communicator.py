@@ -529,8 +529,9 @@ class Responder:
       responder keeps serving.
     - The last ``cache_size`` answers are kept by (type, id): a repeated request (the requester re-publishing
       against the slow joiner) is answered from the cache, never processed twice.
-    - Requests are handled one at a time, in arrival order; a repeat that arrives while its request is being
-      processed waits and is then answered from the cache.
+    - Requests are handled one at a time, in arrival order. A repeat that arrives while its request is still queued
+      or being processed is dropped: the answer, published when it is ready, serves it. (Queued repeats could
+      outlive the cached answer under load and be processed again.)
     - ``request_types`` restricts which event types are answered (others are ignored); None answers all.
 
     ``async with Responder(...)`` (or ``start()``/``aclose()``, or ``await serve()``) runs it. ``curve`` (default
@@ -579,6 +580,7 @@ class Responder:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._fd: int | None = None
         self._queue: collections.deque[tuple[str, str | None, dict]] = collections.deque()
+        self._pending: set[tuple[str, str]] = set()  # (type, id) queued or being processed
         self._wakeup: asyncio.Event | None = None
         self._tasks: list[asyncio.Task] = []  # worker (and fallback reader), owned and cancelled by aclose()
         self._executor: ThreadPoolExecutor | None = None
@@ -702,6 +704,10 @@ class Responder:
         if self._inline:
             self._answer(event_type, rid, self._process_sync(event_type, rid, attrs))
         else:
+            if rid is not None:
+                if (event_type, rid) in self._pending:
+                    return
+                self._pending.add((event_type, rid))
             self._queue.append((event_type, rid, attrs))
             assert self._wakeup is not None
             self._wakeup.set()
@@ -714,10 +720,13 @@ class Responder:
                 wakeup.clear()
                 await wakeup.wait()
             event_type, rid, attrs = queue.popleft()
-            # A repeat queued while its request was processed is answered from the cache now.
-            if self._answer_from_cache(event_type, rid):
-                continue
-            self._answer(event_type, rid, await self._process_async(event_type, rid, attrs))
+            try:
+                if self._answer_from_cache(event_type, rid):
+                    continue
+                self._answer(event_type, rid, await self._process_async(event_type, rid, attrs))
+            finally:
+                if rid is not None:
+                    self._pending.discard((event_type, rid))
 
     # -------------------------------------------------------------------------------------------- answering
 
