@@ -29,7 +29,7 @@ also reports ``others_cpu_pct``, the CPU of everything else. Every child is star
 waited for on its ``READY`` line. The run is bounded: about ``3 x sim-seconds + len(rates) x vision-seconds + 20
 s``, with a hard cap of ``--max-seconds``.
 
-Usage: ``python benchmarks/bench_load.py [--clients 50] [--sim-seconds 3] [--vision-rates 10,50,150]
+Usage: ``python benchmarks/bench_load.py [--clients 50] [--sim-seconds 3] [--vision-rates 10,50,150,300]
 [--vision-seconds 5] [--fps 15]``
 """
 
@@ -452,7 +452,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--clients", type=int, default=50, help="concurrent sim clients under load (baseline: 1)")
     p.add_argument("--sim-seconds", type=float, default=3.0, help="length of each sim case")
     p.add_argument("--sim-max-per-client", type=int, default=50_000, help="round trips per client at most")
-    p.add_argument("--vision-rates", type=floats, default=[10.0, 50.0, 150.0],
+    p.add_argument("--vision-rates", type=floats, default=[10.0, 50.0, 150.0, 300.0],
                    help="request rates, req/s; the first is the baseline and should be below --fps")
     p.add_argument("--vision-seconds", type=float, default=5.0, help="length of each vision rate")
     p.add_argument("--vision-timeout", type=float, default=2.0, help="per request, s (then counted as failed)")
