@@ -77,8 +77,10 @@ def test_namespaces_and_their_processes_are_removed_when_the_body_fails():
         with pytest.raises(Boom):
             with cell_topology("aioadept-test") as topo:
                 names = topo.namespaces
-                proc = subprocess.Popen(topo.exec_argv(topo.vis, [sys.executable, "-c",
-                                                                  "import time; time.sleep(60)"]))
+                proc = subprocess.Popen(topo.exec_argv(topo.vis, [
+                    sys.executable, "-c", "import time; print('READY', flush=True); time.sleep(60)"]),
+                    stdout=subprocess.PIPE, text=True)
+                assert proc.stdout.readline().strip() == "READY"  # running inside the namespace by now
                 assert pids_in(topo.vis) == [proc.pid]
                 raise Boom
     except NetnsUnavailable as exc:
@@ -88,4 +90,6 @@ def test_namespaces_and_their_processes_are_removed_when_the_body_fails():
     finally:
         if proc.poll() is None:
             os.kill(proc.pid, signal.SIGKILL)
+            proc.wait()
+        proc.stdout.close()
     assert not set(names) & set(list_namespaces())
