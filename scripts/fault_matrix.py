@@ -60,7 +60,7 @@ def print_table(rows: list[dict], total_s: float) -> None:
     table = Table(title=f"Fault matrix ({len(rows)} cases, {total_s:.1f} s of tests)", show_lines=True)
     table.add_column("case", ratio=2)
     table.add_column("result", no_wrap=True)
-    table.add_column("outcome", ratio=4)
+    table.add_column("outcome", ratio=4, overflow="fold")
     table.add_column("s", justify="right", no_wrap=True)
     for r in rows:
         # escape: outcomes quote ID lists and parameters in [brackets], which rich would take for markup

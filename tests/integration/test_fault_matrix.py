@@ -512,16 +512,22 @@ async def test_state_subscriber_joining_late(outcome):
 # --------------------------------------------------------------------------------------------- toxiproxy
 @pytest.fixture(scope="module")
 def toxiproxy(tmp_path_factory):
+    """One toxiproxy-server for the module, or None when there is no binary (the cases then skip, in
+    ``proxied_sim``: a skip here would come before ``outcome`` had named the case)."""
     binary = find_server()
     if binary is None:
-        pytest.skip(INSTALL_HINT)
+        yield None
+        return
     with ToxiproxyServer(binary, log_path=tmp_path_factory.mktemp("toxiproxy") / "toxiproxy.log") as tp:
         yield tp
 
 
 @pytest.fixture
-def proxied_sim(toxiproxy, request):
+def proxied_sim(outcome, toxiproxy, request):
     """``async with proxied_sim(**sim_options) as (sim, proxy)``: an in-process sim behind a fresh proxy."""
+    if toxiproxy is None:
+        pytest.skip(INSTALL_HINT)
+
     @contextlib.asynccontextmanager
     async def start(**options):
         async with running_sim(**options) as sim:
