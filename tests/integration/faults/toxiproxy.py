@@ -5,10 +5,10 @@
         proxy = tp.create_proxy("sim", "127.0.0.1:1234")        # listens on 127.0.0.1:<free port>
         proxy.add_toxic("latency", "downstream", latency=40, jitter=20)
 
-Where the binary is looked for: ``$TOXIPROXY_SERVER`` if set (only there); else ``toxiproxy-server`` on PATH; the install place of
-``scripts/install_toxiproxy.sh`` (``$AIOADEPT_TOOLS_DIR``, default ``~/.cache/aioadept/bin``); ``~/go/bin/server``
-(what a plain ``go install github.com/Shopify/toxiproxy/v2/cmd/server@v2.5.0`` leaves), if it says it is
-toxiproxy-server. The API is plain JSON over HTTP, so urllib is enough. Calls block for a millisecond or two; async
+Where the binary is looked for: ``$TOXIPROXY_SERVER`` if set (only there); else ``toxiproxy-server`` on PATH,
+the install place of ``scripts/install_toxiproxy.sh`` (``$AIOADEPT_TOOLS_DIR``, default ``~/.cache/aioadept/bin``),
+then ``~/go/bin/server`` (what a plain ``go install github.com/Shopify/toxiproxy/v2/cmd/server@v2.5.0`` leaves);
+a candidate counts only if its ``-version`` says toxiproxy-server. The API is plain JSON over HTTP, so urllib is enough. Calls block for a millisecond or two; async
 tests run them in a thread (``asyncio.to_thread``) so the proxy's traffic to an in-process sim is never stalled.
 """
 
