@@ -92,4 +92,20 @@ def test_focus_with_an_absent_vision_node_fails_after_the_timeout_with_the_robot
     assert "no answer from the vision node" in text
     (run_dir,) = [p for p in tmp_path.iterdir() if p.is_dir()]
     meta = json.loads((run_dir / "run.json").read_text())
-    assert "FocusError" in meta["parameters"]["error"] if "parameters" in meta else "FocusError" in meta["error"]
+    assert meta["parameters"]["error"].startswith("FocusError: step 0: no answer from the vision node")
+
+
+@pytest.mark.timeout(150)
+def test_experiment_runs_the_grid_with_the_nodes_started_once_and_pools_the_analysis(tmp_path):
+    proc = subprocess.run(
+        [*AIOADEPT, "experiment", "--speeds", "50,100", "--delta-z", "2.5", "--runs", "1", "--time-scale", "20",
+         "--out", str(tmp_path)],
+        capture_output=True, text=True, timeout=140)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    runs = sorted(p for p in tmp_path.iterdir() if (p / "run.json").exists())
+    assert [json.loads((r / "run.json").read_text())["parameters"]["approach_speed"] for r in runs] == [50, 100]
+    summary = json.loads((tmp_path / "analysis" / "summary.json").read_text())
+    assert summary["n_runs"] == 2
+    assert (tmp_path / "analysis" / "fig11_tau_r.png").stat().st_size > 0
+    # One sim and one vision node served both runs.
+    assert sorted(p.name for p in (tmp_path / "logs").iterdir()) == ["sim.log", "vision.log"]
