@@ -18,6 +18,9 @@ catches our types only::
     │   └─ BusEncodeError (ValueError)     a value the bus schema cannot carry
     ├─ VisionError                 a vision node answered with an error result (e.g. no object found)
     └─ RobotError                  the simulated controller refused a motion (reach, joint limit); carries the code
+
+The applications add their own subclasses of ``AdeptError`` beside their code: ``apps.focus.FocusError`` (and
+``FocusStopped``) and ``apps.processes.NodeError`` (a node process failed to start or died).
 """
 
 from __future__ import annotations

@@ -106,12 +106,6 @@ class FocusResult:
         return self.peak_index * self.delta_z_mm
 
 
-def _last_pose(results: Any) -> Pose:
-    """The pose of the last ack of a cmdexec result (the break after the last motion)."""
-    last = results[-1]
-    return last.ack.pose
-
-
 async def init_move(rc: Robot) -> Any:
     """Retract to the home pose, then go to the approach pose (the paper's ``init_move``)."""
     return await rc.cmdexec(*INIT_MOVE)
@@ -145,7 +139,7 @@ async def ufloop(rc: Robot, comm: Vision, delta_z: float, appr_speed: int, *, ma
     the robot's own error.
     """
     if do_init_move:
-        approach = _last_pose(await init_move(rc))
+        approach = (await init_move(rc)).pose
     else:
         approach = None
     sharpness: list[float] = []
@@ -170,10 +164,10 @@ async def ufloop(rc: Robot, comm: Vision, delta_z: float, appr_speed: int, *, ma
             if len(sharpness) > max_steps:
                 raise FocusError(f"no sharpness peak within {max_steps} steps of {delta_z} mm",
                                  sharpness=sharpness)
-            pose = _last_pose(await move_tool_z(rc, appr_speed, delta_z))
+            pose = (await move_tool_z(rc, appr_speed, delta_z)).pose
         if recorder is not None:
             recorder.mark("retract", len(sharpness))
-        pose = _last_pose(await move_tool_z(rc, appr_speed, -delta_z))  # back to the sharpest position
+        pose = (await move_tool_z(rc, appr_speed, -delta_z)).pose  # back to the sharpest position
     except BaseException as exc:
         # A stop (aborted commands) means someone wants the robot to stay where it is: no retract motion then.
         stopped = isinstance(exc, CommandAborted) or (stop_event is not None and stop_event.is_set())
