@@ -151,6 +151,33 @@ async def test_sim_sigkilled_during_break(outcome, tmp_path):
 
 
 @pytest.mark.timeout(30)
+async def test_sim_paused_then_resumed(outcome, tmp_path):
+    """sim process paused (SIGSTOP) past the ack timeout, then resumed"""
+    async with sim_node("--instant", "--state-endpoint", "none", log_path=tmp_path / "sim.log") as sim:
+        async with RobotClient(sim.ready["host"], int(sim.ready["port"]), ack_timeout_s=10) as robot:
+            start = await robot.here()
+            sim.proc.send_signal(signal.SIGSTOP)  # a stalled controller: the connection stays up, nothing answers
+            try:
+                with pytest.raises(AckTimeout) as info:
+                    await robot.cmdexec(MoveRelJoints(R1), timeout_s=0.5)
+                assert_all_resolved(robot)
+                assert robot.state is ClientState.CONNECTED
+            finally:
+                sim.proc.send_signal(signal.SIGCONT)
+            # The sim now reads the move it had in its socket buffer and runs it; acks keep their order, so once
+            # the next command's ack is in, the two late ones have come and gone.
+            pose = await robot.here()
+            late, sent = robot.stats.late_acks, robot.stats.messages_sent
+            assert_all_resolved(robot)
+    assert same_pose(start, kin.forward(HOME)) and len(info.value.pending) == 2
+    assert late == 2 and sent == 4  # here, move, break, here: nothing re-sent
+    assert same_pose(pose, kin.forward(after(R1)))  # the timed-out move ran, once
+    outcome("AckTimeout after 0.5 s with pending=[move, break]; on resume the sim ran the move (once) and its 2 "
+            "late acks were dropped and counted (late_acks=2); the same connection then served `here`",
+            late_acks=late)
+
+
+@pytest.mark.timeout(30)
 async def test_client_killed_with_commands_queued(outcome):
     """client process SIGKILLed with commands queued behind a break"""
     async with running_sim() as sim:
