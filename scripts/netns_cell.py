@@ -47,8 +47,12 @@ def main(argv: list[str] | None = None) -> int:
         with tempfile.TemporaryDirectory(prefix="aioadept-netns-") as tmp:
             workdir = args.keep or Path(tmp)
             workdir.mkdir(parents=True, exist_ok=True)
-            report = asyncio.run(run_cell(topo, workdir, time_scale=args.time_scale, speed=args.speed,
-                                          delta_z_mm=args.delta_z, say=print))
+            try:
+                report = asyncio.run(run_cell(topo, workdir, time_scale=args.time_scale, speed=args.speed,
+                                              delta_z_mm=args.delta_z, say=print))
+            except Exception as exc:  # a node did not start, say; its output tail is in the message
+                print(f"cell run failed: {type(exc).__name__}: {exc}", file=sys.stderr)
+                return 1
     finally:
         problems = destroy(topo)
         print(f"namespaces {', '.join(topo.namespaces)} deleted" + (f" ({'; '.join(problems)})" if problems else ""))
