@@ -316,26 +316,38 @@ def parse_ack(line: bytes) -> Ack:
 
 
 def fast_constructor(cls: type, names: tuple[str, ...]) -> Callable[..., Any]:
-    """A positional constructor for a frozen, slotted dataclass that sets the slots directly.
+    """A positional constructor for a frozen, slotted dataclass that builds the same object in about a third of
+    the time of its ``__init__``.
 
     A frozen dataclass's ``__init__`` goes through ``object.__setattr__`` per field, which is most of the cost of
-    parsing an ack; setting the slot descriptors directly builds the same object in about half the time. Falls
-    back to the class itself if it is not exactly that shape (fields ``names``, slots, no ``__post_init__``), so
-    a change to the class can never produce half-built objects.
+    parsing an ack. This fills an instance of a plain twin class with the same slots (plain attribute stores,
+    which CPython specialises for slots) and then sets its ``__class__`` to ``cls``: the result *is* a ``cls``
+    (``type(x) is cls``, same equality, hash, repr and pickling). If the twin's layout is not accepted (a change to
+    the class), it sets the slot descriptors directly instead; if the class is not exactly that shape (fields
+    ``names``, slots, no ``__post_init__``), it returns the class itself, so it can never produce half-built
+    objects.
     """
     try:
-        ok = (tuple(f.name for f in dataclasses.fields(cls)) == names and "__slots__" in cls.__dict__
+        ok = (tuple(f.name for f in dataclasses.fields(cls)) == names and cls.__dict__.get("__slots__") == names
               and not hasattr(cls, "__post_init__"))
     except TypeError:
         ok = False
     if not ok:
         return cls
-    env: dict[str, Any] = {"_new": object.__new__, "_cls": cls}
-    body = ["def make(" + ", ".join(names) + "):", "    o = _new(_cls)"]
-    for i, name in enumerate(names):
-        env[f"_s{i}"] = cls.__dict__[name].__set__
-        body.append(f"    _s{i}(o, {name})")
-    body.append("    return o")
+    twin = type(f"_{cls.__name__}Twin", (), {"__slots__": names})
+    env: dict[str, Any] = {"_new": object.__new__, "_cls": cls, "_twin": twin}
+    try:
+        probe = twin()
+        probe.__class__ = cls  # TypeError unless the layouts are the same
+        body = ["def make(" + ", ".join(names) + "):", "    o = _twin()"]
+        body += [f"    o.{name} = {name}" for name in names]
+        body += ["    o.__class__ = _cls", "    return o"]
+    except TypeError:
+        body = ["def make(" + ", ".join(names) + "):", "    o = _new(_cls)"]
+        for i, name in enumerate(names):
+            env[f"_s{i}"] = cls.__dict__[name].__set__
+            body.append(f"    _s{i}(o, {name})")
+        body.append("    return o")
     exec("\n".join(body), env)  # noqa: S102 - generated from field names checked above, as dataclasses does
     return env["make"]  # type: ignore[no-any-return]
 
