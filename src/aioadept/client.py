@@ -459,6 +459,8 @@ class RobotClient:
         pending_pop = self._pending.pop
         parser = self._parser
         pose_text, pose = parser._pose_text, parser._pose
+        times_text = parser._times_text
+        t_start, t_done = parser._times
         make_result = _make_result
         make_ack = _make_ack
         isfinite = math.isfinite
@@ -469,28 +471,36 @@ class RobotClient:
         futs = None
         batch = 0
         t_send = 0.0
-        fast = 0
-        for item in self._framer.feed(data):
-            if type(item) is not bytes:
-                self._unexpected("oversize", item.head, t_recv)  # type: ignore[union-attr]
-                continue
-            # Fast path, inline because it runs once per ack: a plain `done` ack carrying the same pose text as
-            # the previous ack, checked exactly as AckParser.parse checks it. Anything else takes _route().
-            parts = item.split(b":")  # type: ignore[union-attr]
-            if len(parts) == 4 and parts[3] == pose_text and parts[1] == b"done":
-                # No ID syntax check needed: only IDs we issued are in the registry, so a hit proves it valid;
-                # UnicodeDecodeError and a wrong number of times are ValueErrors like a bad float.
-                try:
-                    t_start, t_done = map(float, parts[2].split(b","))
-                    mid = parts[0].decode("ascii")
-                except ValueError:
-                    mid = ""
-                    t_start = t_done = math.nan
-                if isfinite(t_start + t_done):
-                    entry = pending_pop(mid, None)
+        fast = 0  # acks routed here (not by _route)
+        count = 0  # of them, acks of `cur` not yet subtracted from cur.remaining (one update per run of a batch)
+        try:
+            for item in self._framer.feed(data):
+                if type(item) is not bytes:
+                    self._unexpected("oversize", item.head, t_recv)  # type: ignore[union-attr]
+                    continue
+                # Fast path, inline because it runs once per ack: a plain `done` ack carrying the same pose text as
+                # the previous ack, checked exactly as AckParser.parse checks it (times text repeated within a
+                # millisecond is not parsed again either). Anything else takes _route().
+                parts = item.split(b":")  # type: ignore[union-attr]
+                if len(parts) == 4 and parts[3] == pose_text and parts[1] == b"done":
+                    # No ID syntax check needed: only IDs we issued are in the registry, so a hit proves it valid;
+                    # UnicodeDecodeError and a wrong number of times are ValueErrors like a bad float.
+                    try:
+                        mid = parts[0].decode("ascii")
+                        if parts[2] != times_text:
+                            ts, td = map(float, parts[2].split(b","))
+                            if not isfinite(ts + td):
+                                raise ValueError
+                            times_text, t_start, t_done = parts[2], ts, td
+                    except ValueError:
+                        mid = ""
+                    entry = pending_pop(mid, None) if mid else None
                     if entry is not None:
                         sub, i = entry
                         if sub is not cur:
+                            if count:
+                                _settle(cur, count)  # type: ignore[arg-type]
+                                count = 0
                             cur = sub
                             calls, results, futs = sub.calls, sub.results, sub.futures
                             batch, t_send = sub.batch, sub.t_send_s
@@ -498,18 +508,23 @@ class RobotClient:
                         result = make_result(mid, call.skill, call.args, batch, t_send, t_recv,
                                              make_ack(mid, _DONE, t_start, t_done, pose, ()))
                         results[i] = result
+                        count += 1
                         fast += 1
                         if futs is not None and not futs[i].done():
                             futs[i].set_result(result)
-                        sub.remaining -= 1
-                        if not sub.remaining and sub._waiter is not None and not sub._waiter.done():
-                            sub._waiter.set_result(_W_ACKED)
                         if notify is not None:
                             notify(result)
                         continue
-            self._route(item, t_recv)  # type: ignore[arg-type]
-            pose_text, pose = parser._pose_text, parser._pose
-        self.stats.acks += fast
+                self._route(item, t_recv)  # type: ignore[arg-type]
+                pose_text, pose = parser._pose_text, parser._pose
+                times_text = parser._times_text
+                t_start, t_done = parser._times
+        finally:
+            if count:
+                _settle(cur, count)  # type: ignore[arg-type]
+            self.stats.acks += fast
+            if times_text is not parser._times_text:  # keep the last times for the next read
+                parser._times_text, parser._times = times_text, (t_start, t_done)
 
     def _route(self, line: bytes, t_recv: float) -> None:
         """The general path for one ack line: any status, any pose, unknown IDs, garbage."""
@@ -870,6 +885,13 @@ class _AckProtocol(asyncio.Protocol):
             self.closed.set_result(None)
         if self._client._transport is self._transport:  # never a later connection's business
             self._client._on_lost(exc)
+
+
+def _settle(sub: Submission, count: int) -> None:
+    """``count`` more acks of ``sub`` are in; wake its waiter when that was the last."""
+    sub.remaining -= count
+    if not sub.remaining and sub._waiter is not None and not sub._waiter.done():
+        sub._waiter.set_result(_W_ACKED)
 
 
 def _lost(reason: str, *, acked: tuple[str, ...] = (), unresolved: tuple[str, ...] = ()) -> ConnectionLost:

@@ -77,3 +77,39 @@ def test_inline_fast_path_matches_parse_ack(kinds, split):
     finally:
         sub.cancel()
         robot._loop.close()
+
+
+def test_first_ack_with_an_empty_pose_is_a_bad_line():
+    """The pose cache starts empty: an ack with an empty pose field must not match it (it is malformed)."""
+    robot, written = wired_client()
+    try:
+        sub = robot.submit(Skill("noop"))
+        robot._feed(f"{sub.ids[0]}:done:1.000,2.000:\r\n".encode(), 5.0)
+        assert sub.results == [None] and sub.remaining == 1
+        assert robot.stats.bad_lines == 1 and robot.stats.acks == 0
+    finally:
+        sub.cancel()
+        robot._loop.close()
+
+
+def test_repeated_times_text_gives_the_same_values_as_parsing_it():
+    """Acks of one millisecond repeat their times text; the cached floats are those of that text, and a new
+    text (or a bad one after a good one) is parsed again."""
+    robot, written = wired_client()
+    pose = POSES[1]
+    try:
+        sub = robot.submit(*[Skill("noop", k) for k in range(4)])
+        ids = sub.ids
+        lines = [encode_ack(Ack(ids[0], Status.DONE, 1.5, 1.5, pose)),
+                 encode_ack(Ack(ids[1], Status.DONE, 1.5, 1.5, pose)),
+                 encode_ack(Ack(ids[2], Status.DONE, 1.5, 1.5, pose)).replace(b"1.500,1.500", b"1.500,nan"),
+                 encode_ack(Ack(ids[3], Status.DONE, 1.5, 2.25, pose))]
+        robot._feed(b"".join(lines[:2]), 5.0)
+        robot._feed(b"".join(lines[2:]), 6.0)
+        assert [r.ack if r else None for r in sub.results] == [
+            Ack(ids[0], Status.DONE, 1.5, 1.5, pose), Ack(ids[1], Status.DONE, 1.5, 1.5, pose), None,
+            Ack(ids[3], Status.DONE, 1.5, 2.25, pose)]
+        assert robot.stats.bad_lines == 1 and sub.remaining == 1
+    finally:
+        sub.cancel()
+        robot._loop.close()
