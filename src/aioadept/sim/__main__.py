@@ -39,6 +39,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="connections served at once; more are refused with a SERVER_BUSY error ack")
     p.add_argument("--allow", action="append", default=[], metavar="ADDR",
                    help="accept clients only from this IP address (repeatable; default: any)")
+    p.add_argument("--line-timeout", type=float, default=10.0, dest="line_timeout",
+                   help="close a connection whose line stays incomplete this many seconds (0: never; default 10)")
     p.add_argument("--state-endpoint", default=DEFAULT_STATE_ENDPOINT, dest="state_endpoint",
                    help="ZeroMQ PUB endpoint of the robot state stream ('none' to disable)")
     p.add_argument("--state-rate-hz", type=float, default=100.0, dest="state_rate_hz",
@@ -62,6 +64,7 @@ def options_from_args(args: argparse.Namespace) -> SimOptions:
     return SimOptions(host=args.host, port=args.port, time_scale=args.time_scale, instant=args.instant,
                       monitor_speed_pct=args.monitor_speed, max_speed_pct=args.max_speed,
                       max_clients=args.max_clients, allow=tuple(args.allow),
+                      line_timeout_s=args.line_timeout or None,
                       state_endpoint=state, state_rate_hz=args.state_rate_hz, faults=Faults.parse(args.fault),
                       tool=Pose(*args.tool) if args.tool else NULL, **extra)
 

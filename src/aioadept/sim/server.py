@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import socket
 import ipaddress
 import itertools
 import logging
@@ -84,6 +85,10 @@ class SimOptions:
     max_speed_pct: float = 100.0
     max_clients: int = 16
     allow: tuple[str, ...] = ()
+    line_timeout_s: float | None = 10.0
+    """A line still incomplete this long after its first byte closes the connection (slowloris); None: never."""
+    keepalive: bool = True
+    """TCP keepalive and TCP_USER_TIMEOUT on client sockets, so a vanished peer frees its slot in about 30 s."""
     state_endpoint: str | None = DEFAULT_STATE_ENDPOINT
     state_rate_hz: float = 100.0
     faults: Faults = field(default_factory=Faults)
@@ -99,10 +104,26 @@ class SimOptions:
             raise ValueError("max_speed_pct: must be in (0, 100]")
         if self.max_clients < 1:
             raise ValueError("max_clients: must be >= 1")
+        if self.line_timeout_s is not None and not self.line_timeout_s > 0:
+            raise ValueError("line_timeout_s: must be > 0 or None")
         if not self.state_rate_hz > 0:
             raise ValueError("state_rate_hz: must be > 0")
         for addr in self.allow:
             ipaddress.ip_address(addr)  # ValueError for a malformed address
+
+
+def _set_keepalive(writer: asyncio.StreamWriter) -> None:
+    """Probe idle peers (10 s idle, 5 s interval, 3 probes) and give up on unacknowledged data after 30 s."""
+    sock = writer.get_extra_info("socket")
+    if sock is None:
+        return
+    opts = [(socket.SOL_SOCKET, socket.SO_KEEPALIVE, 1)]
+    for name, value in (("TCP_KEEPIDLE", 10), ("TCP_KEEPINTVL", 5), ("TCP_KEEPCNT", 3), ("TCP_USER_TIMEOUT", 30000)):
+        if hasattr(socket, name):  # Linux has all four; other systems some
+            opts.append((socket.IPPROTO_TCP, getattr(socket, name), value))
+    for level, opt, value in opts:
+        with contextlib.suppress(OSError):
+            sock.setsockopt(level, opt, value)
 
 
 class _Conn:
@@ -251,13 +272,32 @@ class SimServer:
         self.connections_total += 1
         self.controller.connect(conn.id)
         log.info("client %s connected (id %d)", conn.peer, conn.id)
+        if self.options.keepalive:
+            _set_keepalive(writer)
         framer = LineFramer(MAX_LINE)
         drop_after = self.options.faults.drop_after
+        line_timeout = self.options.line_timeout_s
+        loop = asyncio.get_running_loop()
+        line_started: float | None = None  # loop time of the first byte of an incomplete line
         try:
             while True:
-                data = await reader.read(65536)
+                if line_started is None or line_timeout is None:
+                    data = await reader.read(65536)
+                else:
+                    # A peer that never finishes its line must not hold a client slot forever.
+                    left = line_timeout - (loop.time() - line_started)
+                    try:
+                        async with asyncio.timeout(max(left, 0.0)):
+                            data = await reader.read(65536)
+                    except TimeoutError:
+                        self._refuse_stalled(conn, writer, line_timeout)
+                        break
                 if not data:
                     break
+                if data[-1:] == b"\n":
+                    line_started = None
+                elif line_started is None:
+                    line_started = loop.time()
                 now = self.now()
                 dropped = False
                 for item in framer.feed(data):
@@ -290,6 +330,14 @@ class SimServer:
                 await writer.wait_closed()
             self._handlers.discard(task)
             log.info("client %s disconnected", conn.peer)
+
+    def _refuse_stalled(self, conn: _Conn, writer: asyncio.StreamWriter, timeout_s: float) -> None:
+        now = self.now()
+        ack = Ack.error(NO_ID, ErrorCode.MALFORMED_MESSAGE, f"line not completed within {timeout_s:g} s",
+                        now, now, self.controller.here)
+        with contextlib.suppress(OSError):
+            writer.write(encode_ack(ack))
+        log.info("client %s: incomplete line for %g s, closing", conn.peer, timeout_s)
 
     # -- acks ---------------------------------------------------------------------------------------------
     def _dispatch(self, out: list[Outgoing]) -> None:
