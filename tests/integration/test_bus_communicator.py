@@ -296,3 +296,27 @@ async def test_close_fails_outstanding_and_state_errors():
             await task
         with pytest.raises(ClientStateError):
             await comm.request()
+
+
+@pytest.mark.timeout(15)
+async def test_requests_that_timed_out_while_the_node_was_down_are_not_processed_after_its_restart():
+    req_port, resp_port = free_port(), free_port()
+    req_ep, resp_ep = f"tcp://127.0.0.1:{req_port}", f"tcp://127.0.0.1:{resp_port}"
+    seen: list[str] = []
+
+    def handler(event_type, rid, attrs):
+        seen.append(rid)
+        return {"ok": 1}
+
+    async with Communicator(req_ep, resp_ep, republish_interval_s=0.01, republish_backoff=1.0) as comm:
+        async with Responder(req_ep, resp_ep, handler):
+            first = await comm.request("VisionRequest", {}, timeout_s=5)
+        # The node is gone, but the publisher knew its subscription: what it publishes now must not queue up.
+        with pytest.raises(RequestTimeout) as info:
+            await comm.request("VisionRequest", {}, timeout_s=0.3)
+        stale = info.value.request_id
+        async with Responder(req_ep, resp_ep, handler):  # the node restarts on the same endpoints
+            resp = await comm.request("VisionRequest", {}, timeout_s=5)
+    assert resp.attributes == {"ok": 1}
+    assert stale not in seen, "a request whose requester gave up was queued and processed after the restart"
+    assert seen == [first.id, resp.id]

@@ -327,6 +327,12 @@ class Communicator:
         attrs = dict(attributes) if attributes else {}
         if "t_request" not in attrs:
             attrs["t_request"] = time.time()
+        if "t_deadline" not in attrs:
+            # Copies published while a node was down stay queued in ZeroMQ and reach it when it comes back; the
+            # deadline lets the node drop those whose requester has given up instead of processing them first.
+            t_out = self.timeout_s if timeout_s is None else timeout_s
+            if t_out is not None:
+                attrs["t_deadline"] = attrs["t_request"] + t_out
         payload = encode_event(event_type, rid, attrs)  # BusEncodeError before anything is registered
         loop = self._loop
         assert loop is not None
@@ -591,6 +597,8 @@ class Responder:
         """Requests processed by the handler."""
         self.cache_hits = 0
         """Repeated requests answered from the cache."""
+        self.expired = 0
+        """Requests dropped unprocessed because their ``t_deadline`` had passed (their requester gave up)."""
         self.errors = 0
         """Requests answered with an ``error`` attribute."""
 
@@ -701,6 +709,8 @@ class Responder:
             return
         if self._answer_from_cache(event_type, rid):
             return
+        if self._expired(attrs):
+            return
         if self._inline:
             self._answer(event_type, rid, self._process_sync(event_type, rid, attrs))
         else:
@@ -721,7 +731,7 @@ class Responder:
                 await wakeup.wait()
             event_type, rid, attrs = queue.popleft()
             try:
-                if self._answer_from_cache(event_type, rid):
+                if self._answer_from_cache(event_type, rid) or self._expired(attrs):
                     continue
                 self._answer(event_type, rid, await self._process_async(event_type, rid, attrs))
             finally:
@@ -729,6 +739,14 @@ class Responder:
                     self._pending.discard((event_type, rid))
 
     # -------------------------------------------------------------------------------------------- answering
+
+    def _expired(self, attrs: Mapping[str, Any]) -> bool:
+        """A request past its ``t_deadline`` (epoch s; clocks of the two hosts assumed in sync) is dropped."""
+        deadline = attrs.get("t_deadline")
+        if isinstance(deadline, float) and time.time() > deadline:
+            self.expired += 1
+            return True
+        return False
 
     def _answer_from_cache(self, event_type: str, rid: str | None) -> bool:
         if rid is None:
