@@ -31,10 +31,12 @@ from __future__ import annotations
 
 import asyncio
 import enum
+import functools
 import logging
 import math
 import secrets
 import socket
+import time
 from collections import deque
 from itertools import chain, repeat
 from collections.abc import Awaitable, Callable, Iterable, Iterator, Sequence
@@ -190,6 +192,8 @@ class ClientState(str, enum.Enum):
 
 
 _DONE = Status.DONE
+_BASE_TIME = asyncio.BaseEventLoop.time
+_BASE_CREATE_FUTURE = asyncio.BaseEventLoop.create_future
 # Enum member lookups cost ~0.3 us each in 3.11; the hot paths compare against these module constants instead.
 _NEW, _CONNECTED, _LOST, _CLOSED = ClientState.NEW, ClientState.CONNECTED, ClientState.LOST, ClientState.CLOSED
 
@@ -315,6 +319,7 @@ class RobotClient:
         self._transport_closed: asyncio.Future[None] | None = None
         self._reader_task: asyncio.Task[None] | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
+        self._loop_fns: tuple = (None, None, None)  # see _bind_loop
         self._lost_reason: BaseException | None = None
         self._in_context = False
         self._connect_lock: asyncio.Lock | None = None
@@ -438,7 +443,7 @@ class RobotClient:
     async def _read_loop(self, reader: asyncio.StreamReader) -> None:
         """The only reader: cut the stream into lines and route each ack to its submission."""
         feed = self._feed
-        loop_time = asyncio.get_running_loop().time
+        loop_time = self._bind_loop(asyncio.get_running_loop())[1]
         reason: BaseException | None = None
         try:
             while True:
@@ -602,6 +607,9 @@ class RobotClient:
         loop = self._loop
         write = self._write
         assert loop is not None and write is not None
+        fns = self._loop_fns
+        if fns[0] is not loop:
+            fns = self._bind_loop(loop)
         n = len(calls)
         if n == 1:
             ids: tuple[str, ...] = (self._ids.next(),)
@@ -612,14 +620,15 @@ class RobotClient:
         self._batch += 1
         sub = Submission(self, ids, calls, self._batch)
         if futures:
-            sub.futures = tuple(loop.create_future() for _ in range(n))
+            new_future = fns[2]
+            sub.futures = tuple(new_future() for _ in range(n))
         pending = self._pending
         # Registered before the write, so an ack can never beat its entry; id -> (submission, index).
         if n == 1:
             pending[ids[0]] = (sub, 0)
         else:
             pending.update(zip(ids, zip(repeat(sub), range(n))))
-        sub.t_send_s = loop.time()
+        sub.t_send_s = fns[1]()
         try:
             write(data)
         except (OSError, ConnectionError, RuntimeError) as exc:
@@ -631,6 +640,18 @@ class RobotClient:
         if self._observers:
             self._notify_send(sub)
         return sub
+
+    def _bind_loop(self, loop: asyncio.AbstractEventLoop) -> tuple:
+        """``(loop, clock, new_future)``: ``loop.time`` and ``loop.create_future`` without a Python frame each when
+        they are asyncio's own (``time.monotonic()`` and ``Future(loop=loop)``, exactly what those do)."""
+        clock = loop.time
+        if getattr(clock, "__func__", None) is _BASE_TIME:
+            clock = time.monotonic
+        new_future: Callable[[], asyncio.Future] = loop.create_future
+        if getattr(new_future, "__func__", None) is _BASE_CREATE_FUTURE:
+            new_future = functools.partial(asyncio.Future, loop=loop)
+        fns = self._loop_fns = (loop, clock, new_future)
+        return fns
 
     def _raise_not_connected(self) -> None:
         if self._state is _LOST:
@@ -648,15 +669,22 @@ class RobotClient:
                     await self.connect()
 
     # ------------------------------------------------------------------------------------------- waiting
-    async def _wait(self, sub: Submission, timeout_s: float | None) -> tuple[MessageResult, ...]:
+    async def _wait(self, sub: Submission, timeout_s: float | None,
+                    just_sent: bool = False) -> tuple[MessageResult, ...]:
+        """``just_sent``: called in the same loop turn as the write, so the deadline counts from the write time
+        (the same instant, without reading the clock again)."""
         if sub._settled:
             raise ClientStateError("this submission was already awaited or cancelled")
         try:
             if sub.remaining and sub._lost_reason is None:
                 loop = self._loop
                 assert loop is not None
-                waiter = sub._waiter = loop.create_future()
-                self._arm(sub, self.ack_timeout_s if timeout_s is None else timeout_s, timeout_s is None)
+                fns = self._loop_fns
+                if fns[0] is not loop:
+                    fns = self._bind_loop(loop)
+                waiter = sub._waiter = fns[2]()
+                self._arm(sub, self.ack_timeout_s if timeout_s is None else timeout_s, timeout_s is None,
+                          sub.t_send_s if just_sent else fns[1]())
                 why = await waiter
                 if why == _W_TIMED_OUT:
                     missing = tuple(mid for mid, r in zip(sub.ids, sub.results) if r is None)
@@ -668,7 +696,10 @@ class RobotClient:
                             acked=tuple(mid for mid, r in zip(sub.ids, sub.results) if r is not None),
                             unresolved=tuple(mid for mid, r in zip(sub.ids, sub.results) if r is None))
         finally:
-            self._release(sub)
+            if sub.remaining or sub._timer is not None or sub.futures is not None:
+                self._release(sub)
+            else:  # all acked, nothing to cancel or forget: what _release would do
+                sub._settled = True
         results: tuple[MessageResult, ...] = tuple(sub.results)  # type: ignore[arg-type]
         if sub._first_bad >= 0:
             r = results[sub._first_bad]
@@ -678,12 +709,12 @@ class RobotClient:
             raise exc
         return results
 
-    def _arm(self, sub: Submission, timeout: float | None, default: bool) -> None:
+    def _arm(self, sub: Submission, timeout: float | None, default: bool, now: float) -> None:
         if timeout is None:
             return
         loop = self._loop
         assert loop is not None
-        deadline = sub._deadline = loop.time() + timeout
+        deadline = sub._deadline = now + timeout
         dq = self._deadlines
         while dq and dq[0]._settled:  # finished waits leave from the front (batches finish roughly in order)
             dq.popleft()
@@ -767,7 +798,7 @@ class RobotClient:
             await self._ensure_connected()
         if len(per_command) == 1:  # one command: no merging of per-command results needed
             try:
-                results = await self._wait(self._send(per_command[0]), timeout_s)
+                results = await self._wait(self._send(per_command[0]), timeout_s, True)
             except (CommandError, CommandAborted) as exc:
                 exc.completed = _make_exec((), (), ())  # type: ignore[union-attr]
                 raise
@@ -777,7 +808,7 @@ class RobotClient:
         for k, calls in enumerate(per_command):
             sub = self._send(calls)
             try:
-                messages.extend(await self._wait(sub, timeout_s))
+                messages.extend(await self._wait(sub, timeout_s, True))
             except ConnectionLost as exc:
                 raise _lost(getattr(exc, "reason", "connection lost"), acked=(*acked, *exc.acked),
                             unresolved=exc.unresolved) from exc
@@ -804,7 +835,7 @@ class RobotClient:
         calls = list(chain.from_iterable(per_command))
         if not calls:
             raise ValueError("commands: nothing to send")
-        results = await self._wait(self._send(calls), timeout_s)
+        results = await self._wait(self._send(calls), timeout_s, True)
         return _make_exec(results, commands, tuple(map(len, per_command)))
 
     async def stop(self, *, timeout_s: float | None = None) -> MessageResult:
@@ -814,15 +845,15 @@ class RobotClient:
         raise CommandAborted) and then acks the stop ``done``; this returns the stop's result (pose at rest).
         Raises CommandError if the server does not know ``stop`` (an original V+ AdeptServer halts instead).
         """
-        return (await self._wait(self._send((_STOP,)), timeout_s))[0]
+        return (await self._wait(self._send((_STOP,)), timeout_s, True))[0]
 
     async def here(self, *, timeout_s: float | None = None) -> Pose:
         """The robot's current pose (``here`` extension skill)."""
-        return (await self._wait(self._send((_HERE,)), timeout_s))[0].ack.pose
+        return (await self._wait(self._send((_HERE,)), timeout_s, True))[0].ack.pose
 
     async def hello(self, *, timeout_s: float | None = None) -> tuple[int | None, str]:
         """``(protocol_version, server_name)`` from the ``hello`` extension skill."""
-        ack = (await self._wait(self._send((_HELLO,)), timeout_s))[0].ack
+        ack = (await self._wait(self._send((_HELLO,)), timeout_s, True))[0].ack
         version: int | None
         try:
             version = int(ack.extra[0])
@@ -864,7 +895,7 @@ class _AckProtocol(asyncio.Protocol):
     def __init__(self, client: RobotClient, loop: asyncio.AbstractEventLoop) -> None:
         self._client = client
         self._feed = client._feed
-        self._time = loop.time
+        self._time = client._bind_loop(loop)[1]
         self._transport: asyncio.BaseTransport | None = None
         self.closed: asyncio.Future[None] = loop.create_future()
 
