@@ -525,8 +525,10 @@ class RobotClient:
                 times_text = parser._times_text
                 t_start, t_done = parser._times
         finally:
-            if count:
-                _settle(cur, count)  # type: ignore[arg-type]
+            if count:  # _settle(cur, count) inline
+                cur.remaining -= count  # type: ignore[union-attr]
+                if not cur.remaining and cur._waiter is not None and not cur._waiter.done():  # type: ignore
+                    cur._waiter.set_result(_W_ACKED)  # type: ignore[union-attr]
             self.stats.acks += fast
             if times_text is not parser._times_text:  # keep the last times for the next read
                 parser._times_text, parser._times = times_text, (t_start, t_done)
@@ -612,13 +614,29 @@ class RobotClient:
             fns = self._bind_loop(loop)
         n = len(calls)
         if n == 1:
-            ids: tuple[str, ...] = (self._ids.next(),)
-            data = f"{ids[0]}:{calls[0].wire}\r\n".encode("ascii")
+            # IdAllocator.next() inline (a round trip's send; a call costs more than the work): the next ID unless
+            # it is 00000000 or the last before the wrap, which next() handles.
+            allocator = self._ids
+            k = allocator._next
+            if 0 < k < 0xFFFFFFFF:
+                allocator._next = k + 1
+                mid = "%08x" % k
+            else:
+                mid = allocator.next()
+            ids: tuple[str, ...] = (mid,)
+            data = f"{mid}:{calls[0].wire}\r\n".encode("ascii")
         else:
             ids = tuple(self._ids.take(n))
             data = "".join([f"{mid}:{call.wire}\r\n" for mid, call in zip(ids, calls)]).encode("ascii")
-        self._batch += 1
-        sub = Submission(self, ids, calls, self._batch)
+        batch = self._batch = self._batch + 1
+        # Submission(self, ids, calls, batch), inline for the same reason.
+        sub = _new_submission(Submission)
+        sub._client = self
+        sub.ids = ids
+        sub.calls = calls
+        sub.batch = batch
+        sub.results = [None] * n
+        sub.remaining = n
         if futures:
             new_future = fns[2]
             sub.futures = tuple(new_future() for _ in range(n))
@@ -683,8 +701,20 @@ class RobotClient:
                 if fns[0] is not loop:
                     fns = self._bind_loop(loop)
                 waiter = sub._waiter = fns[2]()
-                self._arm(sub, self.ack_timeout_s if timeout_s is None else timeout_s, timeout_s is None,
-                          sub.t_send_s if just_sent else fns[1]())
+                now = sub.t_send_s if just_sent else fns[1]()
+                dq = self._deadlines
+                default_s = self.ack_timeout_s
+                if timeout_s is None and default_s is not None and (
+                        not dq or dq[-1]._deadline <= now + default_s):
+                    # _arm's common case inline: joins the watchdog's queue
+                    sub._deadline = now + default_s
+                    while dq and dq[0]._settled:
+                        dq.popleft()
+                    dq.append(sub)
+                    if self._watchdog is None:
+                        self._watchdog = loop.call_at(dq[0]._deadline, self._on_watchdog)
+                else:
+                    self._arm(sub, default_s if timeout_s is None else timeout_s, timeout_s is None, now)
                 why = await waiter
                 if why == _W_TIMED_OUT:
                     missing = tuple(mid for mid, r in zip(sub.ids, sub.results) if r is None)
@@ -788,6 +818,19 @@ class RobotClient:
         results of those before), ConnectionLost (``acked`` / ``unresolved`` cover this call's messages; commands
         after the one in flight were never sent), AckTimeout.
         """
+        if len(commands) == 1:  # one command: no merging of per-command results needed
+            try:
+                calls = commands[0]._calls  # the common case, without per-command calls
+            except AttributeError:
+                calls = _calls_of(commands)
+            if self._state is not _CONNECTED:
+                await self._ensure_connected()
+            try:
+                results = await self._wait(self._send(calls), timeout_s, True)
+            except (CommandError, CommandAborted) as exc:
+                exc.completed = _make_exec((), (), ())  # type: ignore[union-attr]
+                raise
+            return _make_exec(results, commands, (len(results),))
         try:
             per_command = [c._calls for c in commands]  # the common case, without per-command calls
         except AttributeError:
@@ -796,13 +839,6 @@ class RobotClient:
             raise ValueError("commands: at least one command is required")
         if self._state is not _CONNECTED:
             await self._ensure_connected()
-        if len(per_command) == 1:  # one command: no merging of per-command results needed
-            try:
-                results = await self._wait(self._send(per_command[0]), timeout_s, True)
-            except (CommandError, CommandAborted) as exc:
-                exc.completed = _make_exec((), (), ())  # type: ignore[union-attr]
-                raise
-            return _make_exec(results, commands, (len(results),))
         messages: list[MessageResult] = []
         acked: list[str] = []
         for k, calls in enumerate(per_command):
@@ -931,6 +967,7 @@ def _lost(reason: str, *, acked: tuple[str, ...] = (), unresolved: tuple[str, ..
     return exc
 
 
+_new_submission = object.__new__
 _make_exec = fast_constructor(ExecResult, ("messages", "sent", "sizes"))
 _make_result = fast_constructor(MessageResult, ("id", "skill", "args", "batch", "t_send_s", "t_recv_s", "ack"))
 _STOP = SkillCall(STOP_SKILL)

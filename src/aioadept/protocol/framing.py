@@ -50,8 +50,12 @@ class LineFramer:
 
     def feed(self, data: bytes) -> list[bytes | Oversize]:
         """Add ``data``; return the lines and events it completes, in stream order."""
-        # Fast path for what peers actually send: whole CRLF lines, nothing pending. Same result as the general
+        # Fast paths for what peers actually send: whole CRLF lines, nothing pending. Same result as the general
         # path below (each "\n" is part of a "\r\n", no line empty or too long), with the per-line work in C.
+        # First one line (a round trip's read): its only "\n" is the last byte.
+        if (not self._buf and not self._discarding and data.find(b"\n") == len(data) - 1
+                and data.endswith(b"\r\n") and 2 < len(data) <= self.max_line + 2):
+            return [data[:-2]]
         if (not self._buf and not self._discarding and data.endswith(b"\r\n")
                 and data.count(b"\n") == data.count(b"\r\n")):
             lines = data.split(b"\r\n")
