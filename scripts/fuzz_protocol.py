@@ -202,7 +202,7 @@ def run_core(n: int, seed: int, *, trace_memory: bool = True) -> dict[str, Any]:
     framer_split, framer_whole = LineFramer(MAX_LINE), LineFramer(MAX_LINE)
     ctl = Controller(instant=True)
     ctl.connect("c")
-    framed = acks = errors_expected = error_acks = missing_error = wrong_id = split_mismatch = 0
+    framed = acks = errors_expected = error_acks = missing_error = wrong_id = split_mismatch = moved_on_error = 0
     bad_examples: list[str] = []
     now = 0.0
     if trace_memory:
@@ -236,6 +236,7 @@ def run_core(n: int, seed: int, *, trace_memory: bool = True) -> dict[str, Any]:
                     if len(bad_examples) < 10:
                         bad_examples.append(f"{type(exc).__name__}: {item!r}")
             now += 0.001
+            joints_before = ctl.joints_at(now)  # at rest: every earlier motion was stepped to its end
             try:
                 out = ctl.handle(item, "c", now)
                 out += ctl.step(now + 10.0)  # let anything waiting (a break) finish
@@ -260,6 +261,8 @@ def run_core(n: int, seed: int, *, trace_memory: bool = True) -> dict[str, Any]:
             if ack.status is Status.ERROR:
                 error_acks += 1
                 codes[ack.error_code or 0] += 1
+                if ctl.joints_at(now) != joints_before:  # refused, yet the arm moved
+                    moved_on_error += 1
         if i % 10000 == 0:
             if trace_memory:
                 mem.append(_mem_sample())
@@ -271,7 +274,7 @@ def run_core(n: int, seed: int, *, trace_memory: bool = True) -> dict[str, Any]:
         "seconds": round(elapsed, 2), "inputs_per_s": round(n / elapsed),
         "parse_exceptions_by_type": dict(exc_parse), "unexpected_exceptions": dict(exc_other),
         "malformed_items": errors_expected, "malformed_without_error_ack": missing_error,
-        "error_acks": error_acks, "error_codes": {str(k): v for k, v in sorted(codes.items())},
+        "error_acks": error_acks, "error_acks_that_moved_the_arm": moved_on_error, "error_codes": {str(k): v for k, v in sorted(codes.items())},
         "acks_with_wrong_id": wrong_id, "split_vs_whole_framing_mismatches": split_mismatch,
         "framer_buffered_at_end": framer_whole.buffered, "controller_queue_at_end": ctl.queued(),
         "joints_within_limits_at_end": _within_limits(ctl), "examples": bad_examples,
@@ -282,7 +285,7 @@ def run_core(n: int, seed: int, *, trace_memory: bool = True) -> dict[str, Any]:
         tracemalloc.stop()
         result["tracemalloc_kib"] = {"start": mem[0] // 1024, "peak": peak // 1024, "end": mem[-1] // 1024,
                                      "samples": len(mem)}
-    result["ok"] = (framed == acks and not exc_other and missing_error == 0 and wrong_id == 0
+    result["ok"] = (framed == acks and not exc_other and missing_error == 0 and wrong_id == 0 and moved_on_error == 0
                     and split_mismatch == 0 and result["joints_within_limits_at_end"])
     return result
 

@@ -24,6 +24,7 @@ def test_short_fuzz_run_reports_clean_figures(tmp_path):
     assert core["unexpected_exceptions"] == {} and core["malformed_without_error_ack"] == 0
     assert set(core["parse_exceptions_by_type"]) <= {"RemoteProtocolError"}
     assert core["malformed_items"] > 50  # the generator does produce garbage
+    assert core["error_acks_that_moved_the_arm"] == 0
     assert sim["lines_sent"] == 400 and sim["framed_items"] == sim["acks"]
     assert sim["malformed_without_error_ack"] == 0 and sim["acks_with_wrong_id"] == 0
     assert sim["final_here"]["status"] == "done" and sim["sim_stderr_tracebacks"] == 0
