@@ -468,6 +468,10 @@ class RobotClient:
         t_start, t_done = parser._times
         make_result = _make_result
         make_ack = _make_ack
+        ack_twin = _ACK_TWIN
+        result_twin = _RESULT_TWIN
+        ack_cls = Ack
+        result_cls = MessageResult
         isfinite = math.isfinite
         notify = self._notify_ack if self._observers else None
         cur = None  # the submission of the previous ack, and its fields: consecutive acks mostly share one
@@ -505,16 +509,36 @@ class RobotClient:
                         if sub is not cur:
                             if count:
                                 _settle(cur, count)  # type: ignore[arg-type]
+                                fast += count
                                 count = 0
                             cur = sub
                             calls, results, futs = sub.calls, sub.results, sub.futures
                             batch, t_send = sub.batch, sub.t_send_s
                         call = calls[i]
-                        result = make_result(mid, call.skill, call.args, batch, t_send, t_recv,
-                                             make_ack(mid, _DONE, t_start, t_done, pose, ()))
+                        if result_twin is not None:
+                            # make_result(..., make_ack(...)) inline: two calls cost more than the objects
+                            ack = ack_twin()
+                            ack.id = mid
+                            ack.status = _DONE
+                            ack.t_start_s = t_start
+                            ack.t_done_s = t_done
+                            ack.pose = pose
+                            ack.extra = ()
+                            ack.__class__ = ack_cls
+                            result = result_twin()
+                            result.id = mid
+                            result.skill = call.skill
+                            result.args = call.args
+                            result.batch = batch
+                            result.t_send_s = t_send
+                            result.t_recv_s = t_recv
+                            result.ack = ack
+                            result.__class__ = result_cls
+                        else:
+                            result = make_result(mid, call.skill, call.args, batch, t_send, t_recv,
+                                                 make_ack(mid, _DONE, t_start, t_done, pose, ()))
                         results[i] = result
                         count += 1
-                        fast += 1
                         if futs is not None and not futs[i].done():
                             futs[i].set_result(result)
                         if notify is not None:
@@ -525,6 +549,7 @@ class RobotClient:
                 times_text = parser._times_text
                 t_start, t_done = parser._times
         finally:
+            fast += count
             if count:  # _settle(cur, count) inline
                 cur.remaining -= count  # type: ignore[union-attr]
                 if not cur.remaining and cur._waiter is not None and not cur._waiter.done():  # type: ignore
@@ -970,6 +995,9 @@ def _lost(reason: str, *, acked: tuple[str, ...] = (), unresolved: tuple[str, ..
 _new_submission = object.__new__
 _make_exec = fast_constructor(ExecResult, ("messages", "sent", "sizes"))
 _make_result = fast_constructor(MessageResult, ("id", "skill", "args", "batch", "t_send_s", "t_recv_s", "ack"))
+# The twins behind _make_ack / _make_result, for _feed's inline build; both or neither (then it calls them).
+_ACK_TWIN = getattr(_make_ack, "twin", None)
+_RESULT_TWIN = getattr(_make_result, "twin", None) if _ACK_TWIN is not None else None
 _STOP = SkillCall(STOP_SKILL)
 _HERE = SkillCall(HERE_SKILL)
 _HELLO = SkillCall(HELLO_SKILL)

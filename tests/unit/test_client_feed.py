@@ -113,3 +113,22 @@ def test_repeated_times_text_gives_the_same_values_as_parsing_it():
     finally:
         sub.cancel()
         robot._loop.close()
+
+
+def test_fast_path_builds_exactly_the_values_the_constructors_build():
+    from aioadept.client import MessageResult
+
+    robot, written = wired_client()
+    pose = POSES[1]
+    try:
+        sub = robot.submit(Skill("noop", 1), Skill("noop", 2))
+        a, b = sub.ids
+        robot._feed(encode_ack(Ack(a, Status.DONE, 1.0, 2.0, pose)) + encode_ack(Ack(b, Status.DONE, 1.0, 2.0, pose)),
+                    7.0)
+        got = sub.results[1]
+        want = MessageResult(b, "noop", (2,), sub.batch, sub.t_send_s, 7.0, Ack(b, Status.DONE, 1.0, 2.0, pose))
+        assert type(got) is MessageResult and type(got.ack) is Ack
+        assert got == want and hash(got.ack) == hash(want.ack) and repr(got) == repr(want)
+    finally:
+        sub.cancel()
+        robot._loop.close()

@@ -349,7 +349,10 @@ def fast_constructor(cls: type, names: tuple[str, ...]) -> Callable[..., Any]:
             body.append(f"    _s{i}(o, {name})")
         body.append("    return o")
     exec("\n".join(body), env)  # noqa: S102 - generated from field names checked above, as dataclasses does
-    return env["make"]  # type: ignore[no-any-return]
+    make = env["make"]
+    # For callers that build inline (the client's per-ack loop): the twin class, or None when not in use.
+    make.twin = twin if "_twin" in make.__code__.co_names else None
+    return make  # type: ignore[no-any-return]
 
 
 _make_pose = fast_constructor(Pose, ("x", "y", "z", "yaw", "pitch", "roll"))
