@@ -11,12 +11,18 @@ the set of frames, one per camera) that belongs to a request time:
   when the request is sent right after the robot stopped: no frame taken during the motion can be chosen, at the
   price of up to one frame period of latency.
 
+Waiting comes in two forms: :meth:`Acquisition.frame_at` blocks the calling thread (on the ring's condition), and
+:meth:`Acquisition.frame_at_async` awaits on the event loop without any thread: the wait registers a future with
+the ring, and the grabbing thread that pushes a qualifying frame resolves it through
+``loop.call_soon_threadsafe``. A ring with no waiter costs the grabbing threads nothing extra.
+
 CPU is bounded: each thread grabs at most ``fps`` frames per second, sleeping (interruptibly) until the next frame
 deadline; when a grab takes longer than the period the thread does not try to catch up in a burst.
 """
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import math
 import threading
@@ -51,6 +57,8 @@ class FrameRing:
         self._start = 0   # physical index of the oldest frame
         self._count = 0
         self._cond = threading.Condition()
+        # Event-loop waiters for "first frame at or after t": (t_s, loop, future), resolved by push().
+        self._waiters: list[tuple[float, asyncio.AbstractEventLoop, asyncio.Future[Frame]]] = []
         self.pushed = 0
 
     def __len__(self) -> int:
@@ -74,6 +82,22 @@ class FrameRing:
             self._times[j] = frame.t_s
             self.pushed += 1
             self._cond.notify_all()
+            if self._waiters:
+                self._wake(frame)
+
+    def _wake(self, frame: Frame) -> None:
+        """Hand ``frame`` to every loop waiter it satisfies (called with the lock held, in the pushing thread)."""
+        keep = []
+        for waiter in self._waiters:
+            t_s, loop, fut = waiter
+            if frame.t_s < t_s:
+                keep.append(waiter)
+                continue
+            try:
+                loop.call_soon_threadsafe(_resolve, fut, frame)
+            except RuntimeError:  # that loop is closed: nobody is waiting any more
+                pass
+        self._waiters = keep
 
     def frames(self) -> list[Frame]:
         """All buffered frames, oldest first."""
@@ -138,6 +162,37 @@ class FrameRing:
                 if remaining <= 0:
                     return None
                 self._cond.wait(remaining)
+
+    async def await_at_or_after(self, t_s: float, timeout_s: float) -> Frame | None:
+        """Like :meth:`wait_at_or_after`, awaited on the running loop without blocking it or using a thread.
+
+        Returns as soon as the grabbing thread has pushed such a frame (one ``call_soon_threadsafe`` hop), or None
+        after ``timeout_s``. Cancellation is safe: the waiter is removed either way.
+        """
+        loop = asyncio.get_running_loop()
+        with self._cond:
+            i = self._bisect_left(t_s)
+            if i < self._count:
+                return self._frames[self._phys(i)]
+            if timeout_s <= 0:
+                return None
+            fut: asyncio.Future[Frame] = loop.create_future()
+            waiter = (t_s, loop, fut)
+            self._waiters.append(waiter)  # under the lock: a push cannot slip between the check and this
+        try:
+            async with asyncio.timeout(timeout_s):
+                return await fut
+        except TimeoutError:
+            return None
+        finally:
+            with self._cond:
+                if waiter in self._waiters:
+                    self._waiters.remove(waiter)
+
+
+def _resolve(fut: asyncio.Future[Frame], frame: Frame) -> None:
+    if not fut.done():  # not timed out or cancelled meanwhile
+        fut.set_result(frame)
 
 
 @dataclass(frozen=True, slots=True)
@@ -289,6 +344,18 @@ class Acquisition:
                                   f"within {timeout_s:.3f} s")
             return frame
         raise VisionError(f"unknown policy {policy!r}; use one of {POLICIES}")
+
+    async def frame_at_async(self, t_s: float, *, camera_id: str | None = None, policy: Policy = "nearest",
+                             timeout_s: float = 1.0) -> Frame:
+        """:meth:`frame_at` for the event loop: ``nearest`` answers at once, ``after`` awaits the grabbing thread's
+        push of the first frame at or after ``t_s`` (no thread is blocked, the loop keeps running). Same errors."""
+        if policy != "after":
+            return self.frame_at(t_s, camera_id=camera_id, policy=policy)
+        frame = await self._ring(camera_id).await_at_or_after(t_s, timeout_s)
+        if frame is None:
+            raise VisionError(f"no frame at or after t={t_s:.3f} from {camera_id or self.camera_ids[0]} "
+                              f"within {timeout_s:.3f} s")
+        return frame
 
     def frame_set(self, t_s: float, *, policy: Policy = "nearest", timeout_s: float = 1.0,
                   camera_ids: Sequence[str] | None = None) -> dict[str, Frame]:

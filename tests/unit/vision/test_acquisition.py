@@ -155,3 +155,71 @@ def test_acquisition_rejects_bad_options():
     with pytest.raises(VisionError, match="no frame"):
         acq.frame_at(1.0)
     assert not acq.wait_ready(0.01)  # not started: no frame comes
+
+
+@pytest.mark.timeout(10)
+async def test_async_wait_is_answered_as_soon_as_the_frame_is_pushed():
+    import asyncio
+
+    r = ring_of([1.0], capacity=4)
+    loop = asyncio.get_running_loop()
+    pushed_at: list[float] = []
+
+    def push_later() -> None:  # a grabbing thread
+        time.sleep(0.05)
+        r.push(frame(1.2, 1))   # still before t: the waiter keeps waiting
+        time.sleep(0.05)
+        pushed_at.append(loop.time())
+        r.push(frame(2.0, 2))
+
+    ticks = 0
+
+    async def ticker() -> None:  # the loop keeps running while the wait is pending
+        nonlocal ticks
+        while True:
+            ticks += 1
+            await asyncio.sleep(0.005)
+
+    t = threading.Thread(target=push_later)
+    tick_task = asyncio.create_task(ticker())
+    t.start()
+    try:
+        f = await r.await_at_or_after(1.5, timeout_s=5.0)
+        got_at = loop.time()
+    finally:
+        tick_task.cancel()
+        t.join()
+    assert f.seq == 2 and f.t_s == 2.0
+    assert got_at - pushed_at[0] < 0.5     # woken by the push, not by a poll or the timeout
+    assert ticks >= 5                        # ~0.1 s of waiting with a free loop
+    assert r._waiters == []
+    assert (await r.await_at_or_after(1.5, timeout_s=0)).seq == 2   # already there: no wait at all
+
+
+@pytest.mark.timeout(10)
+async def test_async_wait_times_out_with_the_error_and_forgets_the_waiter():
+    cam = CountingCamera("c", limit=2)
+    with Acquisition([cam], fps=None) as acq:
+        assert acq.wait_ready(5.0)
+        t0 = time.monotonic()
+        with pytest.raises(VisionError, match="no frame at or after t=.* within 0.050 s"):
+            await acq.frame_at_async(time.time() + 60, camera_id="c", policy="after", timeout_s=0.05)
+        assert 0.04 <= time.monotonic() - t0 < 2.0
+        assert acq.rings["c"]._waiters == []
+        near = await acq.frame_at_async(time.time(), camera_id="c")  # nearest: at once
+        assert near.seq == 2
+        with pytest.raises(VisionError, match="unknown camera"):
+            await acq.frame_at_async(1.0, camera_id="zz", policy="after")
+        with pytest.raises(VisionError, match="unknown policy"):
+            await acq.frame_at_async(1.0, policy="first")  # type: ignore[arg-type]
+
+
+@pytest.mark.timeout(10)
+async def test_async_wait_on_a_live_camera_gets_the_first_frame_after_t():
+    cam = CountingCamera("c")
+    with Acquisition([cam], buffer_size=32, fps=100.0) as acq:
+        assert acq.wait_ready(5.0)
+        t_req = time.time()
+        f = await acq.frame_at_async(t_req, camera_id="c", policy="after", timeout_s=5.0)
+        after = [x for x in acq.rings["c"].frames() if x.t_s >= t_req]
+    assert f.t_s >= t_req and f.seq == after[0].seq   # the first one, not a later one
