@@ -75,7 +75,7 @@ async def test_vision_process_follows_the_robot_state_and_measures_sharpness(tmp
         try:
             async with vision_process(tmp_path, "--state-endpoint", pub.actual_endpoint, "--fps", "30",
                                       "--policy", "after", "--seed", "1") as (proc, ready):
-                assert ready["cameras"] == "virtual" and ready["policy"] == "after"
+                assert ready["cameras"] == "virtual" and ready["policy"] == "after" and ready["thread"] == "auto"
                 async with Communicator(ready["request"], ready["response"], timeout_s=5.0) as comm:
                     async with asyncio.timeout(20):
                         focused = await request_until_object(comm)
@@ -146,3 +146,47 @@ async def test_vision_process_inline_mode_answers_repeated_ids_from_the_cache(tm
     assert second.attributes["frame_t"] >= first.attributes["frame_t"]
     log = (tmp_path / "vision.log").read_text()
     assert log.count("VisionRequest") == 2  # each id processed (and logged) once, re-publications from the cache
+
+
+@pytest.mark.timeout(30)
+async def test_node_responder_answers_cheap_requests_at_once_and_waits_for_frames_on_the_loop(tmp_path):
+    from aioadept.vision.acquisition import Acquisition
+    from aioadept.vision.node import NodeResponder, VisionNode, noop_graph
+    from aioadept.vision.sources import ImageFolderSource
+
+    folder = tmp_path
+    cv2.imwrite(str(folder / "0.png"), np.full((48, 64), 20, np.uint8))
+    with Acquisition([ImageFolderSource(folder, loop=True)], fps=50) as acq:
+        assert await asyncio.to_thread(acq.wait_ready, 5.0)
+        for policy in ("nearest", "after"):
+            node = VisionNode(acq, noop_graph(), policy=policy, timeout_s=2.0)
+            awaited = []  # requests that went through the Responder's worker task (VisionNode.handle)
+            handle = node.handle
+
+            async def counting_handle(*args, _handle=handle, _awaited=awaited):
+                _awaited.append(args[1])
+                return await _handle(*args)
+
+            node.handle = counting_handle
+            try:
+                async with NodeResponder("tcp://127.0.0.1:0", "tcp://127.0.0.1:0", node) as responder:
+                    async with Communicator(responder.actual_request_endpoint, responder.actual_response_endpoint,
+                                            timeout_s=5.0) as comm:
+                        answers = [await comm.request("VisionRequest", {"t_request": time.time()})
+                                   for _ in range(4)]
+                        # a request for a frame 0.1 s ahead: answered once that frame is grabbed
+                        t_ahead = time.time() + 0.1
+                        ahead = await comm.request("VisionRequest", {"t_request": t_ahead})
+            finally:
+                node.close()
+            assert all(a.attributes["sharpness"] == 0.0 for a in answers)
+            assert responder.handled == 5 and node.served == 5 and node.failed == 0
+            assert node.thread_runs == 1  # the first run (cost unknown) in the worker, the others on the loop
+            assert node.inline_runs == 4
+            if policy == "after":
+                assert len(awaited) == 5  # every request may wait for its frame: all through the worker task
+                assert ahead.attributes["frame_t"] >= t_ahead
+                assert all(a.attributes["frame_age_ms"] <= 0 for a in answers)
+            else:
+                assert len(awaited) == 1  # only the first (cost unknown); the rest in the socket callback
+                assert ahead.attributes["frame_t"] < t_ahead  # nearest: the newest frame at once

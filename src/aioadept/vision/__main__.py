@@ -1,7 +1,8 @@
 """``aioadept vision``: image acquisition + processing in one process (the paper's ImAcqService + ImProcNode).
 
 Data path: sources -> one grabbing thread each -> ring buffers -> (VisionRequest over ZeroMQ) -> frame for
-``t_request`` -> sharpness graph in a worker thread -> VisionResponse. With the ``virtual`` source a
+``t_request`` (awaited on the event loop) -> sharpness graph (on the loop when cheap, else in the node's worker
+thread: ``--graph-thread``) -> VisionResponse. With the ``virtual`` source a
 :class:`RobotStateFollower` subscribes to the sim's robot state stream and the virtual camera renders the
 calibration object at the tool pose of each frame's time.
 
@@ -24,6 +25,8 @@ from typing import Any
 
 log = logging.getLogger("aioadept.vision")
 
+GRAPH_THREAD_CHOICES = ("auto", "always", "never")  # aioadept.vision.node.GRAPH_THREAD_MODES, without importing it
+
 DEFAULTS: dict[str, Any] = {
     "source": ["virtual"],
     "state_endpoint": "tcp://127.0.0.1:5560",
@@ -39,11 +42,17 @@ DEFAULTS: dict[str, Any] = {
     "policy": "nearest",
     "frame_timeout": 1.0,
     "graph": "sharpness",
+    "graph_thread": "auto",
+    "graph_inline_max_ms": 5.0,
     "inline": False,
     "save_frames": None,
     "figures": None,
     "log_level": "INFO",
 }
+
+
+# The READY line's ``thread=`` field: where graphs run.
+THREAD_WORDS = {"auto": "auto", "always": "worker", "never": "loop"}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -69,9 +78,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="frame for a request: nearest in time (the paper; default) or first at/after t_request")
     p.add_argument("--frame-timeout", type=float, help="policy 'after': max wait for the frame, s (default 1)")
     p.add_argument("--graph", choices=("sharpness", "noop"), help="processing graph (noop: for latency tests)")
-    p.add_argument("--inline", action="store_true",
-                   help="run the graph on the event loop thread instead of the node's worker thread: one thread "
-                        "hand-off less per request (lower latency); the loop does nothing else in this process")
+    p.add_argument("--graph-thread", choices=GRAPH_THREAD_CHOICES,
+                   help="where the graph runs: auto (default: on the event loop while its measured cost is at most "
+                        "--graph-inline-max-ms, else in the node's worker thread), always (worker), never (loop)")
+    p.add_argument("--graph-inline-max-ms", type=float,
+                   help="--graph-thread auto: moving average of a run's cost, ms, up to which it runs on the loop "
+                        "(default 5)")
+    p.add_argument("--inline", action="store_true", default=None,
+                   help="same as --graph-thread never (kept for old command lines)")
     p.add_argument("--save-frames", metavar="DIR", help="save every served frame (PNG + frames.csv) into DIR")
     p.add_argument("--figures", metavar="OUTDIR", help="write the graph / intermediate results / sweep pictures "
                                                          "(Figs. 7-9) into OUTDIR and exit")
@@ -109,6 +123,14 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
             merged[key] = value
     if merged["policy"] not in ("nearest", "after"):
         parser.error(f"policy must be nearest or after, got {merged['policy']!r}")
+    if merged["inline"]:
+        if merged["graph_thread"] not in ("auto", "never"):
+            parser.error("--inline means --graph-thread never; do not give both")
+        merged["graph_thread"] = "never"
+    if merged["graph_thread"] not in GRAPH_THREAD_CHOICES:
+        parser.error(f"graph-thread must be one of {', '.join(GRAPH_THREAD_CHOICES)}, got {merged['graph_thread']!r}")
+    if float(merged["graph_inline_max_ms"]) < 0:
+        parser.error("graph-inline-max-ms must be >= 0")
     return argparse.Namespace(**merged)
 
 
@@ -148,9 +170,8 @@ def make_sources(opts: argparse.Namespace, pose_at: Any) -> list[Any]:
 
 
 async def serve(opts: argparse.Namespace) -> int:
-    from aioadept.bus.communicator import Responder
     from aioadept.vision.acquisition import Acquisition
-    from aioadept.vision.node import VisionNode, noop_graph
+    from aioadept.vision.node import NodeResponder, VisionNode, noop_graph
     from aioadept.vision.sharpness import sharpness_graph
     from aioadept.vision.sources import FrameRecorder
     from aioadept.vision.virtual_camera import RobotStateFollower
@@ -172,19 +193,21 @@ async def serve(opts: argparse.Namespace) -> int:
         if not await asyncio.to_thread(acq.wait_ready, 10.0):
             log.warning("not every camera delivered a frame within 10 s; serving anyway")
         graph = noop_graph() if opts.graph == "noop" else sharpness_graph()
-        node = VisionNode(acq, graph, policy=opts.policy, timeout_s=opts.frame_timeout, recorder=recorder)
-        # Worker thread (default): the loop stays free while a graph runs. Inline: the Responder calls the blocking
-        # process() directly; requests are served one at a time either way.
-        handler = node.handle_inline if opts.inline else node.handle
-        responder = Responder(opts.request_endpoint, opts.response_endpoint, handler)
+        node = VisionNode(acq, graph, policy=opts.policy, timeout_s=opts.frame_timeout, recorder=recorder,
+                          graph_thread=opts.graph_thread, inline_max_ms=float(opts.graph_inline_max_ms))
+        # Frame waits are awaited on the loop and the graph runs where --graph-thread says, so the loop is never
+        # blocked for longer than one cheap graph run; requests that need no waiting are answered in the socket
+        # callback (NodeResponder).
+        responder = NodeResponder(opts.request_endpoint, opts.response_endpoint, node)
         responder.start()
         cams = ",".join(acq.camera_ids)
         print(f"READY request={responder.actual_request_endpoint} response={responder.actual_response_endpoint} "
               f"cameras={cams} fps={opts.fps:g} policy={opts.policy} graph={opts.graph} "
-              f"thread={'loop' if opts.inline else 'worker'}", flush=True)
-        log.info("serving %s requests on %s, responses on %s; cameras %s at %g fps, policy %s%s",
+              f"thread={THREAD_WORDS[opts.graph_thread]}", flush=True)
+        log.info("serving %s requests on %s, responses on %s; cameras %s at %g fps, policy %s, graph thread %s%s",
                  opts.graph, responder.actual_request_endpoint, responder.actual_response_endpoint, cams, opts.fps,
-                 opts.policy, f", following robot state on {opts.state_endpoint}" if follower else "")
+                 opts.policy, opts.graph_thread,
+                 f", following robot state on {opts.state_endpoint}" if follower else "")
         stop_task = asyncio.create_task(stop.wait())
         serve_task = asyncio.create_task(responder.wait_closed())
         done, _ = await asyncio.wait({stop_task, serve_task}, return_when=asyncio.FIRST_COMPLETED)
@@ -193,7 +216,8 @@ async def serve(opts: argparse.Namespace) -> int:
             log.error("responder failed: %r", serve_task.exception())
             return 1
         serve_task.cancel()
-        log.info("stopping: %d requests served (%d failed)", node.served, node.failed)
+        log.info("stopping: %d requests served (%d failed); graph runs on the loop %d, in the worker %d",
+                 node.served, node.failed, node.inline_runs, node.thread_runs)
         return 0
     finally:
         if responder is not None:

@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import asyncio
+import inspect
+import threading
+import time
+
 import numpy as np
 import pytest
 
@@ -100,3 +105,164 @@ def test_sources_from_specs_get_unique_ids(tmp_path):
     assert cams[0].focus_distance_mm == pytest.approx(300 - 10)
     with pytest.raises(ValueError, match="bad --source"):
         make_sources(resolve_options(["--source", "folder"]), None)
+
+
+class Trigger(Camera):
+    """A camera that delivers a frame (stamped now) each time the test releases one: grab() blocks until then."""
+
+    def __init__(self, camera_id: str = "t") -> None:
+        self.camera_id = camera_id
+        self._go = threading.Semaphore(0)
+        self._seq = 0
+        self.stopped = False
+
+    def release(self) -> None:
+        self._go.release()
+
+    def grab(self) -> Frame | None:
+        self._go.acquire()
+        if self.stopped:
+            return None
+        self._seq += 1
+        return Frame(np.zeros((8, 8), np.uint8), time.time(), self.camera_id, self._seq)
+
+    def close(self) -> None:
+        self.stopped = True
+        self._go.release()
+
+
+def _stop(acq: Acquisition, cam: Trigger) -> None:
+    cam.stopped = True
+    cam.release()  # unblock grab() so stop() can join the thread
+    acq.stop()
+
+
+@pytest.mark.timeout(20)
+async def test_after_policy_is_answered_as_soon_as_the_frame_is_grabbed_without_blocking_the_loop():
+    cam = Trigger()
+    acq = Acquisition([cam], fps=None).start()
+    node = VisionNode(acq, noop_graph(), policy="after", timeout_s=5.0)
+    loop = asyncio.get_running_loop()
+    try:
+        cam.release()
+        assert acq.wait_ready(5.0)
+        t_request = time.time()
+        task = asyncio.create_task(node.handle("VisionRequest", "a", {"t_request": t_request}))
+        for _ in range(5):  # the loop runs freely while the node waits for the frame
+            await asyncio.sleep(0.01)
+        assert not task.done() and node.thread_runs == 0
+        released_at = loop.time()
+        cam.release()
+        out = await task
+        answered_in = loop.time() - released_at
+    finally:
+        node.close()
+        _stop(acq, cam)
+    assert out["frame_t"] >= t_request and out["frame_seq"] == 2 and out["sharpness"] == 0.0
+    assert answered_in < 1.0  # woken by the grab (typically < 1 ms), far before the 5 s timeout
+
+
+@pytest.mark.timeout(20)
+async def test_after_policy_timeout_gives_the_error_result():
+    cam = Trigger()
+    acq = Acquisition([cam], fps=None).start()
+    node = VisionNode(acq, noop_graph(), policy="after", timeout_s=0.1)
+    try:
+        cam.release()
+        assert acq.wait_ready(5.0)
+        t0 = time.monotonic()
+        out = await node.handle("VisionRequest", "a", {"t_request": time.time() + 60})
+        waited = time.monotonic() - t0
+    finally:
+        node.close()
+        _stop(acq, cam)
+    assert out["error"].startswith("no frame at or after") and "within 0.100 s" in out["error"]
+    assert out["camera"] == "t" and "sharpness" not in out
+    assert 0.09 <= waited < 2.0 and node.failed == 1 and acq.rings["t"]._waiters == []
+
+
+def _graph_recording_thread(seen: list[int], sleep_s: float = 0.0):
+    from aioadept.vision.graph import CompGraph
+
+    def f(image):
+        seen.append(threading.get_ident())
+        if sleep_s:
+            time.sleep(sleep_s)
+        return 1.0
+
+    return CompGraph({"f": f}, {"f": ("image", "sharpness")}, name="rec")
+
+
+@pytest.mark.timeout(20)
+@pytest.mark.parametrize("mode", ["auto", "always", "never"])
+async def test_graph_thread_policy_chooses_loop_or_worker(mode):
+    seen: list[int] = []
+    with Acquisition([Replay("a", [(5.0, np.zeros((8, 8), np.uint8))])], fps=None) as acq:
+        _loaded(acq, {"a": 5.0})
+        node = VisionNode(acq, _graph_recording_thread(seen), graph_thread=mode, inline_max_ms=5.0)
+        try:
+            for i in range(3):
+                out = await node.handle("VisionRequest", str(i), {"t_request": 5.0})
+                assert out["sharpness"] == 1.0
+        finally:
+            node.close()
+    loop_thread = threading.get_ident()
+    on_loop = [t == loop_thread for t in seen]
+    expected = {"auto": [False, True, True],      # unknown cost: the worker; then cheap: the loop
+                "always": [False, False, False], "never": [True, True, True]}[mode]
+    assert on_loop == expected
+    assert (node.inline_runs, node.thread_runs) == (sum(expected), 3 - sum(expected))
+    assert node.cost_ms is not None and node.cost_ms < 5.0
+
+
+@pytest.mark.timeout(20)
+async def test_auto_keeps_an_expensive_graph_in_the_worker_and_comes_back_when_it_gets_cheap():
+    seen: list[int] = []
+    with Acquisition([Replay("a", [(5.0, np.zeros((8, 8), np.uint8))])], fps=None) as acq:
+        _loaded(acq, {"a": 5.0})
+        node = VisionNode(acq, _graph_recording_thread(seen, sleep_s=0.03), inline_max_ms=5.0)
+        try:
+            for i in range(3):
+                await node.handle("VisionRequest", str(i), {"t_request": 5.0})
+            assert node.thread_runs == 3 and node.inline_runs == 0 and node.cost_ms >= 25
+            assert not node.runs_inline()
+            node.graph = _graph_recording_thread(seen)  # now cheap: the average decays below the threshold
+            for i in range(30):
+                await node.handle("VisionRequest", f"c{i}", {"t_request": 5.0})
+        finally:
+            node.close()
+    assert node.runs_inline() and node.inline_runs > 0
+    assert seen[-1] == threading.get_ident()  # the last runs were on the loop thread
+    with pytest.raises(ValueError, match="graph_thread"):
+        VisionNode(acq, noop_graph(), graph_thread="sometimes")  # type: ignore[arg-type]
+
+
+@pytest.mark.timeout(20)
+async def test_respond_answers_at_once_only_when_nothing_needs_waiting():
+    with Acquisition([Replay("a", [(5.0, np.zeros((8, 8), np.uint8))])], fps=None) as acq:
+        _loaded(acq, {"a": 5.0})
+        node = VisionNode(acq, noop_graph(), graph_thread="never")
+        after = VisionNode(acq, noop_graph(), graph_thread="never", policy="after", timeout_s=0.05)
+        auto = VisionNode(acq, noop_graph())
+        try:
+            now = node.respond("VisionRequest", "a", {"t_request": 5.0})
+            assert isinstance(now, dict) and now["sharpness"] == 0.0 and node.inline_runs == 1
+            waits = after.respond("VisionRequest", "b", {"t_request": 5.0})
+            assert inspect.isawaitable(waits) and (await waits)["frame_t"] == 5.0
+            first = auto.respond("VisionRequest", "c", {"t_request": 5.0})  # cost unknown: the worker
+            assert inspect.isawaitable(first) and (await first)["sharpness"] == 0.0
+            assert isinstance(auto.respond("VisionRequest", "d", {"t_request": 5.0}), dict)  # now known cheap
+        finally:
+            for n in (node, after, auto):
+                n.close()
+
+
+def test_graph_thread_options():
+    assert resolve_options([]).graph_thread == "auto" and resolve_options([]).graph_inline_max_ms == 5.0
+    assert resolve_options(["--inline"]).graph_thread == "never"  # the old option, an alias
+    opts = resolve_options(["--graph-thread", "always", "--graph-inline-max-ms", "2"])
+    assert opts.graph_thread == "always" and opts.graph_inline_max_ms == 2.0
+    for bad in (["--inline", "--graph-thread", "always"], ["--graph-thread", "maybe"],
+                ["--graph-inline-max-ms", "-1"]):
+        with pytest.raises(SystemExit):
+            resolve_options(bad)
