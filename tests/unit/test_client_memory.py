@@ -180,3 +180,21 @@ async def test_default_timeouts_share_one_watchdog_and_custom_ones_do_not_wait_f
             assert robot.pending_ids == ()
     finally:
         await server.close()
+
+
+
+@pytest.mark.timeout(10)
+async def test_cmdexec_of_one_command_returns_a_plain_exec_result():
+    """The one-command path builds its ExecResult inline; it must be exactly the dataclass value."""
+    import dataclasses
+
+    server = ScriptedServer()
+    try:
+        async with RobotClient(connector=server.connector()) as robot:
+            cmd = Skill("noop")
+            res = await robot.cmdexec(cmd)
+    finally:
+        await server.close()
+    assert type(res) is ExecResult
+    assert res == ExecResult(res.messages, (cmd,), (1,)) and res.sent == (cmd,) and res.sizes == (1,)
+    assert len(res) == 1 and res.commands[0].command is cmd and dataclasses.replace(res).messages == res.messages

@@ -52,16 +52,18 @@ class LineFramer:
         """Add ``data``; return the lines and events it completes, in stream order."""
         # Fast paths for what peers actually send: whole CRLF lines, nothing pending. Same result as the general
         # path below (each "\n" is part of a "\r\n", no line empty or too long), with the per-line work in C.
-        # First one line (a round trip's read): its only "\n" is the last byte.
-        if (not self._buf and not self._discarding and data.find(b"\n") == len(data) - 1
-                and data.endswith(b"\r\n") and 2 < len(data) <= self.max_line + 2):
-            return [data[:-2]]
-        if (not self._buf and not self._discarding and data.endswith(b"\r\n")
-                and data.count(b"\n") == data.count(b"\r\n")):
-            lines = data.split(b"\r\n")
-            lines.pop()
-            if all(lines) and max(map(len, lines)) <= self.max_line:
-                return lines  # type: ignore[return-value]
+        if not self._buf and not self._discarding:
+            max_line = self.max_line
+            if data.endswith(b"\r\n"):
+                # One line (a round trip's read): its only "\n" is the last byte.
+                if data.find(b"\n") == len(data) - 1 and 2 < len(data) <= max_line + 2:
+                    return [data[:-2]]
+                # Many lines: as many "\r\n" (which cannot overlap) as "\n"; no line is longer than the chunk.
+                lines = data.split(b"\r\n")
+                if len(lines) - 1 == data.count(b"\n"):
+                    lines.pop()
+                    if all(lines) and (len(data) - 2 <= max_line or max(map(len, lines)) <= max_line):
+                        return lines  # type: ignore[return-value]
         out: list[bytes | Oversize] = []
         if b"\n" not in data:
             if self._discarding:
