@@ -61,8 +61,8 @@ class VisionNode:
     bounds the wait for a frame under policy ``after``. ``recorder`` saves every frame the node serves.
     ``graph_thread`` / ``inline_max_ms``: where :meth:`handle` runs the graph (module docstring); ``cost_ms`` is the
     moving average it decides on (None before the first run, which under ``auto`` goes to the worker), and
-    ``inline_runs`` / ``thread_runs`` count the graph runs made on the loop / in the worker by the handlers. Owns one worker thread (created on first use, joined by
-    :meth:`close`).
+    ``inline_runs`` / ``thread_runs`` count the graph runs made on the loop / in the worker by the handlers. Owns
+    one worker thread (created on first use, joined by :meth:`close`).
     """
 
     COST_EWMA_ALPHA = 0.2
@@ -249,10 +249,12 @@ class NodeResponder(Responder):
     in arrival order. Same options as :class:`Responder`, minus the handler and ``in_thread``.
 
     It chooses per request by setting the Responder's ``_inline`` flag before each dispatch, an internal of
-    :mod:`aioadept.bus.communicator` (tests/unit/vision/test_node.py pins the behaviour).
+    :mod:`aioadept.bus.communicator` (tests/integration/test_vision_node.py pins the behaviour).
     """
 
     def __init__(self, request_endpoint: str, response_endpoint: str, node: VisionNode, **options: Any) -> None:
+        if "in_thread" in options:
+            raise TypeError("NodeResponder: the node chooses where its graph runs (graph_thread), not in_thread")
         super().__init__(request_endpoint, response_endpoint, node.respond, **options)
         self.node = node
         self._inline = False  # so that start() creates the worker task for the requests that must wait
