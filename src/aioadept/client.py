@@ -11,7 +11,7 @@ and drives the sans-IO core (:mod:`aioadept.protocol`) over asyncio::
 How it works, and the promises it keeps:
 
 - One write path (:meth:`RobotClient._send`): IDs are allocated, every message of the batch is registered in the
-  pending registry (ID -> submission, index) *before* the bytes are written, then the batch goes out in one write.
+  pending registry (ID -> submission) *before* the bytes are written, then the batch goes out in one write.
 - One place routes acks (:meth:`RobotClient._feed`): on TCP it runs in the transport's ``data_received`` (a
   protocol, not a reader task: one loop turn less per round trip); with a ``connector`` that returns asyncio
   streams (tests, in-memory pairs) a single reader task feeds it. It does nothing else: no per-message logging, no
@@ -38,7 +38,7 @@ import secrets
 import socket
 import time
 from collections import deque
-from itertools import chain, repeat
+from itertools import chain
 from collections.abc import Awaitable, Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -245,6 +245,7 @@ class Submission:
     _settled = False
     _lost_reason: str | None = None
     _first_bad = -1  # index of the first non-done ack (in send order), -1 if none
+    _next_i = 0  # where the next ack is expected in ``ids`` (one after the previous ack's)
 
     def __init__(self, client: RobotClient, ids: tuple[str, ...], calls: Sequence[SkillCall], batch: int) -> None:
         self._client = client
@@ -254,6 +255,15 @@ class Submission:
         self.t_send_s = 0.0
         self.results: list[MessageResult | None] = [None] * len(ids)
         self.remaining = len(ids)
+
+    def _index(self, mid: str) -> int:
+        """The index of message ``mid`` (registered, so present); expected one after the previous ack's."""
+        ids = self.ids
+        i = self._next_i
+        if i >= len(ids) or ids[i] != mid:
+            i = ids.index(mid)
+        self._next_i = i + 1
+        return i
 
     def done(self) -> bool:
         """True when every message is acked or the connection was lost."""
@@ -304,8 +314,9 @@ class RobotClient:
         self._ids = IdAllocator(secrets.randbits(32) if id_start is None else id_start)
         self._framer = LineFramer(max_line=max_line)
         self._parser = AckParser()
-        # id -> (submission, index in it). The one registry of pending messages.
-        self._pending: dict[str, tuple[Submission, int]] = {}
+        # id -> submission. The one registry of pending messages. An ack's index in its submission is found from
+        # the one after the previous ack (acks come in order), else by search (Submission._index).
+        self._pending: dict[str, Submission] = {}
         # Waiters with the default timeout, in deadline order, watched by ONE timer (a timer per wait costs
         # ~10-30 us of loop time per round trip on a small VM; deadlines of a constant timeout come in order).
         self._deadlines: deque[Submission] = deque()
@@ -478,7 +489,9 @@ class RobotClient:
         calls: Sequence[SkillCall] = ()
         results: list[MessageResult | None] = []
         futs = None
+        ids: tuple[str, ...] = ()
         batch = 0
+        j = 0
         t_send = 0.0
         fast = 0  # acks routed here (not by _route)
         count = 0  # of them, acks of `cur` not yet subtracted from cur.remaining (one update per run of a batch)
@@ -503,17 +516,21 @@ class RobotClient:
                             times_text, t_start, t_done = parts[2], ts, td
                     except ValueError:
                         mid = ""
-                    entry = pending_pop(mid, None) if mid else None
-                    if entry is not None:
-                        sub, i = entry
+                    sub = pending_pop(mid, None) if mid else None
+                    if sub is not None:
                         if sub is not cur:
                             if count:
                                 _settle(cur, count)  # type: ignore[arg-type]
                                 fast += count
                                 count = 0
+                            if cur is not None:
+                                cur._next_i = j
                             cur = sub
-                            calls, results, futs = sub.calls, sub.results, sub.futures
-                            batch, t_send = sub.batch, sub.t_send_s
+                            calls, results, futs, ids = sub.calls, sub.results, sub.futures, sub.ids
+                            batch, t_send, j = sub.batch, sub.t_send_s, sub._next_i
+                        # Its index: one after the previous ack's (acks come in order), else search.
+                        i = j if j < len(ids) and ids[j] == mid else ids.index(mid)
+                        j = i + 1
                         call = calls[i]
                         if result_twin is not None:
                             # make_result(..., make_ack(...)) inline: two calls cost more than the objects
@@ -549,6 +566,8 @@ class RobotClient:
                 times_text = parser._times_text
                 t_start, t_done = parser._times
         finally:
+            if cur is not None:
+                cur._next_i = j
             fast += count
             if count:  # _settle(cur, count) inline
                 cur.remaining -= count  # type: ignore[union-attr]
@@ -565,11 +584,11 @@ class RobotClient:
         except RemoteProtocolError:
             self._unexpected("bad_line", line, t_recv)
             return
-        entry = self._pending.pop(ack.id, None)
-        if entry is None:
+        sub = self._pending.pop(ack.id, None)
+        if sub is None:
             self._unmatched(ack, line, t_recv)
             return
-        sub, i = entry
+        i = sub._index(ack.id)
         call = sub.calls[i]
         result = _make_result(ack.id, call.skill, call.args, sub.batch, sub.t_send_s, t_recv, ack)
         sub.results[i] = result
@@ -615,12 +634,13 @@ class RobotClient:
 
     def _fail_pending(self, why: str) -> None:
         pending, self._pending = self._pending, {}
-        subs: dict[int, Submission] = {}
-        for mid, (sub, i) in pending.items():
-            subs[id(sub)] = sub
-            if sub.futures is not None and not sub.futures[i].done():
-                # Per message; wait() merges them into one error with the whole batch's sets.
-                sub.futures[i].set_exception(_lost(why, unresolved=(mid,)))
+        subs = {id(sub): sub for sub in pending.values()}  # in send order
+        for sub in subs.values():
+            if sub.futures is not None:
+                for mid, fut in zip(sub.ids, sub.futures):
+                    if mid in pending and not fut.done():
+                        # Per message; wait() merges them into one error with the whole batch's sets.
+                        fut.set_exception(_lost(why, unresolved=(mid,)))
         for sub in subs.values():
             sub._lost_reason = why
             if sub._waiter is not None and not sub._waiter.done():
@@ -666,11 +686,11 @@ class RobotClient:
             new_future = fns[2]
             sub.futures = tuple(new_future() for _ in range(n))
         pending = self._pending
-        # Registered before the write, so an ack can never beat its entry; id -> (submission, index).
+        # Registered before the write, so an ack can never beat its entry.
         if n == 1:
-            pending[ids[0]] = (sub, 0)
+            pending[ids[0]] = sub
         else:
-            pending.update(zip(ids, zip(repeat(sub), range(n))))
+            pending.update(dict.fromkeys(ids, sub))
         sub.t_send_s = fns[1]()
         try:
             write(data)

@@ -132,3 +132,25 @@ def test_fast_path_builds_exactly_the_values_the_constructors_build():
     finally:
         sub.cancel()
         robot._loop.close()
+
+
+def test_acks_out_of_order_reach_their_own_messages():
+    """The index of an ack is guessed as the one after the previous ack's; out of order it is searched for."""
+    robot, written = wired_client()
+    pose = POSES[0]
+    try:
+        sub = robot.submit(*[Skill("noop", k) for k in range(6)])
+        ids = sub.ids
+        order = [3, 0, 4, 5, 1, 2]
+        lines = [encode_ack(Ack(ids[k], Status.DONE, float(k), float(k), pose)) if k != 5 else
+                 encode_ack(Ack.error(ids[k], -610, "out of range", 5.0, 5.0, pose)) for k in order]
+        robot._feed(b"".join(lines[:3]), 1.0)
+        robot._feed(b"".join(lines[3:]), 2.0)
+        assert [r.id for r in sub.results] == list(ids)
+        assert [(r.args, r.ack.t_done_s) for r in sub.results] == [((k,), float(k)) for k in range(6)]
+        assert [r.ack.status for r in sub.results] == [Status.DONE] * 5 + [Status.ERROR]
+        assert [f.result() for f in sub.futures] == sub.results
+        assert sub.remaining == 0 and robot.pending_ids == () and robot.stats.acks == 6
+    finally:
+        sub.cancel()
+        robot._loop.close()
