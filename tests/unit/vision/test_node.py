@@ -199,7 +199,8 @@ async def test_graph_thread_policy_chooses_loop_or_worker(mode):
     seen: list[int] = []
     with Acquisition([Replay("a", [(5.0, np.zeros((8, 8), np.uint8))])], fps=None) as acq:
         _loaded(acq, {"a": 5.0})
-        node = VisionNode(acq, _graph_recording_thread(seen), graph_thread=mode, inline_max_ms=5.0)
+        # A generous threshold: a trivial run preempted on a loaded machine must not look expensive.
+        node = VisionNode(acq, _graph_recording_thread(seen), graph_thread=mode, inline_max_ms=100.0)
         try:
             for i in range(3):
                 out = await node.handle("VisionRequest", str(i), {"t_request": 5.0})
@@ -212,7 +213,7 @@ async def test_graph_thread_policy_chooses_loop_or_worker(mode):
                 "always": [False, False, False], "never": [True, True, True]}[mode]
     assert on_loop == expected
     assert (node.inline_runs, node.thread_runs) == (sum(expected), 3 - sum(expected))
-    assert node.cost_ms is not None and node.cost_ms < 5.0
+    assert node.cost_ms is not None and node.cost_ms < 100.0
 
 
 @pytest.mark.timeout(20)
@@ -220,11 +221,11 @@ async def test_auto_keeps_an_expensive_graph_in_the_worker_and_comes_back_when_i
     seen: list[int] = []
     with Acquisition([Replay("a", [(5.0, np.zeros((8, 8), np.uint8))])], fps=None) as acq:
         _loaded(acq, {"a": 5.0})
-        node = VisionNode(acq, _graph_recording_thread(seen, sleep_s=0.03), inline_max_ms=5.0)
+        node = VisionNode(acq, _graph_recording_thread(seen, sleep_s=0.05), inline_max_ms=10.0)
         try:
             for i in range(3):
                 await node.handle("VisionRequest", str(i), {"t_request": 5.0})
-            assert node.thread_runs == 3 and node.inline_runs == 0 and node.cost_ms >= 25
+            assert node.thread_runs == 3 and node.inline_runs == 0 and node.cost_ms >= 45
             assert not node.runs_inline()
             node.graph = _graph_recording_thread(seen)  # now cheap: the average decays below the threshold
             for i in range(30):
@@ -243,7 +244,7 @@ async def test_respond_answers_at_once_only_when_nothing_needs_waiting():
         _loaded(acq, {"a": 5.0})
         node = VisionNode(acq, noop_graph(), graph_thread="never")
         after = VisionNode(acq, noop_graph(), graph_thread="never", policy="after", timeout_s=0.05)
-        auto = VisionNode(acq, noop_graph())
+        auto = VisionNode(acq, noop_graph(), inline_max_ms=100.0)
         try:
             now = node.respond("VisionRequest", "a", {"t_request": 5.0})
             assert isinstance(now, dict) and now["sharpness"] == 0.0 and node.inline_runs == 1
