@@ -75,6 +75,8 @@ class CompGraph:
     name: str = "graph"
     _nodes: tuple[_Node, ...] = field(init=False, repr=False)
     _producer: Mapping[str, str] = field(init=False, repr=False)
+    _free: frozenset[str] = field(init=False, repr=False)      # free tokens, for run()'s input check
+    _allowed: frozenset[str] = field(init=False, repr=False)   # free + frozen: the names run() accepts
 
     def __post_init__(self) -> None:
         # Freeze the caller's dicts so a running node cannot be changed under it.
@@ -84,6 +86,9 @@ class CompGraph:
         nodes, producer = _validate(self.func_dict, self.func_io, self.frozen_tokens)
         object.__setattr__(self, "_nodes", nodes)
         object.__setattr__(self, "_producer", MappingProxyType(producer))
+        # Computed once: run() checks its inputs against them on every call (the latency path of a vision node).
+        object.__setattr__(self, "_free", frozenset(self.free_tokens))
+        object.__setattr__(self, "_allowed", self._free | frozenset(self.frozen_tokens))
 
     # ----------------------------------------------------------------------------------------------- structure
     @property
@@ -140,11 +145,12 @@ class CompGraph:
         propagates unchanged, with a note naming the function (so ``VisionError`` from a step reaches the caller
         as itself). A function returning the wrong number of outputs raises :class:`GraphError`.
         """
-        missing = [t for t in self.free_tokens if t not in inputs]
-        if missing:
-            raise GraphError(f"{self.name}: missing input tokens {missing}", tokens=tuple(missing))
-        unknown = sorted(t for t in inputs if t not in self.frozen_tokens and t not in self.free_tokens)
-        if unknown:
+        names = inputs.keys()
+        if not self._free <= names <= self._allowed:  # one set comparison on the common path; details if not
+            missing = [t for t in self.free_tokens if t not in inputs]
+            if missing:
+                raise GraphError(f"{self.name}: missing input tokens {missing}", tokens=tuple(missing))
+            unknown = sorted(names - self._allowed)
             raise GraphError(f"{self.name}: unknown input tokens {unknown}", tokens=tuple(unknown))
         tokens: dict[str, Any] = {**self.frozen_tokens, **inputs}
         times: dict[str, float] = {}
