@@ -17,24 +17,29 @@ absolute numbers, the ratios RobotClient / bare, the issue's targets, and the pr
 ``breakdown_us_per_msg`` (CPU per message of each client stage, in process, no sockets) and
 ``rtt_amplification`` (the bare client's round trip with 20 us of extra work before each write).
 
-Notes (2-core VM shared with other jobs; see the JSON of your own run):
+Notes (2-core VM shared with other jobs; see the JSON of your own run, and docs/protocol.md, "Performance"):
 
-- What the client does per message that the bare one does not: validate the ack (split, two floats, pose, status,
-  ID) and build an ``Ack`` and a ``MessageResult`` (frozen, slotted dataclasses) with loop-clock times. The
-  breakdown shows building the two objects alone costs about as much as the bare client's whole receive path.
-- Optimisations made, each measured: acks routed in the transport's ``data_received`` (no reader task hop); one
-  waiter future per batch instead of one per message; one watchdog timer for all default timeouts instead of a
-  timer per wait (``asyncio.timeout`` cost ~25 us per round trip here); a CRLF fast path in the framer; an inline
-  fast path for plain ``done`` acks that reuses the previous ack's Pose object when the pose text is unchanged;
-  slotted dataclasses built by setting slots directly (about 2x faster than their ``__init__``); no enum member
-  lookups on per-message paths (``ClientState.CONNECTED`` costs ~0.3 us per access in 3.11).
-- Result on this VM (asyncio loop; uvloop similar): round trip p50 ~1.3x, pipelined throughput ~0.75-0.9x, CPU per
-  pipelined message ~1.8-1.9x of the bare client. Not met: the bare client parses nothing and builds nothing, and
-  ``breakdown_us_per_msg`` shows ours spends ~2.5 us per message building the two result objects and ~3 us
-  validating and routing, against ~3.6 us for the bare client's entire per-message work.
-- Round trip: every microsecond the client spends between reading an ack and writing the next message delays the
-  server's next wake-up; measured here, the round trip grows by 0.7-2 us per us of such work, so the ~15 us of
-  per-round-trip work above shows as 25-35 us (about 1.3x of a ~100 us bare round trip).
+- What the client does per message that the bare one does not: validate the ack (split, times, pose, status,
+  ID), route it to its submission and build an ``Ack`` and a ``MessageResult`` (frozen, slotted dataclasses) with
+  loop-clock times.
+- Optimisations, each measured: acks routed in the transport's ``data_received`` (no reader task hop); one waiter
+  future per batch; one watchdog timer for all default timeouts (``asyncio.timeout`` cost ~25 us per round trip
+  here); framer fast paths (one line; whole CRLF lines) doing the per-line work in C; an inline fast path for plain
+  ``done`` acks that reuses the previous ack's Pose object and floats when the pose or times text repeats (times
+  have 1 ms resolution, so acks of one millisecond share them); frozen slotted values built by filling a plain
+  twin class with the same slots and setting ``__class__`` (~2x faster than setting slot descriptors, ~4x than
+  ``__init__``), inline in the per-ack loop; the registry maps ID -> submission and finds an ack's index as the
+  one after the previous ack's; IDs formatted once per run of 256; the round trip's send/wait path without Python
+  calls it does not need (ID, Submission, default timer, ExecResult, loop clock); no enum member lookups.
+- Result before/after this work (medians of ratios, same VM, load average ~4 on 2 cores): round trip p50
+  1.27-1.31x -> ~1.16x; pipelined throughput 0.73-0.87x -> ~0.85x (10) and ~0.93x (100); CPU per pipelined
+  message 1.6-1.9x -> ~1.4x (10) and ~1.3x (100). ``breakdown_us_per_msg`` shows what is left: the ack path
+  without building objects (``client_same_without_building_results``) costs about what the bare client's whole
+  receive path costs, and building the two values adds ~0.5 us per message.
+- Round trip and batches of 10: every microsecond the client spends between reading an ack and writing the next
+  message delays the server's next wake-up; measured here (``rtt_amplification``), the round trip grows by
+  0.7-2 us per us of such work, and the per-batch work (submission, waiter, wake-up, result tuple) weighs most
+  in small batches.
 """
 
 from __future__ import annotations

@@ -34,6 +34,7 @@ import enum
 import functools
 import logging
 import math
+import operator
 import secrets
 import socket
 import time
@@ -885,7 +886,7 @@ class RobotClient:
             out.__class__ = ExecResult
             return out  # type: ignore[no-any-return]
         try:
-            per_command = [c._calls for c in commands]  # the common case, without per-command calls
+            per_command = list(map(_CALLS_OF_COMMAND, commands))  # the common case, in C
         except AttributeError:
             per_command = [_calls_of((c,)) for c in commands]
         if not per_command:
@@ -914,7 +915,7 @@ class RobotClient:
         Raises as :meth:`cmdexec`; an error is raised after all acks of the batch are in.
         """
         try:
-            per_command = [c._calls for c in commands]  # the common case, without per-command calls
+            per_command = list(map(_CALLS_OF_COMMAND, commands))  # the common case, in C
         except AttributeError:
             per_command = [_calls_of((c,)) for c in commands]
         if not per_command:
@@ -925,7 +926,15 @@ class RobotClient:
         if not calls:
             raise ValueError("commands: nothing to send")
         results = await self._wait(self._send(calls), timeout_s, True)
-        return _make_exec(results, commands, tuple(map(len, per_command)))
+        twin = _EXEC_TWIN
+        if twin is None:
+            return _make_exec(results, commands, tuple(map(len, per_command)))
+        out = twin()  # _make_exec(...) inline, as in cmdexec
+        out.messages = results
+        out.sent = commands
+        out.sizes = tuple(map(len, per_command))
+        out.__class__ = ExecResult
+        return out  # type: ignore[no-any-return]
 
     async def stop(self, *, timeout_s: float | None = None) -> MessageResult:
         """Send the ``stop`` skill at once, past whatever is queued (extension; see docs/protocol.md).
@@ -1021,6 +1030,7 @@ def _lost(reason: str, *, acked: tuple[str, ...] = (), unresolved: tuple[str, ..
 
 
 _new_submission = object.__new__
+_CALLS_OF_COMMAND = operator.attrgetter("_calls")  # Command._calls; AttributeError for anything else
 _make_exec = fast_constructor(ExecResult, ("messages", "sent", "sizes"))
 _make_result = fast_constructor(MessageResult, ("id", "skill", "args", "batch", "t_send_s", "t_recv_s", "ack"))
 # The twins behind _make_ack / _make_result, for _feed's inline build; both or neither (then it calls them).
