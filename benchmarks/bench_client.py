@@ -31,11 +31,11 @@ Notes (2-core VM shared with other jobs; see the JSON of your own run, and docs/
   ``__init__``), inline in the per-ack loop; the registry maps ID -> submission and finds an ack's index as the
   one after the previous ack's; IDs formatted once per run of 256; the round trip's send/wait path without Python
   calls it does not need (ID, Submission, default timer, ExecResult, loop clock); no enum member lookups.
-- Result before/after this work (medians of ratios, same VM, load average ~4 on 2 cores): round trip p50
-  1.27-1.31x -> ~1.16x; pipelined throughput 0.73-0.87x -> ~0.85x (10) and ~0.93x (100); CPU per pipelined
-  message 1.6-1.9x -> ~1.4x (10) and ~1.3x (100). ``breakdown_us_per_msg`` shows what is left: the ack path
-  without building objects (``client_same_without_building_results``) costs about what the bare client's whole
-  receive path costs, and building the two values adds ~0.5 us per message.
+- Result before/after this work (medians of 5 and 7 runs, same VM; table in docs/protocol.md): round trip p50
+  1.26x -> 1.19x; pipelined throughput 0.80x -> 0.86x (10) and 0.80x -> 0.93x (100); CPU per pipelined message
+  1.72x -> 1.42x (10) and 1.93x -> 1.28x (100). ``breakdown_us_per_msg`` shows what is left: the ack path without
+  building objects (``client_same_without_building_results``) costs about what the bare client's whole receive
+  path costs, and building the two values adds ~0.4 us per message.
 - Round trip and batches of 10: every microsecond the client spends between reading an ack and writing the next
   message delays the server's next wake-up; measured here (``rtt_amplification``), the round trip grows by
   0.7-2 us per us of such work, and the per-batch work (submission, waiter, wake-up, result tuple) weighs most
