@@ -48,6 +48,8 @@ DEFAULTS: dict[str, Any] = {
     "save_frames": None,
     "figures": None,
     "log_level": "INFO",
+    "curve_secret": None,
+    "curve_allow": None,
 }
 
 
@@ -90,6 +92,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--figures", metavar="OUTDIR", help="write the graph / intermediate results / sweep pictures "
                                                          "(Figs. 7-9) into OUTDIR and exit")
     p.add_argument("--log-level", help="DEBUG, INFO (default), WARNING")
+    p.add_argument("--curve-secret", metavar="FILE",
+                   help="CURVE: this node's secret certificate (NAME.key_secret, aioadept.bus.security.save_keypair); "
+                        "turns on CURVE authentication and encryption of requests and responses (docs/security.md)")
+    p.add_argument("--curve-allow", action="append", metavar="FILE",
+                   help="CURVE: public certificate (NAME.key) of a requester allowed in (repeatable; without any, "
+                        "every requester that knows the node's public key is accepted)")
     return p
 
 
@@ -131,7 +139,28 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
         parser.error(f"graph-thread must be one of {', '.join(GRAPH_THREAD_CHOICES)}, got {merged['graph_thread']!r}")
     if float(merged["graph_inline_max_ms"]) < 0:
         parser.error("graph-inline-max-ms must be >= 0")
+    merged["curve"] = _curve_server(parser, merged)
     return argparse.Namespace(**merged)
+
+
+def _curve_server(parser: argparse.ArgumentParser, merged: dict[str, Any]) -> Any:
+    """The CurveServer of --curve-secret/--curve-allow, or None (CURVE off, the default)."""
+    allow = merged["curve_allow"]
+    if isinstance(allow, str):
+        allow = [allow]
+    if not merged["curve_secret"]:
+        if allow:
+            parser.error("--curve-allow needs --curve-secret")
+        return None
+    from aioadept.bus.security import CurveServer, load_keypair
+
+    try:
+        keys = load_keypair(merged["curve_secret"])
+        if keys.secret is None:
+            raise ValueError(f"{merged['curve_secret']} holds no secret key (give the .key_secret file)")
+        return CurveServer(keys, allowed_clients=[load_keypair(f).public for f in allow] if allow else None)
+    except ValueError as exc:
+        parser.error(str(exc))
 
 
 def make_sources(opts: argparse.Namespace, pose_at: Any) -> list[Any]:
@@ -198,7 +227,8 @@ async def serve(opts: argparse.Namespace) -> int:
         # Frame waits are awaited on the loop and the graph runs where --graph-thread says, so the loop is never
         # blocked for longer than one cheap graph run; requests that need no waiting are answered in the socket
         # callback (NodeResponder).
-        responder = NodeResponder(opts.request_endpoint, opts.response_endpoint, node)
+        responder = NodeResponder(opts.request_endpoint, opts.response_endpoint, node,
+                                  **({"curve": opts.curve} if opts.curve is not None else {}))
         responder.start()
         cams = ",".join(acq.camera_ids)
         print(f"READY request={responder.actual_request_endpoint} response={responder.actual_response_endpoint} "
