@@ -166,6 +166,7 @@ class Communicator:
 
     ``timeout_s`` is the default per-request timeout. Until answered, a request is re-published with the same id
     after ``republish_interval_s``, then at intervals growing by ``republish_backoff`` up to
+    ``republish_max_interval_s``; once any answer has arrived (the node's subscription is live), requests start at
     ``republish_max_interval_s``. ``request_topic``/``response_topic`` None means single-frame messages, as EPypes
     sends and expects; give topics to share endpoints between services. ``curve`` (default None: off) secures
     both sockets with CURVE: normally a :class:`aioadept.bus.security.CurveClient` holding the node's public key
@@ -215,6 +216,9 @@ class Communicator:
         self.ignored_responses = 0
         """Responses that matched no outstanding request (foreign ids, duplicates, answers after a timeout)."""
         self.republished = 0
+        # Set by the first answer: the node's subscription is known to be live, so a request no longer needs the
+        # fast re-publication that covers the slow joiner (it only duplicated requests a node was still working on).
+        self._joined = False
         """Re-publications done for the slow joiner / lost messages, over the communicator's life."""
 
     # -------------------------------------------------------------------------------------------- lifecycle
@@ -336,7 +340,8 @@ class Communicator:
         payload = encode_event(event_type, rid, attrs)  # BusEncodeError before anything is registered
         loop = self._loop
         assert loop is not None
-        pend = _Pending(loop.create_future(), payload, event_type, 0.0, self.republish_interval_s)
+        first_interval = self.republish_max_interval_s if self._joined else self.republish_interval_s
+        pend = _Pending(loop.create_future(), payload, event_type, 0.0, first_interval)
         # Registered before the bytes leave, so even an instant answer finds its future.
         self._pending[rid] = pend
         try:
@@ -456,6 +461,7 @@ class Communicator:
             self.ignored_responses += 1
             return
         pend.future.set_result((event_type, attrs, t_recv_s))
+        self._joined = True
 
     def _reader_failed(self, exc: BaseException) -> None:
         self._reader_error = exc
