@@ -320,3 +320,38 @@ async def test_requests_that_timed_out_while_the_node_was_down_are_not_processed
     assert resp.attributes == {"ok": 1}
     assert stale not in seen, "a request whose requester gave up was queued and processed after the restart"
     assert seen == [first.id, resp.id]
+
+
+@pytest.mark.timeout(10)
+async def test_plain_handler_may_answer_at_once_or_return_an_awaitable_and_answers_keep_arrival_order():
+    release = asyncio.Event()
+    calls: list[str] = []
+
+    def handler(event_type, rid, attrs):
+        calls.append(attrs["name"])
+        if attrs["name"] == "slow":
+            async def later():
+                await release.wait()
+                return {"name": "slow"}
+            return later()
+        return {"name": attrs["name"]}
+
+    async with Responder(ANY, ANY, handler) as node, \
+            Communicator(node.actual_request_endpoint, node.actual_response_endpoint, timeout_s=5) as comm:
+        assert (await comm.request("VisionRequest", {"name": "quick"})).attributes["name"] == "quick"
+        order: list[str] = []
+
+        async def ask(name):
+            resp = await comm.request("VisionRequest", {"name": name})
+            order.append(resp.attributes["name"])
+
+        slow = asyncio.create_task(ask("slow"))
+        while "slow" not in calls:  # the node has received it (and is waiting on release)
+            await asyncio.sleep(0.01)
+        quick = asyncio.create_task(ask("after-slow"))
+        await asyncio.sleep(0.1)
+        assert order == [], "a request behind a waiting one must not be answered first"
+        release.set()
+        await asyncio.gather(slow, quick)
+    assert order == ["slow", "after-slow"]
+    assert node.handled == 3 and node.errors == 0

@@ -533,7 +533,10 @@ class Responder:
     It binds a SUB on ``request_endpoint`` and a PUB on ``response_endpoint`` (``bind=False`` connects both). The
     handler returns the response attributes (a mapping, or None for none); it may be a coroutine function, or a
     plain function, which with ``in_thread=True`` runs in a worker thread owned by the responder so that a slow
-    image graph does not stall the loop (e.g. an acquisition task in the same process).
+    image graph does not stall the loop (e.g. an acquisition task in the same process). A plain function without
+    ``in_thread`` runs right in the socket callback and may return either the attributes (answered at once: no
+    task switch) or an awaitable of them (awaited by the responder's worker task, in arrival order): a node that
+    can usually answer at once but sometimes has to wait for a frame needs no thread hop for the common case.
 
     - The response has the request's id and type ``response_type`` (default: ``VisionRequest`` ->
       ``VisionResponse``, see :func:`response_type_for`).
@@ -591,7 +594,9 @@ class Responder:
             raise
         self._loop: asyncio.AbstractEventLoop | None = None
         self._fd: int | None = None
-        self._queue: collections.deque[tuple[str, str | None, dict]] = collections.deque()
+        # (type, id, attributes, awaitable the handler already returned or None: call the handler in turn)
+        self._queue: collections.deque[tuple[str, str | None, dict, Any]] = collections.deque()
+        self._busy = False  # the worker is processing a request (keeps arrival order for the at-once path)
         self._pending: set[tuple[str, str]] = set()  # (type, id) queued or being processed
         self._wakeup: asyncio.Event | None = None
         self._tasks: list[asyncio.Task] = []  # worker (and fallback reader), owned and cancelled by aclose()
@@ -635,8 +640,8 @@ class Responder:
         loop = self._loop = asyncio.get_running_loop()
         self._closed_event = asyncio.Event()
         self._wakeup = asyncio.Event()
-        if not self._inline:
-            self._tasks.append(asyncio.create_task(self._work(), name=f"Responder worker {self._actual_req}"))
+        # Even an inline handler may hand back an awaitable, so the worker always exists (idle, it costs nothing).
+        self._tasks.append(asyncio.create_task(self._work(), name=f"Responder worker {self._actual_req}"))
         fd = self._sub.getsockopt(zmq.FD)
         try:
             loop.add_reader(fd, self._on_readable)
@@ -717,16 +722,24 @@ class Responder:
             return
         if self._expired(attrs):
             return
-        if self._inline:
-            self._answer(event_type, rid, self._process_sync(event_type, rid, attrs))
-        else:
-            if rid is not None:
-                if (event_type, rid) in self._pending:
-                    return
-                self._pending.add((event_type, rid))
-            self._queue.append((event_type, rid, attrs))
-            assert self._wakeup is not None
-            self._wakeup.set()
+        if rid is not None and (event_type, rid) in self._pending:
+            return  # a repeat of a request still queued or in process: its answer will serve it
+        later = None
+        if self._inline and not self._queue and not self._busy:
+            try:
+                result = self._handler(event_type, rid, attrs)
+            except Exception as exc:
+                self._answer(event_type, rid, self._error_response(event_type, rid, exc))
+                return
+            if not inspect.isawaitable(result):
+                self._answer(event_type, rid, self._encode_result(event_type, rid, result))
+                return
+            later = result
+        if rid is not None:
+            self._pending.add((event_type, rid))
+        self._queue.append((event_type, rid, attrs, later))
+        assert self._wakeup is not None
+        self._wakeup.set()
 
     async def _work(self) -> None:
         queue, wakeup = self._queue, self._wakeup
@@ -735,12 +748,14 @@ class Responder:
             while not queue:
                 wakeup.clear()
                 await wakeup.wait()
-            event_type, rid, attrs = queue.popleft()
+            event_type, rid, attrs, later = queue.popleft()
+            self._busy = True
             try:
-                if self._answer_from_cache(event_type, rid) or self._expired(attrs):
+                if later is None and (self._answer_from_cache(event_type, rid) or self._expired(attrs)):
                     continue
-                self._answer(event_type, rid, await self._process_async(event_type, rid, attrs))
+                self._answer(event_type, rid, await self._process_async(event_type, rid, attrs, later))
             finally:
+                self._busy = False
                 if rid is not None:
                     self._pending.discard((event_type, rid))
 
@@ -773,22 +788,20 @@ class Responder:
                 self._cache.popitem(last=False)
         self._send(response)
 
-    def _process_sync(self, event_type: str, rid: str | None, attrs: dict[str, AttributeValue]) -> bytes:
+    def _encode_result(self, event_type: str, rid: str | None, result: Any) -> bytes:
         try:
-            result = self._handler(event_type, rid, attrs)
-            if inspect.isawaitable(result):  # a plain function returned an awaitable: not supported inline
-                close = getattr(result, "close", None)
-                if close is not None:
-                    close()
-                raise TypeError("handler returned an awaitable; make it an 'async def' handler")
-            self.handled += 1
-            return encode_event(self._response_type or response_type_for(event_type), rid, result)
+            response = encode_event(self._response_type or response_type_for(event_type), rid, result)
         except Exception as exc:
             return self._error_response(event_type, rid, exc)
+        self.handled += 1
+        return response
 
-    async def _process_async(self, event_type: str, rid: str | None, attrs: dict[str, AttributeValue]) -> bytes:
+    async def _process_async(self, event_type: str, rid: str | None, attrs: dict[str, AttributeValue],
+                             later: Any = None) -> bytes:
         try:
-            if self._in_thread:
+            if later is not None:
+                result = later
+            elif self._in_thread:
                 if self._executor is None:
                     self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="aioadept-responder")
                 loop = asyncio.get_running_loop()
@@ -797,10 +810,9 @@ class Responder:
                 result = self._handler(event_type, rid, attrs)
             if inspect.isawaitable(result):
                 result = await result
-            self.handled += 1
-            return encode_event(self._response_type or response_type_for(event_type), rid, result)
         except Exception as exc:
             return self._error_response(event_type, rid, exc)
+        return self._encode_result(event_type, rid, result)
 
     def _error_response(self, event_type: str, rid: str | None, exc: Exception) -> bytes:
         self.errors += 1

@@ -242,14 +242,10 @@ class VisionNode:
 
 
 class NodeResponder(Responder):
-    """A :class:`Responder` serving a :class:`VisionNode`: requests the node can answer without waiting
-    (:meth:`VisionNode.answers_at_once`) are answered right in the socket callback, as the Responder does for a
-    plain handler (no hand-off to its worker task: ~0.1 ms less per request on a loaded 2-core machine); the others
-    (policy ``after``, a graph sent to the worker thread) go through the worker task and :meth:`VisionNode.handle`,
-    in arrival order. Same options as :class:`Responder`, minus the handler and ``in_thread``.
-
-    It chooses per request by setting the Responder's ``_inline`` flag before each dispatch, an internal of
-    :mod:`aioadept.bus.communicator` (tests/integration/test_vision_node.py pins the behaviour).
+    """A :class:`Responder` serving a :class:`VisionNode` through :meth:`VisionNode.respond`: requests the node can
+    answer without waiting (:meth:`VisionNode.answers_at_once`) are answered right in the socket callback; the
+    others (policy ``after``, a graph sent to the worker thread) come back as awaitables that the Responder's worker
+    task awaits, in arrival order. Same options as :class:`Responder`, minus the handler and ``in_thread``.
     """
 
     def __init__(self, request_endpoint: str, response_endpoint: str, node: VisionNode, **options: Any) -> None:
@@ -257,9 +253,3 @@ class NodeResponder(Responder):
             raise TypeError("NodeResponder: the node chooses where its graph runs (graph_thread), not in_thread")
         super().__init__(request_endpoint, response_endpoint, node.respond, **options)
         self.node = node
-        self._inline = False  # so that start() creates the worker task for the requests that must wait
-
-    def _dispatch(self, payload: bytes) -> None:
-        # At once only with nothing queued either: a queued request is answered first (arrival order).
-        self._inline = not self._queue and self.node.answers_at_once()
-        super()._dispatch(payload)
