@@ -5,8 +5,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import signal
-import sys
-from pathlib import Path
 
 import pytest
 
@@ -16,31 +14,15 @@ from aioadept.errors import CommandError
 from aioadept.geometry import Pose, poses_close, rel_tool
 from aioadept.protocol import ErrorCode
 from aioadept.sim import kinematics as kin
+from aioadept.testing.nodes import running_node
 
-AIOADEPT = str(Path(sys.executable).parent / "aioadept")
 
 
 @contextlib.asynccontextmanager
 async def sim_process(*args: str):
-    """Start ``aioadept sim --port 0 ...``; yield (process, READY fields); SIGTERM it on exit."""
-    proc = await asyncio.create_subprocess_exec(
-        AIOADEPT, "sim", "--port", "0", *args, stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE)
-    try:
-        line = (await proc.stdout.readline()).decode()
-        if not line.startswith("READY"):
-            err = await proc.stderr.read()
-            raise AssertionError(f"no READY line: {line!r} {err.decode()}")
-        fields = dict(f.split("=", 1) for f in line.split()[1:])
-        yield proc, fields
-    finally:
-        if proc.returncode is None:
-            proc.send_signal(signal.SIGTERM)
-            with contextlib.suppress(TimeoutError):
-                async with asyncio.timeout(5):
-                    await proc.wait()
-        if proc.returncode is None:
-            proc.kill()
-            await proc.wait()
+    """Start ``aioadept sim --port 0 ...``; yield (process, READY fields); stopped on exit."""
+    async with running_node("sim", "--port", "0", *args, expect_clean_exit=False) as node:
+        yield node.proc, node.ready
 
 
 @pytest.mark.timeout(30)

@@ -12,6 +12,7 @@ import cv2
 import numpy as np
 import pytest
 
+from aioadept.testing.nodes import running_node
 from aioadept.bus.communicator import Communicator
 from aioadept.bus.messages import ROBOT_STATE_TOPIC, RobotState
 from aioadept.bus.pubsub import Publisher
@@ -23,27 +24,11 @@ APPROACH = paper_approach_pose()
 
 @contextlib.asynccontextmanager
 async def vision_process(tmp_path, *args: str):
-    """Start ``python -m aioadept.vision`` on free ports; yield (process, READY fields); SIGTERM it on exit."""
-    log = open(tmp_path / "vision.log", "wb")  # a file, not a pipe: the node logs every request
-    proc = await asyncio.create_subprocess_exec(
-        sys.executable, "-m", "aioadept.vision", "--request-endpoint", "tcp://127.0.0.1:0",
-        "--response-endpoint", "tcp://127.0.0.1:0", *args, stdout=asyncio.subprocess.PIPE, stderr=log)
-    try:
-        line = (await proc.stdout.readline()).decode()
-        if not line.startswith("READY"):
-            await proc.wait()
-            raise AssertionError(f"no READY line: {line!r}\n{(tmp_path / 'vision.log').read_text()}")
-        yield proc, dict(f.split("=", 1) for f in line.split()[1:])
-    finally:
-        if proc.returncode is None:
-            proc.send_signal(signal.SIGTERM)
-            with contextlib.suppress(TimeoutError):
-                async with asyncio.timeout(5):
-                    await proc.wait()
-        if proc.returncode is None:
-            proc.kill()
-            await proc.wait()
-        log.close()
+    """Start ``aioadept vision`` on free ports; yield (process, READY fields); stopped on exit."""
+    async with running_node("vision", "--request-endpoint", "tcp://127.0.0.1:0", "--response-endpoint",
+                            "tcp://127.0.0.1:0", *args, log_path=tmp_path / "vision.log",
+                            expect_clean_exit=False) as node:
+        yield node.proc, node.ready
 
 
 async def publish_states(pub: Publisher, pose_ref: list[Pose], stop: asyncio.Event) -> None:

@@ -5,10 +5,7 @@ the configured focal plane (20 mm = 10 steps ahead)."""
 
 from __future__ import annotations
 
-import asyncio
 import contextlib
-import signal
-import sys
 
 import numpy as np
 import pytest
@@ -16,31 +13,14 @@ import pytest
 from aioadept import MoveJoints, MoveRelJoints, MoveRelTool, MoveToolZ, SetSpeed
 from aioadept.bus.communicator import Communicator
 from aioadept.client import RobotClient
+from aioadept.testing.nodes import running_node
 
 
 @contextlib.asynccontextmanager
-async def node(log_path, *argv: str):
-    """A node subprocess (``python -m aioadept <argv>``); yields the READY fields; SIGTERM and wait on exit."""
-    log = open(log_path, "wb")
-    proc = await asyncio.create_subprocess_exec(sys.executable, "-m", "aioadept", *argv,
-                                                stdout=asyncio.subprocess.PIPE, stderr=log)
-    try:
-        line = (await proc.stdout.readline()).decode()
-        if not line.startswith("READY"):
-            await proc.wait()
-            raise AssertionError(f"{argv[0]}: no READY line: {line!r}\n{log_path.read_text()}")
-        yield dict(f.split("=", 1) for f in line.split()[1:])
-    finally:
-        if proc.returncode is None:
-            proc.send_signal(signal.SIGTERM)
-            with contextlib.suppress(TimeoutError):
-                async with asyncio.timeout(5):
-                    await proc.wait()
-        if proc.returncode is None:
-            proc.kill()
-            await proc.wait()
-        log.close()
-    assert proc.returncode == 0, log_path.read_text()[-2000:]
+async def node(log_path, command: str, *args: str):
+    """A node subprocess (``python -m aioadept COMMAND ARGS``); yields its READY fields; must exit cleanly."""
+    async with running_node(command, *args, log_path=log_path) as n:
+        yield n.ready
 
 
 @pytest.mark.timeout(60)
