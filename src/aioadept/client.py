@@ -333,6 +333,7 @@ class RobotClient:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._loop_fns: tuple = (None, None, None)  # see _bind_loop
         self._lost_reason: BaseException | None = None
+        self._server_error: Ack | None = None  # the last error ack without an ID on this connection
         self._in_context = False
         self._connect_lock: asyncio.Lock | None = None
         self.stats = ClientStats()
@@ -408,6 +409,7 @@ class RobotClient:
         self._transport, self._write, self._transport_closed = transport, write, closed
         self._framer.reset()
         self._lost_reason = None
+        self._server_error = None
         self._state = _CONNECTED
         if reader is not None:
             self._reader_task = loop.create_task(self._read_loop(reader), name=f"RobotClient reader {self.host}")
@@ -609,6 +611,9 @@ class RobotClient:
             del self._abandoned[ack.id]
             self.stats.late_acks += 1
         elif ack.id == NO_ID:
+            # Kept for the loss that usually follows: a server refusing us (too many clients, address not
+            # allowed) sends one such ack and closes, and the user should read why, not just "closed by peer".
+            self._server_error = ack
             self._unexpected("unroutable_error", line, t_recv)
         else:
             self._unexpected("unknown_ack", line, t_recv)
@@ -630,6 +635,9 @@ class RobotClient:
         self._state = _LOST
         self._lost_reason = reason
         why = f"connection to {self.host}:{self.port} lost" + (f": {reason}" if reason else " (closed by peer)")
+        if self._server_error is not None:
+            err = self._server_error
+            why += f" after the server's error ack: {err.error_message} (code {err.error_code})"
         log.warning("%s with %d message(s) unacked", why, len(self._pending))
         self._fail_pending(why)
 
@@ -719,7 +727,11 @@ class RobotClient:
 
     def _raise_not_connected(self) -> None:
         if self._state is _LOST:
-            raise _lost(f"connection to {self.host}:{self.port} is lost, nothing was sent "
+            said = ""
+            if self._server_error is not None:
+                err = self._server_error
+                said = f" after the server's error ack: {err.error_message} (code {err.error_code})"
+            raise _lost(f"connection to {self.host}:{self.port} is lost{said}, nothing was sent "
                         "(call connect() to reconnect)")
         raise ClientStateError(f"not connected (state {self._state.value})")
 

@@ -473,3 +473,20 @@ async def test_oversize_command_line_gets_an_error_ack_with_its_id():
     first, second = (parse_ack(a) for a in acks)
     assert (first.id, first.status, first.error_code) == ("0000abcd", Status.ERROR, -402)
     assert (second.id, second.status) == ("0000abce", Status.DONE)
+
+
+@pytest.mark.timeout(10)
+async def test_a_refused_connection_says_why_in_connection_lost():
+    from aioadept import Here
+    from aioadept.testing.sim import running_sim
+
+    async with running_sim(instant=True, max_clients=1) as sim, RobotClient(sim.host, sim.port) as first:
+        await first.here()
+        async with RobotClient(sim.host, sim.port) as refused:
+            with pytest.raises(ConnectionLost) as info:
+                await refused.cmdexec(Here())
+            # Whether the refusal arrived before or after the command was written, both errors say why.
+            with pytest.raises(ConnectionLost) as again:
+                await refused.cmdexec(Here())
+    assert "too many clients (code -530)" in str(info.value)
+    assert "too many clients (code -530)" in str(again.value) and "nothing was sent" in str(again.value)
