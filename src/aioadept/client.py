@@ -897,14 +897,7 @@ class RobotClient:
             out.sizes = (len(results),)
             out.__class__ = ExecResult
             return out  # type: ignore[no-any-return]
-        try:
-            per_command = list(map(_CALLS_OF_COMMAND, commands))  # the common case, in C
-        except AttributeError:
-            per_command = [_calls_of((c,)) for c in commands]
-        if not per_command:
-            raise ValueError("commands: at least one command is required")
-        if self._state is not _CONNECTED:
-            await self._ensure_connected()
+        per_command = await self._prepare(commands)
         messages: list[MessageResult] = []
         acked: list[str] = []
         for k, calls in enumerate(per_command):
@@ -921,11 +914,8 @@ class RobotClient:
             acked.extend(sub.ids)
         return _make_exec(tuple(messages), commands, tuple(len(c) for c in per_command))
 
-    async def cmdexec_joined(self, *commands: Command, timeout_s: float | None = None) -> ExecResult:
-        """Write the messages of all commands in ONE write, then await all acks (paper: ``cmdexec_joined``).
-
-        Raises as :meth:`cmdexec`; an error is raised after all acks of the batch are in.
-        """
+    async def _prepare(self, commands: tuple[Command, ...]) -> list[tuple[SkillCall, ...]]:
+        """The skill calls of each command (validated), with the connection made ready to send them."""
         try:
             per_command = list(map(_CALLS_OF_COMMAND, commands))  # the common case, in C
         except AttributeError:
@@ -934,6 +924,14 @@ class RobotClient:
             raise ValueError("commands: at least one command is required")
         if self._state is not _CONNECTED:
             await self._ensure_connected()
+        return per_command
+
+    async def cmdexec_joined(self, *commands: Command, timeout_s: float | None = None) -> ExecResult:
+        """Write the messages of all commands in ONE write, then await all acks (paper: ``cmdexec_joined``).
+
+        Raises as :meth:`cmdexec`; an error is raised after all acks of the batch are in.
+        """
+        per_command = await self._prepare(commands)
         calls = list(chain.from_iterable(per_command))
         if not calls:
             raise ValueError("commands: nothing to send")
