@@ -41,6 +41,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="accept clients only from this IP address (repeatable; default: any)")
     p.add_argument("--line-timeout", type=float, default=10.0, dest="line_timeout",
                    help="close a connection whose line stays incomplete this many seconds (0: never; default 10)")
+    p.add_argument("--state-curve-secret", metavar="FILE", dest="state_curve_secret",
+                   help="CURVE: the sim's secret certificate (NAME.key_secret); encrypts the state stream and admits "
+                        "only subscribers that know the sim's public key (docs/security.md)")
+    p.add_argument("--state-curve-allow", action="append", default=[], metavar="FILE", dest="state_curve_allow",
+                   help="CURVE: public certificate (NAME.key) of a subscriber allowed in (repeatable)")
     p.add_argument("--state-endpoint", default=DEFAULT_STATE_ENDPOINT, dest="state_endpoint",
                    help="ZeroMQ PUB endpoint of the robot state stream ('none' to disable)")
     p.add_argument("--state-rate-hz", type=float, default=100.0, dest="state_rate_hz",
@@ -55,6 +60,20 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _state_curve(args: argparse.Namespace):  # -> CurveServer | None
+    if not args.state_curve_secret:
+        if args.state_curve_allow:
+            raise ValueError("--state-curve-allow needs --state-curve-secret")
+        return None
+    from aioadept.bus.security import CurveServer, load_keypair
+
+    keys = load_keypair(args.state_curve_secret)
+    if keys.secret is None:
+        raise ValueError(f"{args.state_curve_secret} holds no secret key (give the .key_secret file)")
+    allowed = [load_keypair(f).public for f in args.state_curve_allow] or None
+    return CurveServer(keys, allowed_clients=allowed)
+
+
 def options_from_args(args: argparse.Namespace) -> SimOptions:
     """Raises ``ValueError`` for inconsistent values."""
     state = None if args.state_endpoint.lower() == "none" else args.state_endpoint
@@ -66,6 +85,7 @@ def options_from_args(args: argparse.Namespace) -> SimOptions:
                       max_clients=args.max_clients, allow=tuple(args.allow),
                       line_timeout_s=args.line_timeout or None,
                       state_endpoint=state, state_rate_hz=args.state_rate_hz, faults=Faults.parse(args.fault),
+                      state_curve=_state_curve(args),
                       tool=Pose(*args.tool) if args.tool else NULL, **extra)
 
 

@@ -24,6 +24,7 @@ import logging
 import time
 from collections import deque
 from collections.abc import Sequence
+from typing import Any
 from dataclasses import dataclass, field
 
 from aioadept.geometry import NULL, Pose
@@ -90,6 +91,8 @@ class SimOptions:
     keepalive: bool = True
     """TCP keepalive and TCP_USER_TIMEOUT on client sockets, so a vanished peer frees its slot in about 30 s."""
     state_endpoint: str | None = DEFAULT_STATE_ENDPOINT
+    state_curve: Any = None
+    """CURVE for the state stream (an :class:`aioadept.bus.security.CurveServer`); None: plain (default)."""
     state_rate_hz: float = 100.0
     faults: Faults = field(default_factory=Faults)
     tool: Pose = NULL
@@ -178,7 +181,7 @@ class SimServer:
         if self.options.state_endpoint is not None:
             from aioadept.bus.pubsub import Publisher
 
-            self._publisher = Publisher(self.options.state_endpoint, bind=True)
+            self._publisher = Publisher(self.options.state_endpoint, bind=True, curve=self.options.state_curve)
             self.state_endpoint = self._publisher.actual_endpoint
         try:
             self._server = await asyncio.start_server(self._serve, self.options.host, self.options.port,

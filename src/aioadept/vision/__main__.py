@@ -49,6 +49,8 @@ DEFAULTS: dict[str, Any] = {
     "figures": None,
     "log_level": "INFO",
     "curve_secret": None,
+    "state_curve_secret": None,
+    "state_curve_server": None,
     "curve_allow": None,
 }
 
@@ -92,6 +94,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--figures", metavar="OUTDIR", help="write the graph / intermediate results / sweep pictures "
                                                          "(Figs. 7-9) into OUTDIR and exit")
     p.add_argument("--log-level", help="DEBUG, INFO (default), WARNING")
+    p.add_argument("--state-curve-secret", metavar="FILE",
+                   help="CURVE for the robot state stream: this node's secret certificate (NAME.key_secret)")
+    p.add_argument("--state-curve-server", metavar="FILE",
+                   help="CURVE for the robot state stream: the sim's public certificate (NAME.key)")
     p.add_argument("--curve-secret", metavar="FILE",
                    help="CURVE: this node's secret certificate (NAME.key_secret, aioadept.bus.security.save_keypair); "
                         "turns on CURVE authentication and encryption of requests and responses (docs/security.md)")
@@ -141,6 +147,18 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
         parser.error("graph-inline-max-ms must be >= 0")
     merged["curve"] = _curve_server(parser, merged)
     return argparse.Namespace(**merged)
+
+
+def _state_curve(opts: argparse.Namespace) -> Any:
+    """The CurveClient for the robot state stream, or None (plain, the default)."""
+    secret, server = getattr(opts, "state_curve_secret", None), getattr(opts, "state_curve_server", None)
+    if not secret and not server:
+        return None
+    if not (secret and server):
+        raise SystemExit("aioadept vision: --state-curve-secret and --state-curve-server go together")
+    from aioadept.bus.security import CurveClient, load_keypair
+
+    return CurveClient(load_keypair(secret), load_keypair(server).public)
 
 
 def _curve_server(parser: argparse.ArgumentParser, merged: dict[str, Any]) -> Any:
@@ -212,7 +230,7 @@ async def serve(opts: argparse.Namespace) -> int:
 
     follower = None
     if any(s.split(":", 1)[0] == "virtual" for s in opts.source):
-        follower = RobotStateFollower(opts.state_endpoint).start()
+        follower = RobotStateFollower(opts.state_endpoint, curve=_state_curve(opts)).start()
     recorder = FrameRecorder(opts.save_frames) if opts.save_frames else None
     acq = node = responder = None
     try:

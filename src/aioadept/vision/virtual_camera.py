@@ -39,6 +39,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
+from typing import Any
 from dataclasses import dataclass
 
 import cv2
@@ -415,8 +416,9 @@ class RobotStateFollower:
     """
 
     def __init__(self, endpoint: str, *, history: PoseHistory | None = None, topic: bytes = b"robot.state",
-                 max_wait_s: float = 0.05, clock: Callable[[], float] = time.time) -> None:
+                 max_wait_s: float = 0.05, clock: Callable[[], float] = time.time, curve: Any = None) -> None:
         self.endpoint = endpoint
+        self.curve = curve  # an aioadept.bus.security.CurveClient when the sim's state stream uses CURVE
         self.max_wait_s = max_wait_s
         self.topic = topic
         self.history = history if history is not None else PoseHistory()
@@ -448,6 +450,10 @@ class RobotStateFollower:
         try:
             sock.setsockopt(zmq.LINGER, 0)
             sock.setsockopt(zmq.SUBSCRIBE, self.topic)
+            if self.curve is not None:
+                from aioadept.bus.security import apply_curve
+
+                apply_curve(sock, self.curve)
             sock.connect(self.endpoint)
         except zmq.ZMQError as exc:
             self._error = exc
