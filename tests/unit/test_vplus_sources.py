@@ -71,14 +71,8 @@ class Program:
 
 
 def strip_comment(line: str) -> str:
-    """The line without its ';' comment (a ';' inside a string constant does not start one)."""
-    in_str = False
-    for i, ch in enumerate(line):
-        if ch == '"':
-            in_str = not in_str
-        elif ch == ";" and not in_str:
-            return line[:i]
-    return line
+    """The line without its ';' comment (a ';' inside a string constant does not start one): the interpreter's."""
+    return vsubset._strip_comment(line)
 
 
 def code_and_strings(line: str) -> tuple[str, list[str]]:

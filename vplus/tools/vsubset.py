@@ -55,6 +55,7 @@ class Program:
 
 
 def _strip_comment(line: str) -> str:
+    """The line without its ';' comment (a ';' inside a string constant does not start one)."""
     in_str = False
     for i, ch in enumerate(line):
         if ch == '"':
