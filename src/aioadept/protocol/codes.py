@@ -29,6 +29,9 @@ class ErrorCode(IntEnum):
     """The target location is outside the robot's workspace ("location out of range")."""
     JOINT_LIMIT = -1003
     """The target, or the path to it, passes a joint limit."""
+    JOINT_JUMP = -1004
+    """Reaching the target would move a joint far more than the size of the Cartesian move justifies (a wrist
+    flip, a swing through a singularity); refused before any motion. A sim code, not a confirmed V+ number."""
     SERVER_BUSY = -530
     """The server refuses the connection (too many clients, address not allowed)."""
     INTERNAL = -1200
@@ -44,6 +47,7 @@ DEFAULT_TEXT: dict[ErrorCode, str] = {
     ErrorCode.ILLEGAL_VALUE: "illegal value",
     ErrorCode.OUT_OF_REACH: "location out of range",
     ErrorCode.JOINT_LIMIT: "joint limit",
+    ErrorCode.JOINT_JUMP: "joint jump",
     ErrorCode.SERVER_BUSY: "server busy",
     ErrorCode.INTERNAL: "internal error",
 }
