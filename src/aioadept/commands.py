@@ -1,7 +1,10 @@
 """Robot commands, as in the paper's ``pyadept.rcommands``: immutable values that expand to skill calls.
 
-A command is validated when it is built (six finite numbers, speed an integer 0..100, a callable skill name, a
-line of at most 128 characters) and raises ``ValueError`` naming the field, so nothing invalid reaches the wire.
+A command is validated when it is built and raises ``ValueError`` naming the field, so nothing invalid reaches the
+wire: six finite numbers within :data:`MAX_ABS_MM` (lengths) and :data:`MAX_ABS_DEG` (angles), speed an integer
+1..100, a callable skill name, a line of at most 128 characters. The bounds are far beyond any real cell (100 m,
+±10000°) and keep every motion line well within V+'s 128 characters under ``%.3f``; ``Skill`` applies them too
+when it names one of the motion skills.
 Motion commands append ``break`` by default (``break_move=True``), as pyadept does: the robot then finishes the
 motion before the next command runs, and the break's ack marks the motion's completion.
 
@@ -19,6 +22,15 @@ from aioadept.geometry import Pose
 from aioadept.protocol import SkillCall
 
 _BREAK = SkillCall("break")
+
+MAX_ABS_MM = 1e5
+"""Largest length (mm) a motion command accepts, absolute or relative: 100 m (``-100000.000`` is 11 characters)."""
+MAX_ABS_DEG = 1e4
+"""Largest angle (deg) a motion command accepts, absolute or relative (``-10000.000`` is 10 characters)."""
+
+_POSE_UNITS = ("mm", "mm", "mm", "deg", "deg", "deg")
+_JOINT_UNITS = ("deg",) * 6
+_LIMIT = {"mm": MAX_ABS_MM, "deg": MAX_ABS_DEG}
 
 
 class Command:
@@ -47,18 +59,24 @@ class Command:
         return hash((type(self).__name__, self._calls))
 
 
-def _six(name: str, values: Sequence[float] | Pose) -> tuple[float, ...]:
+def _six(name: str, values: Sequence[float] | Pose, units: Sequence[str] = _POSE_UNITS) -> tuple[float, ...]:
     vals = tuple(values)
     if len(vals) != 6:
         raise ValueError(f"{name}: expected 6 numbers, got {len(vals)}")
-    out = []
-    for i, v in enumerate(vals):
-        if isinstance(v, bool) or not isinstance(v, numbers.Real):
-            raise ValueError(f"{name}[{i}]: {v!r} is not a number")
-        if not math.isfinite(v):
-            raise ValueError(f"{name}[{i}]: {v!r} is not finite")
-        out.append(float(v))
-    return tuple(out)
+    return tuple(_bounded(f"{name}[{i}]", v, unit) for i, (v, unit) in enumerate(zip(vals, units)))
+
+
+def _bounded(name: str, v: object, unit: str) -> float:
+    """``v`` as a float: a real number (not bool), finite, within the bound of ``unit`` (mm or deg)."""
+    if isinstance(v, bool) or not isinstance(v, numbers.Real):
+        raise ValueError(f"{name}: {v!r} is not a number")
+    f = float(v)
+    if not math.isfinite(f):
+        raise ValueError(f"{name}: {v!r} is not finite")
+    limit = _LIMIT[unit]
+    if abs(f) > limit:
+        raise ValueError(f"{name}: {v!r} {unit} is outside ±{limit:g} {unit}")
+    return f
 
 
 class _Motion(Command):
@@ -67,9 +85,10 @@ class _Motion(Command):
     __slots__ = ()
     skill: str = ""
     field_name: str = "pose"
+    units: tuple[str, ...] = _POSE_UNITS
 
     def __init__(self, values: Sequence[float] | Pose, *, break_move: bool = True) -> None:
-        call = SkillCall(self.skill, _six(self.field_name, values))
+        call = SkillCall(self.skill, _six(self.field_name, values, self.units))
         self._init((call, _BREAK) if break_move else (call,))
 
     @property
@@ -99,6 +118,7 @@ class MoveJoints(_Motion):
     __slots__ = ()
     skill = "move_joints"
     field_name = "joints_deg"
+    units = _JOINT_UNITS
 
 
 class MoveRelWorld(_Motion):
@@ -123,6 +143,7 @@ class MoveRelJoints(_Motion):
     __slots__ = ()
     skill = "move_rel_joints"
     field_name = "delta_joints_deg"
+    units = _JOINT_UNITS
 
 
 class MoveToolZ(MoveRelTool):
@@ -131,11 +152,8 @@ class MoveToolZ(MoveRelTool):
     __slots__ = ()
 
     def __init__(self, delta_z_mm: float, *, break_move: bool = True) -> None:
-        if isinstance(delta_z_mm, bool) or not isinstance(delta_z_mm, numbers.Real):
-            raise ValueError(f"delta_z_mm: {delta_z_mm!r} is not a number")
-        if not math.isfinite(delta_z_mm):
-            raise ValueError(f"delta_z_mm: {delta_z_mm!r} is not finite")
-        super().__init__((0.0, 0.0, delta_z_mm, 0.0, 0.0, 0.0), break_move=break_move)
+        dz = _bounded("delta_z_mm", delta_z_mm, "mm")
+        super().__init__((0.0, 0.0, dz, 0.0, 0.0, 0.0), break_move=break_move)
 
     @property
     def delta_z_mm(self) -> float:
@@ -147,7 +165,12 @@ class MoveToolZ(MoveRelTool):
 
 
 class SetSpeed(Command):
-    """Speed factor 0..100 (%) for the next motion only (V+ ``SPEED`` without ``ALWAYS``). Skill ``set_speed``."""
+    """Speed factor 1..100 (%) for the next motion only (V+ ``SPEED`` without ``ALWAYS``). Skill ``set_speed``.
+
+    An integer (the wire carries ``%d``): ``20`` and ``20.0`` are accepted, ``2.5`` is not. 0 is refused although
+    the paper's grammar allows it: a motion at 0 % would never end (``aioadept sim`` answers it -410). Use
+    ``Skill("set_speed", n)`` to send any integer unchecked, e.g. to test a server.
+    """
 
     __slots__ = ()
 
@@ -160,8 +183,8 @@ class SetSpeed(Command):
             speed = int(speed)
         else:
             raise ValueError(f"speed: {speed!r} is not an integer")
-        if not 0 <= speed <= 100:
-            raise ValueError(f"speed: {speed} is outside 0..100")
+        if not 0 < speed <= 100:
+            raise ValueError(f"speed: {speed} is outside 1..100 (0 % would never end a motion)")
         self._init((SkillCall("set_speed", (speed,)),))
 
     @property
@@ -214,12 +237,19 @@ class Here(_NoArgs):
 class Skill(Command):
     """Any user-defined skill: a V+ program name (≤ 15 chars) and numeric arguments.
 
-    ``Skill("open_gripper")``, ``Skill("set_tool", 0, 0, 120, 0, 0, 0)``.
+    ``Skill("open_gripper")``, ``Skill("set_tool", 0, 0, 120, 0, 0, 0)``. Arguments must be finite and the line
+    at most 128 characters. A motion skill's name (``move_to``, ``move_rel_tool``, ...) gets its command's bounds
+    on each argument given (lengths :data:`MAX_ABS_MM`, angles :data:`MAX_ABS_DEG`); the number of arguments and
+    ``set_speed``'s value are left to the server, so ``Skill`` can test how a server answers them.
     """
 
     __slots__ = ()
 
     def __init__(self, name: str, *args: int | float) -> None:
+        units = _MOTION_UNITS.get(name)
+        if units is not None:
+            for i, (a, unit) in enumerate(zip(args, units)):
+                _bounded(f"args[{i}]", a, unit)
         self._init((SkillCall(name, tuple(args)),))
 
     def __repr__(self) -> str:
@@ -242,3 +272,6 @@ class Joined(Command):
 
     def __repr__(self) -> str:
         return f"Joined({', '.join(map(repr, self.commands))})"
+
+
+_MOTION_UNITS = {cls.skill: cls.units for cls in (MoveTo, MoveJoints, MoveRelWorld, MoveRelTool, MoveRelJoints)}

@@ -9,6 +9,7 @@ catches our types only::
     │   └─ RemoteProtocolError     the peer sent bytes that do not parse (carries a V+-style code)
     ├─ CommandError                the server answered a command with an ``error`` ack
     ├─ CommandAborted              the server flushed a command with an ``aborted`` ack (after a stop)
+    │   └─ AbortedBeforeSend       a stop() came while the command waited to be written: it was never sent
     ├─ ConnectError                could not connect to a robot server (refused, unreachable, rejected)
     ├─ ConnectionLost              the connection dropped; says which messages are known done and which are unknown
     ├─ AckTimeout (TimeoutError)   no ack in time
@@ -75,10 +76,22 @@ class CommandError(AdeptError):
 class CommandAborted(AdeptError):
     """The server flushed a command with an ``aborted`` ack, normally because a stop was requested."""
 
-    def __init__(self, ack: Ack, skill: str | None = None) -> None:
-        super().__init__(f"command {ack.id} {skill or ''} was aborted".replace("  ", " "))
+    def __init__(self, ack: Ack | None, skill: str | None = None, *, message: str | None = None) -> None:
+        if message is None:
+            message = f"command {ack.id if ack is not None else ''} {skill or ''} was aborted"
+        super().__init__(" ".join(message.split()))
         self.ack = ack
         self.skill = skill
+
+
+class AbortedBeforeSend(CommandAborted):
+    """A ``stop()`` was requested while this command was still waiting to be written (for example while the client
+    reconnected): the client never sent it, as the server would have aborted it had it arrived before the stop.
+    ``ack`` is None; ``skill`` names the first skill not sent."""
+
+    def __init__(self, skill: str | None = None) -> None:
+        super().__init__(None, skill, message=f"{skill or 'command'} not sent: stop() was requested before it was "
+                                              "written")
 
 
 class ConnectError(AdeptError):

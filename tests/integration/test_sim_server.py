@@ -94,7 +94,7 @@ async def test_two_clients_at_once_are_served_serially_with_own_acks():
 @pytest.mark.parametrize("command,code", [
     (Skill("fly"), ErrorCode.UNKNOWN_SKILL),
     (Skill("move_to", 1.0, 2.0), ErrorCode.WRONG_ARGUMENT_COUNT),
-    (SetSpeed(0), ErrorCode.ILLEGAL_VALUE),
+    (Skill("set_speed", 0), ErrorCode.ILLEGAL_VALUE),  # SetSpeed(0) is refused client-side
     (Skill("set_speed", 150), ErrorCode.ILLEGAL_VALUE),
     (MoveTo([2000, 0, 500, 0, 180, 0]), ErrorCode.OUT_OF_REACH),
     (MoveJoints([0, -90, 180, 0, 125, 0]), ErrorCode.JOINT_LIMIT),
