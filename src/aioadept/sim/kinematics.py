@@ -19,14 +19,17 @@ real ack quoted in FACTS.md. The wrist is spherical, so the inverse is closed fo
 gives j1..j3 (two shoulder and two elbow solutions), the remaining rotation gives j4..j6 as Z-Y-Z angles (two wrist
 solutions), and J4/J6 may add multiples of 360 deg within their limits.
 
+:func:`inverse` continues from the current joints: it keeps the arm configuration, takes the nearest solution, and
+refuses (``JOINT_JUMP``) a target whose joint motion is out of proportion to its Cartesian size
+(:class:`JumpLimit`), so that a small command can never flip the wrist or swing a joint round a singularity.
+
 A robot-related failure raises :class:`aioadept.errors.RobotError` with ``code`` from
-:class:`aioadept.protocol.ErrorCode` (``OUT_OF_REACH`` or ``JOINT_LIMIT``), so the controller can turn it into an
-``error`` ack without translating.
+:class:`aioadept.protocol.ErrorCode` (``OUT_OF_REACH``, ``JOINT_LIMIT`` or ``JOINT_JUMP``), so the controller can
+turn it into an ``error`` ack, before any motion, without translating.
 """
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -208,64 +211,180 @@ def _solutions_rad(m: np.ndarray, j4_hint: float) -> list[tuple[tuple[float, ...
     return out
 
 
-def _unwrap_near(angle_deg: float, ref_deg: float, lo: float, hi: float) -> list[float]:
-    """Equivalents of ``angle_deg`` (+k*360) inside [lo, hi], nearest to ``ref_deg`` first."""
+def _nearest_equivalent(angle_deg: float, ref_deg: float, lo: float, hi: float) -> float | None:
+    """The equivalent of ``angle_deg`` (+k*360) inside [lo, hi] nearest to ``ref_deg``, or None if none is."""
     base = angle_deg + 360.0 * round((ref_deg - angle_deg) / 360.0)
-    cands = [base + 360.0 * k for k in (-1, 0, 1, -2, 2)]
-    cands = [c for c in cands if lo - 1e-6 <= c <= hi + 1e-6]
-    return sorted(cands, key=lambda c: abs(c - ref_deg))
+    best: float | None = None
+    for c in (base, base - 360.0, base + 360.0):
+        if lo - 1e-6 <= c <= hi + 1e-6 and (best is None or abs(c - ref_deg) < abs(best - ref_deg)):
+            best = c
+    return best
+
+
+WRIST_FREE_DEG = 5.0
+"""Within this many degrees of J5 = 0 (the wrist singularity) the seed's FLIP/NOFLIP is not kept: both wrist
+branches are candidates and the one nearest the seed wins, so J5 may pass through zero with J4 staying put instead
+of J4 and J6 turning half a revolution to keep the sign of J5."""
+
+SHOULDER_FREE_MM = 10.0
+"""Within this distance of the wrist centre from the J1 axis the seed's LEFTY/RIGHTY is not kept (same reason)."""
+
+ELBOW_FREE_DEG = 5.0
+"""Within this many degrees of the stretched (or folded) elbow the seed's ABOVE/BELOW is not kept (same reason)."""
+
+
+@dataclass(frozen=True, slots=True)
+class JumpLimit:
+    """How far one inverse-kinematics solution may move any joint, relative to the size of the Cartesian move.
+
+    A target is refused with ``RobotError(JOINT_JUMP)`` when some joint would move more than::
+
+        floor_deg + per_mm_deg * distance_mm + per_rot_deg * rotation_deg
+
+    where ``distance_mm`` is how far the tool point moves (straight line, seed pose to target) and
+    ``rotation_deg`` the angle of the rotation between the two tool orientations. With the defaults a 2 mm step
+    may move no joint by more than 4 deg, a 1 deg turn of the tool no joint by more than 5 deg, while a deliberate
+    move across the workspace (hundreds of mm) is never limited. Away from the singularities the Viper's joints
+    move well under 1 deg per mm and about 1 deg per degree of tool rotation, so only the large joint motions that
+    a small command should never cause are refused: a wrist flip, J4/J6 unwinding a revolution because the nearer
+    equivalent is past a limit, J1 swinging round because the wrist passes near its axis.
+    """
+
+    floor_deg: float = 2.0
+    per_mm_deg: float = 1.0
+    per_rot_deg: float = 3.0
+
+    def __post_init__(self) -> None:
+        for name in ("floor_deg", "per_mm_deg", "per_rot_deg"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0.0):
+                raise ValueError(f"JumpLimit.{name}: expected a finite number >= 0, got {v!r}")
+
+    def allowed_deg(self, distance_mm: float, rotation_deg: float) -> float:
+        """The largest joint motion (deg) allowed for a move of this Cartesian size."""
+        return self.floor_deg + self.per_mm_deg * distance_mm + self.per_rot_deg * rotation_deg
+
+
+DEFAULT_JUMP_LIMIT = JumpLimit()
+"""The jump limit :func:`inverse` applies unless told otherwise (``jump=None`` turns it off)."""
+
+
+def _free_configuration(cur: Sequence[float]) -> Configuration:
+    """The seed's configuration with 0 (either choice) for each flag that is within its band of a singularity."""
+    j2, j3 = math.radians(cur[1]), math.radians(cur[2])
+    r, _ = _arm_plane(j2, j3)
+    c3 = -math.cos(j3 - _BETA)
+    s5 = math.sin(math.radians(cur[4]))
+    return Configuration(
+        shoulder=0 if abs(r) < SHOULDER_FREE_MM else (1 if r > 0 else -1),
+        elbow=0 if abs(c3) < math.sin(math.radians(ELBOW_FREE_DEG)) else (1 if c3 > 0 else -1),
+        wrist=0 if abs(s5) < math.sin(math.radians(WRIST_FREE_DEG)) else (1 if s5 > 0 else -1),
+    )
+
+
+def _matches(c: Configuration, want: Configuration) -> bool:
+    return all(w == 0 or f == 0 or f == w for f, w in ((c.shoulder, want.shoulder), (c.elbow, want.elbow),
+                                                        (c.wrist, want.wrist)))
 
 
 def inverse(pose: Pose, current_joints_deg: Sequence[float], tool: Pose = NULL, *,
-            limits: JointLimits = VIPER_S850_LIMITS) -> tuple[float, ...]:
-    """Inverse kinematics: joints (deg) that put the tool at ``pose``.
+            limits: JointLimits = VIPER_S850_LIMITS,
+            jump: JumpLimit | None = DEFAULT_JUMP_LIMIT) -> tuple[float, ...]:
+    """Inverse kinematics: joints (deg) that put the tool at ``pose``, continuing from ``current_joints_deg``.
 
-    Keeps the arm configuration of ``current_joints_deg`` (as V+ does unless told otherwise; a flag on a
-    singularity accepts either choice) and, among the equivalent J4/J6 angles (+-360), takes the smallest joint
-    motion. Raises ``RobotError`` with ``OUT_OF_REACH`` when no configuration reaches the pose, ``JOINT_LIMIT``
-    when the solution in the current configuration lies outside the joint limits.
+    Choice of solution, as V+ does it and then safer:
+
+    - The arm keeps the configuration of the seed ``current_joints_deg`` (LEFTY/RIGHTY, ABOVE/BELOW, FLIP/NOFLIP).
+      A flag whose seed is within its band of the singularity that separates the two choices
+      (:data:`WRIST_FREE_DEG`, :data:`SHOULDER_FREE_MM`, :data:`ELBOW_FREE_DEG`) accepts either choice, so the arm
+      can pass through the singularity continuously instead of flipping to keep the sign.
+    - Among the solutions allowed, each with every joint's +-360 deg equivalents inside ``limits``, the one with
+      the least total joint motion from the seed is taken.
+    - Exactly on the wrist singularity (J5 = 0) only J4 + J6 is defined: J4 keeps the seed value and J6 takes the
+      rotation.
+    - The chosen solution is then checked against ``jump`` (see :class:`JumpLimit`): if a joint would move more
+      than the Cartesian size of the move (seed pose to ``pose``) justifies, the target is refused with
+      ``RobotError(JOINT_JUMP)`` and nothing moves. ``jump=None`` turns the check off.
+
+    Raises ``RobotError`` with ``OUT_OF_REACH`` when no allowed configuration reaches the pose, ``JOINT_LIMIT``
+    when its solution lies outside the joint limits, ``JOINT_JUMP`` as above, ``ILLEGAL_VALUE`` for a pose that
+    is not finite.
     """
     if len(current_joints_deg) != 6:
         raise ValueError(f"current_joints_deg: expected 6 values, got {len(current_joints_deg)}")
+    cur = [float(v) for v in current_joints_deg]
     m = pose.to_matrix()
     if tool != NULL:
         m = m @ inverse_transform(tool.to_matrix())
-    cur = [float(v) for v in current_joints_deg]
-    conf = configuration(cur)
+    if not np.isfinite(m).all():
+        raise RobotError(ErrorCode.ILLEGAL_VALUE, "location is not finite")
+    want = _free_configuration(cur)
     sols = _solutions_rad(m, math.radians(cur[3]))
 
-    def same(flag: int, want: int) -> bool:
-        return want == 0 or flag == 0 or flag == want
-
-    best: tuple[float, ...] | None = None
+    best: list[float] | None = None
     best_cost = math.inf
     matched_config = False
+    lo, hi = limits.min_deg, limits.max_deg
     for sol, c in sols:
-        if not (same(c.shoulder, conf.shoulder) and same(c.elbow, conf.elbow) and same(c.wrist, conf.wrist)):
+        if not _matches(c, want):
             continue
         matched_config = True
-        deg = [math.degrees(a) for a in sol]
-        # J1, J2, J3, J5: the closed form gives them in (-180, 180]; J2 and J3 can exceed that range within the
-        # limits (J2 down to -190, J3 up to 256), so try the +-360 equivalents for every joint.
-        options = [_unwrap_near(deg[i], cur[i], limits.min_deg[i], limits.max_deg[i]) or [deg[i]]
-                   for i in range(6)]
-        for cand in itertools.product(*(o[:2] for o in options)):
-            if limits.violations(cand):
-                continue
+        # Joints are independent in both the cost (a sum) and the limits (a box): take each joint's nearest
+        # equivalent inside its limits. J2 and J3 can exceed (-180, 180] within the limits, hence all six.
+        cand: list[float] = []
+        for i in range(6):
+            q = _nearest_equivalent(math.degrees(sol[i]), cur[i], lo[i], hi[i])
+            if q is None:
+                break
+            cand.append(q)
+        else:
             cost = sum(abs(a - b) for a, b in zip(cand, cur))
             if cost < best_cost:
-                best, best_cost = tuple(cand), cost
+                best, best_cost = cand, cost
     if best is None:
         if not matched_config:
             raise RobotError(ErrorCode.OUT_OF_REACH, "location out of range in the current configuration")
         # Report the limit the current-configuration solution breaks.
         for sol, c in sols:
-            if same(c.shoulder, conf.shoulder) and same(c.elbow, conf.elbow) and same(c.wrist, conf.wrist):
+            if _matches(c, want):
                 deg = [math.degrees(a) for a in sol]
-                deg = [(_unwrap_near(deg[i], cur[i], -1e9, 1e9) or [deg[i]])[0] for i in range(6)]
-                limits.check(deg)
+                limits.check([d + 360.0 * round((cur[i] - d) / 360.0) for i, d in enumerate(deg)])
         raise RobotError(ErrorCode.JOINT_LIMIT, "no solution within the joint limits")
-    return best
+    if jump is not None:
+        _check_jump(best, cur, m, tool, limits, jump)
+    return tuple(best)
+
+
+def _check_jump(sol: list[float], cur: list[float], m_flange: np.ndarray, tool: Pose, limits: JointLimits,
+                jump: JumpLimit) -> None:
+    """Raise ``RobotError(JOINT_JUMP)`` when ``sol`` moves a joint more than ``jump`` allows for this move."""
+    moves = [abs(a - b) for a, b in zip(sol, cur)]
+    worst = max(range(6), key=moves.__getitem__)
+    if moves[worst] <= jump.floor_deg:
+        return  # within the floor whatever the Cartesian size: skip the forward kinematics
+    seed = flange_matrix(cur)
+    target = m_flange
+    if tool != NULL:
+        t = tool.to_matrix()
+        seed, target = seed @ t, target @ t
+    distance = float(np.linalg.norm(target[:3, 3] - seed[:3, 3]))
+    cos_rot = (float(np.trace(seed[:3, :3].T @ target[:3, :3])) - 1.0) / 2.0
+    rotation = math.degrees(math.acos(max(-1.0, min(1.0, cos_rot))))
+    allowed = jump.allowed_deg(distance, rotation)
+    if moves[worst] <= allowed:
+        return
+    why = ""
+    if worst in (3, 5) and abs(math.sin(math.radians(cur[4]))) < math.sin(math.radians(2 * WRIST_FREE_DEG)):
+        why = " (near the wrist singularity J5=0)"
+    elif worst == 0 and abs(_arm_plane(math.radians(cur[1]), math.radians(cur[2]))[0]) < 10 * SHOULDER_FREE_MM:
+        why = " (wrist centre near the J1 axis)"
+    else:
+        near = sol[worst] + 360.0 * round((cur[worst] - sol[worst]) / 360.0)
+        if abs(near - cur[worst]) < moves[worst] - 1e-6 and limits.violations([*cur[:worst], near, *cur[worst + 1:]]):
+            why = f" (the nearer {near:.1f} is past the J{worst + 1} limit)"
+    raise RobotError(ErrorCode.JOINT_JUMP,
+                     f"J{worst + 1} would move {moves[worst]:.1f} deg for a {distance:.2f} mm, {rotation:.2f} deg "
+                     f"move (limit {allowed:.1f}){why}")
 
 
 def check_joint_path(start_deg: Sequence[float], end_deg: Sequence[float], *,

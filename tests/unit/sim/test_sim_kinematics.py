@@ -93,8 +93,12 @@ def test_j6_wrap_takes_the_short_way():
     q = [0.0, -90.0, 180.0, 0.0, 90.0, 350.0]
     target = forward([0.0, -90.0, 180.0, 0.0, 90.0, -5.0])  # same as 355
     assert inverse(target, q)[5] == pytest.approx(355.0)
-    # From -350 the equivalent -365 is beyond the limit, so the nearest allowed one is -5.
-    assert inverse(target, [0.0, -90.0, 180.0, 0.0, 90.0, -350.0])[5] == pytest.approx(-5.0)
+    # From -350 the equivalent -365 is beyond the limit, so the nearest allowed one is -5: J6 would unwind 345 deg
+    # for a 15 deg turn of the tool. Refused by default (jump limit); without the jump limit, -5.
+    with pytest.raises(RobotError) as info:
+        inverse(target, [0.0, -90.0, 180.0, 0.0, 90.0, -350.0])
+    assert info.value.code == ErrorCode.JOINT_JUMP and "J6" in info.value.message
+    assert inverse(target, [0.0, -90.0, 180.0, 0.0, 90.0, -350.0], jump=None)[5] == pytest.approx(-5.0)
 
 
 def test_j4_wrap_stays_within_limits():
