@@ -48,6 +48,10 @@ HELLO_SKILL = "hello"
 PROTOCOL_VERSION = 1
 """Version of the extended protocol described in docs/protocol.md (sent in the ``hello`` ack)."""
 
+MAX_NUMBER_CHARS = 24
+"""Longest argument text the server accepts (sign, 15 digits, point, decimals): a %.3f real of any magnitude a
+robot can use fits; 100-digit numbers (1e99 written out) are refused as text, before any arithmetic."""
+
 _ID_RE = re.compile(r"[0-9A-Za-z]{8}\Z")
 _SKILL_RE = re.compile(r"[a-z][a-z0-9._]{0,14}\Z")
 _NUMBER_RE = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)\Z")
@@ -157,6 +161,9 @@ def parse_command(line: bytes) -> CommandMessage:
     mid = parts[0]
     if not _ID_RE.match(mid):
         raise RemoteProtocolError(ErrorCode.MALFORMED_MESSAGE, "bad message ID", line=line)
+    if mid == NO_ID:
+        # The ID of the server's own refusals and unroutable errors: a command carrying it could not be told apart.
+        raise RemoteProtocolError(ErrorCode.MALFORMED_MESSAGE, "reserved message ID 00000000", line=line)
     if len(parts) < 2 or len(parts) > 3:
         raise RemoteProtocolError(ErrorCode.MALFORMED_MESSAGE, "expected ID:SKILL[:ARGS]", id=mid, line=line)
     skill = parts[1]
@@ -167,13 +174,17 @@ def parse_command(line: bytes) -> CommandMessage:
         tokens = parts[2].split(",")
         vals: list[int | float] = []
         for tok in tokens:
-            tok = tok.strip()
+            # No stripping: the grammar is %d / %.3f text, so a space, tab or control character is an error, as
+            # are exponents, '_', 'inf' and 'nan' (all of which Python's float() would take).
             if _INT_RE.match(tok):
                 vals.append(int(tok))
             elif _NUMBER_RE.match(tok):
                 vals.append(float(tok))
             else:
                 raise RemoteProtocolError(ErrorCode.ILLEGAL_VALUE, f"not a number: {tok[:16]!r}", id=mid, line=line)
+            if len(tok) > MAX_NUMBER_CHARS:
+                raise RemoteProtocolError(ErrorCode.ILLEGAL_VALUE, f"number longer than {MAX_NUMBER_CHARS} characters",
+                                          id=mid, line=line)
         args = tuple(vals)
     return CommandMessage(mid, skill, args)
 

@@ -16,9 +16,9 @@ Semantics, following the original V+ AdeptServer (FACTS.md):
 - One executor runs skills one after another in arrival order, across all connections, like the single V+ task
   running ``CALLS $skill``. While a skill waits (``break`` for the robot to stop, a move for a free slot), later
   commands wait behind it.
-- Forward processing: a move acks as soon as its motion is planned and started; at most one motion waits
-  ahead of the executing one, so a third move waits until the second starts. Consecutive motions without
-  ``break`` blend.
+- Forward processing is one motion deep: a move acks when its motion starts. The first of ``MOVE a; MOVE b;
+  BREAK`` acks at once; ``b`` waits (holding the executor, as the V+ task waits in its ``MOVE``) until ``a``
+  begins to decelerate, where ``b`` blends in, and acks then; ``BREAK`` acks when ``b`` has completed.
 - ``set_speed`` applies to the next motion instruction only (V+ ``SPEED`` without ``ALWAYS``), which consumes it
   whether it succeeds or fails. Effective speed = program speed x monitor speed / 100, capped at
   ``max_speed_pct`` (a safety limit of the cell, docs/security.md; 100 = no cap).
@@ -29,9 +29,17 @@ Semantics, following the original V+ AdeptServer (FACTS.md):
   not move and the next command runs.
 - ``stop`` (an extension) is served the moment it is read: the executing skill and every queued command, from
   every connection, are acked ``aborted``; the arm decelerates to rest; then ``stop`` is acked ``done``.
-- ``hello`` (an extension) runs in order like any skill; its ack carries two trailing fields, the protocol
-  version and the server name (``1:aioadept-sim 0.1.0``), as docs/protocol.md specifies.
-- A connection that goes away loses its queued commands; they never run. Motions it already started go on.
+- ``hello`` (an extension): its ack carries two trailing fields, the protocol version and the server name
+  (``1:aioadept-sim 0.1.0``), as docs/protocol.md specifies.
+- Read-only queries (``here``, ``hello``) from a connection with nothing pending are answered the moment they are
+  read, from the current state, as the V+ server's reader task would: they never wait behind another client's
+  motion. From a connection with commands pending they run in turn, so order within a connection is kept.
+- Three stops in a row each get ``done`` once the arm is at rest: a stop never aborts another stop.
+- A connection that goes away loses its queued commands and a skill of its that is still waiting (a move for its
+  slot): they never run. Motions it already started go on.
+- Values are checked before anything moves: set_speed within [``min_speed_pct``, 100], pose rotations within
+  +-360 deg, joint values within +-3600 deg (then the joint limits), positions within +-10 m; a second message
+  with an ID still pending on the same connection is refused (``stop`` excepted: it is never refused).
 
 Skills live in a table (:attr:`Controller.skills`); :meth:`Controller.register` adds user skills. A skill is a
 function ``skill(ctl, args)`` that returns ``None`` (done now), a :class:`SkillResult` (done, with trailing
@@ -52,6 +60,7 @@ from aioadept.geometry import NULL, Pose, rel_tool, rel_world
 from aioadept.protocol import (
     NO_ID,
     PROTOCOL_VERSION,
+    STOP_SKILL,
     Ack,
     CommandMessage,
     ErrorCode,
@@ -64,6 +73,18 @@ from aioadept.sim import kinematics as kin
 from aioadept.sim.motion import MotionLimits, Trajectory
 
 SERVER_NAME = "aioadept-sim"
+MIN_SPEED_PCT = 1.0
+"""Lowest program speed accepted by set_speed. The V+ manuals give SPEED's scale (100 = normal full speed, 50 =
+half) but no lower bound; the protocol's set_speed argument is an integer 0..100 in the paper's grammar, so 1 % is
+the slowest speed a client of the original protocol can ask for. Below it a motion would hold the single executor
+(and every client's queue) for hours."""
+MAX_POSITION_MM = 10_000.0
+"""Largest position or displacement component accepted (mm): ten times the Viper s850's reach."""
+MAX_ROTATION_DEG = 360.0
+"""Largest pose rotation (yaw, pitch, roll, absolute or relative) accepted, in degrees: a full turn. Beyond it the
+value is a client's error (1e20 deg), never a motion."""
+MAX_JOINT_DEG = 3600.0
+"""Largest joint angle or joint displacement accepted before the joint-limit check (ten turns)."""
 AIR_SIGNAL = 8
 """The digital output that enable_air / disable_air switch (AdeptServer uses signal 8)."""
 
@@ -94,13 +115,16 @@ class SkillSpec:
     """One entry of the skill table.
 
     ``nargs``: the argument counts accepted (None: any). ``immediate``: served when read instead of queued (only
-    for skills that never move the arm or wait; ``stop`` is handled by the controller itself).
+    for skills that never move the arm or wait; ``stop`` is handled by the controller itself). ``readonly``: a
+    query that neither moves nor waits nor changes state; served when read if its connection has nothing pending
+    (so it never waits behind another client's motion), else in turn behind that connection's own commands.
     """
 
     name: str
     func: SkillFunc
     nargs: tuple[int, ...] | None = (0,)
     immediate: bool = False
+    readonly: bool = False
 
 
 @dataclass(slots=True)
@@ -111,6 +135,7 @@ class _Entry:
     spec: SkillSpec | None = None
     args: tuple[float, ...] = ()
     error: tuple[int, str | None] | None = None
+    tracked: bool = False  # its ID is in the connection's in-flight set until it is answered
 
 
 @dataclass(slots=True)
@@ -140,11 +165,16 @@ class Controller:
                  monitor_speed_pct: float = 100.0, time_scale: float = 1.0, instant: bool = False,
                  motion_limits: MotionLimits = MotionLimits(), joint_limits: kin.JointLimits = kin.VIPER_S850_LIMITS,
                  max_queued_per_conn: int = 10_000, skills: Iterable[SkillSpec] | None = None,
-                 version: str | None = None, max_speed_pct: float = 100.0) -> None:
+                 version: str | None = None, max_speed_pct: float = 100.0,
+                 min_speed_pct: float = MIN_SPEED_PCT) -> None:
         if not 0 < monitor_speed_pct <= 100:
             raise ValueError(f"monitor_speed_pct: {monitor_speed_pct} outside (0, 100]")
         if not 0 < max_speed_pct <= 100:
             raise ValueError(f"max_speed_pct: {max_speed_pct} outside (0, 100]")
+        if not 0 < min_speed_pct <= 100:
+            raise ValueError(f"min_speed_pct: {min_speed_pct} outside (0, 100]")
+        self.min_speed_pct = float(min_speed_pct)
+        """The lowest program speed set_speed accepts (a motion at 0.001 % would hold the executor for days)."""
         joint_limits.check(joints_deg)
         self.tool = tool
         self.monitor_speed_pct = float(monitor_speed_pct)
@@ -167,6 +197,9 @@ class Controller:
             self.skills[spec.name] = spec
         self._queue: deque[_Entry] = deque()
         self._queued_by_conn: dict[ConnId, int] = {}
+        # Per connection, the IDs queued or executing (not yet answered) and how many of each: NO_ID lines (broken
+        # ones, answered in turn) may repeat; any other ID may not.
+        self._inflight: dict[ConnId, dict[str, int]] = {}
         self._running: _Running | None = None
         self._conns: set[ConnId] = set()
         self._out: list[Outgoing] = []
@@ -189,12 +222,23 @@ class Controller:
         self._conns.add(conn)
 
     def disconnect(self, conn: ConnId, now: float | None = None) -> None:
-        """Forget a connection: its queued commands are discarded; a skill it started runs on, unacknowledged."""
-        if now is not None:
-            self._advance(now)
+        """Forget a connection: its queued commands are discarded and never run; a skill of its that is waiting
+        (a move for its motion slot, a break) is dropped too, so no motion of its starts after this. Motions it
+        already started go on.
+
+        The queue is dropped *before* the controller advances to ``now``: advancing first would start, at their
+        due times up to ``now``, commands of a client that is already gone.
+        """
         self._conns.discard(conn)
         self._queue = deque(e for e in self._queue if e.conn != conn)
         self._queued_by_conn.pop(conn, None)
+        self._inflight.pop(conn, None)
+        run = self._running
+        if run is not None and run.entry.conn == conn:
+            run.gen.close()
+            self._running = None
+        if now is not None:
+            self._advance(now)
 
     @property
     def connections(self) -> frozenset[ConnId]:
@@ -203,6 +247,10 @@ class Controller:
     def queued(self, conn: ConnId | None = None) -> int:
         """Commands waiting to run (of one connection, or all)."""
         return len(self._queue) if conn is None else self._queued_by_conn.get(conn, 0)
+
+    def pending(self, conn: ConnId) -> int:
+        """Commands of ``conn`` not yet answered (queued or executing)."""
+        return sum(self._inflight.get(conn, {}).values())
 
     @property
     def busy(self) -> bool:
@@ -214,17 +262,31 @@ class Controller:
         """Take one framed line (or its parsed message) read from ``conn`` at ``now``; return acks now due."""
         self._advance(now)
         entry = self._entry(message, conn, now)
-        if entry.error is None and entry.spec is not None and entry.spec.name == "stop":
+        spec = entry.spec
+        inflight = self._inflight.get(conn)
+        if entry.error is None and spec is not None and spec.name == STOP_SKILL:
+            # Never refused, not even for a duplicate ID: a stop that does not arrive is the worst outcome.
             self._stop(entry, now)
-        elif entry.error is None and entry.spec is not None and entry.spec.immediate:
+        elif inflight and entry.id != NO_ID and entry.id in inflight:
+            # Its ack could not be told from the pending one's; refuse it before it can run.
+            self._emit(entry, Status.ERROR, now, now,
+                       (ErrorCode.MALFORMED_MESSAGE, f"message ID {entry.id} is still pending on this connection"))
+        elif entry.error is None and spec is not None and (spec.immediate or (spec.readonly and not inflight)):
             self._run_immediate(entry, now)
         elif self._queued_by_conn.get(conn, 0) >= self.max_queued_per_conn:
             self._emit(entry, Status.ERROR, now, now, (ErrorCode.SERVER_BUSY, "too many queued commands"))
         else:
-            self._queue.append(entry)
-            self._queued_by_conn[conn] = self._queued_by_conn.get(conn, 0) + 1
+            self._enqueue(entry)
         self._advance(now)
         return self._drain()
+
+    def _enqueue(self, entry: _Entry) -> None:
+        self._queue.append(entry)
+        conn = entry.conn
+        self._queued_by_conn[conn] = self._queued_by_conn.get(conn, 0) + 1
+        ids = self._inflight.setdefault(conn, {})
+        ids[entry.id] = ids.get(entry.id, 0) + 1
+        entry.tracked = True
 
     def step(self, now: float) -> list[Outgoing]:
         """Run everything due up to ``now``; return the acks produced."""
@@ -335,31 +397,45 @@ class Controller:
 
     def _stop(self, entry: _Entry, now: float) -> None:
         run = self._running
-        if run is not None and not (run.entry.spec is not None and run.entry.spec.name == "stop"):
+        if run is not None and run.entry.spec is not _STOP_RUN:
             run.gen.close()
             self._running = None
             self._emit(run.entry, Status.ABORTED, run.t_start_s, now)
-            run = None
+        # Everything queued is aborted except earlier stops: a stop never aborts another stop. After a stop the
+        # queue holds only stops, each waiting for the arm to be at rest, so each is answered done then, in order.
+        stops = deque(e for e in self._queue if e.spec is _STOP_RUN)
         for e in self._queue:
-            self._emit(e, Status.ABORTED, now, now)
-        self._queue.clear()
+            if e.spec is not _STOP_RUN:
+                self._emit(e, Status.ABORTED, now, now)
+        self._queue = stops
         self._queued_by_conn.clear()
+        for e in stops:
+            self._queued_by_conn[e.conn] = self._queued_by_conn.get(e.conn, 0) + 1
         self.pending_speed_pct = None
         self.trajectory.stop(now)
-        spec = SkillSpec("stop", lambda ctl, args: ctl.wait_rest(), (0,))
-        stop_entry = _Entry(entry.conn, entry.id, now, spec)
-        if run is None:
+        stop_entry = _Entry(entry.conn, entry.id, now, _STOP_RUN)
+        if self._running is None and not stops:
             self._start(stop_entry, now)
         else:
             # A stop is already bringing the arm to rest: this one is answered when it has.
-            self._queue.appendleft(stop_entry)
-            self._queued_by_conn[entry.conn] = self._queued_by_conn.get(entry.conn, 0) + 1
+            self._enqueue(stop_entry)
 
     # -- output --------------------------------------------------------------------------------------------
     def _emit(self, entry: _Entry, status: Status, t_start: float, t_done: float,
               error: tuple[int, str | None] | None = None, extra: tuple[str, ...] = ()) -> None:
         if status is not Status.ABORTED:
             self.executed += 1
+        if entry.tracked:  # answered: its ID is free again on its connection
+            entry.tracked = False
+            ids = self._inflight.get(entry.conn)
+            if ids is not None:
+                n = ids.get(entry.id, 1) - 1
+                if n > 0:
+                    ids[entry.id] = n
+                else:
+                    ids.pop(entry.id, None)
+                    if not ids:
+                        del self._inflight[entry.conn]
         if entry.conn not in self._conns:
             return
         pose = self.here_at(t_done)
@@ -426,11 +502,13 @@ class Controller:
         start = self.trajectory.end_deg
         # Both ends inside the limit box: the joint-space segment between them is too (the box is convex).
         kin.check_joint_path(start, target, limits=self.joint_limits)
+        # Forward processing is one motion deep: the instruction waits until the motion executing now begins to
+        # decelerate (where this one blends in), so its ack says the motion has started.
         while True:
-            pending = self.trajectory.pending_start_s(self.now_s)
-            if pending is None:
+            ready = self.trajectory.ready_s()
+            if ready is None or ready <= self.now_s:
                 break
-            yield pending
+            yield ready
         self.trajectory.add(target, self.now_s, speed_pct=speed, accel_pct=self.accel_pct)
         return None
 
@@ -458,28 +536,51 @@ def _finite(args: Sequence[float]) -> None:
             raise RobotError(ErrorCode.ILLEGAL_VALUE, "argument is not finite")
 
 
-def _move_to(ctl: Controller, args: tuple[float, ...]) -> SkillGen:
+def _check_pose_args(args: Sequence[float], what: str) -> None:
+    """Six pose numbers: finite, positions within MAX_POSITION_MM, rotations within MAX_ROTATION_DEG.
+
+    Checked before any arithmetic: trigonometry of 1e20 degrees is noise that can land on a reachable pose.
+    """
     _finite(args)
+    for i, a in enumerate(args):
+        if i < 3 and abs(a) > MAX_POSITION_MM:
+            raise RobotError(ErrorCode.ILLEGAL_VALUE, f"{what} {'xyz'[i]} {a:.6g} mm beyond +-{MAX_POSITION_MM:g}")
+        if i >= 3 and abs(a) > MAX_ROTATION_DEG:
+            raise RobotError(ErrorCode.ILLEGAL_VALUE,
+                             f"{what} rotation {a:.6g} deg beyond +-{MAX_ROTATION_DEG:g}")
+
+
+def _check_joint_args(args: Sequence[float], what: str) -> None:
+    # Angles a joint could have (within a few turns) go on to the joint-limit check, which names the joint
+    # (JOINT_LIMIT); only absurd magnitudes stop here.
+    _finite(args)
+    for i, a in enumerate(args):
+        if abs(a) > MAX_JOINT_DEG:
+            raise RobotError(ErrorCode.ILLEGAL_VALUE, f"{what} J{i + 1} {a:.6g} deg beyond +-{MAX_JOINT_DEG:g}")
+
+
+def _move_to(ctl: Controller, args: tuple[float, ...]) -> SkillGen:
+    _check_pose_args(args, "target")
     return (yield from ctl.move_pose(Pose(*args)))
 
 
 def _move_joints(ctl: Controller, args: tuple[float, ...]) -> SkillGen:
-    _finite(args)
+    _check_joint_args(args, "target")
     return (yield from ctl.move_joints(args))
 
 
 def _move_rel_world(ctl: Controller, args: tuple[float, ...]) -> SkillGen:
-    _finite(args)
+    _check_pose_args(args, "displacement")
     return (yield from ctl.move_pose(rel_world(ctl.here, args)))
 
 
 def _move_rel_tool(ctl: Controller, args: tuple[float, ...]) -> SkillGen:
-    _finite(args)
+    _check_pose_args(args, "displacement")
     return (yield from ctl.move_pose(rel_tool(ctl.here, args)))
 
 
 def _move_rel_joints(ctl: Controller, args: tuple[float, ...]) -> SkillGen:
-    _finite(args)
+    _check_joint_args(args, "displacement")
     return (yield from ctl.move_joints([a + d for a, d in zip(ctl.joints_deg, args)]))
 
 
@@ -489,8 +590,8 @@ def _break(ctl: Controller, args: tuple[float, ...]) -> SkillGen:
 
 def _set_speed(ctl: Controller, args: tuple[float, ...]) -> None:
     (speed,) = args
-    if not 0 < speed <= 100:
-        raise RobotError(ErrorCode.ILLEGAL_VALUE, f"speed {speed:g} outside 1..100")
+    if not ctl.min_speed_pct <= speed <= 100:
+        raise RobotError(ErrorCode.ILLEGAL_VALUE, f"speed {speed:.6g} outside {ctl.min_speed_pct:g}..100")
     ctl.pending_speed_pct = float(speed)
 
 
@@ -515,6 +616,14 @@ def _stop_placeholder(ctl: Controller, args: tuple[float, ...]) -> None:  # prag
     raise AssertionError("stop is handled by the controller")
 
 
+def _stop_wait(ctl: Controller, args: tuple[float, ...]) -> SkillGen:
+    return (yield from ctl.wait_rest())
+
+
+_STOP_RUN = SkillSpec(STOP_SKILL, _stop_wait, (0,))
+"""What a stop runs once read: wait for rest. Stops are recognised by this spec (never aborted by a stop)."""
+
+
 def default_skills() -> list[SkillSpec]:
     """The AdeptServer skills plus our extensions (stop, here, hello)."""
     six = (6,)
@@ -528,8 +637,8 @@ def default_skills() -> list[SkillSpec]:
         SkillSpec("set_speed", _set_speed, (1,)),
         SkillSpec("enable_air", _enable_air, (0,)),
         SkillSpec("disable_air", _disable_air, (0,)),
-        SkillSpec("here", _here, (0,)),
-        SkillSpec("hello", _hello, (0,)),
+        SkillSpec("here", _here, (0,), readonly=True),
+        SkillSpec("hello", _hello, (0,), readonly=True),
         SkillSpec("stop", _stop_placeholder, (0,), immediate=True),
     ]
 

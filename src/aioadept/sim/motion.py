@@ -223,6 +223,14 @@ class Trajectory:
                 return seg.t0_s
         return None
 
+    def ready_s(self) -> float | None:
+        """When a new motion may be issued so that it starts at once: when the last planned motion begins to
+        decelerate (it blends in there), or when a stop comes to rest. None when nothing is planned."""
+        if not self._segments:
+            return None
+        last = self._segments[-1]
+        return last.t_end_s - getattr(last, "ramp_s", 0.0)
+
     def current_speed_pct(self, t_s: float) -> float | None:
         """Effective speed of the motion executing at ``t_s`` (the latest started), or None at rest."""
         speed = None

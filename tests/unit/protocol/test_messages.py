@@ -100,9 +100,26 @@ def test_bad_command_lines(line, code, mid):
 
 
 def test_command_number_forms_accepted_by_server():
-    msg = parse_command(b"eae86869:move_to:+1,-2.,.5,-0.25, 7 ,0")
+    msg = parse_command(b"eae86869:move_to:+1,-2.,.5,-0.25,7,0")
     assert msg.args == (1, -2.0, 0.5, -0.25, 7, 0)
     assert [type(a) for a in msg.args] == [int, float, float, float, int, int]
+
+
+@pytest.mark.parametrize("tok", [b" 7", b"7 ", b"\t7", b"7\x00", b"1e3", b"1E3", b"1_0", b"inf", b"-inf", b"nan",
+                                 b"0x1f", b"--1", b"1.2.3", b"", b"\xb9", b"1" * 25, b"0." + b"0" * 30 + b"1"])
+def test_command_numbers_outside_the_grammar_are_refused(tok):
+    # The grammar is the original client's %d / %.3f text: no spaces, exponents, '_', inf or nan (all of which
+    # Python's float() accepts), no control characters, at most MAX_NUMBER_CHARS characters.
+    with pytest.raises(RemoteProtocolError) as info:
+        parse_command(b"eae86869:set_speed:" + tok)
+    assert info.value.code in (ErrorCode.ILLEGAL_VALUE, ErrorCode.MALFORMED_MESSAGE)
+    assert info.value.id == "eae86869"
+
+
+def test_the_reserved_id_is_refused():
+    with pytest.raises(RemoteProtocolError) as info:
+        parse_command(b"00000000:here")
+    assert info.value.code == ErrorCode.MALFORMED_MESSAGE and "reserved" in info.value.message
 
 
 def test_encode_command_rejects_bad_id():
@@ -218,6 +235,7 @@ def test_id_allocator_is_8_hex_unique_skips_zero_and_wraps():
 finite = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False)
 skill_st = st.from_regex(r"[a-z][a-z0-9._]{0,14}", fullmatch=True)
 id_st = st.from_regex(r"[0-9a-f]{8}", fullmatch=True)
+cmd_id_st = id_st.filter(lambda m: m != "00000000")  # the reserved ID: a server refuses commands carrying it
 arg_st = st.one_of(st.integers(-10**6, 10**6), finite)
 call_st = st.builds(lambda s, a: SkillCall(s, tuple(a)), skill_st, st.lists(arg_st, max_size=6))
 field_st = st.text(st.characters(min_codepoint=32, max_codepoint=126, blacklist_characters=":"), max_size=20)
@@ -235,7 +253,7 @@ def _r3(v: float) -> float:
 
 
 @settings(max_examples=300, deadline=None)
-@given(mid=id_st, call=call_st)
+@given(mid=cmd_id_st, call=call_st)
 def test_command_round_trip(mid, call):
     msg = parse_command(encode_command(mid, call)[:-2])
     assert msg.id == mid and msg.skill == call.skill
@@ -253,7 +271,7 @@ def test_ack_round_trip(ack):
 
 
 @settings(max_examples=100, deadline=None)
-@given(pairs=st.lists(st.tuples(id_st, call_st), min_size=1, max_size=20),
+@given(pairs=st.lists(st.tuples(cmd_id_st, call_st), min_size=1, max_size=20),
        cuts=st.lists(st.integers(0, 100_000), max_size=30))
 def test_any_split_of_a_valid_command_stream_gives_identical_messages(pairs, cuts):
     stream = b"".join(encode_command(mid, call) for mid, call in pairs)
