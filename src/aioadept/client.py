@@ -34,6 +34,7 @@ import enum
 import functools
 import logging
 import math
+import numbers
 import operator
 import secrets
 import socket
@@ -46,6 +47,7 @@ from typing import Any, Protocol
 
 from aioadept.commands import Command
 from aioadept.errors import (
+    AbortedBeforeSend,
     AckTimeout,
     ClientStateError,
     CommandAborted,
@@ -273,7 +275,9 @@ class Submission:
     async def wait(self, *, timeout_s: float | None = None) -> tuple[MessageResult, ...]:
         """All results in send order. Raises CommandError / CommandAborted (first failing message, after all
         acks are in; ``exc.results`` holds them), ConnectionLost, or AckTimeout (``timeout_s=None``: the client's
-        ``ack_timeout_s``)."""
+        ``ack_timeout_s``; else finite and > 0, or ValueError)."""
+        if timeout_s is not None:
+            _check_timeout("timeout_s", timeout_s)
         return await self._client._wait(self, timeout_s)
 
     def cancel(self) -> None:
@@ -295,8 +299,14 @@ class RobotClient:
     - ``ack_timeout_s``: default limit of every wait for acks (→ :class:`AckTimeout`); ``None`` waits forever.
       A break waits for the whole motion, so keep this above your longest motion.
     - ``observers``: objects with ``on_send(SentMessage)`` / ``on_ack(MessageResult)``.
-    - ``id_start``: first message ID as an int (IDs count up from a random start by default).
-    - ``auto_reconnect``: after a lost connection, reconnect before the next new command. Never re-sends.
+    - ``id_start``: first message ID as an int in 1..0xFFFFFFFF (IDs count up from a random start by default,
+      skip the reserved ``00000000`` and any ID still pending or given up on this client).
+    - ``auto_reconnect``: after a lost connection, reconnect before the next new call (commands, ``stop``,
+      ``here``, ``hello``). Never re-sends a command; only a stop whose connection was lost before its ack is sent
+      again (see :meth:`stop`).
+
+    Every timeout, here and in each method's ``timeout_s``, must be a finite number of seconds > 0 (``None``
+    where documented); anything else raises ``ValueError`` at once, before anything is sent.
     - ``connector``: an async callable returning ``(reader, writer)``, to run over other streams (e.g.
       :func:`aioadept.testing.memory_connector`); ``host``/``port`` are then only used in messages.
     """
@@ -305,9 +315,14 @@ class RobotClient:
                  ack_timeout_s: float | None = 60.0, observers: Iterable[Observer] = (),
                  id_start: int | None = None, auto_reconnect: bool = False,
                  connector: Connector | None = None, max_line: int = MAX_ACK_LINE) -> None:
+        if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 0xFFFF:
+            raise ValueError(f"port: {port!r} is not a TCP port number (0..65535)")
+        if id_start is not None and (isinstance(id_start, bool) or not isinstance(id_start, int)
+                                     or not 0 < id_start <= 0xFFFFFFFF):
+            raise ValueError(f"id_start: {id_start!r} is not an int in 1..0xFFFFFFFF (00000000 is reserved)")
         self.host = host
         self.port = port
-        self.connect_timeout_s = connect_timeout_s
+        self.connect_timeout_s = connect_timeout_s  # validated by the properties
         self.ack_timeout_s = ack_timeout_s
         self.auto_reconnect = auto_reconnect
         self._connector = connector
@@ -336,7 +351,29 @@ class RobotClient:
         self._server_error: Ack | None = None  # the last error ack without an ID on this connection
         self._in_context = False
         self._connect_lock: asyncio.Lock | None = None
+        self._closes = 0  # close() calls, so a reconnect that raced one does not resurrect the client
+        # stop() calls so far: a call that began before a stop and had not yet written its command never writes it
+        self._stops = 0
+        self._stop_tasks: set[asyncio.Task[MessageResult]] = set()
         self.stats = ClientStats()
+
+    @property
+    def connect_timeout_s(self) -> float:
+        """Limit of :meth:`connect` and of each reconnect (seconds, finite, > 0)."""
+        return self._connect_timeout_s
+
+    @connect_timeout_s.setter
+    def connect_timeout_s(self, value: float) -> None:
+        self._connect_timeout_s = _check_timeout("connect_timeout_s", value, none_ok=False)
+
+    @property
+    def ack_timeout_s(self) -> float | None:
+        """Default limit of every wait for acks (seconds, finite, > 0; ``None``: wait forever)."""
+        return self._ack_timeout_s
+
+    @ack_timeout_s.setter
+    def ack_timeout_s(self, value: float | None) -> None:
+        self._ack_timeout_s = _check_timeout("ack_timeout_s", value)
 
     # ------------------------------------------------------------------------------------------- lifecycle
     @property
@@ -383,7 +420,7 @@ class RobotClient:
         loop = asyncio.get_running_loop()
         reader: asyncio.StreamReader | None = None
         try:
-            async with asyncio.timeout(self.connect_timeout_s):
+            async with asyncio.timeout(self._connect_timeout_s):
                 if self._connector is not None:
                     reader, writer = await self._connector()
                     transport: asyncio.BaseTransport = writer.transport
@@ -418,6 +455,7 @@ class RobotClient:
         """Close the connection; pending waits fail with ConnectionLost. Idempotent."""
         was = self._state
         self._state = _CLOSED
+        self._closes += 1
         if was is _CONNECTED:
             self._fail_pending("client closed the connection")
         await self._teardown()
@@ -667,6 +705,10 @@ class RobotClient:
         if fns[0] is not loop:
             fns = self._bind_loop(loop)
         n = len(calls)
+        pending = self._pending
+        # An ID is never one still pending or given up (its late ack may still come) on this client: the counter
+        # repeats only after 2**32 - 1 IDs, or sooner from an id_start near the wrap, so a collision is rare and
+        # one dict lookup per ID rules it out.
         if n == 1:
             # IdAllocator.next() inline (a round trip's send; a call costs more than the work): the next ID unless
             # it is 00000000 or the last before the wrap, which next() handles.
@@ -677,10 +719,14 @@ class RobotClient:
                 mid = "%08x" % k
             else:
                 mid = allocator.next()
+            if mid in pending or mid in self._abandoned:
+                mid = self._unused_ids(1)[0]
             ids: tuple[str, ...] = (mid,)
             data = f"{mid}:{calls[0].wire}\r\n".encode("ascii")
         else:
             ids = tuple(self._ids.take(n))
+            if not pending.keys().isdisjoint(ids) or not self._abandoned.keys().isdisjoint(ids):
+                ids = self._unused_ids(n)
             data = "".join([f"{mid}:{call.wire}\r\n" for mid, call in zip(ids, calls)]).encode("ascii")
         batch = self._batch = self._batch + 1
         # Submission(self, ids, calls, batch), inline for the same reason.
@@ -694,7 +740,6 @@ class RobotClient:
         if futures:
             new_future = fns[2]
             sub.futures = tuple(new_future() for _ in range(n))
-        pending = self._pending
         # Registered before the write, so an ack can never beat its entry.
         if n == 1:
             pending[ids[0]] = sub
@@ -712,6 +757,16 @@ class RobotClient:
         if self._observers:
             self._notify_send(sub)
         return sub
+
+    def _unused_ids(self, n: int) -> tuple[str, ...]:
+        """The next ``n`` IDs that are neither pending nor given up (the slow path of :meth:`_send`)."""
+        out: dict[str, None] = {}
+        pending, abandoned, allocator = self._pending, self._abandoned, self._ids
+        while len(out) < n:
+            mid = allocator.next()
+            if mid not in pending and mid not in abandoned:
+                out[mid] = None
+        return tuple(out)
 
     def _bind_loop(self, loop: asyncio.AbstractEventLoop) -> tuple:
         """``(loop, clock, new_future)``: ``loop.time`` and ``loop.create_future`` without a Python frame each when
@@ -736,13 +791,20 @@ class RobotClient:
         raise ClientStateError(f"not connected (state {self._state.value})")
 
     async def _ensure_connected(self) -> None:
+        """Reconnect a lost connection if ``auto_reconnect`` (ConnectError if that fails); otherwise leave the
+        state to :meth:`_send`, which raises ConnectionLost / ClientStateError."""
         if self._state is _LOST and self.auto_reconnect:
             if self._connect_lock is None:
                 self._connect_lock = asyncio.Lock()
+            closes = self._closes
             async with self._connect_lock:
-                if self._state is _LOST:
+                if self._state is _LOST and self._closes == closes:
                     log.info("reconnecting to %s:%s (nothing is re-sent)", self.host, self.port)
                     await self.connect()
+                    if self._closes != closes:  # close() ran while we connected: it wins
+                        await self.close()
+            if self._closes != closes:
+                raise ClientStateError(f"client closed while reconnecting to {self.host}:{self.port}")
 
     # ------------------------------------------------------------------------------------------- waiting
     async def _wait(self, sub: Submission, timeout_s: float | None,
@@ -761,7 +823,7 @@ class RobotClient:
                 waiter = sub._waiter = fns[2]()
                 now = sub.t_send_s if just_sent else fns[1]()
                 dq = self._deadlines
-                default_s = self.ack_timeout_s
+                default_s = self._ack_timeout_s
                 if timeout_s is None and default_s is not None and (
                         not dq or dq[-1]._deadline <= now + default_s):
                     # _arm's common case inline: joins the watchdog's queue
@@ -776,7 +838,7 @@ class RobotClient:
                 why = await waiter
                 if why == _W_TIMED_OUT:
                     missing = tuple(mid for mid, r in zip(sub.ids, sub.results) if r is None)
-                    raise AckTimeout(f"no ack within {self.ack_timeout_s if timeout_s is None else timeout_s} s "
+                    raise AckTimeout(f"no ack within {default_s if timeout_s is None else timeout_s} s "
                                      f"for {len(missing)} of {len(sub.ids)} message(s) {list(missing)}",
                                      pending=missing)
             if sub._lost_reason is not None and sub.remaining:
@@ -871,18 +933,25 @@ class RobotClient:
         """Execute commands one by one: each command's messages are written together, then all their acks are
         awaited before the next command is written (paper: ``RobotClient.cmdexec``).
 
-        ``timeout_s`` limits each command's wait (``None``: ``ack_timeout_s``). Raises CommandError /
-        CommandAborted at the first failing command (later commands are not sent; ``exc.completed`` holds the
-        results of those before), ConnectionLost (``acked`` / ``unresolved`` cover this call's messages; commands
-        after the one in flight were never sent), AckTimeout.
+        ``timeout_s`` limits each command's wait (``None``: ``ack_timeout_s``; else finite and > 0, or ValueError
+        before anything is sent). Raises CommandError / CommandAborted at the first failing command (later
+        commands are not sent; ``exc.completed`` holds the results of those before), ConnectionLost (``acked`` /
+        ``unresolved`` cover this call's messages; commands after the one in flight were never sent), AckTimeout,
+        ConnectError (an auto-reconnect failed), AbortedBeforeSend (a :meth:`stop` was called after this call
+        began and before the command was written: it is never written).
         """
+        if timeout_s is not None:
+            _check_timeout("timeout_s", timeout_s)
         if len(commands) == 1:  # one command: no merging of per-command results needed
             try:
                 calls = commands[0]._calls  # the common case, without per-command calls
             except AttributeError:
                 calls = _calls_of(commands)
             if self._state is not _CONNECTED:
+                stops = self._stops
                 await self._ensure_connected()
+                if self._stops != stops:
+                    raise AbortedBeforeSend(calls[0].skill)
             try:
                 results = await self._wait(self._send(calls), timeout_s, True)
             except (CommandError, CommandAborted) as exc:
@@ -897,10 +966,16 @@ class RobotClient:
             out.sizes = (len(results),)
             out.__class__ = ExecResult
             return out  # type: ignore[no-any-return]
+        stops = self._stops
         per_command = await self._prepare(commands)
         messages: list[MessageResult] = []
         acked: list[str] = []
         for k, calls in enumerate(per_command):
+            if self._stops != stops:  # a stop came while we waited for the previous command's acks
+                exc_nb = AbortedBeforeSend(calls[0].skill)
+                exc_nb.completed = ExecResult(tuple(messages), commands[:k],  # type: ignore[attr-defined]
+                                              tuple(len(c) for c in per_command[:k]))
+                raise exc_nb
             sub = self._send(calls)
             try:
                 messages.extend(await self._wait(sub, timeout_s, True))
@@ -931,10 +1006,15 @@ class RobotClient:
 
         Raises as :meth:`cmdexec`; an error is raised after all acks of the batch are in.
         """
+        if timeout_s is not None:
+            _check_timeout("timeout_s", timeout_s)
+        stops = self._stops
         per_command = await self._prepare(commands)
         calls = list(chain.from_iterable(per_command))
         if not calls:
             raise ValueError("commands: nothing to send")
+        if self._stops != stops:
+            raise AbortedBeforeSend(calls[0].skill)
         results = await self._wait(self._send(calls), timeout_s, True)
         twin = _EXEC_TWIN
         if twin is None:
@@ -950,17 +1030,78 @@ class RobotClient:
         """Send the ``stop`` skill at once, past whatever is queued (extension; see docs/protocol.md).
 
         The server aborts the motion in progress, acks every command not yet done ``aborted`` (their waiters
-        raise CommandAborted) and then acks the stop ``done``; this returns the stop's result (pose at rest).
-        Raises CommandError if the server does not know ``stop`` (an original V+ AdeptServer halts instead).
+        raise CommandAborted) and then acks the stop ``done``. **Returns** the stop's result only on that ``done``
+        ack: its pose is where the robot came to rest. Every other outcome raises; nothing is silent:
+
+        - ``ValueError``: ``timeout_s`` not ``None`` and not a finite number > 0 (nothing is sent).
+        - :class:`ConnectError`: the connection was lost, ``auto_reconnect`` is on and the reconnect failed
+          (refused at once, or no answer within ``connect_timeout_s``). The stop was not sent.
+        - :class:`ConnectionLost`: the connection is lost and ``auto_reconnect`` is off (nothing was sent), or it
+          was lost before the ack (with ``auto_reconnect`` the stop is first sent once more on a new connection,
+          since a repeated stop cannot move the robot; this is the only message the client ever re-sends).
+        - :class:`ClientStateError`: never connected, or closed (also when closed during the reconnect).
+        - :class:`AckTimeout`: no ack within ``timeout_s`` (``None``: ``ack_timeout_s``); the robot may still move.
+        - :class:`CommandError`: an ``error`` ack, e.g. a server without the extension (the original V+
+          AdeptServer halts instead and the stop runs into the timeout).
+        - :class:`CommandAborted`: the stop itself was acked ``aborted`` (servers should not do that).
+
+        Its write does not wait for any other call: connected, it is written before this coroutine first yields;
+        after a lost connection it is written as soon as the reconnect succeeds. Any command of another call that
+        began before this stop and was still waiting to be written (behind a reconnect, or between a cmdexec's
+        commands) is never written: that call raises :class:`AbortedBeforeSend`.
+
+        Cancelling the caller does not cancel the stop: it is still written (after a pending reconnect) and its
+        ack awaited by a task of the client; a failure nobody awaits any more is logged as an error.
         """
-        return (await self._wait(self._send((_STOP,)), timeout_s, True))[0]
+        if timeout_s is not None:
+            _check_timeout("timeout_s", timeout_s)
+        self._stops += 1
+        sub = self._send((_STOP,)) if self._state is _CONNECTED else None  # written now, before any await
+        task = asyncio.get_running_loop().create_task(self._stop_flow(sub, timeout_s),
+                                                      name=f"RobotClient stop {self.host}:{self.port}")
+        self._stop_tasks.add(task)
+        task.add_done_callback(self._stop_tasks.discard)
+        try:
+            return await asyncio.shield(task)
+        except asyncio.CancelledError:
+            if not task.done():
+                task.add_done_callback(_log_orphan_stop)
+            raise
+
+    async def _stop_flow(self, sub: Submission | None, timeout_s: float | None) -> MessageResult:
+        """Reconnect if needed, write the stop (unless already written: ``sub``) and await its ack; once more on
+        a new connection if the connection is lost before the ack and ``auto_reconnect`` is on."""
+        if sub is None:
+            await self._ensure_connected()
+            sub = self._send((_STOP,))
+        try:
+            return (await self._wait(sub, timeout_s))[0]
+        except ConnectionLost:
+            if not self.auto_reconnect or self._state is _CLOSED or self._state is _NEW:
+                raise
+            log.warning("connection to %s:%s lost before the stop's ack: sending the stop again on a new "
+                        "connection", self.host, self.port)
+        await self._ensure_connected()
+        return (await self._wait(self._send((_STOP,)), timeout_s))[0]
 
     async def here(self, *, timeout_s: float | None = None) -> Pose:
-        """The robot's current pose (``here`` extension skill)."""
+        """The robot's current pose (``here`` extension skill), from the server's ack: never a remembered pose.
+
+        Reconnects first like every call (``auto_reconnect``); raises as :meth:`cmdexec` (ConnectError,
+        ConnectionLost, ClientStateError, AckTimeout, CommandError; ValueError for a bad ``timeout_s``).
+        """
+        if timeout_s is not None:
+            _check_timeout("timeout_s", timeout_s)
+        if self._state is not _CONNECTED:
+            await self._ensure_connected()
         return (await self._wait(self._send((_HERE,)), timeout_s, True))[0].ack.pose
 
     async def hello(self, *, timeout_s: float | None = None) -> tuple[int | None, str]:
-        """``(protocol_version, server_name)`` from the ``hello`` extension skill."""
+        """``(protocol_version, server_name)`` from the ``hello`` extension skill. Raises as :meth:`here`."""
+        if timeout_s is not None:
+            _check_timeout("timeout_s", timeout_s)
+        if self._state is not _CONNECTED:
+            await self._ensure_connected()
         ack = (await self._wait(self._send((_HELLO,)), timeout_s, True))[0].ack
         version: int | None
         try:
@@ -1050,6 +1191,28 @@ _EXEC_TWIN = getattr(_make_exec, "twin", None)
 _STOP = SkillCall(STOP_SKILL)
 _HERE = SkillCall(HERE_SKILL)
 _HELLO = SkillCall(HELLO_SKILL)
+
+
+def _check_timeout(name: str, value: object, *, none_ok: bool = True) -> float | None:
+    """``value`` as seconds: ``None`` (if ``none_ok``) or a finite real > 0; else ValueError naming ``name``."""
+    if value is None:
+        if none_ok:
+            return None
+        raise ValueError(f"{name}: a number of seconds is required, not None")
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{name}: {value!r} is not a number of seconds")
+    seconds = float(value)
+    if not (math.isfinite(seconds) and seconds > 0):
+        raise ValueError(f"{name}: {value!r} is not a finite number of seconds > 0")
+    return seconds
+
+
+def _log_orphan_stop(task: asyncio.Task[MessageResult]) -> None:
+    """A stop whose caller was cancelled has finished: nobody will read its outcome, so a failure is logged."""
+    if task.cancelled():
+        log.error("a stop whose caller was cancelled was itself cancelled")
+    elif task.exception() is not None:
+        log.error("a stop whose caller was cancelled failed: %s", task.exception())
 
 
 def _calls_of(commands: Iterable[Command | SkillCall]) -> tuple[SkillCall, ...]:

@@ -1,0 +1,253 @@
+"""The client's stop path over real TCP (issue 10, item 3): every way ``RobotClient.stop()`` can go, and ``here()``.
+
+A stop must reach a server that is back (auto-reconnect), fail with a typed error at once when there is no server,
+never succeed silently, never hang, never report a cached pose; it must still be written when its caller is
+cancelled, and no command that was waiting to be written when the stop was asked for may go out after it.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+
+import pytest
+
+from aioadept import MoveJoints, MoveToolZ, SetSpeed, Skill
+from aioadept.client import ClientState, RobotClient
+from aioadept.errors import (
+    AbortedBeforeSend,
+    AckTimeout,
+    ClientStateError,
+    CommandAborted,
+    CommandError,
+    ConnectError,
+    ConnectionLost,
+)
+from aioadept.geometry import Pose
+from aioadept.protocol import Ack, LineFramer, Status, encode_ack, parse_command
+from aioadept.sim.server import Faults, SimOptions, SimServer
+from aioadept.testing import Reply, ScriptedServer
+
+POSE = Pose(480.014, -0.038, 709.975, 0.0, 179.995, 0.004)
+FAR = [120, -60, 150, 40, 60, 90]  # a joint target several seconds away at 10 %
+
+
+async def until(predicate, what: str, *, timeout_s: float = 5.0) -> None:
+    """Poll ``predicate`` each loop turn (with a short pause) until true; fail after ``timeout_s``."""
+    async with asyncio.timeout(timeout_s):
+        while not predicate():
+            await asyncio.sleep(0.005)
+    assert predicate(), what
+
+
+@contextlib.asynccontextmanager
+async def sim_on(port: int = 0, **options):
+    sim = SimServer(SimOptions(port=port, state_endpoint=None, **options))
+    await sim.start()
+    try:
+        yield sim
+    finally:
+        await sim.close()
+
+
+@contextlib.asynccontextmanager
+async def raw_server(handler):
+    """A bare asyncio server on 127.0.0.1:0 running ``handler(reader, writer, lines)`` per connection."""
+    lines: list[bytes] = []
+
+    async def serve(reader, writer):
+        try:
+            await handler(reader, writer, lines)
+        except (ConnectionError, asyncio.CancelledError):
+            pass
+        finally:
+            writer.close()
+
+    server = await asyncio.start_server(serve, "127.0.0.1", 0)
+    try:
+        yield server.sockets[0].getsockname()[1], lines
+    finally:
+        server.close()
+        await server.wait_closed()
+
+
+def at_rest(sim: SimServer) -> bool:
+    now = sim.now()
+    return sim.controller.joints_at(now) == pytest.approx(sim.controller.joints_at(now + 0.5), abs=1e-6)
+
+
+# ------------------------------------------------------------------------------------------ lost connection
+@pytest.mark.timeout(30)
+async def test_stop_after_a_dropped_connection_reconnects_and_stops_the_motion_that_goes_on():
+    """The server drops the connection after the move started; the arm keeps moving. With auto-reconnect,
+    stop() reconnects and the stop is executed (today: ConnectionLost, and the motion goes on)."""
+    async with sim_on(faults=Faults(drop_after=2)) as sim:
+        async with RobotClient(sim.host, sim.port, auto_reconnect=True, connect_timeout_s=2.0) as robot:
+            await robot.cmdexec_joined(SetSpeed(10), MoveJoints(FAR, break_move=False))
+            await until(lambda: robot.state is ClientState.LOST, "the server dropped us")
+            assert not at_rest(sim), "the motion must still be going on for this test to mean anything"
+            result = await robot.stop(timeout_s=10.0)
+            assert result.ok and result.skill == "stop"
+            assert robot.state is ClientState.CONNECTED
+            assert at_rest(sim)
+            assert sim.controller.joints_at(sim.now()) != pytest.approx(FAR, abs=1.0)
+            # here() after the stop reports the controller's pose, not a remembered one
+            pose = await robot.here()
+            assert tuple(pose) == pytest.approx(tuple(sim.controller.here_at(sim.now())), abs=2e-3)
+    assert sim.connections_total == 2
+
+
+@pytest.mark.timeout(30)
+async def test_stop_and_here_without_auto_reconnect_raise_connection_lost_at_once_and_send_nothing():
+    async with sim_on(instant=True, faults=Faults(drop_after=1)) as sim:
+        async with RobotClient(sim.host, sim.port, connect_timeout_s=2.0) as robot:
+            await robot.here()
+            await until(lambda: robot.state is ClientState.LOST, "the server dropped us")
+            with pytest.raises(ConnectionLost, match="nothing was sent"):
+                await robot.stop()
+            with pytest.raises(ConnectionLost, match="nothing was sent"):
+                await robot.here()
+    assert sim.connections_total == 1
+
+
+# ------------------------------------------------------------------------------------------ server gone, then back
+@pytest.mark.timeout(30)
+async def test_stop_with_no_server_is_connect_error_then_reaches_the_server_back_on_the_same_port():
+    async with sim_on(instant=True) as first:
+        port = first.port
+        robot = RobotClient("127.0.0.1", port, auto_reconnect=True, connect_timeout_s=2.0)
+        await robot.connect()
+        assert (await robot.stop()).ok
+    # the server is gone: the client noticed, and a stop is a typed error within the connect timeout
+    await until(lambda: robot.state is ClientState.LOST, "the server's close reached the client")
+    loop = asyncio.get_running_loop()
+    t0 = loop.time()
+    with pytest.raises(ConnectError):
+        await robot.stop()
+    with pytest.raises(ConnectError):
+        await robot.here()
+    assert loop.time() - t0 < 2 * robot.connect_timeout_s + 1.0  # refused at once; never a hang
+    assert robot.state is ClientState.LOST
+    # the server is back on the same port: the next stop reconnects and is executed
+    async with sim_on(port=port, instant=True) as second:
+        result = await robot.stop()
+        assert result.ok and result.skill == "stop"
+        assert second.connections_total == 1
+        assert tuple(await robot.here()) == pytest.approx(tuple(second.controller.here_at(second.now())), abs=2e-3)
+        await robot.close()
+
+
+@pytest.mark.timeout(30)
+async def test_stop_on_a_closed_or_new_client_is_client_state_error():
+    robot = RobotClient("127.0.0.1", 9, auto_reconnect=True)
+    with pytest.raises(ClientStateError):
+        await robot.stop()
+    with pytest.raises(ClientStateError):
+        await robot.here()
+
+
+# ------------------------------------------------------------------------------------------ acks
+@pytest.mark.timeout(20)
+async def test_stop_without_an_ack_is_ack_timeout_and_the_late_ack_is_only_counted():
+    release = asyncio.Event()
+
+    async def slow_stop(reader, writer, lines):
+        framer = LineFramer()
+        while data := await reader.read(65536):
+            for line in framer.feed(data):
+                lines.append(line)
+                msg = parse_command(line)
+                await release.wait()
+                writer.write(encode_ack(Ack(msg.id, Status.DONE, 1.0, 1.0, POSE)))
+
+    async with raw_server(slow_stop) as (port, lines):
+        async with RobotClient("127.0.0.1", port) as robot:
+            with pytest.raises(AckTimeout) as info:
+                await robot.stop(timeout_s=0.2)
+            assert robot.pending_ids == ()
+            assert len(info.value.pending) == 1
+            release.set()
+            await until(lambda: robot.stats.late_acks == 1, "the late stop ack is counted")
+            assert robot.stats.unknown_acks == 0
+    assert [parse_command(line).skill for line in lines] == ["stop"]
+
+
+@pytest.mark.timeout(20)
+@pytest.mark.parametrize("status,error", [(Status.ERROR, CommandError), (Status.ABORTED, CommandAborted)])
+async def test_a_stop_not_acked_done_raises_never_returns(status, error):
+    async def answer(reader, writer, lines):
+        framer = LineFramer()
+        while data := await reader.read(65536):
+            for line in framer.feed(data):
+                msg = parse_command(line)
+                ack = (Ack.error(msg.id, -1200, "internal error", 1.0, 1.0, POSE) if status is Status.ERROR
+                       else Ack(msg.id, Status.ABORTED, 1.0, 1.0, POSE))
+                writer.write(encode_ack(ack))
+
+    async with raw_server(answer) as (port, _lines):
+        async with RobotClient("127.0.0.1", port) as robot:
+            with pytest.raises(error):
+                await robot.stop()
+            assert robot.pending_ids == ()
+
+
+# ------------------------------------------------------------------------------------------ cancellation
+@pytest.mark.timeout(20)
+async def test_a_stop_whose_caller_is_cancelled_while_reconnecting_is_still_written():
+    gate = asyncio.Event()
+    async with ScriptedServer(drop_after=1) as server:
+        async def gated():  # a connect that takes until the test says so (a slow network), over real TCP
+            await gate.wait()
+            return await asyncio.open_connection(server.host, server.port)
+
+        robot = RobotClient(server.host, server.port, auto_reconnect=True, connector=gated)
+        gate.set()
+        await robot.connect()
+        with pytest.raises(ConnectionLost):
+            await robot.here()  # the server drops us instead of acking
+        gate.clear()
+        caller = asyncio.create_task(robot.stop())
+        await until(lambda: robot._connect_lock is not None and robot._connect_lock.locked(), "reconnecting")
+        caller.cancel()
+        with pytest.raises(asyncio.CancelledError):
+            await caller
+        gate.set()  # the network is back: the stop goes out all the same
+        conn = await server.wait_connections(2)
+        await until(lambda: [parse_command(x).skill for x in conn.lines()] == ["stop"], "the stop arrived")
+        await until(lambda: conn.ids("ack") == conn.ids("recv"), "the stop was acked")
+        await robot.close()
+
+
+# ------------------------------------------------------------------------------------------ nothing ahead of it
+@pytest.mark.timeout(20)
+async def test_commands_waiting_to_be_written_when_stop_is_called_are_never_sent():
+    """Motions queued behind a reconnect when stop() is called are not written after the stop (the server would
+    have aborted them had they arrived before it); the stop goes out, and only the stop."""
+    gate = asyncio.Event()
+    async with ScriptedServer(lambda msg, index: Reply(drop=True) if index == 0 else None) as server:
+        async def gated():
+            await gate.wait()
+            return await asyncio.open_connection(server.host, server.port)
+
+        robot = RobotClient(server.host, server.port, auto_reconnect=True, connector=gated)
+        gate.set()
+        await robot.connect()
+        with pytest.raises(ConnectionLost):
+            await robot.here()
+        gate.clear()
+        moves = [asyncio.create_task(robot.cmdexec(MoveToolZ(5))),
+                 asyncio.create_task(robot.cmdexec(SetSpeed(50), MoveToolZ(5))),
+                 asyncio.create_task(robot.cmdexec_joined(SetSpeed(50), MoveToolZ(5)))]
+        await until(lambda: robot._connect_lock is not None and robot._connect_lock.locked(), "reconnecting")
+        stop = asyncio.create_task(robot.stop())
+        await asyncio.sleep(0)
+        gate.set()
+        assert (await stop).ok
+        for task in moves:
+            with pytest.raises(AbortedBeforeSend):
+                await task
+        conn = await server.wait_connections(2)
+        assert [parse_command(x).skill for x in conn.lines()] == ["stop"]
+        # commands begun after the stop run normally
+        assert (await robot.cmdexec(Skill("enable_air"))).messages[0].ok
+        await robot.close()
