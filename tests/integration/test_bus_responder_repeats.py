@@ -39,10 +39,10 @@ async def test_repeat_of_a_queued_request_is_not_processed_again_after_cache_evi
     b_repeated = asyncio.Event()
     dispatch = node._dispatch
 
-    def counting_dispatch(payload: bytes) -> None:
+    def counting_dispatch(payload: bytes, *args: object) -> None:
         rid = decode_event(payload)[1]
         read[rid] += 1
-        dispatch(payload)
+        dispatch(payload, *args)
         if read["bbbbbbbb"] >= 2 and read["cccccccc"] >= 1:
             b_repeated.set()
 

@@ -23,6 +23,7 @@ import asyncio
 import collections
 import inspect
 import logging
+import math
 import os
 import time
 from collections.abc import Awaitable, Callable, Iterable, Mapping
@@ -53,6 +54,8 @@ from aioadept.bus.security import Curve
 from aioadept.errors import BusEncodeError, BusError, ClientStateError, RequestTimeout, VisionError
 
 __all__ = [
+    "DEFAULT_MAX_QUEUE",
+    "DEFAULT_MAX_REQUEST_BYTES",
     "BusObserver",
     "Communicator",
     "Handler",
@@ -66,6 +69,13 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 ID_LENGTH = 8
+
+DEFAULT_MAX_QUEUE = 32
+"""Requests a :class:`Responder` keeps waiting; beyond that the oldest waiting one is dropped (with an error)."""
+DEFAULT_MAX_REQUEST_BYTES = 1 << 20
+"""Largest request frame a :class:`Responder` reads (``ZMQ_MAXMSGSIZE``); a larger one is never parsed."""
+READ_BATCH = 256
+"""Requests the Responder's socket callback reads in one go before it lets the loop run (and calls itself again)."""
 
 
 def new_request_id() -> str:
@@ -548,6 +558,14 @@ class Responder:
       or being processed is dropped: the answer, published when it is ready, serves it. (Queued repeats could
       outlive the cached answer under load and be processed again.)
     - ``request_types`` restricts which event types are answered (others are ignored); None answers all.
+    - Limits (docs/bus.md, "Limits"): at most ``max_queue`` requests wait; when one more arrives the **oldest**
+      waiting request is dropped and answered at once with ``error = "dropped: ..."`` (the newest request is the
+      one a waiting requester still cares about; a requester that re-sends gets the newest place). Requests are
+      read out of ZeroMQ before any is processed, so a flood is triaged here, in bounded memory, instead of piling
+      up in ZeroMQ's buffers ahead of the next request. A request whose ``t_deadline`` is present but not a finite
+      number is answered with an ``error``. A request frame larger than ``max_request_bytes`` (None: no limit) is
+      discarded by ZeroMQ before it is parsed (``ZMQ_MAXMSGSIZE``), which also disconnects the sender: it gets no
+      answer, and whatever else it had in flight on that connection is lost (ZeroMQ reconnects it at once).
 
     ``async with Responder(...)`` (or ``start()``/``aclose()``, or ``await serve()``) runs it. ``curve`` (default
     None: off) secures both sockets with CURVE, normally a :class:`aioadept.bus.security.CurveServer` listing the
@@ -569,9 +587,18 @@ class Responder:
         response_topic: bytes | str | None = None,
         context: zmq.Context | None = None,
         curve: Curve | None = None,
+        max_queue: int = DEFAULT_MAX_QUEUE,
+        max_request_bytes: int | None = DEFAULT_MAX_REQUEST_BYTES,
     ) -> None:
         if cache_size < 1:
             raise ValueError("cache_size must be >= 1")
+        if isinstance(max_queue, bool) or not isinstance(max_queue, int) or max_queue < 1:
+            raise ValueError(f"max_queue must be an int >= 1, got {max_queue!r}")
+        if max_request_bytes is not None and (isinstance(max_request_bytes, bool)
+                                              or not isinstance(max_request_bytes, int) or max_request_bytes < 1):
+            raise ValueError(f"max_request_bytes must be an int >= 1 or None, got {max_request_bytes!r}")
+        self.max_queue = max_queue
+        self.max_request_bytes = max_request_bytes
         self._handler = handler
         is_async = inspect.iscoroutinefunction(handler) or inspect.iscoroutinefunction(
             getattr(handler, "__call__", None))
@@ -584,8 +611,9 @@ class Responder:
         self._cache_size = cache_size
         self._response_topic = None if response_topic is None else as_topic(response_topic)
         topics = (b"",) if request_topic is None else (request_topic,)
-        self._sub, self._actual_req = open_socket(zmq.SUB, request_endpoint, bind=bind, context=context,
-                                                  topics=topics, curve=curve)
+        self._sub, self._actual_req = open_socket(
+            zmq.SUB, request_endpoint, bind=bind, context=context, topics=topics, curve=curve,
+            options={} if max_request_bytes is None else {zmq.MAXMSGSIZE: max_request_bytes})
         try:
             self._pub, self._actual_resp = open_socket(zmq.PUB, response_endpoint, bind=bind, context=context,
                                                        curve=curve)
@@ -611,7 +639,11 @@ class Responder:
         self.expired = 0
         """Requests dropped unprocessed because their ``t_deadline`` had passed (their requester gave up)."""
         self.errors = 0
-        """Requests answered with an ``error`` attribute."""
+        """Requests answered with an ``error`` attribute by the handler (or an answer the schema cannot carry)."""
+        self.dropped = 0
+        """Requests dropped unprocessed because the queue was full, each answered with a ``dropped:`` error."""
+        self.rejected = 0
+        """Requests answered with an error before processing: ``t_deadline`` not a finite number."""
 
     @property
     def actual_request_endpoint(self) -> str:
@@ -693,30 +725,48 @@ class Responder:
     # -------------------------------------------------------------------------------------------- reading
 
     def _on_readable(self) -> None:
+        # Read what is there first (up to READ_BATCH), then dispatch: under a flood the requests are triaged by the
+        # queue bound instead of being processed one by one as ZeroMQ hands them over (which left the newest request
+        # behind everything ZeroMQ had buffered). A lone request still goes straight to an inline handler.
         sub = self._sub
+        payloads: list[bytes] = []
         while self._fd is not None and not sub.closed:
             try:
                 frames = sub.recv_multipart(zmq.NOBLOCK)
             except zmq.Again:
-                return
+                break
             except zmq.ZMQError as exc:
                 log.error("Responder on %s: receive failed: %r", self._actual_req, exc)
-                return
-            self._dispatch(frames[-1])
+                break
+            payloads.append(frames[-1])
+            if len(payloads) >= READ_BATCH:
+                # More may be waiting, and the FD is edge-triggered (it will not signal them again): come back
+                # after the loop has run other callbacks (the worker, signals).
+                assert self._loop is not None
+                self._loop.call_soon(self._on_readable)
+                break
+        alone = len(payloads) == 1
+        for payload in payloads:
+            self._dispatch(payload, alone)
 
     async def _read_loop(self) -> None:
         sub = zmq.asyncio.Socket.from_socket(self._sub)
         while True:
             frames = await sub.recv_multipart()
-            self._dispatch(frames[-1])
+            self._dispatch(frames[-1], True)
 
-    def _dispatch(self, payload: bytes) -> None:
+    def _dispatch(self, payload: bytes, alone: bool = True) -> None:
         try:
             event_type, rid, attrs = decode_event(payload)
         except BusError as exc:
             log.warning("Responder: ignoring undecodable request on %s: %s", self._actual_req, exc)
             return
         if self._request_types is not None and event_type not in self._request_types:
+            return
+        bad = self._bad_deadline(attrs)
+        if bad is not None:
+            self.rejected += 1
+            self._send(encode_event(self._response_type or response_type_for(event_type), rid, {"error": bad}))
             return
         if self._answer_from_cache(event_type, rid):
             return
@@ -725,7 +775,7 @@ class Responder:
         if rid is not None and (event_type, rid) in self._pending:
             return  # a repeat of a request still queued or in process: its answer will serve it
         later = None
-        if self._inline and not self._queue and not self._busy:
+        if alone and self._inline and not self._queue and not self._busy:
             try:
                 result = self._handler(event_type, rid, attrs)
             except Exception as exc:
@@ -735,11 +785,26 @@ class Responder:
                 self._answer(event_type, rid, self._encode_result(event_type, rid, result))
                 return
             later = result
+        if len(self._queue) >= self.max_queue:
+            self._drop(self._queue.popleft())
         if rid is not None:
             self._pending.add((event_type, rid))
         self._queue.append((event_type, rid, attrs, later))
         assert self._wakeup is not None
         self._wakeup.set()
+
+    def _drop(self, item: tuple[str, str | None, dict, Any]) -> None:
+        """Answer a request taken off the full queue with a ``dropped:`` error, unprocessed (not cached: a re-send
+        of the same id is a new request and is served if there is room then)."""
+        event_type, rid, _attrs, later = item
+        if later is not None and hasattr(later, "close"):
+            later.close()  # an un-awaited coroutine from the handler: never run, no "never awaited" warning
+        if rid is not None:
+            self._pending.discard((event_type, rid))
+        self.dropped += 1
+        text = (f"dropped: request queue full ({self.max_queue} waiting); the node serves the newest requests "
+                f"first")
+        self._send(encode_event(self._response_type or response_type_for(event_type), rid, {"error": text}))
 
     async def _work(self) -> None:
         queue, wakeup = self._queue, self._wakeup
@@ -758,13 +823,32 @@ class Responder:
                 self._busy = False
                 if rid is not None:
                     self._pending.discard((event_type, rid))
+            if queue:
+                # Let the socket callback read (and triage) what arrived during this request before the next one:
+                # a plain handler returns without awaiting anything, so without this a queue would be worked off
+                # without the reader ever running.
+                await asyncio.sleep(0)
 
     # -------------------------------------------------------------------------------------------- answering
+
+    @staticmethod
+    def _bad_deadline(attrs: Mapping[str, Any]) -> str | None:
+        """The error text for a ``t_deadline`` that is present but not a finite number, else None. (NaN compares
+        false with every time, so it would never expire; infinity would never expire either.)"""
+        if "t_deadline" not in attrs:
+            return None
+        deadline = attrs["t_deadline"]
+        if isinstance(deadline, (int, float)) and not isinstance(deadline, bool) and math.isfinite(deadline):
+            return None
+        shown = repr(deadline)
+        if len(shown) > 40:
+            shown = shown[:37] + "..."
+        return f"bad request: t_deadline must be a finite number (epoch s), got {shown}"
 
     def _expired(self, attrs: Mapping[str, Any]) -> bool:
         """A request past its ``t_deadline`` (epoch s; clocks of the two hosts assumed in sync) is dropped."""
         deadline = attrs.get("t_deadline")
-        if isinstance(deadline, float) and time.time() > deadline:
+        if isinstance(deadline, (int, float)) and time.time() > deadline:
             self.expired += 1
             return True
         return False

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
-from collections.abc import AsyncIterator, Iterable
+from collections.abc import AsyncIterator, Iterable, Mapping
 from typing import Any
 
 import zmq
@@ -91,9 +91,10 @@ def _attach(sock: zmq.Socket, endpoint: str, bind: bool, curve: Curve | None = N
 
 def open_socket(kind: int, endpoint: str, *, bind: bool, context: zmq.Context | None = None,
                 topics: Iterable[bytes | str] = (), hwm: int = 1000,
-                curve: Curve | None = None) -> tuple[zmq.Socket, str]:
+                curve: Curve | None = None, options: Mapping[int, int] = {}) -> tuple[zmq.Socket, str]:
     """A plain (synchronous) ZeroMQ socket with ``LINGER 0``, subscribed to ``topics`` if it is a SUB, bound or
-    connected; returns ``(socket, actual_endpoint)``. The caller owns it and must close it.
+    connected; returns ``(socket, actual_endpoint)``. The caller owns it and must close it. ``options``: more
+    integer socket options, set before binding or connecting (e.g. ``{zmq.MAXMSGSIZE: n}``).
 
     For code that drives a socket from the loop's reader callbacks rather than through zmq.asyncio futures (the
     Communicator's response reader). Raises :class:`BusError`. With ``curve``, close it with :func:`close_socket`.
@@ -102,6 +103,12 @@ def open_socket(kind: int, endpoint: str, *, bind: bool, context: zmq.Context | 
     sock = zmq.Socket(ctx, kind)
     sock.setsockopt(zmq.LINGER, 0)
     sock.setsockopt(zmq.RCVHWM if kind == zmq.SUB else zmq.SNDHWM, hwm)
+    try:
+        for opt, value in options.items():
+            sock.setsockopt(opt, value)
+    except zmq.ZMQError as exc:
+        sock.close(linger=0)
+        raise BusError(f"socket option {opt} = {value!r}: {exc}") from exc
     if kind == zmq.SUB:
         for t in topics:
             sock.setsockopt(zmq.SUBSCRIBE, as_topic(t))
