@@ -15,6 +15,11 @@ Where it sits in the data path: ``RobotClient`` calls ``on_send``/``on_ack`` and
 The hooks run inside the protocol path, so they only append the record object to a list: pairing sends with acks,
 flattening poses and formatting numbers happen in :meth:`Recorder.snapshot`/:meth:`Recorder.save`, after the run.
 The folder layout and every column (with units) are documented in ``docs/timing-log.md``.
+
+Every file of a run folder is written through :func:`write_atomic` (a temporary file in the same folder, flushed to
+disk, then ``os.replace``): a full disk or a permission error never leaves a truncated file, and a file written
+before keeps its old content. :meth:`Recorder.save` writes what it can and raises :class:`RunSaveError` naming
+what it could not.
 """
 
 from __future__ import annotations
@@ -28,16 +33,17 @@ import socket
 import sys
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
+from contextlib import suppress
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 from aioadept.geometry import Pose
 
 __all__ = [
     "FORMAT_VERSION", "MARK_COLUMNS", "ROBOT_COLUMNS", "VISION_COLUMNS", "Mark", "Recorder", "RobotRecord", "Run",
-    "VisionRecord", "load_run",
+    "RunSaveError", "VisionRecord", "load_run", "write_atomic",
 ]
 
 FORMAT_VERSION = 1
@@ -217,20 +223,37 @@ class Recorder:
         ``metadata`` (the run's parameters: approach speed, delta_z, ...) is stored under ``parameters`` in
         ``run.json``; it must be JSON-serialisable (other values are stored as their ``repr``). Parquet copies of
         the three tables are written too when ``pyarrow`` imports. Returns the folder path.
+
+        Each file is written atomically (:func:`write_atomic`) and independently of the others; ``run.json``, the
+        mark of a complete folder, only when every table was written. Raises :class:`RunSaveError` (an OSError)
+        naming the files not written, after writing all the others.
         """
         path = Path(run_dir)
-        path.mkdir(parents=True, exist_ok=True)
         run = self.snapshot()
         tables = {
             "robot": (ROBOT_COLUMNS, [_robot_row(r) for r in run.robot]),
             "vision": (VISION_COLUMNS, [_vision_row(v) for v in run.vision]),
             "marks": (MARK_COLUMNS, [(m.seq, m.t_s, m.name, _json(m.value)) for m in run.marks]),
         }
-        files = []
+        files: list[str] = []
+        failed: dict[str, str] = {}
+        try:
+            path.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            names = [f"{n}.csv" for n in tables] + ["run.json"]
+            raise RunSaveError(path, (), {n: f"cannot create the folder: {_why(exc)}" for n in names}) from exc
         for name, (columns, rows) in tables.items():
-            _write_csv(path / f"{name}.csv", columns, rows)
-            files.append(f"{name}.csv")
-        files += _write_parquet(path, tables)
+            try:
+                _write_csv(path / f"{name}.csv", columns, rows)
+                files.append(f"{name}.csv")
+            except OSError as exc:
+                failed[f"{name}.csv"] = _why(exc)
+        pq_files, pq_failed = _write_parquet(path, tables)
+        files += pq_files
+        failed.update(pq_failed)
+        if any(n.endswith(".csv") for n in failed):
+            failed["run.json"] = "not written because a table is missing: the folder is incomplete"
+            raise RunSaveError(path, files, failed)
         from aioadept import __version__
 
         now = time.time()
@@ -250,10 +273,73 @@ class Recorder:
             "counts": {"robot": len(run.robot), "vision": len(run.vision), "marks": len(run.marks)},
             "files": files,
         }
-        tmp = path / "run.json.tmp"
-        tmp.write_text(json.dumps(info, indent=2, default=repr) + "\n", encoding="utf-8")
-        tmp.replace(path / "run.json")  # run.json appears last and whole: its presence means the folder is complete
+        try:  # run.json appears last and whole: its presence means the folder is complete
+            write_atomic(path / "run.json", json.dumps(info, indent=2, default=repr) + "\n")
+            files.append("run.json")
+        except OSError as exc:
+            failed["run.json"] = _why(exc)
+        if failed:
+            raise RunSaveError(path, files, failed)
         return path
+
+
+class RunSaveError(OSError):
+    """Some files of a run folder could not be written (disk full, permission, ...).
+
+    ``written``: file names written; ``not_written``: file name -> reason. Files that were not written keep
+    whatever content they had before (none is left truncated).
+    """
+
+    def __init__(self, run_dir: str | os.PathLike[str], written: Iterable[str], not_written: Mapping[str, str]) -> None:
+        self.run_dir = Path(run_dir)
+        self.written = tuple(written)
+        self.not_written = dict(not_written)
+        parts = "; ".join(f"{name} ({why})" for name, why in self.not_written.items())
+        super().__init__(f"run folder {self.run_dir}: not written: {parts}")
+
+    def merged(self, other: RunSaveError) -> RunSaveError:
+        return RunSaveError(self.run_dir, (*self.written, *other.written), {**self.not_written, **other.not_written})
+
+
+def _open_for_write(path: Path, binary: bool) -> IO[Any]:
+    """The one place run-folder bytes go to disk (tests inject a full disk here)."""
+    if binary:
+        return open(path, "xb")  # noqa: SIM115 - closed by write_atomic
+    return open(path, "x", newline="", encoding="utf-8")  # noqa: SIM115
+
+
+def write_atomic(path: str | os.PathLike[str], fill: Callable[[IO[Any]], None] | str | bytes, *,
+                 binary: bool | None = None) -> Path:
+    """Write a file so that it is either complete or not changed: a temporary file next to it, fsync, os.replace.
+
+    ``fill`` is the text/bytes to write or a function writing to the open file (text mode, UTF-8, ``newline=""``,
+    unless ``fill`` is bytes or ``binary=True``). On any error the temporary file is removed and the error raised; ``path`` keeps its
+    old content.
+    """
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    if binary is None:
+        binary = isinstance(fill, bytes)
+    try:
+        with _open_for_write(tmp, binary) as f:
+            if isinstance(fill, (str, bytes)):
+                f.write(fill)
+            else:
+                fill(f)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with suppress(OSError):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+def _why(exc: BaseException) -> str:
+    if isinstance(exc, OSError) and exc.strerror:
+        return exc.strerror
+    return f"{type(exc).__name__}: {exc}"
 
 
 def _robot_records(sends: Sequence[Any], acks: Sequence[Any]) -> tuple[RobotRecord, ...]:
@@ -365,26 +451,36 @@ def _vision_row(v: VisionRecord) -> tuple[Any, ...]:
 
 
 def _write_csv(path: Path, columns: Sequence[str], rows: Iterable[Sequence[Any]]) -> None:
-    with path.open("w", newline="", encoding="utf-8") as f:
+    def fill(f: IO[str]) -> None:
         w = csv.writer(f)
         w.writerow(columns)
         for row in rows:
             w.writerow([_cell(c) for c in row])
 
+    write_atomic(path, fill)
 
-def _write_parquet(path: Path, tables: Mapping[str, tuple[Sequence[str], list[Sequence[Any]]]]) -> list[str]:
-    """Parquet copies of the tables when pyarrow is installed (optional dependency); CSV stays the reference."""
+
+def _write_parquet(path: Path, tables: Mapping[str, tuple[Sequence[str], list[Sequence[Any]]]]
+                   ) -> tuple[list[str], dict[str, str]]:
+    """Parquet copies of the tables when pyarrow is installed (optional dependency); CSV stays the reference.
+
+    Returns (files written, file -> reason not written)."""
     try:
         import pyarrow as pa
         import pyarrow.parquet as pq
     except ImportError:
-        return []
-    written = []
+        return [], {}
+    written: list[str] = []
+    failed: dict[str, str] = {}
     for name, (columns, rows) in tables.items():
         data = {c: [row[i] for row in rows] for i, c in enumerate(columns)}
-        pq.write_table(pa.table(data), path / f"{name}.parquet")
-        written.append(f"{name}.parquet")
-    return written
+        try:
+            write_atomic(path / f"{name}.parquet", lambda f, d=data: pq.write_table(pa.table(d), f),
+                         binary=True)
+            written.append(f"{name}.parquet")
+        except (OSError, pa.ArrowException) as exc:
+            failed[f"{name}.parquet"] = _why(exc)
+    return written, failed
 
 
 def _iso(epoch_s: float) -> str:

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import asyncio
+import errno
+import os
 import csv
 import json
 import pytest
@@ -148,13 +150,117 @@ def test_parquet_copies_when_pyarrow_imports(tmp_path, monkeypatch) -> None:
     pa = types.ModuleType("pyarrow")
     pa.table = lambda data: data
     pq = types.ModuleType("pyarrow.parquet")
-    pq.write_table = lambda table, path: written.__setitem__(path.name, table)
+    pa.ArrowException = type("ArrowException", (Exception,), {})
+
+    def write_table(table, where):  # pyarrow writes to a path or an open file; the run folder gives it a file
+        written[tuple(table)] = table
+        where.write(b"PAR1")
+
+    pq.write_table = write_table
     pa.parquet = pq
     monkeypatch.setitem(sys.modules, "pyarrow", pa)
     monkeypatch.setitem(sys.modules, "pyarrow.parquet", pq)
     out = _filled().save(tmp_path / "pq")
-    assert sorted(written) == ["marks.parquet", "robot.parquet", "vision.parquet"]
+    for name, columns in (("robot", ROBOT_COLUMNS), ("vision", VISION_COLUMNS), ("marks", MARK_COLUMNS)):
+        assert (out / f"{name}.parquet").read_bytes() == b"PAR1"
+        written[f"{name}.parquet"] = written.pop(tuple(columns))
+    assert not [p.name for p in out.iterdir() if p.name.endswith(".tmp")]
     assert tuple(written["robot.parquet"]) == ROBOT_COLUMNS
     assert written["robot.parquet"]["t_recv_s"] == [100.0523, 100.0531, None, 100.41]
     info = json.loads((out / "run.json").read_text())
     assert "robot.parquet" in info["files"]
+
+
+# ------------------------------------------------------------------ a full disk never costs what was written before
+class _FullDisk:
+    """A file whose writes fail with ENOSPC once ``room`` bytes went through (what a full disk does mid-file)."""
+
+    def __init__(self, f, room):
+        self._f, self._room = f, room
+
+    def write(self, data):
+        if len(data) > self._room:
+            self._f.write(data[: self._room])
+            self._room = 0
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        self._room -= len(data)
+        return self._f.write(data)
+
+    def __getattr__(self, name):
+        return getattr(self._f, name)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self._f.close()
+
+
+def _disk_full_for(monkeypatch, names, room=10):
+    from aioadept import capture
+
+    real = capture._open_for_write
+
+    def opener(path, binary):
+        f = real(path, binary)
+        return _FullDisk(f, room) if any(path.name.startswith(f".{n}.") for n in names) else f
+
+    monkeypatch.setattr(capture, "_open_for_write", opener)
+
+
+def test_a_full_disk_keeps_the_previous_files_whole_and_names_what_was_not_written(tmp_path, monkeypatch):
+    from aioadept.capture import RunSaveError
+
+    out = _filled().save(tmp_path / "r", metadata={"try": 1})
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    rec = _filled()
+    rec.mark("more", 2)  # the second save has different content
+    _disk_full_for(monkeypatch, ["robot.csv"])
+    with pytest.raises(RunSaveError) as info:
+        rec.save(out, metadata={"try": 2})
+    err = info.value
+    assert set(err.not_written) == {"robot.csv", "run.json"}
+    assert "No space left on device" in err.not_written["robot.csv"]
+    assert "robot.csv" in str(err) and "run.json" in str(err)
+    assert set(err.written) == {"vision.csv", "marks.csv"}
+    # robot.csv and run.json are exactly the previous ones (not truncated); no temporary file is left behind.
+    assert (out / "robot.csv").read_bytes() == before["robot.csv"]
+    assert (out / "run.json").read_bytes() == before["run.json"]
+    assert (out / "marks.csv").read_bytes() != before["marks.csv"]
+    assert sorted(p.name for p in out.iterdir()) == sorted(before)
+    assert load_run(out).parameters == {"try": 1}  # the folder still reads back as the complete first save
+
+
+def test_a_full_disk_at_run_json_reports_it_and_leaves_no_partial_run_json(tmp_path, monkeypatch):
+    from aioadept.capture import RunSaveError
+
+    _disk_full_for(monkeypatch, ["run.json"])
+    with pytest.raises(RunSaveError) as info:
+        _filled().save(tmp_path / "r")
+    assert list(info.value.not_written) == ["run.json"]
+    assert not (tmp_path / "r" / "run.json").exists()
+    assert sorted(p.name for p in (tmp_path / "r").iterdir()) == ["marks.csv", "robot.csv", "vision.csv"]
+
+
+def test_write_atomic_replaces_whole_or_not_at_all(tmp_path, monkeypatch):
+    from aioadept.capture import write_atomic
+
+    target = tmp_path / "focus.json"
+    write_atomic(target, '{"old": true}')
+    _disk_full_for(monkeypatch, ["focus.json"], room=3)
+    with pytest.raises(OSError) as info:
+        write_atomic(target, '{"new": "a longer result"}')
+    assert info.value.errno == errno.ENOSPC
+    assert target.read_text() == '{"old": true}'
+    assert [p.name for p in tmp_path.iterdir()] == ["focus.json"]
+
+
+def test_a_run_folder_that_cannot_be_created_is_a_run_save_error(tmp_path):
+    from aioadept.capture import RunSaveError
+
+    blocker = tmp_path / "not-a-folder"
+    blocker.write_text("a file where the run folder's parent should be")
+    with pytest.raises(RunSaveError) as info:
+        _filled().save(blocker / "r")
+    assert set(info.value.not_written) == {"robot.csv", "vision.csv", "marks.csv", "run.json"}
+    assert "cannot create the folder" in str(info.value)

@@ -23,7 +23,7 @@ from typing import Any
 
 from aioadept.analysis.fits import fit_for
 from aioadept.analysis.metrics import QUANTITIES, Iteration, Stats, describe, iterations_of_run, quantity_values
-from aioadept.capture import Run, load_run
+from aioadept.capture import Run, load_run, write_atomic
 
 __all__ = ["DEFAULT_GROUP_BY", "FIGURES", "Group", "RunInfo", "Summary", "analyze_runs", "expand_run_dirs",
            "fits_table", "gantt_bars", "group_stats", "summary_table",
@@ -239,13 +239,14 @@ def _delta_z(params: Mapping[str, Any]) -> float | None:
 def _write_iterations(path: Path, iterations: Sequence[Iteration]) -> Path:
     param_keys = sorted({k for it in iterations for k, v in it.parameters.items()
                          if isinstance(v, (str, int, float, bool)) or v is None})
-    with path.open("w", newline="", encoding="utf-8") as f:
+    def fill(f: Any) -> None:
         w = csv.writer(f)
         w.writerow(["run", *param_keys, *ITERATION_COLUMNS])
         for it in iterations:
             row = [it.run, *(it.parameters.get(k) for k in param_keys), *(getattr(it, c) for c in ITERATION_COLUMNS)]
             w.writerow(["" if c is None else repr(c) if isinstance(c, float) else c for c in row])
-    return path
+
+    return write_atomic(path, fill)  # a full disk leaves the previous file, never half of one
 
 
 def group_stats(runs: Sequence[RunInfo], iterations: Sequence[Iteration], keys: Sequence[str]) -> tuple[Group, ...]:
@@ -304,9 +305,7 @@ def analyze_runs(run_dirs: Iterable[str | os.PathLike[str]], out_dir: str | os.P
     files["iterations"] = _write_iterations(out / "iterations.csv", iterations)
     files["summary"] = out / "summary.json"
     summary = Summary(infos, stats, fits, iterations, out, files, group_stats(infos, iterations, group_by))
-    tmp = out / "summary.json.tmp"
-    tmp.write_text(json.dumps(summary.as_dict(), indent=2, default=repr) + "\n", encoding="utf-8")
-    tmp.replace(out / "summary.json")
+    write_atomic(out / "summary.json", json.dumps(summary.as_dict(), indent=2, default=repr) + "\n")
     return summary
 
 
