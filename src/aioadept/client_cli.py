@@ -61,8 +61,12 @@ def _print(results: Sequence[MessageResult], as_json: bool) -> None:
 
 
 async def _run(args: argparse.Namespace, commands: list[Skill]) -> int:
-    robot = RobotClient(args.host, args.port, connect_timeout_s=args.connect_timeout,
-                        ack_timeout_s=args.timeout)
+    try:
+        robot = RobotClient(args.host, args.port, connect_timeout_s=args.connect_timeout,
+                            ack_timeout_s=args.timeout)
+    except ValueError as exc:  # a timeout that is not finite and > 0, a port out of range
+        print(f"aioadept send: {exc}", file=sys.stderr)
+        return 2
     try:
         async with robot:
             try:
