@@ -1,0 +1,352 @@
+"""The V+ emulator's robot: V+ motion instructions on the one simulated controller.
+
+The interpreter's robot instructions (``ATTACH ()``, ``MOVE``, ``MOVES``, ``APPRO``, ``DEPART``, ``BREAK``,
+``SPEED``, ``HERE``, ``TOOL``, ``INRANGE``, ``DELAY``, ``BRAKE``, ``DRY.RUN``) call a :class:`RobotDevice`. It
+wraps :class:`aioadept.sim.controller.Controller` - the same kinematics, motion timing, forward processing,
+speed rules, time scale and state stream as the Python sim - and adds only what V+ has and the skill table has
+not: ownership by a task, transformations and precision points, INRANGE, DRY.RUN, and V+ error codes. There is
+no second motion model here: every motion goes through ``Controller.move_pose`` / ``Controller.move_joints`` /
+``Controller.wait_rest``, so fixes there (one-motion-deep forward processing, kinematics) apply here too.
+
+Time: all times are server seconds. Motion methods are generators, like the controller's skill generators: each
+``yield`` gives the time the instruction wants to be resumed at; the interpreter sets :attr:`RobotDevice.now_s`
+to the time of the resumption (never earlier than before) and calls ``next()`` again. They are generator
+functions: nothing happens, not even a check, until the first ``next()``, which raises
+:class:`VPlusRobotError` for a V+ robot error::
+
+    robot = RobotDevice(Controller(time_scale=10))
+    robot.now_s = 0.0
+    robot.attach(task=1)
+    gen = robot.move(1, trans(400, 0, 500, 0, 180, 0))
+    for wake in gen:              # forward processing: a first MOVE returns at once (no yield)
+        robot.now_s = wake
+    ...
+    for wake in robot.break_():   # BREAK: resumed when the arm is at rest
+        robot.now_s = wake
+
+Choices where the V+ manuals are silent (docs/vplus.md lists them):
+
+- ``MOVES`` is joint-interpolated: the controller has no straight-line model (docs/sim.md says so for the sim).
+- ``BRAKE`` (any task, attached or not) decelerates the arm to rest, drops planned motions, and also drops a
+  motion instruction that is waiting for its turn at that moment: it returns without moving. No motion that was
+  waiting when the brake came starts afterwards.
+- ``DEPART`` and ``APPRO`` relative to HERE start from where the planned motions end (the start of the new
+  motion), not from where the arm is at that instant.
+- ``DELAY`` waits for the arm to be at rest and then holds the program for the delay (divided by the time scale,
+  as every motion time is); V+ lets the program run on during a DELAY motion.
+- ``DRY.RUN``: motion instructions check their target (errors are raised as without DRY.RUN), consume a one-shot
+  SPEED, and complete at once without moving.
+- ``SPEED`` accepts values above 0; above 100 is taken as 100 by the controller's cap.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Generator, Hashable
+from dataclasses import dataclass
+from typing import Union
+
+from aioadept.errors import AdeptError, RobotError
+from aioadept.geometry import Pose, inverse_transform
+from aioadept.protocol import ErrorCode
+from aioadept.sim import kinematics as kin
+from aioadept.sim.controller import Controller
+from aioadept.vplus.locations import PrecisionPoint, Transform, compose, trans
+
+__all__ = [
+    "INRANGE_BITS", "VPLUS_ERRORS", "Location", "MotionGen", "RobotDevice", "VPlusError", "VPlusRobotError",
+    "inrange_reasons",
+]
+
+TaskId = Hashable
+Location = Union[Transform, PrecisionPoint]
+MotionGen = Generator[float, None, None]
+
+
+@dataclass(frozen=True, slots=True)
+class VPlusError:
+    """One V+ error: its code (negative) and the message text the controller prints (``*...*``)."""
+
+    code: int
+    text: str
+    confirmed: bool = False
+    """True only where a V+ manual or controller output confirmed the number."""
+
+
+VPLUS_ERRORS: dict[str, VPlusError] = {
+    # Codes that mean what an ErrorCode means reuse its number, so that the emulated server and the Python sim
+    # answer the same code. None of these numbers could be confirmed against a controller or the manuals'
+    # error list (FACTS.md: "keep such codes in one table"); change them here, and only here, when one is.
+    "out_of_range": VPlusError(int(ErrorCode.OUT_OF_REACH), "*Location out of range*"),
+    "joint_limit": VPlusError(int(ErrorCode.JOINT_LIMIT), "*Joint limit stop*"),
+    "config": VPlusError(int(ErrorCode.OUT_OF_REACH), "*Cannot reach configuration*"),
+    "illegal_value": VPlusError(int(ErrorCode.ILLEGAL_VALUE), "*Illegal value*"),
+    "not_attached": VPlusError(-622, "*Robot not attached to this program*"),
+    "attached": VPlusError(-621, "*Robot already attached to program*"),
+}
+
+
+class VPlusRobotError(AdeptError):
+    """A V+ robot error in a program (location out of range, joint limit, robot not attached, ...).
+
+    ``code`` is the V+ error code (see :data:`VPLUS_ERRORS`), ``message`` the text. The interpreter turns it into
+    a V+ program error of the task that executed the instruction (``ERROR()``, ``$ERROR()``, REACTE).
+    """
+
+    def __init__(self, code: int, message: str) -> None:
+        super().__init__(f"{message} ({code})")
+        self.code = code
+        self.message = message
+
+    @classmethod
+    def of(cls, key: str, detail: str | None = None) -> VPlusRobotError:
+        err = VPLUS_ERRORS[key]
+        return cls(err.code, err.text if not detail else f"{err.text} {detail}")
+
+
+INRANGE_BITS: dict[str, int] = {
+    # INRANGE's result: 0 when the location can be reached; otherwise the sum of these reason bits. Joint n's
+    # limit stop is bit n (value 2**(n-1)). The positions of the other bits are UNCONFIRMED (from memory of the
+    # V+ Language Reference Guide, not checked against a copy of it): keep them in this one table.
+    "too_close": 0x1000,
+    "too_far": 0x2000,
+    "config": 0x4000,
+}
+
+
+def inrange_reasons(code: int) -> list[str]:
+    """The reasons an INRANGE result encodes, e.g. ``["joint 3 limit", "too_far"]`` (empty for 0)."""
+    out = [f"joint {j + 1} limit" for j in range(12) if code & (1 << j)]
+    out += [name for name, bit in INRANGE_BITS.items() if code & bit]
+    return out
+
+
+# Joint limits wide enough to see which real limit an IK solution breaks.
+_NO_LIMITS = kin.JointLimits(min_deg=(-1e9,) * 6, max_deg=(1e9,) * 6)
+
+
+class RobotDevice:
+    """The robot of the emulated controller; see the module docstring.
+
+    ``controller`` is the one robot model (its tool, speeds, trajectory and signals are the robot's). ``dry_run``
+    is V+ DRY.RUN. The attribute :attr:`owner` is the task that has the robot attached (None: free).
+    """
+
+    def __init__(self, controller: Controller | None = None, *, dry_run: bool = False) -> None:
+        self.controller = controller if controller is not None else Controller()
+        self.dry_run = dry_run
+        self.owner: TaskId | None = None
+        self._brakes = 0  # counts BRAKEs, so a motion instruction waiting for its turn notices one
+
+    # -- time --------------------------------------------------------------------------------------------
+    @property
+    def now_s(self) -> float:
+        """The server time the next instruction executes at (the controller's clock)."""
+        return self.controller.now_s
+
+    @now_s.setter
+    def now_s(self, t: float) -> None:
+        # The trajectory must not be queried before its last change: time only moves forward.
+        if t > self.controller.now_s:
+            self.controller.now_s = float(t)
+
+    # -- ownership ---------------------------------------------------------------------------------------
+    def attach(self, task: TaskId) -> None:
+        """V+ ``ATTACH ()``: ``task`` now owns the robot. Raises if another task has it attached."""
+        if self.owner is not None and self.owner != task:
+            raise VPlusRobotError.of("attached", f"(task {self.owner})")
+        self.owner = task
+
+    def detach(self, task: TaskId) -> None:
+        """V+ ``DETACH ()``: release the robot if ``task`` has it (a task that does not is left alone)."""
+        if self.owner == task:
+            self.owner = None
+
+    def _check_owner(self, task: TaskId) -> None:
+        if self.owner != task:
+            raise VPlusRobotError.of("not_attached")
+
+    # -- speed -------------------------------------------------------------------------------------------
+    def speed(self, task: TaskId, pct: float, *, always: bool = False) -> None:
+        """V+ ``SPEED pct [ALWAYS]``: the next motion's program speed, or every motion's with ``always``."""
+        self._check_owner(task)
+        if not math.isfinite(pct) or pct <= 0:
+            raise VPlusRobotError.of("illegal_value", f"SPEED {pct:g}")
+        if always:
+            self.controller.always_speed_pct = float(pct)
+            self.controller.pending_speed_pct = None
+        else:
+            self.controller.pending_speed_pct = float(pct)
+
+    @property
+    def monitor_speed(self) -> float:
+        """The monitor speed (%): effective speed = program speed x monitor speed / 100."""
+        return self.controller.monitor_speed_pct
+
+    @monitor_speed.setter
+    def monitor_speed(self, pct: float) -> None:
+        if not (math.isfinite(pct) and 0 < pct <= 100):
+            raise VPlusRobotError.of("illegal_value", f"monitor speed {pct:g}")
+        self.controller.monitor_speed_pct = float(pct)
+
+    # -- where the robot is ------------------------------------------------------------------------------
+    def here(self) -> Transform:
+        """V+ ``HERE``: the tool's location now (with the current TOOL)."""
+        return Transform.from_pose(self.controller.here_at(self.now_s))
+
+    def here_ppoint(self) -> PrecisionPoint:
+        """V+ ``HERE #p``: the joint angles now."""
+        return PrecisionPoint(self.controller.joints_at(self.now_s))
+
+    def _planned_end(self) -> Transform:
+        """Where the planned motions leave the tool: the start of the next motion."""
+        ctl = self.controller
+        return Transform.from_pose(kin.forward(ctl.trajectory.end_deg, ctl.tool))
+
+    @property
+    def in_motion(self) -> bool:
+        return self.controller.trajectory.in_motion(self.now_s)
+
+    # -- tool --------------------------------------------------------------------------------------------
+    @property
+    def tool(self) -> Transform:
+        """V+ ``TOOL`` (the function): the current tool transformation."""
+        return Transform.from_pose(self.controller.tool)
+
+    def set_tool(self, task: TaskId, t: Transform) -> None:
+        """V+ ``TOOL t``: later locations (HERE, move targets) are of the tool tip ``t`` in the flange frame."""
+        self._check_owner(task)
+        self.controller.tool = t.to_pose()
+
+    # -- INRANGE -----------------------------------------------------------------------------------------
+    def inrange(self, loc: Location) -> int:
+        """V+ ``INRANGE(loc)``: 0 if the robot can reach ``loc`` from where its planned motions end, else
+        reason bits (:data:`INRANGE_BITS`; joint n's limit is ``2**(n-1)``)."""
+        ctl = self.controller
+        limits = ctl.joint_limits
+        if isinstance(loc, PrecisionPoint):
+            return _limit_bits(limits, loc.joints_deg)
+        pose = loc.to_pose()
+        seed = ctl.trajectory.end_deg
+        try:
+            kin.inverse(pose, seed, ctl.tool, limits=limits)
+            return 0
+        except RobotError as exc:
+            if exc.code != ErrorCode.JOINT_LIMIT:
+                return self._reach_bits(pose)
+        try:
+            joints = kin.inverse(pose, seed, ctl.tool, limits=_NO_LIMITS)
+        except RobotError:
+            return self._reach_bits(pose)
+        return _limit_bits(limits, joints) or INRANGE_BITS["config"]
+
+    def _reach_bits(self, pose: Pose) -> int:
+        """No configuration reaches ``pose``: too far or too close if the wrist centre lies outside the annulus
+        the upper arm and forearm sweep (for both shoulder choices), else the configuration is the reason."""
+        ctl = self.controller
+        flange = Transform.from_pose(pose).matrix
+        if ctl.tool != Pose():
+            flange = flange @ inverse_transform(ctl.tool.to_matrix())
+        wc = flange[:3, 3] - kin.D6_MM * flange[:3, 2]
+        forearm = math.hypot(kin.A3_MM, kin.D4_MM)
+        lo, hi = abs(kin.A2_MM - forearm), kin.A2_MM + forearm
+        dists = [math.hypot(s * math.hypot(wc[0], wc[1]) - kin.A1_MM, wc[2] - kin.D1_MM) for s in (1, -1)]
+        if any(lo <= d <= hi for d in dists):
+            return INRANGE_BITS["config"]
+        return INRANGE_BITS["too_far"] if min(dists) > hi else INRANGE_BITS["too_close"]
+
+    # -- motion ------------------------------------------------------------------------------------------
+    def move(self, task: TaskId, target: Location, *, straight: bool = False) -> MotionGen:
+        """V+ ``MOVE`` (``MOVES`` with ``straight``; joint-interpolated, see the module docstring).
+
+        Returns when the motion has started (forward processing, one motion deep). Raises
+        :class:`VPlusRobotError` before anything moves for an unreachable target or a joint limit.
+        """
+        self._check_owner(task)
+        ctl = self.controller
+        if self.dry_run:
+            self._check_target(target)
+            ctl.take_speed_pct()
+            return
+        epoch = self._brakes
+        try:
+            if isinstance(target, PrecisionPoint):
+                if len(target.joints_deg) != 6:
+                    ctl.take_speed_pct()
+                    raise VPlusRobotError.of("illegal_value", f"precision point has {len(target.joints_deg)} joints")
+                gen = ctl.move_joints(target.joints_deg)
+            else:
+                gen = ctl.move_pose(target.to_pose())
+            # Drive the controller's generator ourselves so that a BRAKE while it waits drops it unstarted.
+            wake = next(gen, None)
+            while wake is not None:
+                yield wake
+                if self._brakes != epoch:
+                    gen.close()
+                    return
+                wake = next(gen, None)
+        except RobotError as exc:
+            raise _translate(exc) from exc
+
+    def moves(self, task: TaskId, target: Location) -> MotionGen:
+        """V+ ``MOVES``: as :meth:`move` with ``straight=True``."""
+        yield from self.move(task, target, straight=True)
+
+    def appro(self, task: TaskId, loc: Transform, dist_mm: float, *, straight: bool = False) -> MotionGen:
+        """V+ ``APPRO loc, dist``: to ``dist`` mm from ``loc`` back along its tool Z axis (``loc:TRANS(0,0,-dist)``)."""
+        if not math.isfinite(dist_mm):
+            raise VPlusRobotError.of("illegal_value", "APPRO distance")
+        yield from self.move(task, compose(loc, trans(0.0, 0.0, -dist_mm)), straight=straight)
+
+    def depart(self, task: TaskId, dist_mm: float, *, straight: bool = False) -> MotionGen:
+        """V+ ``DEPART dist``: ``dist`` mm back along the tool Z axis from where the planned motions end."""
+        self._check_owner(task)
+        if not math.isfinite(dist_mm):
+            raise VPlusRobotError.of("illegal_value", "DEPART distance")
+        yield from self.move(task, compose(self._planned_end(), trans(0.0, 0.0, -dist_mm)), straight=straight)
+
+    def break_(self) -> MotionGen:
+        """V+ ``BREAK``: resumed when every planned motion has completed and the arm is at rest."""
+        try:
+            yield from self.controller.wait_rest()
+        except RobotError as exc:  # pragma: no cover - wait_rest raises none today
+            raise _translate(exc) from exc
+
+    def brake(self) -> float:
+        """V+ ``BRAKE`` (any task): decelerate to rest now and drop every planned motion, including a motion
+        instruction waiting for its turn. Returns the time the arm will be at rest."""
+        self._brakes += 1
+        return self.controller.trajectory.stop(self.now_s)
+
+    def delay(self, task: TaskId, seconds: float) -> MotionGen:
+        """V+ ``DELAY s``: the arm holds still for ``s`` seconds (see the module docstring for the difference)."""
+        self._check_owner(task)
+        if not math.isfinite(seconds) or seconds < 0:
+            raise VPlusRobotError.of("illegal_value", f"DELAY {seconds:g}")
+        yield from self.break_()
+        traj = self.controller.trajectory
+        hold = 0.0 if traj.instant else seconds / traj.time_scale
+        if hold > 0:
+            yield self.now_s + hold
+
+    def _check_target(self, target: Location) -> None:
+        code = self.inrange(target)
+        if code:
+            bits = inrange_reasons(code)
+            key = "joint_limit" if any(b.startswith("joint") for b in bits) else "out_of_range"
+            raise VPlusRobotError.of(key, "(" + ", ".join(bits) + ")")
+
+
+def _limit_bits(limits: kin.JointLimits, joints_deg: tuple[float, ...] | list[float]) -> int:
+    code = 0
+    for j in limits.violations(joints_deg):
+        code |= 1 << j
+    return code
+
+
+def _translate(exc: RobotError) -> VPlusRobotError:
+    if exc.code == ErrorCode.JOINT_LIMIT:
+        return VPlusRobotError(VPLUS_ERRORS["joint_limit"].code, f"{VPLUS_ERRORS['joint_limit'].text} {exc.message}")
+    if exc.code == ErrorCode.OUT_OF_REACH:
+        return VPlusRobotError(VPLUS_ERRORS["out_of_range"].code, VPLUS_ERRORS["out_of_range"].text)
+    return VPlusRobotError(int(exc.code), exc.message)
