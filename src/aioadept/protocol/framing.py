@@ -48,6 +48,11 @@ class LineFramer:
         """Bytes held for an incomplete line."""
         return len(self._buf)
 
+    @property
+    def in_line(self) -> bool:
+        """True between a line's first byte and its delimiter (also while skipping an oversize line's rest)."""
+        return bool(self._buf) or self._discarding
+
     def feed(self, data: bytes) -> list[bytes | Oversize]:
         """Add ``data``; return the lines and events it completes, in stream order."""
         # Fast paths for what peers actually send: whole CRLF lines, nothing pending. Same result as the general

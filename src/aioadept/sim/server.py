@@ -28,7 +28,10 @@ from typing import Any
 from dataclasses import dataclass, field
 
 from aioadept.geometry import NULL, Pose
-from aioadept.protocol import MAX_LINE, NO_ID, Ack, ErrorCode, LineFramer, encode_ack
+from aioadept.errors import RemoteProtocolError
+from aioadept.protocol import (
+    MAX_LINE, NO_ID, STOP_SKILL, Ack, CommandMessage, ErrorCode, LineFramer, Oversize, encode_ack, parse_command,
+)
 from aioadept.sim import kinematics as kin
 from aioadept.sim.controller import Controller, Outgoing
 
@@ -36,6 +39,13 @@ log = logging.getLogger(__name__)
 
 DEFAULT_PORT = 1234
 DEFAULT_STATE_ENDPOINT = "tcp://127.0.0.1:5560"
+READ_SIZE = 4096
+"""Bytes taken from one connection per read: about a hundred command lines, so one flooding peer's turn is short."""
+LINES_PER_TURN = 32
+"""Lines of one connection handled before the handler yields to the loop, so every other connection (and the
+stop it may carry) is read within a few such turns however fast the others send."""
+LINE_MAX_FACTOR = 6
+"""A line still incomplete this many line timeouts after its first byte is cut, however its bytes trickle in."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -87,7 +97,16 @@ class SimOptions:
     max_clients: int = 16
     allow: tuple[str, ...] = ()
     line_timeout_s: float | None = 10.0
-    """A line still incomplete this long after its first byte closes the connection (slowloris); None: never."""
+    """A connection in the middle of a line that receives nothing for this long is closed (a peer stuck mid-line);
+    a line is also cut if it is still incomplete ``LINE_MAX_FACTOR`` times this long after its first byte
+    (slowloris). A client between lines is never timed. None: never."""
+    stop_window_s: float = 1.0
+    """Over ``max_clients``, a new connection is not refused at once: for this long it may send ``stop`` lines,
+    which are executed (the reserved stop path, docs/protocol.md); any other line, or the end of the window, gets
+    the SERVER_BUSY refusal and the close."""
+    max_stop_probes: int = 64
+    """Connections on the reserved stop path at once; when full, the oldest that has not sent a stop is closed to
+    make room, so a newcomer always gets its window."""
     keepalive: bool = True
     """TCP keepalive and TCP_USER_TIMEOUT on client sockets, so a vanished peer frees its slot in about 30 s."""
     state_endpoint: str | None = DEFAULT_STATE_ENDPOINT
@@ -109,10 +128,18 @@ class SimOptions:
             raise ValueError("max_clients: must be >= 1")
         if self.line_timeout_s is not None and not self.line_timeout_s > 0:
             raise ValueError("line_timeout_s: must be > 0 or None")
+        if not self.stop_window_s > 0:
+            raise ValueError("stop_window_s: must be > 0")
+        if self.max_stop_probes < 1:
+            raise ValueError("max_stop_probes: must be >= 1")
         if not self.state_rate_hz > 0:
             raise ValueError("state_rate_hz: must be > 0")
         for addr in self.allow:
             ipaddress.ip_address(addr)  # ValueError for a malformed address
+
+
+class _NotAStop(Exception):
+    """A stop probe sent something other than stop."""
 
 
 def _set_keepalive(writer: asyncio.StreamWriter) -> None:
@@ -130,17 +157,24 @@ def _set_keepalive(writer: asyncio.StreamWriter) -> None:
 
 
 class _Conn:
-    """One client connection and its delayed-ack outbox."""
+    """One client connection and its delayed-ack outbox.
 
-    __slots__ = ("id", "peer", "writer", "outbox", "timer", "messages")
+    ``limited``: admitted over ``max_clients`` on the reserved stop path (only ``stop`` is served).
+    ``idle``: set when the controller has nothing pending for it (waited on before closing a stop probe).
+    """
 
-    def __init__(self, id: int, peer: str, writer: asyncio.StreamWriter) -> None:
+    __slots__ = ("id", "peer", "writer", "outbox", "timer", "messages", "limited", "idle", "stopped")
+
+    def __init__(self, id: int, peer: str, writer: asyncio.StreamWriter, limited: bool = False) -> None:
         self.id = id
         self.peer = peer
         self.writer = writer
         self.outbox: deque[tuple[float, bytes]] = deque()
         self.timer: asyncio.TimerHandle | None = None
         self.messages = 0
+        self.limited = limited
+        self.idle: asyncio.Event | None = None
+        self.stopped = False  # a stop probe that has sent its stop (never evicted)
 
 
 class SimServer:
@@ -249,9 +283,24 @@ class SimServer:
     def _admit(self, peer_ip: str) -> str | None:
         if self.options.allow and peer_ip not in self.options.allow:
             return "address not allowed"
-        if len(self._conns) >= self.options.max_clients:
+        if sum(1 for c in self._conns.values() if not c.limited) >= self.options.max_clients:
             return "too many clients"
         return None
+
+    def _refusal(self, text: str) -> bytes:
+        now = self.now()
+        return encode_ack(Ack.error(NO_ID, ErrorCode.SERVER_BUSY, text, now, now, self.controller.here))
+
+    def _make_probe_room(self) -> None:
+        probes = [c for c in self._conns.values() if c.limited]
+        if len(probes) < self.options.max_stop_probes:
+            return
+        for c in probes:  # oldest first (dict order): close one that is not carrying a stop
+            if not c.stopped:
+                with contextlib.suppress(OSError):
+                    c.writer.write(self._refusal("too many clients"))
+                c.writer.transport.abort()
+                return
 
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         task = asyncio.current_task()
@@ -259,66 +308,33 @@ class SimServer:
         self._handlers.add(task)
         peer = writer.get_extra_info("peername") or ("?", 0)
         refusal = self._admit(str(peer[0]))
-        if refusal is not None or self._closed:
+        if (refusal is not None and refusal != "too many clients") or self._closed:
+            # Not on the allow list (or shutting down): refused at once; nothing it sends is read.
             self.rejected_total += 1
-            now = self.now()
-            ack = Ack.error(NO_ID, ErrorCode.SERVER_BUSY, refusal or "closing", now, now, self.controller.here)
             with contextlib.suppress(OSError):
-                writer.write(encode_ack(ack))
+                writer.write(self._refusal(refusal or "closing"))
                 await writer.drain()
             writer.close()
             self._handlers.discard(task)
             log.info("refused %s: %s", peer, refusal)
             return
-        conn = _Conn(next(self._ids), f"{peer[0]}:{peer[1]}", writer)
+        limited = refusal is not None
+        if limited:
+            # The reserved stop path: a stop must never be refused for "too many clients".
+            self.rejected_total += 1
+            self._make_probe_room()
+        conn = _Conn(next(self._ids), f"{peer[0]}:{peer[1]}", writer, limited)
         self._conns[conn.id] = conn
         self.connections_total += 1
         self.controller.connect(conn.id)
-        log.info("client %s connected (id %d)", conn.peer, conn.id)
+        log.info("client %s connected (id %d%s)", conn.peer, conn.id, ", stop only" if limited else "")
         if self.options.keepalive:
             _set_keepalive(writer)
-        framer = LineFramer(MAX_LINE)
-        drop_after = self.options.faults.drop_after
-        line_timeout = self.options.line_timeout_s
-        loop = asyncio.get_running_loop()
-        line_started: float | None = None  # loop time of the first byte of an incomplete line
         try:
-            while True:
-                if line_started is None or line_timeout is None:
-                    data = await reader.read(65536)
-                else:
-                    # A peer that never finishes its line must not hold a client slot forever.
-                    left = line_timeout - (loop.time() - line_started)
-                    try:
-                        async with asyncio.timeout(max(left, 0.0)):
-                            data = await reader.read(65536)
-                    except TimeoutError:
-                        self._refuse_stalled(conn, writer, line_timeout)
-                        break
-                if not data:
-                    break
-                if data[-1:] == b"\n":
-                    line_started = None
-                elif line_started is None:
-                    line_started = loop.time()
-                now = self.now()
-                dropped = False
-                for item in framer.feed(data):
-                    conn.messages += 1
-                    try:
-                        out = self.controller.handle(item, conn.id, now)
-                    except Exception:  # the controller's own bug: keep serving the others
-                        log.exception("controller failed on %r", item)
-                        out = []
-                    self._dispatch(out)
-                    if drop_after is not None and conn.messages >= drop_after:
-                        dropped = True
-                        break
-                self._reschedule()
-                if dropped:
-                    log.info("fault: dropping %s after %d messages", conn.peer, conn.messages)
-                    break
-                await writer.drain()
+            if limited:
+                await self._serve_stop_probe(conn, reader, writer)
+            else:
+                await self._serve_lines(conn, reader, writer)
         except (ConnectionError, OSError) as exc:
             log.info("client %s: %s", conn.peer, exc)
         finally:
@@ -334,9 +350,107 @@ class SimServer:
             self._handlers.discard(task)
             log.info("client %s disconnected", conn.peer)
 
+    async def _serve_lines(self, conn: _Conn, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        """An admitted client: every line to the controller, fairly (see READ_SIZE, LINES_PER_TURN)."""
+        framer = LineFramer(MAX_LINE)
+        drop_after = self.options.faults.drop_after
+        line_timeout = self.options.line_timeout_s
+        loop = asyncio.get_running_loop()
+        line_started = last_byte = 0.0  # loop times of the current incomplete line's first and latest bytes
+        while True:
+            if line_timeout is None or not framer.in_line:
+                data = await reader.read(READ_SIZE)
+            else:
+                # Only a peer stuck mid-line is timed: from its last byte (slow fragments are fine), and the whole
+                # line at most LINE_MAX_FACTOR timeouts (a trickle cannot hold the slot for ever).
+                deadline = min(last_byte + line_timeout, line_started + LINE_MAX_FACTOR * line_timeout)
+                try:
+                    async with asyncio.timeout(max(deadline - loop.time(), 0.0)):
+                        data = await reader.read(READ_SIZE)
+                except TimeoutError:
+                    self._refuse_stalled(conn, writer, line_timeout)
+                    return
+            if not data:
+                return
+            was_in_line = framer.in_line
+            last_byte = loop.time()
+            items = framer.feed(data)
+            if framer.in_line and (not was_in_line or items):
+                line_started = last_byte  # a new incomplete line began in this chunk
+            now = self.now()
+            for k, item in enumerate(items):
+                if k and k % LINES_PER_TURN == 0:
+                    # Let the other connections be read (a stop among them acts now), then go on at the new time.
+                    self._reschedule()
+                    await asyncio.sleep(0)
+                    if conn.id not in self._conns or writer.is_closing():
+                        return
+                    now = self.now()
+                conn.messages += 1
+                self._handle(item, conn, now)
+                if drop_after is not None and conn.messages >= drop_after:
+                    self._reschedule()
+                    log.info("fault: dropping %s after %d messages", conn.peer, conn.messages)
+                    return
+            self._reschedule()
+            await writer.drain()
+            if len(items) >= LINES_PER_TURN:
+                await asyncio.sleep(0)  # a full turn: yield before reading more of this peer's backlog
+
+    def _handle(self, item: bytes | Oversize | CommandMessage, conn: _Conn, now: float) -> None:
+        try:
+            out = self.controller.handle(item, conn.id, now)
+        except Exception:  # the controller's own bug: keep serving the others
+            log.exception("controller failed on %r", item)
+            out = []
+        self._dispatch(out)
+
+    async def _serve_stop_probe(self, conn: _Conn, reader: asyncio.StreamReader,
+                                writer: asyncio.StreamWriter) -> None:
+        """A connection over ``max_clients``: within ``stop_window_s`` its ``stop`` lines are executed; anything
+        else, or the end of the window, answers the SERVER_BUSY refusal (ID 00000000) and closes. The connection
+        stays until its stops are acked."""
+        framer = LineFramer(MAX_LINE)
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + self.options.stop_window_s
+        refuse = True  # unless the peer closed first, or sent only stops
+        try:
+            async with asyncio.timeout_at(deadline):
+                while True:
+                    data = await reader.read(READ_SIZE)
+                    if not data:
+                        refuse = False
+                        break
+                    items = framer.feed(data)
+                    now = self.now()
+                    for item in items:
+                        msg = None
+                        if isinstance(item, bytes):
+                            with contextlib.suppress(RemoteProtocolError):
+                                msg = parse_command(item)
+                        if msg is None or msg.skill != STOP_SKILL:
+                            raise _NotAStop
+                        conn.stopped = True
+                        conn.messages += 1
+                        self._handle(msg, conn, now)
+                    self._reschedule()
+        except TimeoutError:
+            refuse = not conn.stopped  # the window ended: a peer that sent stops gets their acks, no refusal
+        except _NotAStop:
+            pass
+        if conn.stopped and self.controller.pending(conn.id):
+            conn.idle = asyncio.Event()
+            with contextlib.suppress(TimeoutError):
+                async with asyncio.timeout(30.0):  # a stop is at rest in well under a second
+                    await conn.idle.wait()
+        if refuse and not writer.is_closing():
+            with contextlib.suppress(OSError):
+                writer.write(self._refusal("too many clients; only stop is served"))
+                await writer.drain()
+
     def _refuse_stalled(self, conn: _Conn, writer: asyncio.StreamWriter, timeout_s: float) -> None:
         now = self.now()
-        ack = Ack.error(NO_ID, ErrorCode.MALFORMED_MESSAGE, f"line not completed within {timeout_s:g} s",
+        ack = Ack.error(NO_ID, ErrorCode.MALFORMED_MESSAGE, f"line not completed, nothing received for {timeout_s:g} s",
                         now, now, self.controller.here)
         with contextlib.suppress(OSError):
             writer.write(encode_ack(ack))
@@ -357,6 +471,8 @@ class SimServer:
             else:
                 conn.outbox.append((self.now() + delay, data))
                 self._arm_outbox(conn)
+            if conn.idle is not None and not self.controller.pending(conn.id):
+                conn.idle.set()
 
     def _arm_outbox(self, conn: _Conn) -> None:
         if conn.timer is None and conn.outbox:
