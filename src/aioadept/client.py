@@ -20,10 +20,16 @@ How it works, and the promises it keeps:
   per-call ``timeout_s`` gets its own timer.
 - Every waiter removes its messages from the registry in ``finally``; an ack that arrives later for a cancelled or
   timed-out message is dropped quietly and counted (:attr:`ClientStats.late_acks`).
-- Nothing is ever re-sent. When the connection drops, every pending wait fails with :class:`ConnectionLost`,
+- No command is ever re-sent. When the connection drops, every pending wait fails with :class:`ConnectionLost`,
   whose ``acked`` / ``unresolved`` say what is known done and what may or may not have run on the robot.
   Reconnecting is an explicit :meth:`connect` (or the opt-in ``auto_reconnect=True``, which reconnects before the
-  *next* new command and still re-sends nothing).
+  *next* new call, ``stop``/``here``/``hello`` included, and still re-sends nothing).
+- The stop path (:meth:`RobotClient.stop`): written at once (no client-side write queue exists: every call writes
+  in the loop turn it is ready), in a task of the client so cancelling the caller cannot cancel it, sent once more
+  on a new connection if the connection is lost before its ack (a repeated stop cannot move the robot); a call
+  that began before a stop and had not yet written its command never writes it (:class:`AbortedBeforeSend`).
+- Values are checked before anything is sent: timeouts (finite, > 0), ``id_start``, the commands themselves
+  (:mod:`aioadept.commands`). IDs never repeat one still pending or given up, and never are ``00000000``.
 - Observers (``on_send`` / ``on_ack``, see docs/interfaces.md) get loop-clock timestamps taken at write and read.
 """
 
@@ -1056,7 +1062,13 @@ class RobotClient:
         if timeout_s is not None:
             _check_timeout("timeout_s", timeout_s)
         self._stops += 1
-        sub = self._send((_STOP,)) if self._state is _CONNECTED else None  # written now, before any await
+        sub: Submission | None = None
+        if self._state is _CONNECTED:
+            try:
+                sub = self._send((_STOP,))  # written now, before any await
+            except ConnectionLost:
+                if not self.auto_reconnect:
+                    raise
         task = asyncio.get_running_loop().create_task(self._stop_flow(sub, timeout_s),
                                                       name=f"RobotClient stop {self.host}:{self.port}")
         self._stop_tasks.add(task)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import re
 
 import pytest
 
@@ -488,5 +489,6 @@ async def test_a_refused_connection_says_why_in_connection_lost():
             # Whether the refusal arrived before or after the command was written, both errors say why.
             with pytest.raises(ConnectionLost) as again:
                 await refused.cmdexec(Here())
-    assert "too many clients (code -530)" in str(info.value)
-    assert "too many clients (code -530)" in str(again.value) and "nothing was sent" in str(again.value)
+    said = re.compile(r"too many clients[^(]*\(code -530\)")  # the server may add how it still serves stop
+    assert said.search(str(info.value))
+    assert said.search(str(again.value)) and "nothing was sent" in str(again.value)
