@@ -251,3 +251,52 @@ async def test_commands_waiting_to_be_written_when_stop_is_called_are_never_sent
         # commands begun after the stop run normally
         assert (await robot.cmdexec(Skill("enable_air"))).messages[0].ok
         await robot.close()
+
+
+# ------------------------------------------------------------------------------------------ lost before the ack
+@pytest.mark.timeout(20)
+@pytest.mark.parametrize("auto", [True, False])
+async def test_a_stop_lost_before_its_ack_is_sent_again_on_a_new_connection_only_with_auto_reconnect(auto):
+    connections = 0
+
+    async def first_drops(reader, writer, lines):
+        nonlocal connections
+        connections += 1
+        mine = connections
+        framer = LineFramer()
+        while data := await reader.read(65536):
+            for line in framer.feed(data):
+                lines.append(line)
+                if mine == 1:
+                    return  # read the stop, then the connection dies without an ack
+                msg = parse_command(line)
+                writer.write(encode_ack(Ack(msg.id, Status.DONE, 1.0, 1.0, POSE)))
+
+    async with raw_server(first_drops) as (port, lines):
+        async with RobotClient("127.0.0.1", port, auto_reconnect=auto, connect_timeout_s=2.0) as robot:
+            if auto:
+                result = await robot.stop(timeout_s=5.0)
+                assert result.ok
+            else:
+                with pytest.raises(ConnectionLost) as info:
+                    await robot.stop(timeout_s=5.0)
+                assert len(info.value.unresolved) == 1
+    assert [parse_command(x).skill for x in lines] == (["stop", "stop"] if auto else ["stop"])
+    assert connections == (2 if auto else 1)
+
+
+# ------------------------------------------------------------------------------------------ full server
+@pytest.mark.timeout(30)
+async def test_with_the_server_full_a_reconnecting_stop_still_stops_the_arm():
+    """max_clients reached by another client: our connection was dropped mid-motion; the reconnecting stop takes
+    the server's reserved stop path and the arm comes to rest."""
+    async with sim_on(max_clients=1, faults=Faults(drop_after=2)) as sim:
+        async with RobotClient(sim.host, sim.port, auto_reconnect=True, connect_timeout_s=2.0) as robot:
+            await robot.cmdexec_joined(SetSpeed(10), MoveJoints(FAR, break_move=False))
+            await until(lambda: robot.state is ClientState.LOST, "the server dropped us")
+            async with RobotClient(sim.host, sim.port) as other:  # takes the only slot
+                await other.hello()
+                assert not at_rest(sim)
+                result = await robot.stop(timeout_s=10.0)
+                assert result.ok
+                assert at_rest(sim)
