@@ -67,6 +67,7 @@ async def test_error_acks_without_motion(server):
     cases = [("cccc0002:fly", ErrorCode.UNKNOWN_SKILL),
              ("cccc0003:move_to:1.000", ErrorCode.WRONG_ARGUMENT_COUNT),
              ("cccc0004:set_speed:101", ErrorCode.ILLEGAL_VALUE),
+             ("cccc0009:set_speed:0", ErrorCode.ILLEGAL_VALUE),
              ("cccc0005:move_to:1,2,x,4,5,6", ErrorCode.ILLEGAL_VALUE),
              ("cccc0006:move_to:2000.000,0.000,500.000,0.000,180.000,0.000", ErrorCode.OUT_OF_REACH)]
     for line, code in cases:
