@@ -115,8 +115,10 @@ async def test_an_id_still_pending_or_given_up_is_never_issued_again():
             pending, gone = held.ids[0], "00000101"
             assert pending == "00000100" and robot.pending_ids == (pending,)
             robot._ids._next = 0x100                          # as after 2**32 - 1 more IDs
+            robot._issued += 0xFFFFFFFF
             await robot.cmdexec(Here())
             robot._ids._next = 0x100
+            robot._issued += 0xFFFFFFFF
             await robot.cmdexec_joined(SetSpeed(5), Skill("enable_air"))
             held.cancel()
     finally:
