@@ -167,3 +167,18 @@ async def test_forward_processing_is_one_motion_deep(server):
     assert 1.2 <= brk.t_done_s - b.t_done_s <= 3.5, "break acks when b has completed"
     assert poses_close(brk.pose, pose_of(HOME), tol_mm=0.05, tol_deg=0.05)
     await c.close()
+
+
+@pytest.mark.timeout(90)
+async def test_stop_with_nothing_to_abort_is_done_at_once_and_the_server_goes_on(server):
+    c = await server.connect()
+    await c.send("kkkk0001:stop")
+    stop = await c.ack()
+    assert (stop.id, stop.status) == ("kkkk0001", Status.DONE)
+    assert stop.t_done_s - stop.t_start_s < 0.5
+    assert poses_close(stop.pose, pose_of(HOME), tol_mm=0.01, tol_deg=0.01)
+    await c.send("kkkk0002:move_joints:5,-90,180,0,90,0", "kkkk0003:break")
+    move, brk = await c.acks(2)
+    assert move.ok and brk.ok, "commands after a stop execute normally"
+    assert poses_close(brk.pose, pose_of("5,-90,180,0,90,0"), tol_mm=0.05, tol_deg=0.05)
+    await c.close()
