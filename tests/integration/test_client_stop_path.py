@@ -300,3 +300,26 @@ async def test_with_the_server_full_a_reconnecting_stop_still_stops_the_arm():
                 result = await robot.stop(timeout_s=10.0)
                 assert result.ok
                 assert at_rest(sim)
+
+
+@pytest.mark.timeout(20)
+async def test_close_during_a_stops_reconnect_wins_the_stop_raises_client_state_error():
+    gate = asyncio.Event()
+    async with ScriptedServer(lambda msg, index: Reply(drop=True) if index == 0 else None) as server:
+        async def gated():
+            await gate.wait()
+            return await asyncio.open_connection(server.host, server.port)
+
+        robot = RobotClient(server.host, server.port, auto_reconnect=True, connector=gated)
+        gate.set()
+        await robot.connect()
+        with pytest.raises(ConnectionLost):
+            await robot.here()
+        gate.clear()
+        stop = asyncio.create_task(robot.stop())
+        await until(lambda: robot._connect_lock is not None and robot._connect_lock.locked(), "reconnecting")
+        await robot.close()
+        gate.set()
+        with pytest.raises(ClientStateError, match="closed while reconnecting"):
+            await stop
+        assert robot.state is ClientState.CLOSED  # not resurrected by the reconnect that raced close()
