@@ -16,7 +16,6 @@ import zmq.asyncio
 
 from aioadept.bus.communicator import DEFAULT_MAX_QUEUE, DEFAULT_MAX_REQUEST_BYTES, Communicator, Responder
 from aioadept.bus.messages import decode_event, encode_event
-from aioadept.errors import VisionError
 
 ANY = "tcp://127.0.0.1:*"
 
@@ -129,18 +128,39 @@ async def test_t_deadline_that_is_not_a_finite_number_is_answered_with_an_error(
         calls.append(rid)
         return {"ok": 1}
 
-    async with Responder(ANY, ANY, handler) as node, \
+    bad = [math.nan, math.inf, -math.inf, "soon", ""]
+    async with Responder(ANY, ANY, handler) as node:
+        req = RawRequester(node.actual_request_endpoint, node.actual_response_endpoint)
+        try:
+            assert await req.ask("00000000") == {"ok": 1}
+            answers = [await req.ask(f"dead000{i}", {"t_deadline": d}) for i, d in enumerate(bad)]
+            far = await req.ask("0000f000", {"t_deadline": 2_000_000_000})  # an int (2033): fine
+        finally:
+            await req.close()
+    for d, attrs in zip(bad, answers):
+        assert attrs == {"error": f"bad request: t_deadline must be a finite number (epoch s), got {d!r}"}
+    assert far == {"ok": 1}
+    assert calls == ["00000000", "0000f000"] and node.rejected == len(bad)
+
+
+@pytest.mark.timeout(20)
+async def test_the_communicator_refuses_bad_times_before_sending():
+    calls: list[str] = []
+    async with Responder(ANY, ANY, lambda _t, rid, _a: calls.append(rid) or {"ok": 1}) as node, \
             Communicator(node.actual_request_endpoint, node.actual_response_endpoint, timeout_s=5.0) as comm:
-        assert (await comm.request("VisionRequest", {})).attributes == {"ok": 1}
-        bad = [math.nan, math.inf, -math.inf, "soon", ""]
-        answers = [await comm.request("VisionRequest", {"t_deadline": d}) for d in bad]
-        far = await comm.request("VisionRequest", {"t_deadline": 2_000_000_000})  # an int (2033): fine
-        with pytest.raises(VisionError, match="t_deadline must be a finite number"):
-            answers[0].raise_for_error()
-    for d, resp in zip(bad, answers):
-        assert resp.error == f"bad request: t_deadline must be a finite number (epoch s), got {d!r}", resp
-    assert far.attributes == {"ok": 1}
-    assert len(calls) == 2 and node.rejected == len(bad)
+        for attrs in ({"t_deadline": math.nan}, {"t_request": math.inf}, {"t_request": "now"},
+                      {"t_deadline": True}):
+            with pytest.raises(ValueError, match="must be a finite number"):
+                await comm.request("VisionRequest", attrs)
+        for timeout in (math.nan, math.inf, 0, -1.0):
+            with pytest.raises(ValueError, match="timeout_s"):
+                await comm.request("VisionRequest", {}, timeout_s=timeout)
+        assert comm.pending_ids == ()
+        ok = await comm.request("VisionRequest", {})
+    assert ok.attributes == {"ok": 1} and len(calls) == 1
+    for bad in ({"timeout_s": math.nan}, {"republish_interval_s": math.inf}, {"republish_backoff": math.nan}):
+        with pytest.raises(ValueError):
+            Communicator(**bad)
 
 
 @pytest.mark.timeout(20)

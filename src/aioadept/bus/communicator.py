@@ -199,8 +199,9 @@ class Communicator:
         context: zmq.Context | None = None,
         curve: Curve | None = None,
     ) -> None:
-        if timeout_s <= 0 or republish_interval_s <= 0 or republish_backoff < 1 or republish_max_interval_s <= 0:
-            raise ValueError("timeouts and intervals must be > 0 and backoff >= 1")
+        if not (0 < timeout_s < math.inf and 0 < republish_interval_s < math.inf and 1 <= republish_backoff < math.inf
+                and 0 < republish_max_interval_s < math.inf):  # written so that NaN fails every test
+            raise ValueError("timeouts and intervals must be finite and > 0, and backoff finite and >= 1")
         self.request_endpoint = request_endpoint
         self.response_endpoint = response_endpoint
         self.timeout_s = timeout_s
@@ -323,6 +324,8 @@ class Communicator:
         Raises :class:`RequestTimeout` (with ``request_id``) when nothing matching arrives in time,
         :class:`BusEncodeError` for attributes the schema cannot carry, :class:`BusError` if the communicator
         closes meanwhile. A node's ``error`` attribute is returned, not raised: see :meth:`Response.raise_for_error`.
+        ``ValueError`` at once, before anything is sent, for a ``timeout_s``, ``t_request`` or ``t_deadline`` that is
+        not a finite number (> 0 for the timeout).
         """
         rid = self._start(event_type, id, attributes, timeout_s)
         return await self._finish(rid)
@@ -332,6 +335,14 @@ class Communicator:
         self._require_open()
         if self._reader_error is not None:
             raise BusError(f"communicator reader failed: {self._reader_error!r}") from self._reader_error
+        if timeout_s is not None and not (isinstance(timeout_s, (int, float)) and 0 < timeout_s < math.inf):
+            raise ValueError(f"timeout_s must be a finite number > 0, got {timeout_s!r}")
+        if attributes:
+            for key in ("t_request", "t_deadline"):
+                value = attributes.get(key)
+                if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))
+                                          or not math.isfinite(value)):
+                    raise ValueError(f"{key} must be a finite number (epoch s), got {value!r}")
         if rid is None:
             rid = new_request_id()
             while rid in self._pending:  # 32 bits: collisions are rare but cheap to rule out

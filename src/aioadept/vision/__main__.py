@@ -52,6 +52,9 @@ DEFAULTS: dict[str, Any] = {
     "state_curve_secret": None,
     "state_curve_server": None,
     "curve_allow": None,
+    "max_state_age": 0.5,
+    "max_queue": 32,
+    "max_request_bytes": 1 << 20,
 }
 
 
@@ -90,6 +93,16 @@ def build_parser() -> argparse.ArgumentParser:
                         "(default 5)")
     p.add_argument("--inline", action="store_true", default=None,
                    help="same as --graph-thread never (kept for old command lines)")
+    p.add_argument("--max-state-age", type=float, metavar="S",
+                   help="virtual camera: answer with an error instead of a sharpness when the newest robot state "
+                        "is more than S seconds older than the frame (the state stream went silent; default 0.5; "
+                        "inf: no check)")
+    p.add_argument("--max-queue", type=int, metavar="N",
+                   help="requests kept waiting; when full the oldest waiting one is dropped and answered with a "
+                        "'dropped:' error (default 32)")
+    p.add_argument("--max-request-bytes", type=int, metavar="N",
+                   help="larger request frames are discarded unparsed and their sender disconnected "
+                        "(ZMQ_MAXMSGSIZE; default 1048576)")
     p.add_argument("--save-frames", metavar="DIR", help="save every served frame (PNG + frames.csv) into DIR")
     p.add_argument("--figures", metavar="OUTDIR", help="write the graph / intermediate results / sweep pictures "
                                                          "(Figs. 7-9) into OUTDIR and exit")
@@ -145,6 +158,17 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
         parser.error(f"graph-thread must be one of {', '.join(GRAPH_THREAD_CHOICES)}, got {merged['graph_thread']!r}")
     if float(merged["graph_inline_max_ms"]) < 0:
         parser.error("graph-inline-max-ms must be >= 0")
+    try:
+        max_age = float(merged["max_state_age"])
+    except (TypeError, ValueError):
+        max_age = float("nan")
+    if not max_age > 0:  # NaN too
+        parser.error(f"max-state-age must be > 0 seconds (inf: no check), got {merged['max_state_age']!r}")
+    merged["max_state_age"] = max_age
+    for key in ("max_queue", "max_request_bytes"):
+        value = merged[key]
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            parser.error(f"{key.replace('_', '-')} must be an integer >= 1, got {value!r}")
     merged["curve"] = _curve_server(parser, merged)
     return argparse.Namespace(**merged)
 
@@ -181,8 +205,9 @@ def _curve_server(parser: argparse.ArgumentParser, merged: dict[str, Any]) -> An
         parser.error(str(exc))
 
 
-def make_sources(opts: argparse.Namespace, pose_at: Any) -> list[Any]:
-    """Camera objects for the ``--source`` specs (unique camera ids)."""
+def make_sources(opts: argparse.Namespace, pose_at: Any, state_age: Any = None) -> list[Any]:
+    """Camera objects for the ``--source`` specs (unique camera ids). ``pose_at`` / ``state_age``: the robot state
+    follower's, for virtual cameras."""
     from aioadept.vision.sources import ImageFolderSource, OpenCVSource
     from aioadept.vision.virtual_camera import LensOptics, paper_camera
 
@@ -202,7 +227,7 @@ def make_sources(opts: argparse.Namespace, pose_at: Any) -> list[Any]:
             sources.append(paper_camera(pose_at, focus_offset_mm=opts.focus_offset_mm,
                                         working_distance_mm=opts.working_distance_mm,
                                         optics=LensOptics(f_number=opts.f_number), noise_sigma=opts.noise_sigma,
-                                        seed=opts.seed, camera_id=unique("virtual")))
+                                        seed=opts.seed, camera_id=unique("virtual"), state_age=state_age))
         elif kind == "folder" and arg:
             csv_path = Path(arg) / "frames.csv"
             # A recorded folder (--save-frames) replays with its times; any other folder loops, stamped live.
@@ -234,18 +259,21 @@ async def serve(opts: argparse.Namespace) -> int:
     recorder = FrameRecorder(opts.save_frames) if opts.save_frames else None
     acq = node = responder = None
     try:
-        sources = make_sources(opts, follower.pose_at if follower else None)
+        sources = make_sources(opts, follower.pose_at if follower else None,
+                               follower.state_age_s if follower else None)
         acq = Acquisition(sources, buffer_size=opts.buffer_size, fps=opts.fps).start()
         # Serve only once every camera has a frame: the first render/read pays one-off costs (imports, caches).
         if not await asyncio.to_thread(acq.wait_ready, 10.0):
             log.warning("not every camera delivered a frame within 10 s; serving anyway")
         graph = noop_graph() if opts.graph == "noop" else sharpness_graph()
         node = VisionNode(acq, graph, policy=opts.policy, timeout_s=opts.frame_timeout, recorder=recorder,
-                          graph_thread=opts.graph_thread, inline_max_ms=float(opts.graph_inline_max_ms))
+                          graph_thread=opts.graph_thread, inline_max_ms=float(opts.graph_inline_max_ms),
+                          max_state_age_s=opts.max_state_age)
         # Frame waits are awaited on the loop and the graph runs where --graph-thread says, so the loop is never
         # blocked for longer than one cheap graph run; requests that need no waiting are answered in the socket
         # callback (NodeResponder).
         responder = NodeResponder(opts.request_endpoint, opts.response_endpoint, node,
+                                  max_queue=opts.max_queue, max_request_bytes=opts.max_request_bytes,
                                   **({"curve": opts.curve} if opts.curve is not None else {}))
         responder.start()
         cams = ",".join(acq.camera_ids)

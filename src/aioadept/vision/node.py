@@ -8,7 +8,9 @@ thread, no thread blocked), runs the computational graph, and returns the respon
 docs/interfaces.md:
 
 - ``sharpness`` (DOUBLE), ``frame_t`` (DOUBLE, epoch s of the frame), ``proc_time_ms`` (DOUBLE, the graph run);
-- ``error`` (STRING) instead of ``sharpness`` when it failed: no frame for that time, no object found;
+- ``error`` (STRING) instead of ``sharpness`` when it failed: no frame for that time, no object found, a frame
+  whose robot pose is older than ``max_state_age_s`` (the state stream went silent: the virtual camera would show a
+  frozen pose, and a sharpness from it would be a wrong answer), a ``t_request`` that is not a finite number;
 - also ``camera`` (STRING), ``frame_seq`` (INT) and ``frame_age_ms`` (DOUBLE, ``t_request - frame_t``).
 
 A request with attribute ``camera`` is answered from that camera; without it from the first camera, and when the
@@ -31,6 +33,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import math
 import time
 from collections.abc import Awaitable, Mapping
 from concurrent.futures import ThreadPoolExecutor
@@ -49,6 +52,15 @@ GraphThread = Literal["auto", "always", "never"]
 GRAPH_THREAD_MODES: tuple[str, ...] = ("auto", "always", "never")
 
 
+DEFAULT_MAX_STATE_AGE_S = 0.5
+"""Oldest robot pose (s behind the frame) the node answers from: 50 periods of the sim's 100 Hz stream, far above
+its jitter on a loaded machine, short against the time a focus step takes to move."""
+
+
+class BadRequest(ValueError):
+    """A request attribute the node cannot use (answered as an ``error``, never raised to the Responder)."""
+
+
 def noop_graph() -> CompGraph:
     """A one-function graph answering ``sharpness = 0.0`` without looking at the image: for latency benchmarks."""
     return CompGraph({"noop": lambda image: 0.0}, {"noop": ("image", "sharpness")}, name="noop")
@@ -62,7 +74,10 @@ class VisionNode:
     ``graph_thread`` / ``inline_max_ms``: where :meth:`handle` runs the graph (module docstring); ``cost_ms`` is the
     moving average it decides on (None before the first run, which under ``auto`` goes to the worker), and
     ``inline_runs`` / ``thread_runs`` count the graph runs made on the loop / in the worker by the handlers. Owns
-    one worker thread (created on first use, joined by :meth:`close`).
+    one worker thread (created on first use, joined by :meth:`close`). ``max_state_age_s`` (default
+    :data:`DEFAULT_MAX_STATE_AGE_S`; ``math.inf``: no check): a frame stamped with a ``pose_age_s`` above it (the virtual
+    camera, when the robot state stream has been silent that long) is answered with an ``error``, never measured;
+    ``stale`` counts those answers.
     """
 
     COST_EWMA_ALPHA = 0.2
@@ -71,7 +86,12 @@ class VisionNode:
 
     def __init__(self, acquisition: Acquisition, graph: CompGraph | None = None, *, policy: Policy = "nearest",
                  timeout_s: float = 1.0, recorder: FrameRecorder | None = None, graph_thread: GraphThread = "auto",
-                 inline_max_ms: float = 5.0) -> None:
+                 inline_max_ms: float = 5.0, max_state_age_s: float = DEFAULT_MAX_STATE_AGE_S) -> None:
+        if isinstance(max_state_age_s, bool) or not (isinstance(max_state_age_s, (int, float))
+                                                     and max_state_age_s > 0):  # NaN fails too
+            raise ValueError(f"max_state_age_s must be > 0 (inf: no check), got {max_state_age_s!r}")
+        self.max_state_age_s = float(max_state_age_s)
+        self.stale = 0
         if graph_thread not in GRAPH_THREAD_MODES:
             raise ValueError(f"graph_thread must be one of {GRAPH_THREAD_MODES}, got {graph_thread!r}")
         if inline_max_ms < 0:
@@ -99,7 +119,10 @@ class VisionNode:
         return out
 
     def _serve(self, attributes: Mapping[str, Any], *, on_loop: bool = False) -> dict[str, Any]:
-        t_request, cameras, deadline = self._request(attributes)
+        try:
+            t_request, cameras, deadline = self._request(attributes)
+        except BadRequest as exc:
+            return self._count({"error": str(exc)})
         out: dict[str, Any] = {}
         for i, cid in enumerate(cameras):
             try:
@@ -108,14 +131,19 @@ class VisionNode:
             except VisionError as exc:
                 result = {"error": str(exc), "camera": cid}
             else:
-                self.inline_runs += on_loop
-                result = self._measure(frame, t_request)
+                result = self._refuse_stale(frame, t_request)
+                if result is None:
+                    self.inline_runs += on_loop
+                    result = self._measure(frame, t_request)
             self._merge(out, i, cid, result)
         return self._count(out)
 
     async def _serve_async(self, attributes: Mapping[str, Any]) -> dict[str, Any]:
         """:meth:`_serve` on the loop: the frame wait is awaited, the graph runs where :meth:`runs_inline` says."""
-        t_request, cameras, deadline = self._request(attributes)
+        try:
+            t_request, cameras, deadline = self._request(attributes)
+        except BadRequest as exc:
+            return self._count({"error": str(exc)})
         out: dict[str, Any] = {}
         for i, cid in enumerate(cameras):
             try:
@@ -124,7 +152,10 @@ class VisionNode:
             except VisionError as exc:
                 result = {"error": str(exc), "camera": cid}
             else:
-                if self.runs_inline():
+                stale = self._refuse_stale(frame, t_request)
+                if stale is not None:
+                    result = stale
+                elif self.runs_inline():
                     self.inline_runs += 1
                     result = self._measure(frame, t_request)
                 else:
@@ -137,7 +168,14 @@ class VisionNode:
         return self._count(out)
 
     def _request(self, attributes: Mapping[str, Any]) -> tuple[float, list[str], float]:
-        t_request = float(attributes.get("t_request", time.time()))
+        t_request = attributes.get("t_request", None)
+        if t_request is None:
+            t_request = time.time()
+        elif isinstance(t_request, bool) or not isinstance(t_request, (int, float)) or not math.isfinite(t_request):
+            shown = repr(t_request)
+            raise BadRequest("bad request: t_request must be a finite number (epoch s), got "
+                             f"{shown if len(shown) <= 40 else shown[:37] + '...'}")
+        t_request = float(t_request)
         camera = attributes.get("camera")
         cameras = [str(camera)] if camera else list(self.acquisition.camera_ids)
         return t_request, cameras, time.monotonic() + self.timeout_s
@@ -150,6 +188,21 @@ class VisionNode:
             for key in ("sharpness", "frame_t", "error"):
                 if key in result:
                     out[f"{key}.{cid}"] = result[key]
+
+    def _refuse_stale(self, frame: Frame, t_request: float) -> dict[str, Any] | None:
+        """The error result for a frame rendered from a robot pose older than ``max_state_age_s``, else None."""
+        age = frame.pose_age_s
+        if age is None or age <= self.max_state_age_s:
+            return None
+        self.stale += 1
+        if math.isinf(age):
+            why = "no robot state received yet"
+        else:
+            why = f"robot state stream silent for {age:.2f} s"
+        return {"error": f"stale robot state: {why} at the frame's time (limit {self.max_state_age_s:g} s); the "
+                         "tool pose is unknown, so no sharpness is measured",
+                "camera": frame.camera_id, "frame_t": frame.t_s, "frame_seq": int(frame.seq),
+                "frame_age_ms": (t_request - frame.t_s) * 1e3}
 
     def _count(self, out: dict[str, Any]) -> dict[str, Any]:
         if "error" in out:
@@ -167,8 +220,9 @@ class VisionNode:
              out: Mapping[str, Any]) -> None:
         if not log.isEnabledFor(logging.INFO):
             return
+        t_request = attributes.get("t_request")
         log.info("%s %s t_request=%.3f camera=%s -> %s", event_type, event_id,
-                 float(attributes.get("t_request", float("nan"))), out.get("camera"),
+                 t_request if isinstance(t_request, (int, float)) else float("nan"), out.get("camera"),
                  (f"error: {out['error']}" if "error" in out else
                   f"sharpness={out['sharpness']:.3f} frame_t={out['frame_t']:.3f} "
                   f"age={out['frame_age_ms']:.1f} ms proc={out['proc_time_ms']:.2f} ms"))

@@ -34,12 +34,15 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".pp
 @dataclass(frozen=True, slots=True, eq=False)
 class Frame:
     """One image: ``image`` mono8 (H x W ``uint8``), ``t_s`` epoch seconds of exposure, source id, sequence number
-    (0, 1, 2, ... per source, so gaps show dropped frames)."""
+    (0, 1, 2, ... per source, so gaps show dropped frames). ``pose_age_s``: for a frame rendered from a robot pose
+    (the virtual camera), how long before ``t_s`` the newest robot state sample arrived (0 when a sample at or
+    after ``t_s`` was there, ``inf`` with none at all); None for a real camera."""
 
     image: np.ndarray
     t_s: float
     camera_id: str
     seq: int
+    pose_age_s: float | None = None
 
 
 class Camera(abc.ABC):

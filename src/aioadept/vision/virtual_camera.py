@@ -195,6 +195,9 @@ class VirtualCamera(Camera):
     the frame then shows the empty background). :meth:`render` takes a pose directly (tests, figures).
     ``seed`` makes the noise reproducible. ``max_blur_px`` caps the blur diameter: far from focus (the robot on its
     way to the approach pose) the target is a smear anyway, and the cap bounds the rendering time.
+    ``state_age(t_s)``, if given, is asked after the pose for the age of the robot state behind it
+    (:meth:`RobotStateFollower.state_age_s`) and stamped on the frame as ``pose_age_s``: the node refuses to
+    answer from a frame whose pose is older than its limit (a silent state stream means a frozen, maybe wrong pose).
     """
 
     def __init__(self, pose_source: Callable[[float], Pose | None] | None = None, *, camera_pose: Pose,
@@ -202,8 +205,10 @@ class VirtualCamera(Camera):
                  target: CalibrationTarget = CalibrationTarget(), target_offset: Pose = NULL,
                  noise_sigma: float = 2.0, background: int = 18, seed: int | None = None,
                  max_blur_px: float = 48.0, camera_id: str = "virtual",
-                 clock: Callable[[], float] = time.time) -> None:
+                 clock: Callable[[], float] = time.time,
+                 state_age: Callable[[float], float] | None = None) -> None:
         self.camera_id = camera_id
+        self._state_age = state_age
         self.max_blur_px = float(max_blur_px)
         self.camera_pose = camera_pose
         self.focus_distance_mm = float(focus_distance_mm)
@@ -310,8 +315,10 @@ class VirtualCamera(Camera):
     def grab(self) -> Frame:
         t_s = self._clock()
         pose = self._pose_source(t_s) if self._pose_source is not None else None
+        # Asked after pose_source, which may have waited for a sample covering t_s.
+        age = self._state_age(t_s) if self._state_age is not None else None
         image = self.render(pose)
-        frame = Frame(image, t_s, self.camera_id, self._seq)
+        frame = Frame(image, t_s, self.camera_id, self._seq, age)
         self._seq += 1
         return frame
 
@@ -348,6 +355,11 @@ class PoseHistory:
 
     def __len__(self) -> int:
         return len(self._t)
+
+    def newest_t(self) -> float | None:
+        """Time stamp of the newest sample, or None when there is none."""
+        with self._lock:
+            return self._t[-1] if self._t else None
 
     def add(self, t_s: float, pose: Pose) -> None:
         m = pose.to_matrix()
@@ -488,6 +500,16 @@ class RobotStateFollower:
         if len(self.history):
             self.history.wait_covering(t_s, self.max_wait_s)
         return self.history.at(t_s)
+
+    def state_age_s(self, t_s: float | None = None) -> float:
+        """How long before ``t_s`` (default: now) the newest state sample was received: 0 if one was received at or
+        after ``t_s``, ``inf`` if none ever was. The stream runs at 100 Hz, so more than a few periods means it has
+        stopped (sim paused, killed, network cut) and every pose from now on is a frozen guess."""
+        newest = self.history.newest_t()
+        if newest is None:
+            return math.inf
+        now = self._clock() if t_s is None else t_s
+        return max(0.0, now - newest)
 
     def stop(self) -> None:
         self._stop.set()

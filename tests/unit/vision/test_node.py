@@ -267,3 +267,92 @@ def test_graph_thread_options():
                 ["--graph-inline-max-ms", "-1"]):
         with pytest.raises(SystemExit):
             resolve_options(bad)
+
+
+class AgedReplay(Replay):
+    """Replay whose frames carry a robot-pose age, as the virtual camera's do."""
+
+    def __init__(self, camera_id: str, frames: list[tuple[float, np.ndarray, float | None]]) -> None:
+        super().__init__(camera_id, [(t, img) for t, img, _ in frames])
+        self._ages = [age for _, _, age in frames]
+
+    def grab(self) -> Frame | None:
+        frame = super().grab()
+        return None if frame is None else Frame(frame.image, frame.t_s, frame.camera_id, frame.seq,
+                                                self._ages[frame.seq])
+
+
+@pytest.mark.timeout(20)
+def test_node_refuses_frames_whose_robot_pose_is_older_than_the_limit():
+    sharp = paper_camera(seed=2, noise_sigma=1.0).render(APPROACH @ Pose(z=20))
+    cam = AgedReplay("virtual", [(10.0, sharp, 0.0), (11.0, sharp, 0.5), (12.0, sharp, 0.51),
+                                 (13.0, sharp, float("inf")), (14.0, sharp, 0.3)])
+    with Acquisition([cam], fps=None) as acq:
+        _loaded(acq, {"virtual": 14.0})
+        node = VisionNode(acq)
+        loose = VisionNode(acq, max_state_age_s=float("inf"))
+        try:
+            out = {t: node.process("VisionRequest", None, {"t_request": t}) for t in (10.0, 11.0, 12.0, 13.0)}
+            async_out = asyncio.run(node.handle("VisionRequest", None, {"t_request": 12.0}))
+            shorter = VisionNode(acq, max_state_age_s=0.2).process("VisionRequest", None, {"t_request": 14.0})
+            unchecked = loose.process("VisionRequest", None, {"t_request": 13.0})
+        finally:
+            node.close()
+            loose.close()
+    assert node.max_state_age_s == 0.5
+    assert out[10.0]["sharpness"] > 0 and out[11.0]["sharpness"] > 0  # at the limit: still answered
+    for t, why in ((12.0, "robot state stream silent for 0.51 s"), (13.0, "no robot state received yet")):
+        err = out[t]["error"]
+        assert err.startswith("stale robot state: " + why) and "limit 0.5 s" in err, err
+        assert "sharpness" not in out[t] and out[t]["frame_t"] == t
+    assert async_out["error"].startswith("stale robot state") and "sharpness" not in async_out
+    assert "limit 0.2 s" in shorter["error"]
+    assert unchecked["sharpness"] > 0
+    assert node.stale == 3 and node.failed == 3
+
+
+@pytest.mark.parametrize("bad", [0, -1, float("nan"), True, "0.5"])
+def test_node_max_state_age_must_be_positive(bad):
+    with pytest.raises(ValueError, match="max_state_age_s"):
+        VisionNode(Acquisition([Replay("a", [])]), max_state_age_s=bad)
+
+
+@pytest.mark.timeout(20)
+def test_node_answers_a_t_request_that_is_not_a_finite_number_with_an_error():
+    blank = np.full((48, 64), 18, np.uint8)
+    with Acquisition([Replay("a", [(10.0, blank)])], fps=None) as acq:
+        _loaded(acq, {"a": 10.0})
+        node = VisionNode(acq)
+        try:
+            outs = [node.process("VisionRequest", None, {"t_request": v}) for v in (float("nan"), float("inf"), "x")]
+            async_out = asyncio.run(node.handle("VisionRequest", None, {"t_request": float("-inf")}))
+        finally:
+            node.close()
+    for v, out in zip((float("nan"), float("inf"), "x"), outs):
+        assert out == {"error": f"bad request: t_request must be a finite number (epoch s), got {v!r}"}
+    assert async_out["error"].startswith("bad request: t_request")
+
+
+def test_vision_command_limit_options():
+    opts = resolve_options([])
+    assert (opts.max_state_age, opts.max_queue, opts.max_request_bytes) == (0.5, 32, 1 << 20)
+    opts = resolve_options(["--max-state-age", "inf", "--max-queue", "4", "--max-request-bytes", "4096"])
+    assert (opts.max_state_age, opts.max_queue, opts.max_request_bytes) == (float("inf"), 4, 4096)
+    for bad in (["--max-state-age", "0"], ["--max-state-age", "nan"], ["--max-queue", "0"],
+                ["--max-request-bytes", "-1"]):
+        with pytest.raises(SystemExit) as info:
+            resolve_options(bad)
+        assert info.value.code == 2
+
+
+def test_virtual_camera_frames_carry_the_age_of_the_robot_state():
+    from aioadept.vision.virtual_camera import PoseHistory, RobotStateFollower
+
+    clock = [100.0]
+    follower = RobotStateFollower("tcp://127.0.0.1:1", history=PoseHistory(), clock=lambda: clock[0])
+    assert follower.state_age_s() == float("inf")
+    cam = paper_camera(None, noise_sigma=0.0, clock=lambda: clock[0], state_age=follower.state_age_s)
+    assert cam.grab().pose_age_s == float("inf")
+    follower.history.add(99.0, APPROACH)
+    assert cam.grab().pose_age_s == pytest.approx(1.0) and follower.state_age_s(98.0) == 0.0
+    assert paper_camera(None).grab().pose_age_s is None  # no follower: nothing to check
