@@ -57,6 +57,11 @@ REACH_MM = A1_MM + A2_MM + _L3_MM
 HOME_JOINTS_DEG: tuple[float, ...] = (0.0, -90.0, 180.0, 0.0, 90.0, 0.0)
 """The paper's init_move joints: upper arm vertical, forearm horizontal, tool pointing down."""
 
+WRIST_SINGULAR_SIN = 1e-4
+"""Below this sin(J5) the wrist counts as singular: J4 keeps the seed value and J5, J6 are fitted to the target.
+The fit leaves an orientation error of at most this many radians (0.006 deg: 0.008 mm at the flange, 0.03 mm at
+the tip of a 300 mm tool, within the Viper's repeatability); everywhere else the solution is exact."""
+
 
 @dataclass(frozen=True, slots=True)
 class JointLimits:
@@ -190,15 +195,25 @@ def _solutions_rad(m: np.ndarray, j4_hint: float) -> list[tuple[tuple[float, ...
             rw = _ry(-(j2 + j3)) @ _rz(-j1) @ rot
             sp = math.hypot(rw[2, 0], rw[2, 1])
             for wrist in (1, -1):
-                if sp < 1e-9:
-                    # j5 ~ 0 (or 180): only j4 + j6 (or j6 - j4) is defined; keep j4 where it is.
-                    j5 = math.atan2(sp, rw[2, 2])
-                    j4 = j4_hint
-                    total = math.atan2(rw[1, 0], rw[0, 0]) if rw[2, 2] > 0 else math.atan2(rw[1, 0], -rw[0, 0])
-                    j6 = total - j4 if rw[2, 2] > 0 else j4 - total
+                if sp < WRIST_SINGULAR_SIN and rw[2, 2] > 0:
+                    # j5 ~ 0: J4 and J6 turn about (almost) the same axis, only j4 + j6 is well defined and the
+                    # exact j4 swings with the slightest change. Keep j4 where it is and fit j5, j6 to the rest:
+                    # Rz(-j4) rw = Ry(j5) Rz(j6) up to a tilt of at most sp about x.
                     if wrist == -1:
                         continue
+                    fit = _rz(-j4_hint) @ rw
+                    j4 = j4_hint
+                    j5 = math.atan2(fit[0, 2], fit[2, 2])
+                    j6 = math.atan2(fit[1, 0], fit[1, 1])
                     wrist = 0  # on the singularity: acceptable from either wrist configuration
+                elif sp < 1e-9:
+                    # j5 ~ 180 (beyond the Viper's J5 limits, kept for completeness): only j6 - j4 is defined.
+                    if wrist == -1:
+                        continue
+                    j5 = math.atan2(sp, rw[2, 2])
+                    j4 = j4_hint
+                    j6 = j4 - math.atan2(rw[1, 0], -rw[0, 0])
+                    wrist = 0
                 else:
                     j5 = wrist * math.atan2(sp, rw[2, 2])
                     j4 = math.atan2(wrist * rw[1, 2], wrist * rw[0, 2])
@@ -300,8 +315,9 @@ def inverse(pose: Pose, current_joints_deg: Sequence[float], tool: Pose = NULL, 
       can pass through the singularity continuously instead of flipping to keep the sign.
     - Among the solutions allowed, each with every joint's +-360 deg equivalents inside ``limits``, the one with
       the least total joint motion from the seed is taken.
-    - Exactly on the wrist singularity (J5 = 0) only J4 + J6 is defined: J4 keeps the seed value and J6 takes the
-      rotation.
+    - On the wrist singularity (J5 = 0, within :data:`WRIST_SINGULAR_SIN`) only J4 + J6 is defined: J4 keeps the
+      seed value and J6 takes the rotation (J5, J6 fitted; orientation error below ``WRIST_SINGULAR_SIN`` rad).
+      Elsewhere ``forward(inverse(pose))`` is ``pose`` to rounding.
     - The chosen solution is then checked against ``jump`` (see :class:`JumpLimit`): if a joint would move more
       than the Cartesian size of the move (seed pose to ``pose``) justifies, the target is refused with
       ``RobotError(JOINT_JUMP)`` and nothing moves. ``jump=None`` turns the check off.
@@ -368,8 +384,10 @@ def _check_jump(sol: list[float], cur: list[float], m_flange: np.ndarray, tool: 
         t = tool.to_matrix()
         seed, target = seed @ t, target @ t
     distance = float(np.linalg.norm(target[:3, 3] - seed[:3, 3]))
-    cos_rot = (float(np.trace(seed[:3, :3].T @ target[:3, :3])) - 1.0) / 2.0
-    rotation = math.degrees(math.acos(max(-1.0, min(1.0, cos_rot))))
+    r = seed[:3, :3].T @ target[:3, :3]
+    # Axis-angle sine and cosine: atan2 stays precise for small angles, where acos(trace) loses half the digits.
+    sin_rot = 0.5 * math.sqrt((r[2, 1] - r[1, 2]) ** 2 + (r[0, 2] - r[2, 0]) ** 2 + (r[1, 0] - r[0, 1]) ** 2)
+    rotation = math.degrees(math.atan2(sin_rot, (float(r[0, 0] + r[1, 1] + r[2, 2]) - 1.0) / 2.0))
     allowed = jump.allowed_deg(distance, rotation)
     if moves[worst] <= allowed:
         return
