@@ -162,8 +162,10 @@ def _wrap_pi(a: float) -> float:
     return math.atan2(math.sin(a), math.cos(a))
 
 
-def _solutions_rad(m: np.ndarray, j4_hint: float) -> list[tuple[tuple[float, ...], Configuration]]:
-    """All closed-form solutions (radians, each angle in (-pi, pi]) for a flange transform.
+def _solutions_rad(m: np.ndarray, j4_hint: float, want: Configuration | None = None,
+                   ) -> list[tuple[tuple[float, ...], Configuration]]:
+    """The closed-form solutions (radians, each angle in (-pi, pi]) for a flange transform: all of them, or only
+    those whose flags match ``want`` (a 0 in ``want`` accepts either choice; the singular wrist solution matches any).
 
     Raises ``RobotError(OUT_OF_REACH)`` when the wrist centre cannot be reached by any configuration.
     """
@@ -183,8 +185,12 @@ def _solutions_rad(m: np.ndarray, j4_hint: float) -> list[tuple[tuple[float, ...
         if d > 1.0 + 1e-9 or d < -1.0 - 1e-9:
             continue
         reach_failed = False
+        if want is not None and want.shoulder and shoulder != want.shoulder:
+            continue
         d = max(-1.0, min(1.0, d))
         for elbow in (1, -1):
+            if want is not None and want.elbow and elbow != want.elbow:
+                continue
             # |w|^2 = a2^2 + L^2 + 2 a2 L sin(j3 - beta); elbow +1 is the branch of home (j3 - beta > 90 deg).
             s = math.asin(d)
             j3 = (math.pi - s if elbow == 1 else s) + _BETA
@@ -195,6 +201,8 @@ def _solutions_rad(m: np.ndarray, j4_hint: float) -> list[tuple[tuple[float, ...
             rw = _ry(-(j2 + j3)) @ _rz(-j1) @ rot
             sp = math.hypot(rw[2, 0], rw[2, 1])
             for wrist in (1, -1):
+                if want is not None and want.wrist and wrist != want.wrist and sp >= WRIST_SINGULAR_SIN:
+                    continue
                 if sp < WRIST_SINGULAR_SIN and rw[2, 2] > 0:
                     # j5 ~ 0: J4 and J6 turn about (almost) the same axis, only j4 + j6 is well defined and the
                     # exact j4 swings with the slightest change. Keep j4 where it is and fit j5, j6 to the rest:
@@ -335,7 +343,7 @@ def inverse(pose: Pose, current_joints_deg: Sequence[float], tool: Pose = NULL, 
     if not np.isfinite(m).all():
         raise RobotError(ErrorCode.ILLEGAL_VALUE, "location is not finite")
     want = _free_configuration(cur)
-    sols = _solutions_rad(m, math.radians(cur[3]))
+    sols = _solutions_rad(m, math.radians(cur[3]), want)
 
     best: list[float] | None = None
     best_cost = math.inf
