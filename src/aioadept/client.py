@@ -1063,6 +1063,24 @@ class RobotClient:
 
         Cancelling the caller does not cancel the stop: it is still written (after a pending reconnect) and its
         ack awaited by a task of the client; a failure nobody awaits any more is logged as an error.
+        From synchronous code (a signal handler), use :meth:`stop_nowait`.
+        """
+        task = self.stop_nowait(timeout_s=timeout_s)
+        try:
+            return await asyncio.shield(task)
+        except asyncio.CancelledError:
+            if not task.done():
+                task.add_done_callback(_log_orphan_stop)
+            raise
+
+    def stop_nowait(self, *, timeout_s: float | None = None) -> asyncio.Task[MessageResult]:
+        """:meth:`stop` for synchronous code (e.g. a signal callback; needs a running loop): connected, the stop
+        is written before this returns; otherwise the returned task reconnects (``auto_reconnect``) and writes it.
+
+        The task, owned by the client, resolves or fails exactly as :meth:`stop` returns or raises; await it or
+        read its result (a failure nobody reads is not logged: that is the caller's business). Cancelling the
+        task cancels the wait for the ack, never a write already made. Calls that began before this stop and
+        had not yet written their command raise :class:`AbortedBeforeSend`. ValueError for a bad ``timeout_s``.
         """
         if timeout_s is not None:
             _check_timeout("timeout_s", timeout_s)
@@ -1072,18 +1090,12 @@ class RobotClient:
             try:
                 sub = self._send((_STOP,))  # written now, before any await
             except ConnectionLost:
-                if not self.auto_reconnect:
-                    raise
+                pass  # the task reconnects (auto_reconnect) or fails with ConnectionLost, as stop() would
         task = asyncio.get_running_loop().create_task(self._stop_flow(sub, timeout_s),
                                                       name=f"RobotClient stop {self.host}:{self.port}")
         self._stop_tasks.add(task)
         task.add_done_callback(self._stop_tasks.discard)
-        try:
-            return await asyncio.shield(task)
-        except asyncio.CancelledError:
-            if not task.done():
-                task.add_done_callback(_log_orphan_stop)
-            raise
+        return task
 
     async def _stop_flow(self, sub: Submission | None, timeout_s: float | None) -> MessageResult:
         """Reconnect if needed, write the stop (unless already written: ``sub``) and await its ack; once more on

@@ -323,3 +323,20 @@ async def test_close_during_a_stops_reconnect_wins_the_stop_raises_client_state_
         with pytest.raises(ClientStateError, match="closed while reconnecting"):
             await stop
         assert robot.state is ClientState.CLOSED  # not resurrected by the reconnect that raced close()
+
+
+@pytest.mark.timeout(20)
+async def test_stop_nowait_writes_the_stop_before_it_returns_and_its_task_carries_the_outcome():
+    """For signal handlers: a synchronous call that has written the stop when it returns."""
+    async with ScriptedServer({"break": Reply(delay_s=5.0)}) as server:
+        async with RobotClient(server.host, server.port) as robot:
+            move = asyncio.create_task(robot.cmdexec(MoveToolZ(1)))
+            await until(lambda: len(robot.pending_ids) == 1 and robot.stats.acks == 1, "the break is waiting")
+            task = robot.stop_nowait()
+            assert robot.stats.messages_sent == 3  # move, break, stop: written before stop_nowait returned
+            assert (await task).ok
+            with pytest.raises(CommandAborted):
+                await move
+        with pytest.raises(ClientStateError):  # closed: the task fails, nothing is written
+            await robot.stop_nowait()
+    assert [parse_command(x).skill for x in server.lines()] == ["move_rel_tool", "break", "stop"]
