@@ -142,34 +142,46 @@ async def test_the_stop_path_cannot_be_filled_by_silent_newcomers():
 @pytest.mark.timeout(60)
 async def test_a_stop_is_acted_on_while_three_clients_flood_cheap_commands():
     async with running_sim(time_scale=1) as sim:
-        mover = await Raw.open(sim)
-        mover.send(b"0000e001:move_joints:150,-90,180,0,90,0", b"0000e002:break")
-        await mover.ack("0000e001")
+        mover, stopper = await Raw.open(sim), await Raw.open(sim)
         flooders = [await Raw.open(sim) for _ in range(3)]
         stop_flood = asyncio.Event()
 
         async def flood(c: Raw, k: int) -> None:
-            batch = b"".join(b"%07x%d:enable_air\r\n" % (i, k) for i in range(200))
+            batch = b"".join(b"%07x%d:here\r\n" % (i, k) for i in range(200))
+
+            async def discard() -> None:
+                with contextlib.suppress(OSError):
+                    while await c.reader.read(65536):
+                        pass
+
+            reading = asyncio.create_task(discard())
             with contextlib.suppress(OSError):
                 while not stop_flood.is_set():
-                    c.writer.write(batch)  # never reads its acks: the server must not care
-                    await asyncio.sleep(0)
+                    c.writer.write(batch)
+                    await c.writer.drain()
+            reading.cancel()
 
         tasks = [asyncio.create_task(flood(c, k)) for k, c in enumerate(flooders)]
+        loop = asyncio.get_running_loop()
+        latencies = []
         try:
-            await asyncio.sleep(0.3)  # the flood is on
-            s = await Raw.open(sim)
-            loop = asyncio.get_running_loop()
-            t0 = loop.time()
-            s.send(b"0000e003:stop")
-            ack = await s.ack("0000e003", timeout=20)
-            latency = loop.time() - t0
+            for i in range(5):
+                target = 150 if i % 2 == 0 else -150
+                mover.send(b"0000e%03d:move_joints:%d,-90,180,0,90,0" % (2 * i, target), b"0000e%03d:break" % (2 * i + 1))
+                await mover.ack("0000e%03d" % (2 * i), timeout=20)
+                t0 = loop.time()
+                stopper.send(b"0000s%03d:stop" % i)
+                brk = await mover.ack("0000e%03d" % (2 * i + 1), timeout=20)
+                latencies.append(loop.time() - t0)
+                assert brk.status is Status.ABORTED, (i, brk)  # the stop was acted on before the move ended
+                assert (await stopper.ack("0000s%03d" % i, timeout=20)).status is Status.DONE
         finally:
             stop_flood.set()
             await asyncio.gather(*tasks, return_exceptions=True)
-        assert ack.status is Status.DONE
-        assert latency < 2.0, latency  # stop read + deceleration (~0.1 s); p95 measured in bench_safety.py
-        for c in (mover, *flooders, s):
+        # Generous, so it is not flaky on a loaded machine: the p95 <= 100 ms promise is measured by
+        # benchmarks/bench_safety.py (before the fix: p95 0.8 s, max 3.3 s, some stops after the motion ended).
+        assert max(latencies) < 1.0, latencies
+        for c in (mover, stopper, *flooders):
             await c.close()
 
 

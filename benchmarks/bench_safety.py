@@ -1,0 +1,183 @@
+"""Stop latency of ``aioadept sim`` under a flood, and ``here`` latency while another client's arm moves.
+
+Issue 10 items 2 and 9, measured against their baselines in the same run (docs/security.md, "Safety promises"):
+
+- **stop**: a mover client starts a long J1 move and a ``break``; a stopper client (its own connection) writes
+  ``stop``. Latency = stopper's write -> the mover receives its break's ``aborted`` ack, which the server writes the
+  moment it has read and acted on the stop (deceleration is not included; ``stop_done`` adds it). Baseline: no
+  flood. Flood: three clients in a separate process write ``here`` lines as fast as the server takes them (and read
+  their acks). The promise is p95 <= 100 ms under the flood.
+- **here**: 50 clients each send ``here`` once, at rest (baseline) and while another client's arm moves with a
+  ``break`` pending; p50/p95 round trip.
+
+The sim and the flooders are child processes on 127.0.0.1 (port 0, ``READY`` line). Prints one JSON object.
+
+Usage: ``python benchmarks/bench_safety.py [--trials 30]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import os
+import platform
+import statistics
+import sys
+from pathlib import Path
+
+FLOODER = r"""
+import asyncio, sys
+port, n = int(sys.argv[1]), int(sys.argv[2])
+async def one(k):
+    reader, writer = await asyncio.open_connection("127.0.0.1", port)
+    async def drain_acks():
+        while await reader.read(65536):
+            pass
+    t = asyncio.create_task(drain_acks())
+    batch = b"".join(b"%07x%d:here\r\n" % (i, k) for i in range(100))
+    try:
+        while True:
+            writer.write(batch)
+            await writer.drain()
+    except (OSError, asyncio.CancelledError):
+        pass
+async def main():
+    tasks = [asyncio.create_task(one(k)) for k in range(n)]
+    print("READY", flush=True)
+    await asyncio.gather(*tasks, return_exceptions=True)
+asyncio.run(main())
+"""
+
+
+def pct(values: list[float], q: float) -> float:
+    s = sorted(values)
+    return s[min(len(s) - 1, int(round(q * (len(s) - 1))))]
+
+
+def summary(ms: list[float]) -> dict:
+    return {"n": len(ms), "p50_ms": round(statistics.median(ms), 2), "p95_ms": round(pct(ms, 0.95), 2),
+            "max_ms": round(max(ms), 2)}
+
+
+class Conn:
+    def __init__(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        self.reader, self.writer = reader, writer
+
+    @classmethod
+    async def open(cls, port: int) -> Conn:
+        return cls(*await asyncio.open_connection("127.0.0.1", port))
+
+    async def until(self, mid: bytes) -> bytes:
+        while True:
+            line = await self.reader.readuntil(b"\r\n")
+            if line.startswith(mid + b":"):
+                return line
+
+
+async def start(argv: list[str]) -> tuple[asyncio.subprocess.Process, str]:
+    proc = await asyncio.create_subprocess_exec(*argv, stdout=asyncio.subprocess.PIPE,
+                                                stderr=asyncio.subprocess.DEVNULL)
+    assert proc.stdout is not None
+    line = (await asyncio.wait_for(proc.stdout.readline(), 30)).decode()
+    if not line.startswith("READY"):
+        proc.kill()
+        raise RuntimeError(f"child did not start: {line!r}")
+    return proc, line
+
+
+async def stop_trials(port: int, trials: int) -> tuple[list[float], list[float]]:
+    loop = asyncio.get_running_loop()
+    mover, stopper = await Conn.open(port), await Conn.open(port)
+    acted, done, late = [], [], []
+    for i in range(trials):
+        target = 150 if i % 2 == 0 else -150
+        m, b, s = b"%08x" % (3 * i + 1), b"%08x" % (3 * i + 2), b"%08x" % (3 * i + 3)
+        mover.writer.write(m + b":move_joints:%d,-90,180,0,90,0\r\n" % target + b + b":break\r\n")
+        await mover.until(m)
+        await asyncio.sleep(0.05)  # the arm is moving, the break waits
+        t0 = loop.time()
+        stopper.writer.write(s + b":stop\r\n")
+        line = await asyncio.wait_for(mover.until(b), 30)
+        t_break = loop.time()
+        await asyncio.wait_for(stopper.until(s), 30)
+        t_done = loop.time()
+        # A break that completed instead of being aborted: the stop came too late to act on the motion; count
+        # it at the time the stop was answered (an underestimate of how late it really was).
+        acted.append(((t_break if b":aborted:" in line else t_done) - t0) * 1e3)
+        if b":aborted:" not in line:
+            late.append(i)
+        done.append((t_done - t0) * 1e3)
+    for c in (mover, stopper):
+        c.writer.close()
+    if late:
+        print(f"{len(late)} of {trials} stops arrived after the motion had completed", file=sys.stderr)
+    return acted, done
+
+
+async def here_trial(port: int, moving: bool, clients: int = 50) -> list[float]:
+    loop = asyncio.get_running_loop()
+    pollers = [await Conn.open(port) for _ in range(clients)]
+    mover = await Conn.open(port)
+    if moving:
+        mover.writer.write(b"0000aaa1:move_joints:150,-90,180,0,90,0\r\n0000aaa2:break\r\n")
+        await mover.until(b"0000aaa1")
+
+    async def one(c: Conn, k: int) -> float:
+        mid = b"0001%04d" % k  # never 00000000, the reserved ID
+        t0 = loop.time()
+        c.writer.write(mid + b":here\r\n")
+        await c.until(mid)
+        return (loop.time() - t0) * 1e3
+
+    out = list(await asyncio.gather(*(one(c, k) for k, c in enumerate(pollers))))
+    if moving:
+        await mover.until(b"0000aaa2")
+        # back home for the next trial
+        mover.writer.write(b"0000aaa3:move_joints:0,-90,180,0,90,0\r\n0000aaa4:break\r\n")
+        await mover.until(b"0000aaa4")
+    for c in (*pollers, mover):
+        c.writer.close()
+    return out
+
+
+async def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--trials", type=int, default=30)
+    ap.add_argument("--flooders", type=int, default=3)
+    args = ap.parse_args()
+    aioadept = str(Path(sys.executable).with_name("aioadept"))
+    proc, ready = await start([aioadept, "sim", "--port", "0", "--state-endpoint", "none", "--max-clients", "64"])
+    port = int(dict(f.split("=", 1) for f in ready.split()[1:])["port"])
+    result: dict = {"machine": {"python": platform.python_version(), "cpus": os.cpu_count()}}
+    try:
+        base_acted, base_done = await stop_trials(port, args.trials)
+        here_rest = []
+        here_moving = []
+        for _ in range(3):
+            here_rest += await here_trial(port, moving=False)
+            here_moving += await here_trial(port, moving=True)
+        flood, _ = await start([sys.executable, "-c", FLOODER, str(port), str(args.flooders)])
+        try:
+            await asyncio.sleep(0.5)  # the flood is on
+            flood_acted, flood_done = await stop_trials(port, args.trials)
+        finally:
+            flood.kill()
+            await flood.wait()
+    finally:
+        proc.terminate()
+        await proc.wait()
+    result["stop_acted_baseline"] = summary(base_acted)
+    result["stop_acted_flood"] = summary(flood_acted)
+    result["stop_done_baseline"] = summary(base_done)
+    result["stop_done_flood"] = summary(flood_done)
+    result["stop_acted_ratio_p95"] = round(pct(flood_acted, 0.95) / pct(base_acted, 0.95), 2)
+    result["stop_acted_flood_p95_within_100ms"] = pct(flood_acted, 0.95) <= 100.0
+    result["here_50_at_rest"] = summary(here_rest)
+    result["here_50_while_moving"] = summary(here_moving)
+    result["here_ratio_p50"] = round(statistics.median(here_moving) / statistics.median(here_rest), 2)
+    print(json.dumps(result, indent=2))
+
+
+if __name__ == "__main__":
+    asyncio.run(main())
