@@ -401,16 +401,16 @@ def _check_jump(sol: list[float], cur: list[float], m_flange: np.ndarray, tool: 
         return
     why = ""
     if worst in (3, 5) and abs(math.sin(math.radians(cur[4]))) < math.sin(math.radians(2 * WRIST_FREE_DEG)):
-        why = " (near the wrist singularity J5=0)"
+        why = "; wrist singularity"
     elif worst == 0 and abs(_arm_plane(math.radians(cur[1]), math.radians(cur[2]))[0]) < 10 * SHOULDER_FREE_MM:
-        why = " (wrist centre near the J1 axis)"
+        why = "; wrist near J1 axis"
     else:
         near = sol[worst] + 360.0 * round((cur[worst] - sol[worst]) / 360.0)
         if abs(near - cur[worst]) < moves[worst] - 1e-6 and limits.violations([*cur[:worst], near, *cur[worst + 1:]]):
-            why = f" (the nearer {near:.1f} is past the J{worst + 1} limit)"
-    raise RobotError(ErrorCode.JOINT_JUMP,
-                     f"J{worst + 1} would move {moves[worst]:.1f} deg for a {distance:.2f} mm, {rotation:.2f} deg "
-                     f"move (limit {allowed:.1f}){why}")
+            why = f"; {near:.1f} is past the limit"
+    # Short: the error ack carries at most 80 characters of text.
+    raise RobotError(ErrorCode.JOINT_JUMP, f"J{worst + 1} would turn {moves[worst]:.1f} deg for {distance:.2f} mm "
+                                           f"{rotation:.2f} deg (max {allowed:.1f}){why}")
 
 
 def check_joint_path(start_deg: Sequence[float], end_deg: Sequence[float], *,
