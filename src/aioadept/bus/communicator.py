@@ -653,6 +653,7 @@ class Responder:
         """Requests answered with an ``error`` attribute by the handler (or an answer the schema cannot carry)."""
         self.dropped = 0
         """Requests dropped unprocessed because the queue was full, each answered with a ``dropped:`` error."""
+        self._next_drop_log = 0.0
         self.rejected = 0
         """Requests answered with an error before processing: ``t_deadline`` not a finite number."""
 
@@ -813,6 +814,11 @@ class Responder:
         if rid is not None:
             self._pending.discard((event_type, rid))
         self.dropped += 1
+        if self._loop is not None and self._loop.time() >= self._next_drop_log:
+            # At most one line a second: a flood must not turn into a flood of log lines.
+            self._next_drop_log = self._loop.time() + 1.0
+            log.warning("Responder on %s: request queue full (%d waiting), dropping the oldest; %d dropped so far",
+                        self._actual_req, self.max_queue, self.dropped)
         text = (f"dropped: request queue full ({self.max_queue} waiting); the node serves the newest requests "
                 f"first")
         self._send(encode_event(self._response_type or response_type_for(event_type), rid, {"error": text}))

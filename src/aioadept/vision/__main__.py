@@ -292,8 +292,10 @@ async def serve(opts: argparse.Namespace) -> int:
             log.error("responder failed: %r", serve_task.exception())
             return 1
         serve_task.cancel()
-        log.info("stopping: %d requests served (%d failed); graph runs on the loop %d, in the worker %d",
-                 node.served, node.failed, node.inline_runs, node.thread_runs)
+        log.info("stopping: %d requests served (%d failed, %d of them for a stale robot state), %d dropped (queue "
+                 "full), %d refused (bad t_deadline); graph runs on the loop %d, in the worker %d",
+                 node.served, node.failed, node.stale, responder.dropped, responder.rejected, node.inline_runs,
+                 node.thread_runs)
         return 0
     finally:
         if responder is not None:
