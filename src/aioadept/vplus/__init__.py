@@ -1,0 +1,19 @@
+"""A V+ emulator: run Adept V+ programs (``.V2`` modules) on the simulated Viper, in virtual or real time.
+
+- :class:`Emulator` loads modules, calls programs and reads variables (virtual time, for pytest), or serves them
+  in real time with TCP (``aioadept sim --vplus``).
+- :mod:`~aioadept.vplus.loader`, :mod:`~aioadept.vplus.parse`, :mod:`~aioadept.vplus.compiler`: source to
+  Python generator functions; :mod:`~aioadept.vplus.runtime`: tasks, scheduler, clock;
+  :mod:`~aioadept.vplus.builtins`: functions and instructions; :mod:`~aioadept.vplus.iodev`: TCP;
+  :mod:`~aioadept.vplus.robot` and :mod:`~aioadept.vplus.locations`: the robot and location values.
+
+docs/vplus.md, "The emulator", says what runs, how it is emulated and what is not supported.
+"""
+
+from aioadept.vplus.emulator import CallResult, Emulator, GlobalsView, LoadError
+from aioadept.vplus.errors import VPlusError
+from aioadept.vplus.loader import LoadProblem
+from aioadept.vplus.runtime import RealClock, VirtualClock
+
+__all__ = ["CallResult", "Emulator", "GlobalsView", "LoadError", "LoadProblem", "RealClock", "VPlusError",
+           "VirtualClock"]

@@ -1,0 +1,521 @@
+"""The functions and instructions that compiled V+ code calls: one namespace per :class:`Runtime`.
+
+Semantics follow the V+ Language Reference Guide where it is explicit; the choices made where it is silent are
+listed in docs/vplus.md ("The emulator").
+"""
+
+from __future__ import annotations
+
+import math
+import random
+import re
+from collections.abc import Generator
+from typing import Any
+
+from aioadept.vplus import errors as E
+from aioadept.vplus.errors import VPlusError, VPlusHalt
+from aioadept.vplus.runtime import _FB, _GOTO, MAX_STRING, Runtime, Task, _Goto, _Missing, f32
+
+_NUM_RE = re.compile(r"\s*[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
+_FMT_RE = re.compile(r"([A-Z])(\d+)?(?:\.(\d+))?\Z")
+
+
+def _str(v: Any) -> str:
+    if type(v) is not str:
+        raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* (a number assigned to a string variable)")
+    if len(v) > MAX_STRING:
+        raise VPlusError(E.STRING_TOO_LONG, f"*String too long* ({len(v)} characters, at most {MAX_STRING})")
+    return v
+
+
+def _real(v: Any) -> Any:
+    """Assignment to a plain name: REAL (float32) for numbers; a location keeps its type (SET optional)."""
+    if type(v) is float or type(v) is int:
+        _FB[0] = v
+        return _FB[0]
+    if isinstance(v, str):
+        raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* (a string assigned to a real variable)")
+    return v
+
+
+def _dbl(v: Any) -> float:
+    if isinstance(v, str):
+        raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* (a string assigned to a real variable)")
+    return float(v)
+
+
+def _byval(v: Any) -> Any:
+    if type(v) is float:
+        _FB[0] = v
+        return _FB[0]
+    return v
+
+
+def _arr(container: dict, key: str) -> dict:
+    a = container.get(key)
+    if a is None:
+        a = container[key] = {}
+    return a
+
+
+def _ix(v: float) -> int:
+    i = int(v)
+    if i < 0:
+        raise VPlusError(E.ILLEGAL_ARRAY_INDEX, f"*Illegal array index* {v:g}")
+    return i
+
+
+def _decode(c: dict, k: Any, breaks: str, mode: float) -> str:
+    s = c[k]
+    if type(s) is not str or type(breaks) is not str:
+        raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* ($DECODE needs strings)")
+    i = 0
+    n = len(s)
+    if mode == 0:
+        while i < n and s[i] not in breaks:
+            i += 1
+    else:
+        while i < n and s[i] in breaks:
+            i += 1
+    c[k] = s[i:]
+    return s[:i]
+
+
+def _fmt_number(v: float, spec: tuple[str, int | None, int | None]) -> str:
+    kind, w, d = spec
+    if kind == "F":
+        s = "%.*f" % (d if d is not None else 2, v)
+    elif kind == "E":
+        s = "%.*E" % (d if d is not None else 6, v)
+    elif kind == "G":
+        s = "%.*G" % (d if d is not None else 6, v)
+    elif kind == "I":
+        s = "%d" % round(v)
+    elif kind == "H":
+        s = "%X" % (int(v) & 0xFFFFFFFF)
+    elif kind == "O":
+        s = "%o" % (int(v) & 0xFFFFFFFF)
+    else:  # D: the default format
+        s = _default_number(v)
+    if w:
+        s = s.rjust(w)
+    return s
+
+
+def _default_number(v: float) -> str:
+    if v == int(v) and abs(v) < 1e9:
+        return "%d" % int(v)
+    s = "%.6g" % v
+    return s
+
+
+def _render(items: tuple) -> tuple[str, bool]:
+    """Output items (values and ("fmt", spec) constants) to text; True if /S suppressed the line end."""
+    out: list[str] = []
+    spec: tuple = ("D", None, None)
+    no_eol = False
+    for it in items:
+        if type(it) is tuple and len(it) == 2 and it[0] == "fmt":
+            f = it[1]
+            m = _FMT_RE.match(f)
+            kind = m.group(1) if m else f[:1]
+            num = int(m.group(2)) if m and m.group(2) else None
+            if kind == "S":
+                no_eol = True
+            elif kind == "X":
+                out.append(" " * (num if num is not None else 1))
+            elif kind == "C":
+                out.append("\r\n" * (num if num is not None else 1))
+            elif kind in ("N", "B", "U"):
+                pass
+            elif kind in ("F", "E", "G", "I", "H", "O", "D"):
+                spec = (kind, num, int(m.group(3)) if m and m.group(3) else None)
+            else:
+                raise VPlusError(E.ILLEGAL_VALUE, f"*Illegal value* (format /{f})")
+            continue
+        if isinstance(it, str):
+            out.append(it)
+        elif isinstance(it, (int, float)):
+            out.append(_fmt_number(float(it), spec))
+        else:
+            out.append(repr(it))
+    return "".join(out), no_eol
+
+
+def _encode(items: tuple) -> str:
+    return _str(_render(items)[0])
+
+
+def _val(s: str) -> float:
+    m = _NUM_RE.match(s)
+    return float(m.group(0)) if m else 0.0
+
+
+def _mid(s: str, first: float, n: float) -> str:
+    i = int(first)
+    if i < 1:
+        raise VPlusError(E.ILLEGAL_VALUE, "*Illegal value* ($MID start below 1)")
+    return s[i - 1:i - 1 + max(int(n), 0)]
+
+
+def _pos(s: str, sub: str, start: float = 1.0) -> float:
+    return float(s.find(sub, max(int(start), 1) - 1) + 1)
+
+
+def _asc(s: str, i: float = 1.0) -> float:
+    k = int(i)
+    return float(ord(s[k - 1])) if 1 <= k <= len(s) else -1.0
+
+
+def _chr(n: float) -> str:
+    k = int(n)
+    if not 0 <= k <= 255:
+        raise VPlusError(E.ILLEGAL_VALUE, "*Illegal value* ($CHR outside 0..255)")
+    return chr(k)
+
+
+def _sig(rt: Runtime):
+    def sig(*nums: float) -> float:
+        for n in nums:
+            k = int(n)
+            on = rt.signals.get(abs(k), False)
+            if (k > 0 and not on) or (k < 0 and on):
+                return 0.0
+        return -1.0
+    return sig
+
+
+def _deg(f):
+    return lambda x: f(math.radians(x))
+
+
+def namespace(rt: Runtime) -> dict[str, Any]:
+    from aioadept.vplus import locations as L
+
+    G = rt.globals
+
+    def static(T: Task, prog: str) -> dict:
+        return T.statics.setdefault(prog, {})
+
+    def arg(A: tuple, i: int, name: str):
+        if i >= len(A):
+            return (_MISSING_C, name)
+        a = A[i]
+        if type(a) is dict:
+            raise VPlusError(E.ILLEGAL_OPERATION, f"*Illegal operation* (an array passed for {name})")
+        if a[0] is _MISSING_C:
+            return (_MISSING_C, name)
+        return a
+
+    def argarr(A: tuple, i: int, name: str) -> dict:
+        if i >= len(A):
+            return {}
+        a = A[i]
+        if type(a) is not dict:
+            raise VPlusError(E.ILLEGAL_OPERATION, f"*Illegal operation* ({name}[] needs an array argument)")
+        return a
+
+    def progname(v: Any) -> str:
+        if not isinstance(v, str):
+            raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* (CALLS needs a string)")
+        from aioadept.vplus.parse import norm
+
+        return norm(v.strip())
+
+    def tick() -> float:
+        return rt.next_tick()
+
+    def halt(T: Task, prog: str, line: int) -> None:
+        raise VPlusHalt(f"(HALTED) {prog}, line {line}")
+
+    def stop(T: Task) -> None:
+        T.stop_cycle = True
+        raise VPlusHalt("")
+
+    def pause(T: Task, prog: str, line: int) -> Generator:
+        rt.console(T.num, f"(PAUSED) {prog}, line {line}")
+        T.paused = True
+        while T.paused:
+            yield rt.now + 3600.0
+        return None
+
+    def type_(T: Task, items: tuple) -> None:
+        text, no_eol = _render(items)
+        pend = T.statics.setdefault("\0type", {"s": ""})
+        text = pend["s"] + text
+        if no_eol:
+            pend["s"] = text
+            return
+        pend["s"] = ""
+        for ln in text.split("\r\n"):
+            rt.console(T.num, ln)
+
+    def prompt(T: Task, is_str: bool) -> Generator:
+        while not rt.input:
+            T.io_wait = True
+            yield rt.next_tick()
+        s = rt.input.popleft()
+        return s if is_str else _val(s)
+
+    def signal(T: Task, nums: tuple) -> None:
+        for n in nums:
+            k = int(n)
+            if 1001 <= abs(k) <= 1512:
+                raise VPlusError(E.ILLEGAL_VALUE, f"*Illegal value* (signal {k} is an input)")
+            if k == 0:
+                continue
+            rt.signals[abs(k)] = k > 0
+
+    def wait_event(T: Task, args: tuple) -> Generator:
+        # WAIT.EVENT mask, timeout: wait for SET.EVENT of this task (mask 1) or until the timeout (seconds).
+        mask = args[0] if args and args[0] is not None else 0
+        timeout = args[1] if len(args) > 1 and args[1] is not None else None
+        end = None if timeout is None or timeout < 0 else rt.now + float(timeout)
+        while True:
+            if mask and T.events:
+                T.events = 0
+                return None
+            if end is not None and rt.now >= end:
+                return None
+            yield (end if (end is not None and not mask) else rt.next_tick())
+
+    def set_event(T: Task, args: tuple) -> None:
+        n = int(args[0]) if args and args[0] is not None else T.num
+        other = rt.tasks.get(n)
+        if other is not None:
+            other.events = 1
+
+    def execute(T: Task, task: Any, prog: str, args: tuple) -> None:
+        rt.start_task(int(task) if task is not None else 0, prog, tuple(([_byval(a)], 0) for a in args))
+
+    def abort(T: Task, nums: tuple) -> None:
+        for n in nums or (0,):
+            if int(n) == T.num:
+                raise VPlusHalt("")
+            rt.abort(int(n))
+
+    def kill(T: Task, nums: tuple) -> None:
+        for n in nums or (0,):
+            rt.kill(int(n))
+
+    def cycle_end(T: Task, nums: tuple) -> None:
+        n = int(nums[0]) if nums else 0
+        other = rt.tasks.get(n)
+        if other is not None:
+            other.stop_cycle = True
+            if len(nums) > 1 and nums[1]:
+                pass
+
+    def reacte(T: Task, prog: str) -> None:
+        T.reacte = prog
+
+    def err(T: Task, exc: BaseException, prog: str, line: int) -> Generator:
+        return rt.on_error(T, exc, prog, line)
+
+    def call(T: Task, name: str, args: tuple) -> Generator:
+        return rt.call(T, name, args)
+
+    # -- robot (aioadept.vplus.robot.RobotDevice on the sim's Controller) ----------------------------------
+    def no_robot() -> VPlusError:
+        return VPlusError(E.ROBOT_NOT_ATTACHED, "*Robot not attached* (the emulator has no robot)")
+
+    def robot_of(T: Task):
+        r = rt.robot
+        if r is None:
+            raise no_robot()
+        r.now_s = rt.now
+        if not T.robot_attached and T.num == 0 and r.owner is None:
+            r.attach(0)                  # V+: task 0 has the robot attached when it starts
+            T.robot_attached = True
+        return r
+
+    def drive(gen: Generator) -> Generator:
+        """Run a RobotDevice motion generator, telling it the time at each resumption."""
+        r = rt.robot
+        r.now_s = rt.now
+        for w in gen:
+            yield w
+            r.now_s = rt.now
+
+    def robot(T: Task, kind: str, *args: Any) -> Generator:
+        r = robot_of(T)
+        n = T.num
+        if kind in ("MOVE", "MOVES"):
+            return drive(r.move(n, args[0], straight=(kind == "MOVES")))
+        if kind in ("APPRO", "APPROS"):
+            return drive(r.appro(n, args[0], float(args[1]), straight=(kind == "APPROS")))
+        if kind in ("DEPART", "DEPARTS"):
+            return drive(r.depart(n, float(args[0]), straight=(kind == "DEPARTS")))
+        if kind == "DELAY":
+            return drive(r.delay(n, float(args[0])))
+        return drive(r.break_())
+
+    def brake(T: Task) -> None:
+        if rt.robot is not None:
+            rt.robot.brake(rt.now)
+
+    def speed(T: Task, v: float, mode: str | None) -> None:
+        r = robot_of(T)
+        if mode == "MONITOR":
+            r.monitor_speed = float(v)
+        else:
+            r.speed(T.num, float(v), always=(mode == "ALWAYS"))
+
+    def accel(T: Task, vals: tuple) -> None:
+        ctl = getattr(robot_of(T), "controller", None)
+        if ctl is not None and vals:
+            ctl.accel_pct = float(vals[0])
+
+    def tool(T: Task, t: Any) -> None:
+        robot_of(T).set_tool(T.num, loc_check(t))
+
+    def switch(T: Task, names: list[str], on: bool) -> None:
+        for n in names:
+            if n not in rt.switches:
+                raise VPlusError(E.ILLEGAL_VALUE, f"*Illegal value* (no switch {n})")
+            rt.switches[n] = on
+            if n == "DRY.RUN" and rt.robot is not None:
+                rt.robot.dry_run = on
+
+    def decompose(a: dict, first: int, v: Any, dbl: bool) -> None:
+        vals = L.decompose(v)
+        for i, x in enumerate(vals):
+            a[first + i] = float(x) if dbl else f32(x)
+
+    def timer_set(n: float, v: float) -> None:
+        rt.timers[int(n)] = rt.now - float(v)
+
+    # -- functions --------------------------------------------------------------------------------------
+    def timer(n: float = 0.0) -> float:
+        k = int(n)
+        if k == -3:
+            return rt.now - rt.t0
+        if k < 0:
+            return rt.now - rt.t0
+        return rt.now - rt.timers.get(k, rt.t0)
+
+    def iostat(T: Task, lun: float, mode: float = 0.0) -> float:
+        return float(T.iostat.get(int(lun), 0))
+
+    def error_fn(T: Task, src: float = -1.0, sel: float = 0.0) -> float:
+        if int(src) < 0:
+            return float(T.last_error)
+        other = rt.tasks.get(int(src))
+        return float(other.last_error if other else 0)
+
+    def task_fn(T: Task, sel: float | None = None, n: float | None = None) -> float:
+        if not sel:
+            return float(T.num)
+        other = rt.tasks.get(int(n if n is not None else T.num))
+        if other is None:
+            return 0.0
+        return {"running": 4.0, "paused": 2.0}.get(other.state, 0.0)
+
+    def live_robot():
+        r = rt.robot
+        if r is None:
+            raise no_robot()
+        r.now_s = rt.now
+        return r
+
+    def inrange(T: Task, loc: Any) -> float:
+        return float(live_robot().inrange(loc))
+
+    def here(T: Task) -> Any:
+        return live_robot().here()
+
+    def here_pp(T: Task) -> Any:
+        return live_robot().here_ppoint()
+
+    def speed_fn(T: Task, sel: float = 0.0) -> float:
+        ctl = getattr(live_robot(), "controller", None)
+        if ctl is None:
+            return 100.0
+        return float(ctl.monitor_speed_pct if int(sel) == 0 else ctl.always_speed_pct)
+
+    def last(get) -> float:
+        try:
+            a = get()
+        except KeyError:
+            return -1.0
+        return float(max(a)) if a else -1.0
+
+    def defined(get) -> float:
+        try:
+            get()
+        except (KeyError, VPlusError):
+            return 0.0
+        return -1.0
+
+    def defarr(get) -> float:
+        try:
+            return -1.0 if get() is not None else 0.0
+        except KeyError:
+            return 0.0
+
+    def loc_check(v: Any) -> Any:
+        if not isinstance(v, L.Transform):
+            raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* (not a transformation)")
+        return v
+
+    def pp_check(v: Any) -> Any:
+        if not isinstance(v, L.PrecisionPoint):
+            raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* (not a precision point)")
+        return v
+
+    def compose(a: Any, b: Any) -> Any:
+        return L.compose(loc_check(a), loc_check(b))
+
+    def shift(t: Any, dx: float = 0.0, dy: float = 0.0, dz: float = 0.0) -> Any:
+        return L.shift(loc_check(t), dx, dy, dz)
+
+    def trans(*v: Any) -> Any:
+        vals = [0.0 if x is None else float(x) for x in v]
+        return L.trans(*vals)
+
+    def fmax(*v: float) -> float:
+        return float(max(v))
+
+    def fmin(*v: float) -> float:
+        return float(min(v))
+
+    def fn_int(x: float) -> float:
+        return float(int(x))
+
+    fn = {
+        "$MID": _mid, "POS": _pos, "ASC": _asc, "$CHR": _chr, "VAL": _val, "$ERROR": lambda c: E.text(c),
+        "INT": fn_int, "ABS": abs, "SQRT": math.sqrt, "SQR": lambda x: x * x,
+        "SIN": _deg(math.sin), "COS": _deg(math.cos), "TAN": _deg(math.tan),
+        "ATAN2": lambda y, x: math.degrees(math.atan2(y, x)), "ASIN": lambda x: math.degrees(math.asin(x)),
+        "ACOS": lambda x: math.degrees(math.acos(x)), "MAX": fmax, "MIN": fmin, "TIMER": timer,
+        "SIG": _sig(rt), "IOSTAT": iostat, "TASK": task_fn, "ERROR": error_fn, "INRANGE": inrange,
+        "TRANS": trans, "INVERSE": lambda t: L.inverse(loc_check(t)), "HERE": here, "#HERE": here_pp,
+        "#PPOINT": lambda *j: L.ppoint(*[0.0 if x is None else float(x) for x in j]),
+        "DX": lambda t: loc_check(t).x, "DY": lambda t: loc_check(t).y, "DZ": lambda t: loc_check(t).z,
+        "DISTANCE": lambda a, b: L.distance(loc_check(a), loc_check(b)), "SHIFT": shift,
+        "RX": L.rx, "RY": L.ry, "RZ": L.rz,
+        "SIGN": lambda x: float((x > 0) - (x < 0)), "FRACT": lambda x: x - int(x), "RANDOM": lambda: random.random(),
+        "$TRUNCATE": lambda s: s, "$LEFT": lambda s, n: s[:int(n)], "$RIGHT": lambda s, n: s[-int(n):] if n else "",
+        "$TOUPPER": str.upper, "$TOLOWER": str.lower, "SPEED": speed_fn,
+        "SWITCH": lambda *a: -1.0 if rt.switches.get("DRY.RUN") else 0.0, "BITS": lambda *a: 0.0,
+        "$TIME": lambda *a: "", "NORM": lambda t: t, "$DEFAULT": lambda *a: "",
+    }
+
+    from aioadept.vplus import iodev
+
+    return {
+        "_G": G, "_FB": _FB, "_static": static, "_arg": arg, "_argarr": argarr, "_arr": _arr, "_ix": _ix,
+        "_str": _str, "_pp": pp_check, "_loc": loc_check, "_dbl": _dbl, "_real": _real, "_f32": f32,
+        "_byval": _byval, "_MISSING": (_MISSING_C, "?"), "_call": call, "_progname": progname, "_tick": tick,
+        "_halt": halt, "_stop": stop, "_pause": pause, "_type": type_, "_prompt": prompt, "_signal": signal,
+        "_wait_event": wait_event, "_set_event": set_event, "_execute": execute, "_abort": abort, "_kill": kill,
+        "_cycle_end": cycle_end, "_reacte": reacte, "_robot": robot, "_brake": brake, "_speed": speed,
+        "_accel": accel, "_tool": tool, "_decompose": decompose, "_switch": switch, "_timer_set": timer_set,
+        "_decode": _decode, "_encode": _encode, "_defined": defined, "_defarr": defarr, "_last": last,
+        "_fn": fn, "_compose": compose, "_fmod": math.fmod, "_err": err, "_Goto": _Goto, "_GOTO": _GOTO,
+        "_io_attach": iodev.attach(rt), "_io_detach": iodev.detach(rt), "_io_fclose": iodev.fclose(rt),
+        "_io_fopen": iodev.fopen(rt), "_io_read": iodev.read(rt), "_io_write": iodev.write(rt),
+    }
+
+
+_MISSING_C = _Missing()

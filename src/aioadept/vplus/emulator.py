@@ -1,0 +1,257 @@
+"""The public face of the V+ emulator: load ``.V2`` files, call programs, read variables, run tasks.
+
+For unit tests of V+ code, in virtual time (deterministic, as fast as the host runs)::
+
+    from aioadept.vplus import Emulator
+
+    emu = Emulator.load("vplus/rserver.V2", "vplus/rsskills.V2", "vplus/rsconfig.V2")
+    emu.call("rs.init")
+    r = emu.call("rs.itoa", -406, "")          # arguments: values; variables come back in r.args
+    assert r.args[1] == "-406"
+    assert emu.globals["rs.port"] == 1234
+
+For the TCP server (``aioadept sim --vplus``) the same emulator runs in real time: :meth:`Emulator.serve`.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from aioadept.vplus.errors import VPlusError
+from aioadept.vplus.loader import LoadProblem, Module, load_files, load_text
+from aioadept.vplus.parse import norm
+from aioadept.vplus.runtime import RealClock, Runtime, Task, VirtualClock, f32
+
+
+class LoadError(Exception):
+    """Raised by ``Emulator.load(..., strict=True)`` when a line did not load."""
+
+    def __init__(self, problems: list[LoadProblem]) -> None:
+        super().__init__("\n".join(map(str, problems)))
+        self.problems = problems
+
+
+@dataclass(frozen=True)
+class CallResult:
+    """What :meth:`Emulator.call` returns: the arguments' values after the call (by-reference results)."""
+
+    args: tuple
+    task: int
+    time_s: float
+
+
+class GlobalsView(Mapping):
+    """The global variables by V+ name: ``x``, ``$s``, ``#p``; an array (``a`` or ``a[]``) reads as a dict."""
+
+    def __init__(self, data: dict[str, Any]) -> None:
+        self._d = data
+
+    def _key(self, name: str) -> str:
+        arr = name.endswith("[]")
+        key = norm(name[:-2] if arr else name)
+        if arr or (key not in self._d and key + "[]" in self._d):
+            return key + "[]"
+        return key
+
+    def __getitem__(self, name: str) -> Any:
+        return self._d[self._key(name)]
+
+    def __setitem__(self, name: str, value: Any) -> None:
+        key = self._key(name)
+        if isinstance(value, (list, tuple)) and not key.startswith("#"):
+            value = dict(enumerate(_to_vplus(v) for v in value))
+            key = key if key.endswith("[]") else key + "[]"
+        elif isinstance(value, dict):
+            value = {k: _to_vplus(v) for k, v in value.items()}
+            key = key if key.endswith("[]") else key + "[]"
+        else:
+            value = _to_vplus(value)
+        self._d[key] = value
+
+    def __contains__(self, name: object) -> bool:
+        return isinstance(name, str) and self._key(name) in self._d
+
+    def __iter__(self):
+        return iter(self._d)
+
+    def __len__(self) -> int:
+        return len(self._d)
+
+
+def _to_vplus(v: Any) -> Any:
+    if isinstance(v, bool):
+        return -1.0 if v else 0.0
+    if isinstance(v, (int, float)):
+        return f32(float(v))
+    return v
+
+
+class Emulator:
+    """A loaded set of V+ modules with its global data, tasks and (by default) the simulated Viper."""
+
+    def __init__(self, module: Module, *, robot: Any = True, clock: Any = None, cycle_s: float = 0.016,
+                 console: Callable[[int, str], None] | None = None) -> None:
+        self.clock = clock or VirtualClock()
+        if robot is True:
+            robot = make_robot()
+        self.rt = Runtime(module, clock=self.clock, cycle_s=cycle_s, console=console, robot=robot or None)
+        ctl = getattr(self.rt.robot, "controller", None)
+        if ctl is not None:
+            self.rt.signals = ctl.signals      # SIGNAL 8 is the sim's air valve, seen by its state stream
+
+    # -- construction ---------------------------------------------------------------------------------------
+    @classmethod
+    def load(cls, *paths: str | Path, strict: bool = False, **options: Any) -> Emulator:
+        """Load ``.V2`` files. Lines that do not load are in :attr:`problems` (``strict``: raise instead)."""
+        module = load_files(list(paths))
+        emu = cls(module, **options)
+        if strict and emu.problems:
+            raise LoadError(emu.problems)
+        return emu
+
+    @classmethod
+    def from_source(cls, text: str, *, filename: str = "<source>", strict: bool = False, **options: Any) -> Emulator:
+        """Load V+ source text (one or more ``.PROGRAM`` sections)."""
+        module = load_text(text, filename, Module())
+        emu = cls(module, **options)
+        if strict and emu.problems:
+            raise LoadError(emu.problems)
+        return emu
+
+    # -- inspection ---------------------------------------------------------------------------------------
+    @property
+    def problems(self) -> list[LoadProblem]:
+        return self.rt.problems
+
+    @property
+    def globals(self) -> GlobalsView:
+        return GlobalsView(self.rt.globals)
+
+    @property
+    def console(self) -> list[str]:
+        """Console lines so far: TYPE output and task messages, ``"[task] text"``."""
+        return [f"[{t}] {s}" for t, s in self.rt.console_lines]
+
+    @property
+    def time_s(self) -> float:
+        return self.rt.now
+
+    @property
+    def robot(self) -> Any:
+        return self.rt.robot
+
+    @property
+    def controller(self) -> Any:
+        return getattr(self.rt.robot, "controller", None)
+
+    @property
+    def signals(self) -> dict[int, bool]:
+        return self.rt.signals
+
+    def task(self, num: int) -> Task | None:
+        return self.rt.tasks.get(num)
+
+    @property
+    def programs(self) -> list[str]:
+        return sorted(set(self.rt.programs) | set(self.rt.not_executable))
+
+    # -- running in virtual time --------------------------------------------------------------------------
+    def call(self, program: str, *args: Any, task: int = 0, attach: bool = False,
+             max_time_s: float | None = None) -> CallResult:
+        """CALL ``program`` with ``args`` in ``task`` (virtual time); return the arguments after the call.
+
+        A Python number or string is passed as a variable the program may change (read it back in
+        ``result.args``); a list or dict is passed as an array. Other tasks run meanwhile. Raises
+        :class:`VPlusError` if the program stops with an error, ``TimeoutError`` after ``max_time_s`` of virtual
+        time. ``attach``: the task has the robot attached (as after ``ATTACH ()``; task 0 always has).
+        """
+        if not self.clock.virtual:
+            raise RuntimeError("Emulator.call runs in virtual time; use serve() in real time")
+        boxes: list[Any] = []
+        for a in args:
+            if isinstance(a, dict):
+                boxes.append({k: _to_vplus(v) for k, v in a.items()})
+            elif isinstance(a, (list, tuple)):
+                boxes.append({i: _to_vplus(v) for i, v in enumerate(a)})
+            else:
+                boxes.append(([_to_vplus(a)], 0))
+        name = norm(program)
+        T = self.rt.start_task(task, name, tuple(boxes))
+        if attach and self.rt.robot is not None:
+            self.rt.robot.attach(task)
+            T.robot_attached = True
+        deadline = None if max_time_s is None else self.rt.now + max_time_s
+        self.rt.run_virtual(lambda: T.state != "running", max_time_s=deadline)
+        if T.state == "running":
+            self.rt.abort(task)
+            raise TimeoutError(f"{program} still running after {max_time_s} s of virtual time")
+        if T.state == "error":
+            assert T.error is not None
+            raise T.error
+        out = tuple(b if isinstance(b, dict) else b[0][0] for b in boxes)
+        return CallResult(out, task, self.rt.now)
+
+    def execute(self, task: int, program: str, *args: Any, cycles: int = 1) -> Task:
+        """EXECUTE ``program`` in ``task`` (it runs when time runs: :meth:`run`, :meth:`call`, :meth:`serve`)."""
+        return self.rt.start_task(task, norm(program), tuple(([_to_vplus(a)], 0) for a in args), cycles=cycles)
+
+    def run(self, seconds: float | None = None, *, until: Callable[[], bool] | None = None) -> None:
+        """Run the tasks in virtual time for ``seconds`` (or until ``until()`` or no task is active)."""
+        end = None if seconds is None else self.rt.now + seconds
+        self.rt.run_virtual(until, max_time_s=end)
+        if end is not None and self.rt.now < end:
+            self.clock.now = end
+
+    def abort(self, task: int) -> None:
+        self.rt.abort(task)
+
+    def proceed(self, task: int) -> None:
+        """PROCEED a task stopped by PAUSE."""
+        T = self.rt.tasks.get(task)
+        if T is not None and T.paused:
+            T.paused = False
+            T.wake = self.rt.now
+
+    def feed_input(self, *lines: str) -> None:
+        """Terminal input for PROMPT."""
+        self.rt.input.extend(lines)
+
+    # -- running in real time -------------------------------------------------------------------------------
+    async def serve(self, stop: asyncio.Event) -> None:
+        """Run the tasks on the asyncio loop, in real time, until ``stop`` is set (needs a :class:`RealClock`)."""
+        rt = self.rt
+        wake = asyncio.Event()
+        rt.on_wake = wake.set
+        try:
+            while not stop.is_set():
+                if rt.ready_tasks():
+                    rt.run_round()
+                    await asyncio.sleep(0)
+                    continue
+                w = rt.next_wake()
+                timeout = None if w is None else max(0.0, w - rt.now)
+                wake.clear()
+                waiters = [asyncio.ensure_future(wake.wait()), asyncio.ensure_future(stop.wait())]
+                try:
+                    await asyncio.wait(waiters, timeout=timeout, return_when=asyncio.FIRST_COMPLETED)
+                finally:
+                    for f in waiters:
+                        f.cancel()
+        finally:
+            rt.on_wake = None
+
+
+def make_robot(controller: Any = None) -> Any:
+    """The emulator's robot: a :class:`aioadept.vplus.robot.RobotDevice` on a sim Controller."""
+    from aioadept.sim.controller import Controller
+    from aioadept.vplus.robot import RobotDevice
+
+    return RobotDevice(controller if controller is not None else Controller())
+
+
+__all__ = ["CallResult", "Emulator", "GlobalsView", "LoadError", "RealClock", "VirtualClock", "VPlusError",
+           "make_robot"]

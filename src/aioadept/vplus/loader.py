@@ -1,0 +1,217 @@
+"""Reading ``.V2`` module files: programs (``.PROGRAM name(args)`` ... ``.END``) and data sections.
+
+A file is a sequence of sections. Programs are parsed line by line with :mod:`aioadept.vplus.parse`; a line
+that cannot be parsed is recorded as a :class:`LoadProblem` (file, line, offending word) and marks its program
+not executable, as the controller does when it loads a program with a bad step, while everything else loads.
+
+Data sections, as controller-saved files carry them (one value per line, ``name value...``):
+
+- ``.LOCATIONS``: ``name x y z yaw pitch roll`` (a transformation) or 12 numbers (the 3x4 matrix, rows of the
+  rotation then the position, as V+ ``TRANSB`` orders them); ``#name j1 ... jn`` is a precision point;
+- ``.PRECISION POINTS``: ``#name j1 ... jn`` (the ``#`` may be omitted);
+- ``.REALS`` and ``.DOUBLES``: ``name value``; ``.STRINGS``: ``$name "text"``.
+
+Array elements are written ``name[i]`` in all of them. Form feeds (ASCII 12) and SUB (ASCII 26), which Adept
+DeskTop writes between programs, are ignored.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from aioadept.vplus.parse import VSyntaxError, norm, parse_statement
+
+
+@dataclass(frozen=True, slots=True)
+class LoadProblem:
+    """A line that did not load: ``file:line: message (word)``."""
+
+    file: str
+    line: int
+    message: str
+    word: str
+    program: str | None
+
+    def __str__(self) -> str:
+        where = f" in {self.program}" if self.program else ""
+        return f"{self.file}:{self.line}: {self.message}{where} [{self.word}]"
+
+
+@dataclass(slots=True)
+class Param:
+    name: str          # normalised, with $/# prefix
+    is_array: bool
+
+
+@dataclass(slots=True)
+class Program:
+    """One ``.PROGRAM``: its parameters and parsed steps ``(line number, statement)``."""
+
+    name: str
+    params: list[Param]
+    file: str
+    line: int
+    steps: list[tuple[int, Any]] = field(default_factory=list)
+    source: dict[int, str] = field(default_factory=dict)
+    problems: list[LoadProblem] = field(default_factory=list)
+
+    @property
+    def executable(self) -> bool:
+        return not self.problems
+
+
+@dataclass(slots=True)
+class Module:
+    """What a set of files defines: programs by name, data values by variable name (see :meth:`data`)."""
+
+    programs: dict[str, Program] = field(default_factory=dict)
+    data: list[tuple[str, str, Any, Any]] = field(default_factory=list)   # (kind, name, index, value)
+    problems: list[LoadProblem] = field(default_factory=list)
+    files: list[str] = field(default_factory=list)
+
+
+_PROG_RE = re.compile(r"\.PROGRAM\s+([A-Za-z][A-Za-z0-9._]*)\s*(?:\((.*)\))?\s*(?:;.*)?\Z", re.IGNORECASE)
+_SECTIONS = {".LOCATIONS": "LOC", ".PRECISIONPOINTS": "PPOINT", ".PRECISION POINTS": "PPOINT", ".REALS": "REAL",
+             ".DOUBLES": "DOUBLE", ".STRINGS": "STRING"}
+
+
+def strip_comment(line: str) -> str:
+    """The line without its ``;`` comment (a ``;`` inside a string constant does not start one)."""
+    if ";" not in line:
+        return line
+    in_str = False
+    for i, ch in enumerate(line):
+        if ch == '"':
+            in_str = not in_str
+        elif ch == ";" and not in_str:
+            return line[:i]
+    return line
+
+
+def _params(text: str | None, file: str, line: int, problems: list[LoadProblem]) -> list[Param]:
+    out: list[Param] = []
+    for raw in (text or "").split(","):
+        raw = raw.strip()
+        if not raw:
+            continue
+        m = re.fullmatch(r"([$#]?[A-Za-z][A-Za-z0-9._]*)\s*(\[\s*\])?", raw)
+        if not m:
+            problems.append(LoadProblem(file, line, "bad parameter", raw, None))
+            continue
+        out.append(Param(norm(m.group(1)), bool(m.group(2))))
+    return out
+
+
+def load_files(paths: list[str | Path], module: Module | None = None) -> Module:
+    """Read the files into ``module`` (a new one by default); later definitions replace earlier ones."""
+    module = module or Module()
+    for path in paths:
+        path = Path(path)
+        text = path.read_bytes().decode("latin-1")
+        load_text(text, path.name, module)
+        module.files.append(str(path))
+    return module
+
+
+def load_text(text: str, filename: str, module: Module) -> Module:
+    cur: Program | None = None
+    section: str | None = None
+    for n, raw in enumerate(text.replace("\r\n", "\n").replace("\r", "\n").split("\n"), 1):
+        line = raw.replace("\x0c", "").replace("\x1a", "")
+        head = line.strip()
+        up = head.upper()
+        if cur is None and section is None:
+            if not head or head.startswith(";"):
+                continue
+            m = _PROG_RE.match(head)
+            if m:
+                probs: list[LoadProblem] = []
+                cur = Program(norm(m.group(1)), _params(m.group(2), filename, n, probs), filename, n)
+                for pr in probs:
+                    cur.problems.append(LoadProblem(pr.file, pr.line, pr.message, pr.word, cur.name))
+                continue
+            key = " ".join(up.split())
+            if key in _SECTIONS:
+                section = _SECTIONS[key]
+                continue
+            module.problems.append(LoadProblem(filename, n, "text outside .PROGRAM/.END", head.split()[0], None))
+            continue
+        if up == ".END":
+            if cur is not None:
+                _finish(cur, module)
+            cur, section = None, None
+            continue
+        if section is not None:
+            code = strip_comment(line).strip()
+            if code:
+                try:
+                    module.data.append(_data_line(section, code))
+                except (ValueError, VSyntaxError) as exc:
+                    module.problems.append(LoadProblem(filename, n, f"bad {section} value: {exc}",
+                                                       code.split()[0], None))
+            continue
+        assert cur is not None
+        if up.startswith(".PROGRAM"):
+            module.problems.append(LoadProblem(filename, n, ".PROGRAM before .END", head.split()[0], cur.name))
+            _finish(cur, module)
+            m = _PROG_RE.match(head)
+            cur = Program(norm(m.group(1)), _params(m.group(2), filename, n, []), filename, n) if m else None
+            continue
+        code = strip_comment(line).strip()
+        if not code:
+            continue
+        cur.source[n] = code
+        try:
+            cur.steps.append((n, parse_statement(code)))
+        except VSyntaxError as exc:
+            cur.problems.append(LoadProblem(filename, n, exc.message, exc.word, cur.name))
+    if cur is not None:
+        module.problems.append(LoadProblem(filename, cur.line, "program not closed by .END", cur.name, cur.name))
+        _finish(cur, module)
+    if section is not None:
+        module.problems.append(LoadProblem(filename, n, "data section not closed by .END", section, None))
+    return module
+
+
+def _finish(prog: Program, module: Module) -> None:
+    module.programs[prog.name] = prog
+    module.problems.extend(prog.problems)
+
+
+_DATA_NAME = re.compile(r"([$#]?[A-Za-z][A-Za-z0-9._]*)(?:\[([0-9,\s]+)\])?")
+
+
+def _data_line(section: str, code: str) -> tuple[str, str, Any, Any]:
+    m = _DATA_NAME.match(code)
+    if not m:
+        raise ValueError("expected a name")
+    name = norm(m.group(1))
+    index = None
+    if m.group(2):
+        parts = [int(p) for p in m.group(2).split(",")]
+        index = parts[0] if len(parts) == 1 else tuple(parts)
+    rest = code[m.end():].strip()
+    if section == "STRING":
+        s = re.fullmatch(r'"([^"]*)"', rest)
+        if not s:
+            raise ValueError("expected a quoted string")
+        if not name.startswith("$"):
+            name = "$" + name
+        return ("STRING", name, index, s.group(1))
+    nums = [float(v) for v in rest.replace(",", " ").split()]
+    if section in ("REAL", "DOUBLE"):
+        if len(nums) != 1:
+            raise ValueError("expected one number")
+        return (section, name, index, nums[0])
+    if section == "PPOINT" or name.startswith("#"):
+        if not name.startswith("#"):
+            name = "#" + name
+        if not nums:
+            raise ValueError("expected joint values")
+        return ("PPOINT", name, index, tuple(nums))
+    if len(nums) not in (6, 12):
+        raise ValueError(f"expected 6 or 12 numbers, got {len(nums)}")
+    return ("LOC", name, index, tuple(nums))

@@ -1,0 +1,392 @@
+"""The V+ run time: global data, tasks and their scheduler, the clock, built-in functions and instructions.
+
+Programs compiled by :mod:`aioadept.vplus.compiler` run here as generators, one stack of them per task.
+
+**Time slicing.** V+ divides time into slices and runs the tasks by priority in each slice; a task gives up the
+rest of its slice when it waits (WAIT, READ, a motion). The emulator runs the ready tasks round-robin in task-number
+order. A task runs until it blocks or has run ``BUDGET`` loop iterations (counted at loop back-edges and GOTOs),
+which ends its slice. In virtual time each ended slice costs ``slice_s`` (1 ms) of virtual time, so a busy-wait
+loop on ``TIMER`` terminates; when every task is blocked the clock jumps to the earliest wake-up. In real time the
+clock is the wall clock and the scheduler returns to asyncio between rounds so that sockets are served.
+
+``WAIT`` without a condition waits for the next trajectory cycle (``cycle_s``); ``WAIT cond`` re-tests the
+condition once per cycle. A task blocked in ``READ`` mode 0 is also woken as soon as data arrives.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import struct
+from array import array
+from collections import deque
+from collections.abc import Callable, Generator, Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+from aioadept.vplus import errors as E
+from aioadept.vplus.compiler import compile_program
+from aioadept.vplus.errors import VPlusError, VPlusHalt
+from aioadept.vplus.loader import LoadProblem, Module
+
+MAX_STRING = 128
+PREEMPT = -1.0
+
+_FB = array("f", [0.0])
+
+
+def f32(x: float) -> float:
+    """A value as a V+ REAL stores it (IEEE single precision)."""
+    _FB[0] = x
+    return _FB[0]
+
+
+class _Goto(BaseException):
+    def __init__(self, pc: int) -> None:
+        self.pc = pc
+
+
+_GOTO = [_Goto(i) for i in range(4096)]
+
+
+class _Missing(dict):
+    """The container of an omitted argument: reading it is an undefined value."""
+
+
+# -- clocks ------------------------------------------------------------------------------------------------------
+
+class VirtualClock:
+    """Deterministic time: it moves only when the scheduler advances it (tests run as fast as possible)."""
+
+    virtual = True
+
+    def __init__(self, start_s: float = 0.0) -> None:
+        self.now = start_s
+
+
+class RealClock:
+    """Wall-clock seconds since the emulator started (``time.monotonic``)."""
+
+    virtual = False
+
+    def __init__(self) -> None:
+        import time
+
+        self._mono = time.monotonic
+        self._t0 = time.monotonic()
+
+    @property
+    def now(self) -> float:
+        return self._mono() - self._t0
+
+
+# -- tasks -------------------------------------------------------------------------------------------------------
+
+@dataclass(eq=False)
+class Task:
+    """One V+ program task: its generator stack, wake-up time and per-task state (LUNs, REACTE, errors)."""
+
+    num: int
+    program: str
+    gen: Generator | None = None
+    wake: float = 0.0
+    io_wait: bool = False
+    state: str = "idle"                # idle, running, done, error, aborted, paused
+    error: VPlusError | None = None
+    reacte: str | None = None
+    in_reaction: bool = False
+    last_error: int = 0
+    luns: dict[int, Any] = field(default_factory=dict)
+    iostat: dict[int, int] = field(default_factory=dict)
+    statics: dict[str, dict] = field(default_factory=dict)
+    robot_attached: bool = False
+    cycles: int = 1
+    stop_cycle: bool = False
+    paused: bool = False
+    events: int = 0
+
+
+class Runtime:
+    """Global data, compiled programs and tasks. Built by :class:`aioadept.vplus.Emulator`."""
+
+    def __init__(self, module: Module, *, clock: Any = None, cycle_s: float = 0.016, slice_s: float = 0.001,
+                 console: Callable[[int, str], None] | None = None, robot: Any = None) -> None:
+        self.module = module
+        self.clock = clock or VirtualClock()
+        self.cycle_s = cycle_s
+        self.slice_s = slice_s
+        self.globals: dict[str, Any] = {}
+        self.programs: dict[str, Callable] = {}
+        self.problems: list[LoadProblem] = list(module.problems)
+        self.not_executable: dict[str, list[LoadProblem]] = {}
+        self.tasks: dict[int, Task] = {}
+        self.signals: dict[int, bool] = {}
+        self.timers: dict[int, float] = {}
+        self.t0 = self.clock.now
+        self.console_lines: list[tuple[int, str]] = []
+        self._console = console
+        self.robot = robot
+        self.switches: dict[str, bool] = {"DRY.RUN": False}
+        self.devices: Any = None           # the TCP device layer (aioadept.vplus.tcp.Network)
+        self.input: deque[str] = deque()
+        self.on_wake: Callable[[], None] | None = None   # real time: poke the scheduler loop
+        self._load_data()
+        self.compile_all()
+
+    # -- loading ------------------------------------------------------------------------------------------
+    def _load_data(self) -> None:
+        from aioadept.vplus import locations as loc
+
+        for kind, name, index, value in self.module.data:
+            if kind == "LOC":
+                v = loc.trans(*value) if len(value) == 6 else loc.Transform.from_matrix(
+                    [list(value[0:3]) + [value[9]], list(value[3:6]) + [value[10]], list(value[6:9]) + [value[11]],
+                     [0, 0, 0, 1]])
+            elif kind == "PPOINT":
+                v = loc.ppoint(*value)
+            elif kind == "REAL":
+                v = f32(value)
+            else:
+                v = value
+            if index is None:
+                self.globals[name] = v
+            else:
+                self.globals.setdefault(name + "[]", {})[index] = v
+
+    def doubles(self) -> set[str]:
+        out = {name for kind, name, _, _ in self.module.data if kind == "DOUBLE"}
+        for prog in self.module.programs.values():
+            for _, st in prog.steps:
+                if st[0] == "GLOBAL":
+                    out |= {n for n, t, _ in st[1] if t == "DOUBLE"}
+        return out
+
+    def compile_all(self) -> None:
+        ns_base = self._namespace()
+        doubles = self.doubles()
+        for name, prog in self.module.programs.items():
+            if not prog.executable:
+                self.not_executable[name] = prog.problems
+                continue
+            src, consts, problems = compile_program(prog, doubles)
+            if problems:
+                self.not_executable[name] = problems
+                self.problems.extend(problems)
+                continue
+            ns = dict(ns_base)
+            ns["_K"] = consts
+            code = compile(src, f"<V+ {prog.name} ({prog.file})>", "exec")
+            exec(code, ns)
+            self.programs[name] = ns["_prog"]
+
+    # -- console ------------------------------------------------------------------------------------------
+    def console(self, task: int, text: str) -> None:
+        self.console_lines.append((task, text))
+        if self._console is not None:
+            self._console(task, text)
+
+    @property
+    def now(self) -> float:
+        return self.clock.now
+
+    # -- tasks --------------------------------------------------------------------------------------------
+    def start_task(self, num: int, program: str, args: tuple = (), *, cycles: int = 1) -> Task:
+        """EXECUTE: start ``program`` in task ``num`` (which must be idle)."""
+        old = self.tasks.get(num)
+        if old is not None and old.state in ("running", "paused"):
+            raise VPlusError(E.ILLEGAL_OPERATION, f"*Task {num} already active*")
+        if old is not None:
+            self._release(old)
+        t = Task(num, program, wake=self.now, cycles=cycles)
+        t.state = "running"
+        t.gen = self._task_main(t, program, args)
+        self.tasks[num] = t
+        self._poke()
+        return t
+
+    def _task_main(self, T: Task, program: str, args: tuple) -> Generator:
+        n = 0
+        while True:
+            yield from self.call(T, program, args)
+            n += 1
+            if T.stop_cycle or (T.cycles >= 0 and n >= T.cycles):
+                return
+
+    def call(self, T: Task, name: str, args: tuple) -> Generator:
+        f = self.programs.get(name)
+        if f is None:
+            if name in self.not_executable:
+                p = self.not_executable[name][0]
+                raise VPlusError(E.NOT_EXECUTABLE, f"*Program not executable* {name}: {p}")
+            raise VPlusError(E.UNDEFINED_PROGRAM, f"*Undefined program* {name}")
+        return f(T, args)
+
+    def _release(self, T: Task) -> None:
+        from aioadept.vplus import iodev
+
+        iodev.release_task(self, T)
+        if T.robot_attached and self.robot is not None:
+            T.robot_attached = False
+            self.robot.detach(T.num)
+
+    def _end_task(self, T: Task, state: str, err: VPlusError | None = None) -> None:
+        T.state = state
+        T.error = err
+        if T.gen is not None:
+            gen, T.gen = T.gen, None
+            try:
+                gen.close()
+            except BaseException:  # noqa: BLE001 - a program's cleanup must not take the scheduler down
+                pass
+        self._release(T)
+
+    def abort(self, num: int) -> None:
+        """ABORT: stop the program of task ``num`` (its robot motion is braked)."""
+        T = self.tasks.get(num)
+        if T is None or T.state not in ("running", "paused"):
+            return
+        if T.robot_attached and self.robot is not None:
+            self.robot.brake(self.now)      # V+ ABORT stops the task's robot motion
+        self.console(num, f"(task {num}) aborted")
+        self._end_task(T, "aborted")
+
+    def kill(self, num: int) -> None:
+        self.abort(num)
+        self.tasks.pop(num, None)
+
+    def ready_tasks(self) -> list[Task]:
+        now = self.now
+        return [t for t in sorted(self.tasks.values(), key=lambda t: t.num)
+                if t.state == "running" and t.wake <= now]
+
+    def next_wake(self) -> float | None:
+        ws = [t.wake for t in self.tasks.values() if t.state == "running"]
+        return min(ws) if ws else None
+
+    def active(self) -> bool:
+        return any(t.state == "running" for t in self.tasks.values())
+
+    def run_round(self) -> int:
+        """Resume every ready task once; return how many slices ended by preemption."""
+        preempted = 0
+        for T in self.ready_tasks():
+            if T.state != "running" or T.gen is None:
+                continue
+            T.io_wait = False
+            try:
+                w = T.gen.send(None)
+            except StopIteration:
+                T.gen = None
+                T.state = "done"
+                self._release(T)
+                continue
+            except VPlusHalt as h:
+                T.gen = None
+                self._end_task(T, "done")
+                if str(h):
+                    self.console(T.num, str(h))
+                continue
+            except VPlusError as e:
+                T.gen = None
+                self.console(T.num, f"{e} (task {T.num})")
+                self._end_task(T, "error", e)
+                continue
+            except Exception as e:  # noqa: BLE001 - an emulator bug stops the task, not the emulator
+                T.gen = None
+                err = VPlusError(E.INTERNAL, f"*Emulator internal error* {type(e).__name__}: {e}")
+                self.console(T.num, f"{err} (task {T.num})")
+                self._end_task(T, "error", err)
+                continue
+            if w < 0:
+                preempted += 1
+                T.wake = self.now
+            else:
+                T.wake = w
+        return preempted
+
+    def run_virtual(self, until: Callable[[], bool] | None = None, *, max_time_s: float | None = None,
+                    max_rounds: int = 50_000_000) -> None:
+        """Run in virtual time until ``until()`` is true, no task is active, or ``max_time_s`` is reached."""
+        clock = self.clock
+        assert clock.virtual, "run_virtual needs a VirtualClock"
+        for _ in range(max_rounds):
+            if until is not None and until():
+                return
+            if not self.active():
+                return
+            if self.ready_tasks():
+                pre = self.run_round()
+                if pre:
+                    clock.now += self.slice_s * pre
+            else:
+                w = self.next_wake()
+                if w is None:
+                    return
+                if max_time_s is not None and w > max_time_s:
+                    clock.now = max(clock.now, max_time_s)
+                    return
+                clock.now = max(clock.now, w)
+            if max_time_s is not None and clock.now >= max_time_s:
+                return
+        raise RuntimeError("run_virtual: round limit reached")
+
+    def _poke(self) -> None:
+        if self.on_wake is not None:
+            self.on_wake()
+
+    def wake_io(self, task: Task | None) -> None:
+        """I/O arrived: a task blocked in READ mode 0 runs at once."""
+        if task is not None and task.state == "running" and task.io_wait:
+            task.wake = min(task.wake, self.now)
+            self._poke()
+
+    def next_tick(self) -> float:
+        c = self.cycle_s
+        return (math.floor(self.now / c) + 1) * c
+
+    # -- errors -------------------------------------------------------------------------------------------
+    def on_error(self, T: Task, exc: BaseException, program: str, line: int) -> Generator:
+        """An exception in a program step: make it a V+ error; REACTE handles it or it stops the task."""
+        if isinstance(exc, VPlusError) and exc.fatal:
+            raise exc
+        err = self.as_vplus(exc)
+        if err.program is None:
+            err.program, err.line = program, line
+        err.task = T.num
+        T.last_error = err.code
+        if T.reacte is not None and not T.in_reaction:
+            handler, T.reacte = T.reacte, None      # V+: REACTE is disarmed when it triggers
+            T.in_reaction = True
+            try:
+                yield from self.call(T, handler, ())
+            finally:
+                T.in_reaction = False
+            return
+        err.fatal = True
+        raise err
+
+    @staticmethod
+    def as_vplus(exc: BaseException) -> VPlusError:
+        if isinstance(exc, VPlusError):
+            return exc
+        from aioadept.errors import RobotError
+
+        if isinstance(exc, RobotError):
+            return VPlusError(int(exc.code), f"{E.text(int(exc.code))} {exc.message or ''}".strip())
+        if isinstance(exc, KeyError):
+            key = exc.args[0] if exc.args else "?"
+            what = key if isinstance(key, str) else f"array element [{key}]"
+            return VPlusError(E.UNDEFINED_VALUE, f"*Undefined value* {what}")
+        if isinstance(exc, ZeroDivisionError):
+            return VPlusError(E.DIVISION_BY_ZERO)
+        if isinstance(exc, (TypeError, AttributeError)):
+            return VPlusError(E.ILLEGAL_OPERATION, f"*Illegal operation* ({exc})")
+        if isinstance(exc, (ValueError, OverflowError, IndexError)):
+            return VPlusError(E.ILLEGAL_VALUE, f"*Illegal value* ({exc})")
+        return VPlusError(E.INTERNAL, f"*Emulator internal error* {type(exc).__name__}: {exc}")
+
+    # -- the namespace of generated code ------------------------------------------------------------------
+    def _namespace(self) -> dict[str, Any]:
+        from aioadept.vplus import builtins as B
+
+        return B.namespace(self)
