@@ -267,7 +267,7 @@ class JumpLimit:
     where ``distance_mm`` is how far the tool point moves (straight line, seed pose to target) and
     ``rotation_deg`` the angle of the rotation between the two tool orientations. With the defaults a 2 mm step
     may move no joint by more than 4 deg, a 1 deg turn of the tool no joint by more than 5 deg, while a deliberate
-    move across the workspace (hundreds of mm) is never limited. Away from the singularities the Viper's joints
+    move across the workspace is not limited in practice (300 mm allow 302 deg). Away from the singularities the Viper's joints
     move well under 1 deg per mm and about 1 deg per degree of tool rotation, so only the large joint motions that
     a small command should never cause are refused: a wrist flip, J4/J6 unwinding a revolution because the nearer
     equivalent is past a limit, J1 swinging round because the wrist passes near its axis.
