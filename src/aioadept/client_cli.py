@@ -7,17 +7,19 @@
 Each argument is ``SKILL[:ARG,ARG,...]`` (the wire syntax without the ID); integers stay integers (``set_speed:20``).
 By default each skill is its own command, awaited before the next is sent (``cmdexec``); ``--joined`` writes them
 all at once (``cmdexec_joined``). Exit status: 0 all done, 1 an ``error``/``aborted`` ack, 2 bad usage,
-3 connection failure or ack timeout.
+3 connection failure or ack timeout, 130 interrupted (Ctrl-C: ``stop`` was sent at once, no further command, and the
+stop was acked; 3 if it was not). A second Ctrl-C exits at once.
 """
 
 from __future__ import annotations
 
 import argparse
-import asyncio
+import contextlib
 import json
 import sys
-from collections.abc import Sequence
+from collections.abc import AsyncIterator, Sequence
 
+from aioadept.apps.interrupt import Interrupter, run_interruptible
 from aioadept.client import ExecResult, MessageResult, RobotClient
 from aioadept.commands import Skill
 from aioadept.errors import AckTimeout, CommandAborted, CommandError, ConnectError, ConnectionLost
@@ -60,7 +62,7 @@ def _print(results: Sequence[MessageResult], as_json: bool) -> None:
         print(json.dumps(_record(r)) if as_json else _line(r), flush=True)
 
 
-async def _run(args: argparse.Namespace, commands: list[Skill]) -> int:
+async def _run(args: argparse.Namespace, commands: list[Skill], intr: Interrupter | None = None) -> int:
     try:
         robot = RobotClient(args.host, args.port, connect_timeout_s=args.connect_timeout,
                             ack_timeout_s=args.timeout)
@@ -68,7 +70,7 @@ async def _run(args: argparse.Namespace, commands: list[Skill]) -> int:
         print(f"aioadept send: {exc}", file=sys.stderr)
         return 2
     try:
-        async with robot:
+        async with robot, (intr.guard(robot) if intr is not None else _nothing()):
             try:
                 res: ExecResult = await (robot.cmdexec_joined(*commands) if args.joined
                                          else robot.cmdexec(*commands))
@@ -83,6 +85,11 @@ async def _run(args: argparse.Namespace, commands: list[Skill]) -> int:
     except (ConnectError, ConnectionLost, AckTimeout) as exc:
         print(f"aioadept send: {exc}", file=sys.stderr)
         return 3
+
+
+@contextlib.asynccontextmanager
+async def _nothing() -> AsyncIterator[None]:
+    yield None
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -100,7 +107,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ValueError as exc:
         print(f"aioadept send: {exc}", file=sys.stderr)
         return 2
-    return asyncio.run(_run(args, commands))
+
+    async def app(intr: Interrupter) -> int:
+        return await _run(args, commands, intr)
+
+    return run_interruptible(app, prog="aioadept send", stop_timeout_s=args.timeout, stop_failed_code=3)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -151,10 +151,19 @@ class RunOutcome:
     run_dir: Path
     result: FocusResult | None
     error: str | None
+    save_error: OSError | None = None
+    """Files of the run folder that could not be written (:class:`aioadept.capture.RunSaveError`), if any."""
 
 
-async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams | None = None) -> RunOutcome:
-    """Connect to the robot server and the vision node of ``cfg``, run :func:`ufloop` once, record and save it."""
+async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams | None = None,
+                         interrupter: Any = None) -> RunOutcome:
+    """Connect to the robot server and the vision node of ``cfg``, run :func:`ufloop` once, record and save it.
+
+    ``interrupter`` (:class:`aioadept.apps.interrupt.Interrupter`) gets the robot connection, so Ctrl-C stops the
+    robot. Saving never hides the result: a run folder that cannot be written is reported in
+    ``RunOutcome.save_error`` (the result is still returned), and after a failed run it is logged while the run's
+    own error propagates.
+    """
     from aioadept import __version__
     from aioadept.bus import Communicator
     from aioadept.capture import Recorder
@@ -164,17 +173,22 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
     recorder = Recorder()
     result: FocusResult | None = None
     error: str | None = None
+    save_error: OSError | None = None
     started = _dt.datetime.now(_dt.timezone.utc).isoformat()
     try:
         async with RobotClient(cfg.robot.host, cfg.robot.port, connect_timeout_s=cfg.robot.connect_timeout_s,
                                ack_timeout_s=cfg.robot.ack_timeout_s, observers=[recorder]) as rc, \
                 Communicator(cfg.vision.request_endpoint, cfg.vision.response_endpoint,
-                             timeout_s=params.vision_timeout_s, observers=[recorder]) as comm:
+                             timeout_s=params.vision_timeout_s, observers=[recorder]) as comm, \
+                _guarded(interrupter, rc):
             result = await ufloop(rc, comm, params.delta_z_mm, params.approach_speed, max_steps=params.max_steps,
                                   vision_timeout_s=params.vision_timeout_s, retract_speed=params.retract_speed,
                                   recorder=recorder)
-    except Exception as exc:
-        error = f"{type(exc).__name__}: {exc}"
+    except BaseException as exc:
+        if isinstance(exc, (asyncio.CancelledError, KeyboardInterrupt)):
+            error = "interrupted"
+        else:
+            error = f"{type(exc).__name__}: {exc}"
         raise
     finally:
         meta = {
@@ -183,9 +197,46 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
             "max_steps": params.max_steps, "cell": cfg.to_dict(), "error": error,
             "result": None if result is None else focus_result_dict(result),
         }
+        save_error = save_run(recorder, run_dir, meta)
+        if save_error is not None and result is None:
+            log.error("%s", save_error)  # the run's own error propagates; this one must not vanish either
+    return RunOutcome(run_dir, result, error, save_error)
+
+
+def save_run(recorder: Any, run_dir: Path, meta: dict[str, Any]) -> OSError | None:
+    """Write ``focus.json`` (the result, first: it matters most) and the recorder's tables; never raises OSError.
+
+    Returns a :class:`~aioadept.capture.RunSaveError` naming every file not written, or None.
+    """
+    from aioadept.capture import RunSaveError, write_atomic
+
+    err: RunSaveError | None = None
+    try:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        write_atomic(run_dir / "focus.json", json.dumps(meta["result"] or {"error": meta["error"]}, indent=2))
+        written: tuple[str, ...] = ("focus.json",)
+    except OSError as exc:
+        err = RunSaveError(run_dir, (), {"focus.json": exc.strerror or str(exc)})
+        written = ()
+    try:
         recorder.save(run_dir, metadata=meta)
-        (run_dir / "focus.json").write_text(json.dumps(meta["result"] or {"error": error}, indent=2))
-    return RunOutcome(run_dir, result, error)
+    except RunSaveError as exc:
+        err = exc if err is None else err.merged(exc)
+    except OSError as exc:  # not expected from Recorder.save, but a result must never be lost to it
+        more = RunSaveError(run_dir, (), {"run tables": exc.strerror or str(exc)})
+        err = more if err is None else err.merged(more)
+    if err is not None and written:
+        err = RunSaveError(run_dir, (*written, *err.written), err.not_written)
+    return err
+
+
+@contextlib.asynccontextmanager
+async def _guarded(interrupter: Any, robot: Any):  # noqa: ANN202
+    if interrupter is None:
+        yield robot
+    else:
+        async with interrupter.guard(robot):
+            yield robot
 
 
 def focus_result_dict(r: FocusResult) -> dict[str, Any]:

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import sys
 from pathlib import Path
+from typing import Any
 
 from aioadept.apps.cell import CellConfig
 from aioadept.apps.focus import FocusResult
@@ -61,6 +63,30 @@ def print_result(result: FocusResult, run_dir: Path) -> None:
     console.print(f"  x={p.x:.3f} y={p.y:.3f} z={p.z:.3f} mm  yaw={p.yaw:.3f} pitch={p.pitch:.3f} "
                   f"roll={p.roll:.3f} deg")
     console.print(f"run folder: {run_dir}")
+
+
+EXIT_NOT_SAVED = 4
+"""Exit code when the result was found and printed but files of the run folder (or its analysis) were not written."""
+
+
+def report_saving(outcome: Any, *, analyze: bool, prog: str) -> int:
+    """After a successful run whose result is printed: say on stderr what was not written, and analyse the run.
+
+    Returns 0, or :data:`EXIT_NOT_SAVED` with one line naming the files that could not be written.
+    """
+    if outcome.save_error is not None:
+        print(f"{prog}: the result above was found but NOT fully saved: {outcome.save_error}", file=sys.stderr)
+        return EXIT_NOT_SAVED
+    if analyze:
+        from aioadept.analysis import analyze_runs
+
+        try:
+            analyze_runs([outcome.run_dir], outcome.run_dir)
+        except (OSError, ValueError) as exc:
+            print(f"{prog}: the run is saved in {outcome.run_dir}, but its analysis was not written: {exc}",
+                  file=sys.stderr)
+            return EXIT_NOT_SAVED
+    return 0
 
 
 def configure_logging(verbose: bool) -> None:

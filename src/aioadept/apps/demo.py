@@ -3,18 +3,20 @@
 It starts the simulated controller (``aioadept sim``) and the vision node with its virtual camera
 (``aioadept vision``), runs the focus application in this process (the MasterControlNode), prints the found pose and
 the sharpness curve, and writes a run folder: the timing log, the plots and a summary. Every node is stopped at the
-end, also on Ctrl-C or when a node fails.
+end, also when a node fails. Ctrl-C stops the robot first, then the nodes; a second Ctrl-C kills them and exits at
+once (:mod:`aioadept.apps.interrupt`).
 """
 
 from __future__ import annotations
 
 import argparse
-import asyncio
 import logging
 import sys
+from pathlib import Path
 
-from aioadept.apps.cell import CellConfig, run_focus_once, running_cell, new_run_dir
-from aioadept.apps.cli_common import add_cell_options, apply_overrides, configure_logging, print_result
+from aioadept.apps.cell import CellConfig, RunOutcome, new_run_dir, run_focus_once, running_cell
+from aioadept.apps.cli_common import add_cell_options, apply_overrides, configure_logging, print_result, report_saving
+from aioadept.apps.interrupt import Interrupter, run_interruptible
 
 log = logging.getLogger("aioadept.demo")
 
@@ -49,32 +51,49 @@ def demo_config(args: argparse.Namespace) -> CellConfig:
     return apply_overrides(cfg, args)
 
 
-async def run_demo(cfg: CellConfig) -> int:
-    run_dir = new_run_dir(cfg)
-    log.info("run folder %s", run_dir)
+async def run_demo(cfg: CellConfig, run_dir: Path, *, interrupter: Interrupter | None = None) -> RunOutcome:
+    """Start the cell's nodes, run focus calibration once against them, stop the nodes; return the outcome."""
     async with running_cell(cfg, run_dir / "logs") as cell:
         log.info("robot server %s:%s, vision %s / %s", cell.cfg.robot.host, cell.cfg.robot.port,
                  cell.cfg.vision.request_endpoint, cell.cfg.vision.response_endpoint)
-        outcome = await cell.run(run_focus_once(cell.cfg, run_dir))
-    assert outcome.result is not None
-    print_result(outcome.result, run_dir)
-    if cfg.run.analyze:
-        from aioadept.analysis import analyze_runs
-
-        analyze_runs([run_dir], run_dir)
-        log.info("plots and summary.json written to %s", run_dir)
-    return 0
+        outcome: RunOutcome = await cell.run(run_focus_once(cell.cfg, run_dir, interrupter=interrupter))
+    return outcome
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Exit codes as ``aioadept focus``: 0, 1 failed (or a stop failed), 2 bad options / no run folder, 4 result
+    printed but not fully saved, 130 interrupted with the robot stopped (and every node stopped)."""
     args = build_parser().parse_args(argv)
     configure_logging(args.verbose)
-    cfg = demo_config(args)
     try:
-        return asyncio.run(run_demo(cfg))
-    except KeyboardInterrupt:
-        print("interrupted: all nodes stopped", file=sys.stderr)
-        return 130
+        cfg = demo_config(args)
+    except (OSError, ValueError) as exc:
+        print(f"aioadept demo: {exc}", file=sys.stderr)
+        return 2
+    try:
+        run_dir = new_run_dir(cfg)
+    except OSError as exc:
+        print(f"aioadept demo: cannot create a run folder in {cfg.run.out_dir!r}: {exc}; nothing was started",
+              file=sys.stderr)
+        return 2
+    log.info("run folder %s", run_dir)
+    outcomes: list[RunOutcome] = []
+
+    async def app(intr: Interrupter) -> int:
+        outcomes.append(await run_demo(cfg, run_dir, interrupter=intr))
+        return 0
+
+    try:
+        code = run_interruptible(app, prog="aioadept demo")
     except Exception as exc:  # one clear line for the user; details are in the run folder's logs
         log.error("demo failed: %s: %s", type(exc).__name__, exc)
         return 1
+    if code or not outcomes:
+        return code or 1
+    outcome = outcomes[0]
+    assert outcome.result is not None
+    print_result(outcome.result, run_dir)
+    code = report_saving(outcome, analyze=cfg.run.analyze, prog="aioadept demo")
+    if code == 0 and cfg.run.analyze:
+        log.info("plots and summary.json written to %s", run_dir)
+    return code

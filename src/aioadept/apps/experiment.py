@@ -1,13 +1,13 @@
 """``aioadept experiment``: the paper's experiment — focus runs over a grid of approach speed x delta_z, N each.
 
 The nodes are started once; each run gets its own run folder; the analysis then pools all runs (the paper pooled
-32 runs over speed {5, 25, 50, 75, 100} x delta_z {1.5, 2.0, 2.5}).
+32 runs over speed {5, 25, 50, 75, 100} x delta_z {1.5, 2.0, 2.5}). Ctrl-C stops the robot and ends the whole
+experiment (no further run starts); a second Ctrl-C kills the nodes and exits at once.
 """
 
 from __future__ import annotations
 
 import argparse
-import asyncio
 import dataclasses
 import itertools
 import logging
@@ -16,6 +16,7 @@ from pathlib import Path
 
 from aioadept.apps.cell import CellConfig, new_run_dir, run_focus_once, running_cell
 from aioadept.apps.cli_common import configure_logging
+from aioadept.apps.interrupt import Interrupter, run_interruptible
 
 log = logging.getLogger("aioadept.experiment")
 
@@ -36,7 +37,9 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-async def run_experiment(cfg: CellConfig, grid: list[tuple[int, float]], runs: int, out: Path) -> list[Path]:
+async def run_experiment(cfg: CellConfig, grid: list[tuple[int, float]], runs: int, out: Path, *,
+                         interrupter: Interrupter | None = None) -> list[Path]:
+    """Run the grid against nodes started once; returns the run folders that are complete (result and files)."""
     from rich.progress import Progress
 
     done: list[Path] = []
@@ -49,11 +52,18 @@ async def run_experiment(cfg: CellConfig, grid: list[tuple[int, float]], runs: i
                 cell.cfg.run.name = f"s{speed}-dz{dz:g}-{k}"
                 run_dir = new_run_dir(cell.cfg, out)
                 try:
-                    await cell.run(run_focus_once(cell.cfg, run_dir, params=params))
-                    done.append(run_dir)
+                    outcome = await cell.run(run_focus_once(cell.cfg, run_dir, params=params,
+                                                            interrupter=interrupter))
                 except Exception as exc:  # keep going: a failed run is data too, and is logged in its folder
                     failures += 1
                     log.error("run %s failed: %s", run_dir.name, exc)
+                else:
+                    if outcome.save_error is None:
+                        done.append(run_dir)
+                    else:  # the result is in the log line; the folder is incomplete, so the analysis leaves it out
+                        failures += 1
+                        log.error("run %s found the inspection pose %s but %s", run_dir.name,
+                                  outcome.result.inspection_pose if outcome.result else None, outcome.save_error)
                 progress.advance(task)
     log.info("%d runs done, %d failed", len(done), failures)
     return done
@@ -71,18 +81,37 @@ def main(argv: list[str] | None = None) -> int:
     import datetime as _dt
 
     out = Path(args.out or Path(cfg.run.out_dir) / f"experiment-{_dt.datetime.now():%Y%m%d-%H%M%S}")
-    out.mkdir(parents=True, exist_ok=True)
-    grid = [(int(s), dz) for s in _floats(args.speeds) for dz in _floats(args.delta_z)]
     try:
-        run_dirs = asyncio.run(run_experiment(cfg, grid, args.runs, out))
-    except KeyboardInterrupt:
-        return 130
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        print(f"aioadept experiment: cannot create {str(out)!r}: {exc}; nothing was started", file=sys.stderr)
+        return 2
+    grid = [(int(s), dz) for s in _floats(args.speeds) for dz in _floats(args.delta_z)]
+    results: list[list[Path]] = []
+
+    async def app(intr: Interrupter) -> int:
+        results.append(await run_experiment(cfg, grid, args.runs, out, interrupter=intr))
+        return 0
+
+    try:
+        code = run_interruptible(app, prog="aioadept experiment")
+    except Exception as exc:
+        log.error("experiment failed: %s: %s", type(exc).__name__, exc)
+        return 1
+    if code:
+        return code
+    run_dirs = results[0]
     if not run_dirs:
         log.error("no run succeeded")
         return 1
     from aioadept.analysis import analyze_runs
 
-    analyze_runs(run_dirs, out / "analysis")
+    try:
+        analyze_runs(run_dirs, out / "analysis")
+    except (OSError, ValueError) as exc:
+        print(f"aioadept experiment: the runs are saved in {out}, but the analysis was not written: {exc}",
+              file=sys.stderr)
+        return 4
     log.info("analysis of %d runs written to %s", len(run_dirs), out / "analysis")
     return 0
 

@@ -7,21 +7,25 @@ falls: the previous position, one step back, is the inspection-start pose (the p
 The three coroutines of the paper are kept, with the same names and roles (``init_move``, ``move_tool_z``,
 ``ufloop``), and take a :class:`~aioadept.client.RobotClient` and a :class:`~aioadept.bus.Communicator`. What a
 real cell needs on top: a step limit, a clear error when the vision node sees no object, a retract to the approach
-pose on any failure, and the found pose returned with the sharpness series. :func:`stop_listener` shows the paper's
-"composition of coroutines": a second coroutine that stops the robot when a stop event arrives on the bus.
+pose after a failure the loop detected itself, and the found pose returned with the sharpness series.
+:func:`stop_listener` shows the paper's "composition of coroutines": a second coroutine that stops the robot when a
+stop event arrives on the bus.
+
+Safety rule of this module: after a cancellation (Ctrl-C), a stop, a lost connection or an ack timeout, no motion
+is started, not even the retract: whoever cancelled or stopped wants the arm to stay where it is, and after a lost
+connection or timeout nobody knows where it is.
 """
 
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 from aioadept.commands import MoveJoints, MoveRelJoints, MoveRelTool, MoveTo, MoveToolZ, SetSpeed
-from aioadept.errors import AdeptError, CommandAborted, VisionError
+from aioadept.errors import AdeptError, CommandAborted, CommandError, VisionError
 from aioadept.geometry import Pose
 
 log = logging.getLogger(__name__)
@@ -51,6 +55,17 @@ class FocusError(AdeptError):
 
 class FocusStopped(FocusError):
     """A stop event ended the run; the robot was stopped where it was and is NOT moved back."""
+
+    def __init__(self, message: str, *, stop_id: str = "") -> None:
+        super().__init__(message)
+        self.stop_id = stop_id
+
+
+class StopFailed(AdeptError):
+    """A stop was asked for (a stop event) but the robot did not confirm it: the robot may still be moving.
+
+    Not a :class:`FocusStopped`: the run did not end in a known state. ``__cause__`` is the stop's own error.
+    """
 
     def __init__(self, message: str, *, stop_id: str = "") -> None:
         super().__init__(message)
@@ -133,10 +148,11 @@ async def ufloop(rc: Robot, comm: Vision, delta_z: float, appr_speed: int, *, ma
     """Approach the focus plane with vision feedback (the paper's ``ufloop``) and return what it found.
 
     Like the paper: measure, stop when sharpness falls, step back one ``delta_z``. Unlike it: at most ``max_steps``
-    steps, and on any failure (vision error or timeout, robot error, step limit, cancellation) the robot is sent back
-    to the approach pose before the error propagates, except after a stop (an ``aborted`` ack, or ``stop_event``
-    set): then the robot stays where the stop left it. Raises :class:`FocusError` (step limit, vision failure) or
-    the robot's own error.
+    steps, and after a failure the loop detects with the robot at rest (vision error or timeout, step limit, an
+    ``error`` ack) the robot is sent back to the approach pose before the error propagates. After a cancellation, a
+    stop (an ``aborted`` ack, or ``stop_event`` set), a lost connection, an ack timeout or any other error no motion
+    is started: the robot stays where it is. Raises :class:`FocusError` (step limit, vision failure) or the robot's
+    own error.
     """
     if do_init_move:
         approach = (await init_move(rc)).pose
@@ -169,9 +185,12 @@ async def ufloop(rc: Robot, comm: Vision, delta_z: float, appr_speed: int, *, ma
             recorder.mark("retract", len(sharpness))
         pose = (await move_tool_z(rc, appr_speed, -delta_z)).pose  # back to the sharpest position
     except BaseException as exc:
-        # A stop (aborted commands) means someone wants the robot to stay where it is: no retract motion then.
-        stopped = isinstance(exc, CommandAborted) or (stop_event is not None and stop_event.is_set())
-        retracted = False if stopped else await _retract(rc, approach, retract_speed)
+        # Retract only after a failure of our own making with the robot at rest and under our control. A stop
+        # (aborted commands), a cancellation (Ctrl-C) or a stop event means someone wants the robot to stay where it
+        # is; after a lost connection or a timeout its state is unknown: no new motion then.
+        stopped = stop_event is not None and stop_event.is_set()
+        ours = isinstance(exc, (FocusError, CommandError)) and not isinstance(exc, CommandAborted)
+        retracted = await _retract(rc, approach, retract_speed) if ours and not stopped else False
         if isinstance(exc, FocusError):
             raise FocusError(str(exc), sharpness=sharpness, retracted=retracted) from exc.__cause__
         raise
@@ -182,12 +201,13 @@ async def ufloop(rc: Robot, comm: Vision, delta_z: float, appr_speed: int, *, ma
 
 
 async def _retract(rc: Robot, approach: Pose | None, speed: int) -> bool:
-    """Best effort: move back to the approach pose. Shielded, so a cancelled run still retracts."""
+    """Best effort: move back to the approach pose. Not shielded: a cancellation (Ctrl-C) ends the retract too, and
+    the stop that comes with it halts the motion already written."""
     if approach is None:
         return False
     try:
-        await asyncio.shield(rc.cmdexec(SetSpeed(speed), MoveTo(approach)))
-    except (AdeptError, OSError, asyncio.CancelledError) as exc:  # the original error matters more
+        await rc.cmdexec(SetSpeed(speed), MoveTo(approach))
+    except (AdeptError, OSError) as exc:  # the original error matters more
         log.warning("retract to the approach pose failed: %s", exc)
         return False
     return True
@@ -222,8 +242,9 @@ async def ufloop_with_stop(rc: Any, comm: Vision, subscriber: Any, params: Focus
     """:func:`ufloop` and :func:`stop_listener` as two concurrent coroutines (the paper's composition).
 
     If the loop finishes first, the listener is cancelled and the result returned. If a stop event arrives first,
-    the robot is stopped (queued motions aborted), the loop is cancelled without a retract, and
-    :class:`FocusStopped` is raised.
+    the loop is cancelled at once (it writes no further command), the robot is stopped (queued motions aborted), and
+    :class:`FocusStopped` is raised once the stop is acked. If the stop fails (error ack, lost connection,
+    timeout), :class:`StopFailed` is raised instead: the robot may still be moving, which is not a stop.
     """
     stopped = asyncio.Event()
     stop_ids: list[str] = []
@@ -231,6 +252,9 @@ async def ufloop_with_stop(rc: Any, comm: Vision, subscriber: Any, params: Focus
     def on_stop(eid: str) -> None:
         stop_ids.append(eid)
         stopped.set()
+        # Cancelled here, before the listener writes the stop: the loop cannot write a motion after it (a message
+        # that arrives after a stop runs normally).
+        loop_task.cancel()
 
     loop_task = asyncio.create_task(ufloop(rc, comm, params.delta_z_mm, params.approach_speed,
                                            max_steps=params.max_steps, vision_timeout_s=params.vision_timeout_s,
@@ -239,11 +263,14 @@ async def ufloop_with_stop(rc: Any, comm: Vision, subscriber: Any, params: Focus
     try:
         await asyncio.wait({loop_task, listener}, return_when=asyncio.FIRST_COMPLETED)
         if stopped.is_set():
-            with contextlib.suppress(AdeptError):
-                await listener  # let the stop itself complete before ending the loop
-            loop_task.cancel()
+            sid = stop_ids[0]
+            try:
+                await listener  # the stop itself must be acked before the run counts as stopped
+            except (AdeptError, OSError) as exc:
+                raise StopFailed(f"stop event {sid!r}: the stop failed ({type(exc).__name__}: {exc}); "
+                                 "the robot may still be moving", stop_id=sid) from exc
             await asyncio.gather(loop_task, return_exceptions=True)
-            raise FocusStopped(f"stopped by stop event {stop_ids[0]!r}", stop_id=stop_ids[0])
+            raise FocusStopped(f"stopped by stop event {sid!r}", stop_id=sid)
         if listener.done():
             listener.result()  # the listener failed: raise its error
         return await loop_task

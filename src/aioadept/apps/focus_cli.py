@@ -6,12 +6,12 @@ The same command works with the simulator or a real controller: nothing is start
 from __future__ import annotations
 
 import argparse
-import asyncio
 import logging
 import sys
 
-from aioadept.apps.cell import CellConfig, new_run_dir, run_focus_once
-from aioadept.apps.cli_common import add_cell_options, apply_overrides, configure_logging, print_result
+from aioadept.apps.cell import CellConfig, RunOutcome, new_run_dir, run_focus_once
+from aioadept.apps.cli_common import add_cell_options, apply_overrides, configure_logging, print_result, report_saving
+from aioadept.apps.interrupt import Interrupter, run_interruptible
 
 log = logging.getLogger("aioadept.focus")
 
@@ -27,9 +27,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Exit codes: 0 found and saved; 1 the run failed (or a stop failed); 2 bad options or no run folder (nothing
+    was moved); 4 found and printed, but files of the run folder were not written; 130 interrupted, robot stopped."""
     args = build_parser().parse_args(argv)
     configure_logging(args.verbose)
-    cfg = CellConfig.from_toml(args.config) if args.config else CellConfig()
+    try:
+        cfg = CellConfig.from_toml(args.config) if args.config else CellConfig()
+    except (OSError, ValueError) as exc:
+        print(f"aioadept focus: {exc}", file=sys.stderr)
+        return 2
     cfg.robot.start_sim = False
     cfg.vision.start = False
     if args.robot:
@@ -40,21 +46,29 @@ def main(argv: list[str] | None = None) -> int:
     if args.response_endpoint:
         cfg.vision.response_endpoint = args.response_endpoint
     cfg = apply_overrides(cfg, args)
-    run_dir = new_run_dir(cfg)
     try:
-        outcome = asyncio.run(run_focus_once(cfg, run_dir))
-    except KeyboardInterrupt:
-        return 130
+        run_dir = new_run_dir(cfg)
+    except OSError as exc:  # before any connection: the robot is not moved for a run that could not be kept
+        print(f"aioadept focus: cannot create a run folder in {cfg.run.out_dir!r}: {exc}; nothing was started",
+              file=sys.stderr)
+        return 2
+    outcomes: list[RunOutcome] = []
+
+    async def app(intr: Interrupter) -> int:
+        outcomes.append(await run_focus_once(cfg, run_dir, interrupter=intr))
+        return 0
+
+    try:
+        code = run_interruptible(app, prog="aioadept focus")
     except Exception as exc:
         log.error("focus failed: %s: %s (log in %s)", type(exc).__name__, exc, run_dir)
         return 1
+    if code or not outcomes:
+        return code or 1
+    outcome = outcomes[0]
     assert outcome.result is not None
     print_result(outcome.result, run_dir)
-    if cfg.run.analyze:
-        from aioadept.analysis import analyze_runs
-
-        analyze_runs([run_dir], run_dir)
-    return 0
+    return report_saving(outcome, analyze=cfg.run.analyze, prog="aioadept focus")
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -2,7 +2,9 @@
 
 Each node (``aioadept sim``, ``aioadept vision``) is a separate process, as on a real cell. A :class:`NodeProcess`
 starts one with the same Python, waits for its ``READY key=value ...`` line (never a sleep), keeps its output in a
-log file, notices when it dies, and on exit stops it with SIGINT, then SIGTERM, then SIGKILL.
+log file, notices when it dies, and on exit stops it with SIGINT, then SIGTERM, then SIGKILL. Each node runs in
+its own session (a terminal's Ctrl-C reaches only the app, which stops the robot first); :func:`kill_all_now` is the
+app's way out on a second Ctrl-C.
 """
 
 from __future__ import annotations
@@ -21,6 +23,23 @@ from aioadept.errors import AdeptError
 
 class NodeError(AdeptError):
     """A node process failed to start or died while the cell was running."""
+
+
+# Process groups of the nodes started and not yet reaped, for kill_all_now() (a signal handler's exit path).
+_LIVE_GROUPS: set[int] = set()
+
+
+def kill_all_now() -> int:
+    """SIGKILL the process group of every node still running; returns how many. Does not wait (exiting now)."""
+    n = 0
+    for pgid in list(_LIVE_GROUPS):
+        try:
+            os.killpg(pgid, signal.SIGKILL)
+            n += 1
+        except (ProcessLookupError, PermissionError):
+            pass
+        _LIVE_GROUPS.discard(pgid)
+    return n
 
 
 def parse_ready(line: str) -> dict[str, str]:
@@ -74,6 +93,7 @@ class NodeProcess:
         self.proc = await asyncio.create_subprocess_exec(
             *self.argv, stdin=asyncio.subprocess.DEVNULL, stdout=asyncio.subprocess.PIPE,
             stderr=asyncio.subprocess.PIPE, env=env, start_new_session=True)
+        _LIVE_GROUPS.add(self.proc.pid)  # its own session: the pid is the group id
         assert self.proc.stdout is not None and self.proc.stderr is not None
         self._pumps.append(asyncio.create_task(self._pump(self.proc.stderr, "err")))
         try:
@@ -136,6 +156,8 @@ class NodeProcess:
                     break
                 except TimeoutError:
                     continue
+        if proc is not None:
+            _LIVE_GROUPS.discard(proc.pid)
         for task in self._pumps:
             task.cancel()
         for task in self._pumps:
