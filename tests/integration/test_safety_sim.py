@@ -167,7 +167,8 @@ async def test_a_stop_is_acted_on_while_three_clients_flood_cheap_commands():
         try:
             for i in range(5):
                 target = 150 if i % 2 == 0 else -150
-                mover.send(b"0000e%03d:move_joints:%d,-90,180,0,90,0" % (2 * i, target), b"0000e%03d:break" % (2 * i + 1))
+                mover.send(b"0000e%03d:move_joints:%d,-90,180,0,90,0" % (2 * i, target),
+                           b"0000e%03d:break" % (2 * i + 1))
                 await mover.ack("0000e%03d" % (2 * i), timeout=20)
                 t0 = loop.time()
                 stopper.send(b"0000s%03d:stop" % i)

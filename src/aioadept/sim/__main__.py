@@ -40,7 +40,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--allow", action="append", default=[], metavar="ADDR",
                    help="accept clients only from this IP address (repeatable; default: any)")
     p.add_argument("--line-timeout", type=float, default=10.0, dest="line_timeout",
-                   help="close a connection whose line stays incomplete this many seconds (0: never; default 10)")
+                   help="close a connection that is in the middle of a line and receives nothing for this many "
+                        "seconds, or whose line is still incomplete 6 times as long after its first byte (0: never)")
+    p.add_argument("--stop-window", type=float, default=1.0, dest="stop_window",
+                   help="over --max-clients, a new connection may still send stop for this many seconds (the "
+                        "reserved stop path); anything else is refused")
     p.add_argument("--state-curve-secret", metavar="FILE", dest="state_curve_secret",
                    help="CURVE: the sim's secret certificate (NAME.key_secret); encrypts the state stream and admits "
                         "only subscribers that know the sim's public key (docs/security.md)")
@@ -57,6 +61,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--joints", type=_six, default=None, metavar="J1,...,J6",
                    help="initial joint angles in degrees (default: home 0,-90,180,0,90,0)")
     p.add_argument("--log-level", default="WARNING", dest="log_level", help="logging level on stderr")
+    v = p.add_argument_group("V+ emulator (instead of the Python skill table; docs/vplus.md)")
+    v.add_argument("--vplus", nargs="+", metavar="FILE", default=None,
+                   help="run these V+ .V2 modules in the emulator; the Python skill table is not used")
+    v.add_argument("--run", metavar="PROGRAM", default=None, help="with --vplus: the program to run in task 0")
+    v.add_argument("--map-port", action="append", default=[], metavar="VPORT=HOSTPORT", dest="map_port",
+                   help="with --vplus: FOPEN /LOCAL_PORT VPORT binds HOSTPORT instead (0: ephemeral; repeatable)")
+    v.add_argument("--vplus-cycle", type=float, default=0.016, dest="vplus_cycle", metavar="SECONDS",
+                   help="with --vplus: the trajectory cycle that WAIT waits for")
     return p
 
 
@@ -83,7 +95,7 @@ def options_from_args(args: argparse.Namespace) -> SimOptions:
     return SimOptions(host=args.host, port=args.port, time_scale=args.time_scale, instant=args.instant,
                       monitor_speed_pct=args.monitor_speed, max_speed_pct=args.max_speed,
                       max_clients=args.max_clients, allow=tuple(args.allow),
-                      line_timeout_s=args.line_timeout or None,
+                      line_timeout_s=args.line_timeout or None, stop_window_s=args.stop_window,
                       state_endpoint=state, state_rate_hz=args.state_rate_hz, faults=Faults.parse(args.fault),
                       state_curve=_state_curve(args),
                       tool=Pose(*args.tool) if args.tool else NULL, **extra)
@@ -108,6 +120,22 @@ async def run(options: SimOptions) -> int:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    if args.vplus is None and (args.run or args.map_port):
+        parser.error("--run and --map-port need --vplus")
+    if args.vplus is not None:
+        if not args.run:
+            parser.error("--vplus needs --run PROGRAM")
+        from aioadept.vplus import cli as vplus_cli
+
+        try:
+            vplus_cli.parse_port_map(args.map_port)
+        except ValueError as exc:
+            parser.error(str(exc))
+        try:
+            return asyncio.run(vplus_cli.run(args))
+        except OSError as exc:
+            print(f"aioadept sim: {exc}", file=sys.stderr)
+            return 1
     logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
                         format="%(asctime)s %(name)s %(levelname)s %(message)s")
     try:

@@ -209,13 +209,14 @@ class Controller:
 
     # -- skill table ---------------------------------------------------------------------------------------
     def register(self, name: str, func: SkillFunc, *, nargs: int | Sequence[int] | None = 0,
-                 immediate: bool = False) -> None:
-        """Add or replace a skill. ``nargs``: an accepted argument count, several, or None for any."""
+                 immediate: bool = False, readonly: bool = False) -> None:
+        """Add or replace a skill. ``nargs``: an accepted argument count, several, or None for any.
+        ``immediate``/``readonly``: see :class:`SkillSpec`."""
         from aioadept.protocol import check_skill_name
 
         check_skill_name(name)
         counts = None if nargs is None else ((nargs,) if isinstance(nargs, int) else tuple(nargs))
-        self.skills[name] = SkillSpec(name, func, counts, immediate)
+        self.skills[name] = SkillSpec(name, func, counts, immediate, readonly)
 
     # -- connections ---------------------------------------------------------------------------------------
     def connect(self, conn: ConnId) -> None:
