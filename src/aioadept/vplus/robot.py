@@ -46,15 +46,16 @@ from collections.abc import Generator, Hashable
 from dataclasses import dataclass
 from typing import Union
 
-from aioadept.errors import AdeptError, RobotError
+from aioadept.errors import RobotError
 from aioadept.geometry import Pose, inverse_transform
 from aioadept.protocol import ErrorCode
 from aioadept.sim import kinematics as kin
 from aioadept.sim.controller import Controller
+from aioadept.vplus import errors as E
 from aioadept.vplus.locations import PrecisionPoint, Transform, compose, trans
 
 __all__ = [
-    "INRANGE_BITS", "VPLUS_ERRORS", "Location", "MotionGen", "RobotDevice", "VPlusError", "VPlusRobotError",
+    "INRANGE_BITS", "VPLUS_ERRORS", "Location", "MotionGen", "RobotDevice", "RobotErrorSpec", "VPlusRobotError",
     "inrange_reasons",
 ]
 
@@ -64,7 +65,7 @@ MotionGen = Generator[float, None, None]
 
 
 @dataclass(frozen=True, slots=True)
-class VPlusError:
+class RobotErrorSpec:
     """One V+ error: its code (negative) and the message text the controller prints (``*...*``)."""
 
     code: int
@@ -73,30 +74,30 @@ class VPlusError:
     """True only where a V+ manual or controller output confirmed the number."""
 
 
-VPLUS_ERRORS: dict[str, VPlusError] = {
-    # Codes that mean what an ErrorCode means reuse its number, so that the emulated server and the Python sim
-    # answer the same code. None of these numbers could be confirmed against a controller or the manuals'
-    # error list (FACTS.md: "keep such codes in one table"); change them here, and only here, when one is.
-    "out_of_range": VPlusError(int(ErrorCode.OUT_OF_REACH), "*Location out of range*"),
-    "joint_limit": VPlusError(int(ErrorCode.JOINT_LIMIT), "*Joint limit stop*"),
-    "config": VPlusError(int(ErrorCode.OUT_OF_REACH), "*Cannot reach configuration*"),
-    "illegal_value": VPlusError(int(ErrorCode.ILLEGAL_VALUE), "*Illegal value*"),
-    "not_attached": VPlusError(-622, "*Robot not attached to this program*"),
-    "attached": VPlusError(-621, "*Robot already attached to program*"),
+VPLUS_ERRORS: dict[str, RobotErrorSpec] = {
+    # The robot's errors, keyed by what went wrong. Numbers come from the emulator's one code table
+    # (aioadept.vplus.errors), which reuses aioadept.protocol.ErrorCode where the meaning is the same, so that the
+    # emulated server and the Python sim answer the same code. None could be confirmed against a controller or
+    # the manuals' error list (FACTS.md); "attached" and "config" have no entry there yet and are ours.
+    "out_of_range": RobotErrorSpec(int(ErrorCode.OUT_OF_REACH), "*Location out of range*"),
+    "joint_limit": RobotErrorSpec(int(ErrorCode.JOINT_LIMIT), "*Joint limit*"),
+    "config": RobotErrorSpec(int(ErrorCode.OUT_OF_REACH), "*Cannot reach configuration*"),
+    "illegal_value": RobotErrorSpec(E.ILLEGAL_VALUE, "*Illegal value*"),
+    "not_attached": RobotErrorSpec(E.ROBOT_NOT_ATTACHED, "*Robot not attached to this program*"),
+    "attached": RobotErrorSpec(-602, "*Robot already attached to program*"),
 }
 
 
-class VPlusRobotError(AdeptError):
+class VPlusRobotError(E.VPlusError):
     """A V+ robot error in a program (location out of range, joint limit, robot not attached, ...).
 
-    ``code`` is the V+ error code (see :data:`VPLUS_ERRORS`), ``message`` the text. The interpreter turns it into
-    a V+ program error of the task that executed the instruction (``ERROR()``, ``$ERROR()``, REACTE).
+    ``code`` is the V+ error code (see :data:`VPLUS_ERRORS`), ``message`` the text. It is a
+    :class:`aioadept.vplus.errors.VPlusError`, so the interpreter treats it as any V+ program error of the task
+    that executed the instruction (``ERROR()``, ``$ERROR()``, REACTE).
     """
 
     def __init__(self, code: int, message: str) -> None:
-        super().__init__(f"{message} ({code})")
-        self.code = code
-        self.message = message
+        super().__init__(code, message)
 
     @classmethod
     def of(cls, key: str, detail: str | None = None) -> VPlusRobotError:
@@ -312,9 +313,11 @@ class RobotDevice:
         except RobotError as exc:  # pragma: no cover - wait_rest raises none today
             raise _translate(exc) from exc
 
-    def brake(self) -> float:
-        """V+ ``BRAKE`` (any task): decelerate to rest now and drop every planned motion, including a motion
-        instruction waiting for its turn. Returns the time the arm will be at rest."""
+    def brake(self, now_s: float | None = None) -> float:
+        """V+ ``BRAKE`` (any task): decelerate to rest now (at ``now_s`` if given) and drop every planned motion,
+        including a motion instruction waiting for its turn. Returns the time the arm will be at rest."""
+        if now_s is not None:
+            self.now_s = now_s
         self._brakes += 1
         return self.controller.trajectory.stop(self.now_s)
 

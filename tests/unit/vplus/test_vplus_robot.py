@@ -187,3 +187,13 @@ def test_delay_waits_for_rest_then_holds(robot):
     assert robot.now_s == pytest.approx(t_rest + 0.5)
     with pytest.raises(VPlusRobotError):
         run(robot, robot.delay(T, -1))
+
+
+def test_robot_errors_are_vplus_program_errors_and_brake_takes_the_time(robot):
+    from aioadept.vplus.errors import VPlusError
+
+    with pytest.raises(VPlusError) as err:
+        run(robot, robot.move(T, FAR))
+    assert err.value.code == VPLUS_ERRORS["out_of_range"].code and "out of range" in err.value.message
+    run(robot, robot.move(T, A))
+    assert robot.brake(0.05) >= 0.05 and robot.now_s == 0.05
