@@ -458,12 +458,15 @@ class SimServer:
 
     # -- acks ---------------------------------------------------------------------------------------------
     def _dispatch(self, out: list[Outgoing]) -> None:
-        if self.options.faults.silent:
-            return
+        silent = self.options.faults.silent
         delay = self.options.faults.ack_delay_s
         for o in out:
             conn = self._conns.get(o.conn)  # type: ignore[arg-type]
             if conn is None or conn.writer.is_closing():
+                continue
+            if silent:
+                if conn.idle is not None and not self.controller.pending(conn.id):
+                    conn.idle.set()
                 continue
             data = encode_ack(o.ack)
             if delay <= 0 and not conn.outbox:

@@ -77,6 +77,18 @@ def test_blended_motion_starts_as_the_previous_decelerates():
     assert traj.t_rest_s == pytest.approx(b.t_end_s)
 
 
+def test_ready_is_when_the_last_motion_begins_to_decelerate_or_a_stop_is_at_rest():
+    traj = Trajectory(HOME)
+    assert traj.ready_s() is None
+    a = traj.add(np.add(HOME, [100, 0, 0, 0, 0, 0]), 0.0, speed_pct=100)
+    assert traj.ready_s() == pytest.approx(a.t_end_s - a.ramp_s)
+    # Issued at ready_s, the next motion starts at once (the blend point): its ack can say "started".
+    b = traj.add(np.add(HOME, [150, 0, 0, 0, 0, 0]), traj.ready_s(), speed_pct=100)
+    assert b.t0_s == pytest.approx(a.t_end_s - a.ramp_s)
+    t_rest = traj.stop(b.t0_s + 0.05)
+    assert traj.ready_s() == pytest.approx(t_rest)
+
+
 def test_motion_after_rest_starts_when_issued():
     traj = Trajectory(HOME)
     a = traj.add(np.add(HOME, [10, 0, 0, 0, 0, 0]), 0.0, speed_pct=100)
