@@ -140,7 +140,7 @@ async def sim_and_vision(tmp_path: Path, *, focus_offset_mm: float = 200.0):
     async with running_node("sim", "--port", "0", "--state-endpoint", "tcp://127.0.0.1:0",
                             log_path=tmp_path / "sim.log") as sim, \
             running_node("vision", "--state-endpoint", sim.ready["state"], "--request-endpoint", "tcp://127.0.0.1:0",
-                         "--response-endpoint", "tcp://127.0.0.1:0", "--focus-offset-mm", str(focus_offset_mm),
+                         "--response-endpoint", "tcp://127.0.0.1:0", "--focus-offset-mm", str(focus_offset_mm), "--policy", "after",
                          log_path=tmp_path / "vision.log") as vision:
         watch = StateWatch(sim.ready["state"])
         try:
