@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: venv demo test bench proto clean toxiproxy
+.PHONY: venv demo test bench docs proto clean toxiproxy
 
 $(STAMP): pyproject.toml requirements.lock
 	$(PY) -m venv $(VENV)
@@ -31,10 +31,15 @@ test: $(STAMP) toxiproxy
 bench: $(STAMP)
 	for b in benchmarks/bench_*.py; do $(BIN)/python $$b || exit 1; done
 
+# The documentation site (mkdocs.yml) into site/: every warning is an error, links between pages are checked, and
+# nothing is fetched from the internet. Open site/index.html, or serve it with `.venv/bin/mkdocs serve`.
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet
+
 # Regenerate the Protobuf code committed under src/aioadept/bus/.
 proto: $(STAMP)
 	$(BIN)/pip install --quiet grpcio-tools==1.85.1
 	cd src/aioadept/bus && ../../../$(BIN)/python -m grpc_tools.protoc -I. --python_out=. --pyi_out=. epypes.proto aioadept.proto
 
 clean:
-	rm -rf $(VENV) build *.egg-info src/*.egg-info .pytest_cache
+	rm -rf $(VENV) build site *.egg-info src/*.egg-info .pytest_cache

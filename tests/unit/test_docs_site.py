@@ -1,0 +1,99 @@
+"""The documentation site builds from the repository, and no link in it or in the README is broken.
+
+`make docs` runs `mkdocs build --strict` (mkdocs.yml): every warning, including a link to a page or an anchor that
+does not exist, fails the build. These tests run the same build into a temporary folder, check that the strict
+link validation really fails on a broken link, and check the README's relative links, which MkDocs does not see.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+MKDOCS = [sys.executable, "-m", "mkdocs"]
+ENV = {**os.environ, "NO_MKDOCS_2_WARNING": "1"}
+# [text](target) and ![alt](target), not inside inline code; the target ends at whitespace or ')'.
+LINK = re.compile(r"!?\[[^\]]*\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)")
+
+
+def _build(config: Path, site: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([*MKDOCS, "build", "--strict", "--config-file", str(config), "--site-dir", str(site)],
+                          cwd=config.parent, env=ENV, capture_output=True, text=True, timeout=240)
+
+
+@pytest.mark.timeout(300)
+def test_the_site_builds_strictly_with_every_page_and_the_api_reference(tmp_path: Path) -> None:
+    res = _build(ROOT / "mkdocs.yml", tmp_path / "site")
+    assert res.returncode == 0, res.stderr[-4000:]
+    site = tmp_path / "site"
+    for page in ("index", "getting-started", "focus", "troubleshooting", "protocol", "vplus", "sim", "vision"):
+        assert (site / f"{page}.html").is_file(), page
+    # The API reference is generated from the docstrings: a class of each module is on its page.
+    for page, name in [("client", "RobotClient"), ("commands", "MoveToolZ"), ("errors", "CommandError"),
+                       ("protocol", "LineFramer"), ("sim", "SimServer"), ("bus", "Communicator"),
+                       ("vision", "VisionNode"), ("apps", "CellConfig"), ("testing", "ScriptedServer")]:
+        html = (site / "api" / f"{page}.html").read_text(encoding="utf-8")
+        assert f'id="aioadept.{page}' in html, page
+        assert name in html, (page, name)
+    # Nothing is fetched from the internet when a page is shown: no web fonts, no scripts or styles from a CDN.
+    for html_file in site.rglob("*.html"):
+        html = html_file.read_text(encoding="utf-8")
+        assert not re.search(r"<(script|link)[^>]+(src|href)=\"(https?:)?//", html), html_file
+        assert "fonts.googleapis" not in html, html_file
+
+
+@pytest.mark.timeout(120)
+def test_strict_validation_fails_on_a_link_to_a_missing_page_or_anchor(tmp_path: Path) -> None:
+    # The same validation rules as the real site, on a two-page site, so the check is known to bite.
+    import yaml
+
+    real = yaml.safe_load((ROOT / "mkdocs.yml").read_text(encoding="utf-8"))
+    docs = tmp_path / "docs"
+    docs.mkdir()
+    (docs / "index.md").write_text("# Home\n\nSee [the other page](other.md#there).\n", encoding="utf-8")
+    (docs / "other.md").write_text("# Other\n\n## There\n", encoding="utf-8")
+    config = tmp_path / "mkdocs.yml"
+    config.write_text(yaml.safe_dump({"site_name": "t", "validation": real["validation"],
+                                      "markdown_extensions": ["toc"]}), encoding="utf-8")
+    assert _build(config, tmp_path / "site").returncode == 0
+
+    (docs / "index.md").write_text("# Home\n\nSee [a page](missing.md).\n", encoding="utf-8")
+    res = _build(config, tmp_path / "site")
+    assert res.returncode != 0 and "missing.md" in res.stderr
+
+    (docs / "index.md").write_text("# Home\n\nSee [the other page](other.md#nowhere).\n", encoding="utf-8")
+    res = _build(config, tmp_path / "site")
+    assert res.returncode != 0 and "nowhere" in res.stderr
+
+
+def _relative_links(md: Path) -> list[str]:
+    text = re.sub(r"```.*?```", "", md.read_text(encoding="utf-8"), flags=re.S)   # code blocks are not links
+    text = re.sub(r"`[^`\n]*`", "", text)
+    return [t for t in LINK.findall(text) if not re.match(r"[a-z]+:", t) and not t.startswith("#")]
+
+
+@pytest.mark.parametrize("md", [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))],
+                         ids=lambda p: str(p.relative_to(ROOT)))
+def test_every_relative_link_points_to_a_file_that_exists(md: Path) -> None:
+    broken = [t for t in _relative_links(md) if not (md.parent / t.split("#")[0]).exists()]
+    assert not broken, f"{md.relative_to(ROOT)} links to missing files: {broken}"
+
+
+def test_the_docs_name_no_file_that_is_outside_the_repository() -> None:
+    # FACTS.md and ARCHITECTURE.md are design notes next to the repository, not in it: a reader of a clone
+    # cannot open them.
+    for md in [ROOT / "README.md", *(ROOT / "docs").rglob("*.md")]:
+        text = md.read_text(encoding="utf-8")
+        for name in ("FACTS.md", "ARCHITECTURE.md", "STYLE.md"):
+            assert name not in text, f"{md.relative_to(ROOT)} names {name}"
+
+
+def test_the_built_site_is_not_committed() -> None:
+    ignored = subprocess.run(["git", "check-ignore", "-q", "site/index.html"], cwd=ROOT)
+    assert ignored.returncode == 0, "site/ is not in .gitignore"
