@@ -14,11 +14,22 @@ import numpy as np
 import pytest
 
 from aioadept import Here, MoveToolZ
-from aioadept.apps.focus import FocusError, FocusParams, FocusStopped, init_move, ufloop, ufloop_with_stop
+from aioadept.apps.focus import (
+    FocusError,
+    FocusParams,
+    FocusStopped,
+    StopFailed,
+    init_move,
+    ufloop,
+    ufloop_with_stop,
+)
 from aioadept.bus import Communicator, Responder
 from aioadept.bus.messages import encode_event
 from aioadept.bus.pubsub import Publisher, Subscriber
 from aioadept.client import RobotClient
+from aioadept.errors import CommandError
+from aioadept.geometry import Pose
+from aioadept.protocol import Ack, LineFramer, Status, encode_ack, parse_command
 from aioadept.testing.sim import running_sim
 
 pytestmark = pytest.mark.timeout(30)
@@ -153,3 +164,56 @@ async def test_move_tool_z_moves_along_the_tool_axis():
         approach = (await init_move(rc)).pose
         pose = (await rc.cmdexec(MoveToolZ(7.5))).pose
     assert _tool_z_offset_mm(approach, pose) == pytest.approx(7.5, abs=0.01)
+
+
+@contextlib.asynccontextmanager
+async def refusing_stop_server():
+    """A robot server (real TCP) without the stop extension: it answers ``stop`` with an error ack, holds every
+    ``break`` (the motion goes on) and acks the rest at once. Yields (host, port, lines received)."""
+    lines: list[bytes] = []
+    pose = Pose(480.0, 0.0, 710.0, 0.0, 180.0, 0.0)
+
+    async def serve(reader, writer):
+        framer = LineFramer()
+        with contextlib.suppress(ConnectionError):
+            while data := await reader.read(4096):
+                for line in framer.feed(data):
+                    lines.append(bytes(line))
+                    msg = parse_command(line)
+                    if msg.skill == "stop":
+                        writer.write(encode_ack(Ack.error(msg.id, -406, "undefined skill stop", 1.0, 1.0, pose)))
+                    elif msg.skill != "break":
+                        writer.write(encode_ack(Ack(msg.id, Status.DONE, 1.0, 1.0, pose, ())))
+        writer.close()
+
+    server = await asyncio.start_server(serve, "127.0.0.1", 0)
+    async with server:
+        yield "127.0.0.1", server.sockets[0].getsockname()[1], lines
+
+
+async def test_a_stop_event_whose_stop_fails_raises_stop_failed_not_focus_stopped():
+    # Issue 10, item 3 (focus part): a failed stop is an error; the run must not report "stopped".
+    vision = ScriptedVision(range(1, 100))
+    async with refusing_stop_server() as (host, port, lines), RobotClient(host, port) as rc, \
+            Responder(ANY, ANY, vision) as responder, \
+            Communicator(responder.actual_request_endpoint, responder.actual_response_endpoint,
+                         timeout_s=3.0) as comm, \
+            Publisher(ANY, bind=True) as stop_pub, Subscriber(stop_pub.actual_endpoint, bind=False) as sub:
+
+        async def stopper():
+            # The first step's break is held (a motion in progress); re-publish (slow joiner) until the stop is sent.
+            while not any(line.endswith(b":stop") for line in lines):
+                if any(line.endswith(b":break") for line in lines):
+                    await stop_pub.send(encode_event("StopRequest", "st0p0002", {}))
+                await asyncio.sleep(0.02)
+
+        task = asyncio.create_task(stopper())
+        params = FocusParams(delta_z_mm=2.0, approach_speed=10, max_steps=5)
+        with pytest.raises(StopFailed) as info:
+            await ufloop_with_stop(rc, comm, sub, params, do_init_move=False)
+        await task
+    assert not isinstance(info.value, FocusStopped)
+    assert info.value.stop_id == "st0p0002"
+    assert isinstance(info.value.__cause__, CommandError)
+    assert "the stop failed" in str(info.value) and "may still be moving" in str(info.value)
+    assert lines[-1].endswith(b":stop"), "nothing (no retract) is sent after the stop"
