@@ -130,12 +130,19 @@ class RobotDevice:
     """The robot of the emulated controller; see the module docstring.
 
     ``controller`` is the one robot model (its tool, speeds, trajectory and signals are the robot's). ``dry_run``
-    is V+ DRY.RUN. The attribute :attr:`owner` is the task that has the robot attached (None: free).
+    is V+ DRY.RUN. The attribute :attr:`owner` is the task that has the robot attached (None: free). Waits
+    (BREAK, a MOVE waiting for its turn) wake at least every ``poll_s`` seconds (one V+ trajectory cycle, 16 ms,
+    by default) to notice a BRAKE from another task.
     """
 
-    def __init__(self, controller: Controller | None = None, *, dry_run: bool = False) -> None:
+    def __init__(self, controller: Controller | None = None, *, dry_run: bool = False,
+                 poll_s: float = 0.016) -> None:
+        if not poll_s > 0:
+            raise ValueError(f"poll_s: {poll_s} must be > 0")
         self.controller = controller if controller is not None else Controller()
         self.dry_run = dry_run
+        self.poll_s = poll_s
+        """Longest a motion wait sleeps before it looks again (a BRAKE from another task may have ended it)."""
         self.owner: TaskId | None = None
         self._brakes = 0  # counts BRAKEs, so a motion instruction waiting for its turn notices one
 
@@ -278,14 +285,16 @@ class RobotDevice:
                 gen = ctl.move_joints(target.joints_deg)
             else:
                 gen = ctl.move_pose(target.to_pose())
-            # Drive the controller's generator ourselves so that a BRAKE while it waits drops it unstarted.
+            # Drive the controller's generator ourselves so that a BRAKE while it waits drops it unstarted, and
+            # look at least every poll_s, so that the drop happens when the brake comes, not when the wait ends.
             wake = next(gen, None)
             while wake is not None:
-                yield wake
+                yield min(wake, self.now_s + self.poll_s)
                 if self._brakes != epoch:
                     gen.close()
                     return
-                wake = next(gen, None)
+                if self.now_s >= wake:
+                    wake = next(gen, None)
         except RobotError as exc:
             raise _translate(exc) from exc
 
@@ -308,10 +317,15 @@ class RobotDevice:
 
     def break_(self) -> MotionGen:
         """V+ ``BREAK``: resumed when every planned motion has completed and the arm is at rest."""
-        try:
-            yield from self.controller.wait_rest()
-        except RobotError as exc:  # pragma: no cover - wait_rest raises none today
-            raise _translate(exc) from exc
+        # A BRAKE from another task ends the motion early: ask the controller again at least every poll_s rather
+        # than sleeping until the rest time it gave before the brake.
+        while True:
+            gen = self.controller.wait_rest()
+            wake = next(gen, None)
+            gen.close()
+            if wake is None:
+                return
+            yield min(wake, self.now_s + self.poll_s)
 
     def brake(self, now_s: float | None = None) -> float:
         """V+ ``BRAKE`` (any task): decelerate to rest now (at ``now_s`` if given) and drop every planned motion,

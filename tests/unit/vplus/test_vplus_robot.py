@@ -197,3 +197,17 @@ def test_robot_errors_are_vplus_program_errors_and_brake_takes_the_time(robot):
     assert err.value.code == VPLUS_ERRORS["out_of_range"].code and "out of range" in err.value.message
     run(robot, robot.move(T, A))
     assert robot.brake(0.05) >= 0.05 and robot.now_s == 0.05
+
+
+def test_a_brake_from_another_task_ends_a_waiting_break_when_the_arm_stops(robot):
+    run(robot, robot.move(T, ppoint(150, -90, 180, 0, 90, 0)))  # about 0.7 s at full speed
+    t_planned = robot.controller.trajectory.t_rest_s
+    brk = robot.break_()
+    robot.now_s = next(brk)
+    while robot.now_s < 0.1:  # the break waits; the interpreter resumes it when it asks
+        robot.now_s = next(brk)
+    t_rest = robot.brake()  # the reader task serves a stop
+    assert t_rest < t_planned - 0.2
+    for wake in brk:
+        robot.now_s = wake
+    assert t_rest <= robot.now_s <= t_rest + robot.poll_s + 1e-9, "BREAK returns when the braked arm is at rest"
