@@ -134,12 +134,15 @@ async def test_a_request_flood_is_answered_or_dropped_with_an_error_and_does_not
             await req.close()
     normal = req.answers["feedbeef"]
     assert "sharpness" in normal, normal  # the newest request is kept, not dropped
-    assert latency < 3.0, f"the request after a flood of {n} waited {latency:.2f} s"
+    # Generous for a loaded 2-core machine (about 0.3 s here); before the queue limit it was 25 s.
+    assert latency < 5.0, f"the request after a flood of {n} waited {latency:.2f} s"
     dropped = [rid for rid in ids if req.answers[rid].get("error", "").startswith("dropped: request queue full")]
     served = [rid for rid in ids if "sharpness" in req.answers[rid]]
     assert len(dropped) + len(served) == n, {rid: a for rid, a in req.answers.items() if rid in ids
                                             and rid not in dropped and rid not in served}
-    assert len(dropped) > n // 2 and served, (len(dropped), len(served))
+    # How many are dropped depends on how fast the sender is against the node (a sender descheduled mid-flood lets
+    # the node catch up); that some are, and that the rest are served, does not.
+    assert dropped and served, (len(dropped), len(served))
     assert "sharpness" in again.attributes  # and it keeps serving
     print(f"flood of {n}: {len(served)} served, {len(dropped)} dropped; next request answered in "
           f"{latency * 1e3:.0f} ms")
