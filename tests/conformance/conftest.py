@@ -9,12 +9,9 @@ Backends (the ``server`` fixture's params):
   original AdeptServer. It speaks only the original protocol (plain ``done`` acks, no error acks, no stop), so
   only tests marked ``@pytest.mark.adeptserver`` run against it (the ``any_server`` fixture).
 
-The V+ backends need the emulator's ``--vplus`` option. While ``aioadept sim`` has no such option they are
-skipped with a loud reason; once it exists they run, and a failure is a failure.
-
-Contract with the emulator's CLI assumed here: ``--map-port VPORT=HOSTPORT`` maps the program's
-``FOPEN /LOCAL_PORT VPORT`` to HOSTPORT on 127.0.0.1, and the process prints ``READY ... port=P`` (the real port)
-once the program listens. A free port is picked and mapped, so either way the test knows where to connect.
+The V+ backends need the emulator's ``--vplus`` option; should it ever be missing they are skipped with a loud
+reason, never silently. ``--map-port 1234=P`` maps the program's ``FOPEN /LOCAL_PORT 1234`` to a free port P
+on 127.0.0.1, and the process prints ``READY ... port=P`` once the program listens; the test connects there.
 """
 
 from __future__ import annotations
