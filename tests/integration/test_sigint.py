@@ -369,3 +369,32 @@ async def test_demo_second_sigint_exits_at_once_and_kills_the_nodes(tmp_path):
     assert t_exit < 2.0, f"second SIGINT: exit after {t_exit:.3f} s"
     assert "exiting now" in err and "Traceback" not in err
     await _gone(state)
+
+
+# --------------------------------------------------------------------------------------------- aioadept experiment
+@pytest.mark.timeout(120)
+async def test_experiment_first_sigint_stops_the_arm_and_ends_the_whole_grid(tmp_path):
+    state = f"tcp://127.0.0.1:{free_port()}"
+    watch = StateWatch(state)
+    try:
+        proc = await _spawn("experiment", "--config", str(_demo_config(tmp_path, state)), "--speeds",
+                            f"{SLOW_SPEED},{SLOW_SPEED}", "--delta-z", "40", "--runs", "2", "--out", str(tmp_path / "x"))
+        try:
+            await watch.until(moving_at(SLOW_SPEED), f"moving at {SLOW_SPEED} %", timeout_s=60)
+            t_kill = asyncio.get_running_loop().time()
+            os.kill(proc.pid, signal.SIGINT)
+            t_rest, rest = await watch.until(at_rest, "at rest", timeout_s=5)
+            later = await watch.collect_for(0.5)  # no next run starts a motion (the nodes may be stopping)
+            out, err = await _finish(proc, timeout_s=30)
+        finally:
+            if proc.returncode is None:
+                proc.kill()
+                await proc.wait()
+    finally:
+        watch.close()
+    assert t_rest - t_kill < 2.0, f"at rest {t_rest - t_kill:.3f} s after SIGINT"
+    assert not [st for st in later if st.in_motion]
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "interrupted: robot stopped" in err
+    assert not (tmp_path / "x" / "analysis").exists()  # no analysis of an interrupted grid
+    await _gone(state)
