@@ -28,8 +28,10 @@ test: $(STAMP) toxiproxy
 	$(BIN)/python -m pytest -q $(ARGS); rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "no tests were collected" >&2; exit 1; fi; exit $$rc
 
+# Every benchmarks/bench_*.py in turn, each JSON kept under runs/bench-*/, then one verdict table
+# (ARGS=--quick for a smoke run, ARGS="--only bench_bus" for one).
 bench: $(STAMP)
-	for b in benchmarks/bench_*.py; do $(BIN)/python $$b || exit 1; done
+	$(BIN)/python benchmarks/run_all.py $(ARGS)
 
 # The documentation site (mkdocs.yml) into site/: every warning is an error, links between pages are checked, and
 # nothing is fetched from the internet. Open site/index.html, or serve it with `.venv/bin/mkdocs serve`.

@@ -23,6 +23,8 @@ import sys
 import time
 
 import zmq
+
+from verdicts import verdict
 import zmq.asyncio
 
 from aioadept.bus.communicator import Communicator, Responder
@@ -190,6 +192,9 @@ def main() -> None:
         "cpu_count": os.cpu_count(),
         "load_avg_1min": round(os.getloadavg()[0], 2),
         "target_ratio_p50": 1.3,
+        "verdicts": [verdict("request->response p50, Communicator+Responder vs raw pyzmq", o["p50_us"],
+                             r["p50_us"], unit="us", goal="ratio <= 1.3",
+                             passed=o["p50_us"] / r["p50_us"] <= 1.3)],
     }, indent=2))
 
 

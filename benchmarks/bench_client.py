@@ -54,6 +54,8 @@ import subprocess
 import sys
 import time
 
+from verdicts import verdict
+
 TARGETS = {"rtt_p50_ratio_max": 1.15, "throughput_ratio_min": 0.9, "cpu_per_msg_ratio_max": 1.5}
 
 
@@ -361,8 +363,34 @@ def main(argv: list[str] | None = None) -> int:
             "machine": machine,
             "runs": runs,
         }
+    result["verdicts"] = client_verdicts(runs)
     print(json.dumps(result, indent=2))
     return 0
+
+
+def client_verdicts(runs: list[dict]) -> list[dict]:
+    """The three goals of TARGETS, each on the median over the runs (one run: its own figures)."""
+    def med(get):  # the median over runs of one figure
+        return statistics.median(get(r) for r in runs)
+
+    worst_tp = min((10, 100), key=lambda s: med(lambda r: r["ratios"][f"throughput_{s}"]))
+    worst_cpu = max((10, 100), key=lambda s: med(lambda r: r["ratios"][f"cpu_per_msg_{s}"]))
+    rtt = med(lambda r: r["ratios"]["rtt_p50"])
+    tp = med(lambda r: r["ratios"][f"throughput_{worst_tp}"])
+    cpu = med(lambda r: r["ratios"][f"cpu_per_msg_{worst_cpu}"])
+    return [
+        verdict("rtt p50, cmdexec vs bare client", med(lambda r: r["rtt_us"]["client"]["p50"]),
+                med(lambda r: r["rtt_us"]["bare"]["p50"]), unit="us", ratio=rtt,
+                goal=f"ratio <= {TARGETS['rtt_p50_ratio_max']}", passed=rtt <= TARGETS["rtt_p50_ratio_max"]),
+        verdict(f"pipelined throughput, batches of {worst_tp} (worse size)",
+                med(lambda r: r["pipelined"][str(worst_tp)]["client"]["msgs_per_s"]),
+                med(lambda r: r["pipelined"][str(worst_tp)]["bare"]["msgs_per_s"]), unit="msg/s", ratio=tp,
+                goal=f"ratio >= {TARGETS['throughput_ratio_min']}", passed=tp >= TARGETS["throughput_ratio_min"]),
+        verdict(f"client CPU per message, batches of {worst_cpu} (worse size)",
+                med(lambda r: r["pipelined"][str(worst_cpu)]["client"]["cpu_us_per_msg"]),
+                med(lambda r: r["pipelined"][str(worst_cpu)]["bare"]["cpu_us_per_msg"]), unit="us", ratio=cpu,
+                goal=f"ratio <= {TARGETS['cpu_per_msg_ratio_max']}", passed=cpu <= TARGETS["cpu_per_msg_ratio_max"]),
+    ]
 
 
 if __name__ == "__main__":

@@ -50,6 +50,7 @@ from aioadept.bus.communicator import Communicator
 from aioadept.client import RobotClient
 from aioadept.commands import MoveRelJoints
 from aioadept.errors import AdeptError
+from verdicts import verdict
 
 CLK_TCK = os.sysconf("SC_CLK_TCK")
 NCPU = os.cpu_count() or 1
@@ -442,7 +443,26 @@ async def main_async(args: argparse.Namespace) -> dict[str, Any]:
             out["sim"] = await bench_sim(args)
         if not args.skip_vision:
             out["vision"] = await bench_vision(args)
+    out["verdicts"] = load_verdicts(out, args)
     return out
+
+
+def load_verdicts(out: dict[str, Any], args: argparse.Namespace) -> list[dict[str, Any]]:
+    """Figures against their baselines; this benchmark finds what saturates first and states no goal."""
+    v = []
+    if "sim" in out:
+        s = out["sim"]
+        v.append(verdict(f"sim here p50, {args.clients} clients vs 1", s["load"]["p50_us"],
+                         s["baseline_1_client"]["p50_us"], unit="us"))
+        v.append(verdict(f"sim here p50, {args.clients} clients, arm moving vs at rest",
+                         s["load_arm_moving"]["p50_us"], s["load"]["p50_us"], unit="us"))
+    if "vision" in out:
+        base = out["vision"]["baseline"]
+        for c in out["vision"]["loads"]:
+            if "p50_ms" in c and "p50_ms" in base:
+                v.append(verdict(f"vision p50 at {c['rate_req_per_s']:g} vs {base['rate_req_per_s']:g} req/s",
+                                 c["p50_ms"], base["p50_ms"], unit="ms"))
+    return v
 
 
 def floats(s: str) -> list[float]:

@@ -26,6 +26,8 @@ import statistics
 import sys
 from pathlib import Path
 
+from verdicts import verdict
+
 FLOODER = r"""
 import asyncio, sys
 port, n = int(sys.argv[1]), int(sys.argv[2])
@@ -176,6 +178,12 @@ async def main() -> None:
     result["here_50_at_rest"] = summary(here_rest)
     result["here_50_while_moving"] = summary(here_moving)
     result["here_ratio_p50"] = round(statistics.median(here_moving) / statistics.median(here_rest), 2)
+    result["verdicts"] = [
+        verdict("stop acted p95, 3-client flood vs no flood", pct(flood_acted, 0.95), pct(base_acted, 0.95),
+                unit="ms", goal="figure <= 100 ms", passed=pct(flood_acted, 0.95) <= 100.0),
+        verdict("here p50, 50 clients, arm moving vs at rest", statistics.median(here_moving),
+                statistics.median(here_rest), unit="ms"),
+    ]
     print(json.dumps(result, indent=2))
 
 

@@ -23,6 +23,8 @@ import statistics
 import sys
 from pathlib import Path
 
+from verdicts import verdict
+
 ECHO_SERVER = r"""
 import asyncio, sys
 ACK = sys.argv[1].encode() + b"\r\n"
@@ -136,6 +138,8 @@ async def main_async(args: argparse.Namespace) -> dict:
         "messages_per_case": args.messages,
         "rounds": args.rounds,
         "cases": cases,
+        "verdicts": [verdict(f"here round trip p50, {c['clients']} client(s), sim vs line echo", c["sim"]["p50_us"],
+                             c["baseline_echo"]["p50_us"], unit="us") for c in cases],
     }
 
 

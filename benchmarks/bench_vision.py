@@ -39,6 +39,7 @@ from aioadept.bus.messages import decode_event, encode_event
 from aioadept.geometry import Pose
 from aioadept.vision import sharpness as S
 from aioadept.vision.virtual_camera import paper_approach_pose, paper_camera
+from verdicts import verdict
 
 
 def _stats_ms(samples: list[float]) -> dict[str, float]:
@@ -235,7 +236,9 @@ SERVERS: dict[str, list[str]] = {
     "node_loop": ["--graph-thread", "never"],     # every graph on the loop (= --inline)
 }
 NODE_ARGV = [sys.executable, "-m", "aioadept.vision", "--graph", "noop", "--source", "virtual",
-             "--state-endpoint", "tcp://127.0.0.1:9", "--fps", "15",
+             # No sim publishes robot state here: without --max-state-age inf every answer would be the
+             # "stale robot state" error (the node's frozen-pose check), not a measurement.
+             "--state-endpoint", "tcp://127.0.0.1:9", "--max-state-age", "inf", "--fps", "15",
              "--request-endpoint", "tcp://127.0.0.1:0", "--response-endpoint", "tcp://127.0.0.1:0"]
 # (server, client) pairs, each measured once per round in this order.
 KINDS: tuple[tuple[str, str], ...] = (
@@ -328,6 +331,18 @@ def main() -> None:
     out.update(bench_graph(args.frames))
     out["latency"] = bench_latency(args.n, args.warmup, args.rounds)
     out["load_avg_1min"] = round(os.getloadavg()[0], 2)
+    g, lat = out["graph"], out["latency"]
+    node_ratio = lat["ratio_p50_vs_raw_async_median_of_rounds"]["node_auto/raw"]
+    out["verdicts"] = [
+        verdict("sharpness graph per frame, median, vs the same calls direct", g["sharpness_graph"]["median_ms"],
+                g["direct_calls_baseline"]["median_ms"], unit="ms", goal="figure <= 5 ms",
+                passed=g["sharpness_graph"]["median_ms"] <= 5.0),
+        verdict("vision node request->response p50 vs raw pyzmq (median of rounds)", lat["p50_us"]["node_auto/raw"],
+                lat["p50_us"]["raw_async/raw"], unit="us", ratio=node_ratio, goal="ratio <= 1.3",
+                passed=node_ratio <= 1.3),
+        verdict("virtual camera frame rate at the median render time", out["render"]["max_fps_at_median"], None,
+                unit="fps", goal="figure >= 10 fps", passed=out["render"]["max_fps_at_median"] >= 10),
+    ]
     print(json.dumps(out, indent=2))
 
 

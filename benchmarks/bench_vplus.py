@@ -11,6 +11,7 @@ import json
 import time
 
 from aioadept.vplus import Emulator
+from verdicts import verdict
 
 N = 1_000_000
 SRC = f""".PROGRAM bench()
@@ -46,6 +47,7 @@ def main() -> None:
     print(json.dumps({
         "iterations": N, "statements": stmts, "vplus_s": round(t_vplus, 3), "python_baseline_s": round(t_py, 3),
         "statements_per_s": round(stmts / t_vplus), "ratio_vs_python": round(t_vplus / t_py, 2),
+        "verdicts": [verdict(f"V+ loop of {N} iterations vs the same loop in Python", t_vplus, t_py, unit="s")],
     }, indent=2))
 
 
