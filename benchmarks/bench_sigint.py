@@ -41,6 +41,9 @@ from aioadept.geometry import Pose
 from aioadept.protocol import Ack, LineFramer, Status, encode_ack, parse_command
 from aioadept.testing.nodes import running_node
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from verdicts import verdict  # noqa: E402
+
 AIOADEPT = [sys.executable, "-m", "aioadept"]
 POSE = Pose(480.0, 0.0, 710.0, 0.0, 180.0, 0.0)
 
@@ -170,6 +173,13 @@ async def main(rounds: int) -> dict:
         },
         "target": "SIGINT -> stop on the wire within 100 ms",
         "target_met_p95": stats["sigint_to_stop_on_wire_ms"]["p95"] < 100.0,
+        "verdicts": [
+            verdict("SIGINT -> stop on the wire p95 vs stop() round trip p95", stats["sigint_to_stop_on_wire_ms"]["p95"],
+                    stats["stop_roundtrip_ms"]["p95"], unit="ms", goal="figure < 100 ms",
+                    passed=stats["sigint_to_stop_on_wire_ms"]["p95"] < 100.0),
+            verdict("SIGINT -> arm at rest p50 vs stop() -> at rest p50", stats["sigint_to_rest_ms"]["p50"],
+                    stats["stop_call_to_rest_ms"]["p50"], unit="ms"),
+        ],
     }
 
 
