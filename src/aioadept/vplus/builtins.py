@@ -225,6 +225,8 @@ def namespace(rt: Runtime) -> dict[str, Any]:
     def tick() -> float:
         return rt.next_tick()
 
+    cond_tick = rt.cond_tick
+
     def halt(T: Task, prog: str, line: int) -> None:
         raise VPlusHalt(f"(HALTED) {prog}, line {line}")
 
@@ -277,13 +279,19 @@ def namespace(rt: Runtime) -> dict[str, Any]:
                 return None
             if end is not None and rt.now >= end:
                 return None
-            yield (end if (end is not None and not mask) else rt.next_tick())
+            if mask:
+                # woken by SET.EVENT or I/O on its LUNs at once (signal_event), else at the timeout; without a
+                # timeout it waits for the event only
+                T.event_wait = True
+                yield end if end is not None else rt.now + 3600.0
+            else:
+                yield end if end is not None else rt.next_tick()
 
     def set_event(T: Task, args: tuple) -> None:
         n = int(args[0]) if args and args[0] is not None else T.num
         other = rt.tasks.get(n)
         if other is not None:
-            other.events = 1
+            rt.signal_event(other)
 
     def execute(T: Task, task: Any, prog: str, args: tuple) -> None:
         rt.start_task(int(task) if task is not None else 0, prog, tuple(([_byval(a)], 0) for a in args))
@@ -329,11 +337,12 @@ def namespace(rt: Runtime) -> dict[str, Any]:
             T.robot_attached = True
         return r
 
-    def drive(gen: Generator) -> Generator:
+    def drive(T: Task, gen: Generator) -> Generator:
         """Run a RobotDevice motion generator, telling it the time at each resumption."""
         r = rt.robot
         r.now_s = rt.now
         for w in gen:
+            T.motion_wait = True          # a BRAKE from another task wakes it (rt.wake_motion_waiters)
             yield w
             r.now_s = rt.now
 
@@ -341,18 +350,19 @@ def namespace(rt: Runtime) -> dict[str, Any]:
         r = robot_of(T)
         n = T.num
         if kind in ("MOVE", "MOVES"):
-            return drive(r.move(n, args[0], straight=(kind == "MOVES")))
+            return drive(T, r.move(n, args[0], straight=(kind == "MOVES")))
         if kind in ("APPRO", "APPROS"):
-            return drive(r.appro(n, args[0], float(args[1]), straight=(kind == "APPROS")))
+            return drive(T, r.appro(n, args[0], float(args[1]), straight=(kind == "APPROS")))
         if kind in ("DEPART", "DEPARTS"):
-            return drive(r.depart(n, float(args[0]), straight=(kind == "DEPARTS")))
+            return drive(T, r.depart(n, float(args[0]), straight=(kind == "DEPARTS")))
         if kind == "DELAY":
-            return drive(r.delay(n, float(args[0])))
-        return drive(r.break_())
+            return drive(T, r.delay(n, float(args[0])))
+        return drive(T, r.break_())
 
     def brake(T: Task) -> None:
         if rt.robot is not None:
             rt.robot.brake(rt.now)
+            rt.wake_motion_waiters()
 
     def speed(T: Task, v: float, mode: str | None) -> None:
         r = robot_of(T)
@@ -506,7 +516,7 @@ def namespace(rt: Runtime) -> dict[str, Any]:
     return {
         "_G": G, "_FB": _FB, "_static": static, "_arg": arg, "_argarr": argarr, "_arr": _arr, "_ix": _ix,
         "_str": _str, "_pp": pp_check, "_loc": loc_check, "_dbl": _dbl, "_real": _real, "_f32": f32,
-        "_byval": _byval, "_MISSING": (_MISSING_C, "?"), "_call": call, "_progname": progname, "_tick": tick,
+        "_byval": _byval, "_MISSING": (_MISSING_C, "?"), "_call": call, "_progname": progname, "_tick": tick, "_ctick": cond_tick,
         "_halt": halt, "_stop": stop, "_pause": pause, "_type": type_, "_prompt": prompt, "_signal": signal,
         "_wait_event": wait_event, "_set_event": set_event, "_execute": execute, "_abort": abort, "_kill": kill,
         "_cycle_end": cycle_end, "_reacte": reacte, "_robot": robot, "_brake": brake, "_speed": speed,

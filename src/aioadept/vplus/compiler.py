@@ -560,7 +560,7 @@ class _Gen:
                 self.guarded(line, ["yield _tick()"])
             else:
                 c = self.cond(st[1])
-                self.guarded(line, [f"while not {c}:", "    yield _tick()"])
+                self.guarded(line, [f"while not {c}:", "    yield _ctick(T)"])
         elif k == "HALT":
             self.guarded(line, [f"_halt(T, {name!r}, {line})"])
         elif k == "STOP":

@@ -75,7 +75,7 @@ class TcpLun:
             if self.buffered > _PAUSE_BYTES and handle in self.conns:
                 self.conns[handle].pause_reading()
                 self.paused.add(handle)
-        self.rt.wake_io(self.task)
+        self.rt.io_event(self.task)
 
     def pop(self) -> list | None:
         if not self.events:

@@ -104,6 +104,9 @@ class Task:
     stop_cycle: bool = False
     paused: bool = False
     events: int = 0
+    cond_wait: bool = False            # blocked in WAIT cond: re-tested when another task made progress
+    event_wait: bool = False           # blocked in WAIT.EVENT with the event mask: woken by SET.EVENT / its I/O
+    motion_wait: bool = False          # blocked in a motion instruction: woken by a BRAKE
 
 
 class Runtime:
@@ -267,12 +270,22 @@ class Runtime:
         return any(t.state == "running" for t in self.tasks.values())
 
     def run_round(self) -> int:
-        """Resume every ready task once; return how many slices ended by preemption."""
+        """Resume every ready task once; return how many slices ended by preemption.
+
+        A task blocked in ``WAIT cond`` whose re-test failed made no progress; any other resumption may have
+        changed globals or signals, so after it every task in ``WAIT cond`` is re-tested in the next round (V+:
+        a false WAIT condition releases the CPU to any task and is tested again when the task is next scheduled).
+        """
         preempted = 0
+        progress = False
         for T in self.ready_tasks():
             if T.state != "running" or T.gen is None:
                 continue
             T.io_wait = False
+            retest = T.cond_wait
+            T.cond_wait = T.event_wait = T.motion_wait = False
+            if not retest:
+                progress = True
             try:
                 w = T.gen.send(None)
             except StopIteration:
@@ -302,7 +315,37 @@ class Runtime:
                 T.wake = self.now
             else:
                 T.wake = w
+            if retest and not T.cond_wait:
+                progress = True           # the condition became true: the task went on
+        if progress:
+            self.wake_conditions()
         return preempted
+
+    def wake_conditions(self) -> None:
+        """Something may have changed a WAIT condition: re-test every waiting condition in the next round."""
+        now = self.now
+        for T in self.tasks.values():
+            if T.cond_wait and T.state == "running" and T.wake > now:
+                T.wake = now
+
+    def cond_tick(self, T: Task) -> float:
+        """``WAIT cond`` is false: block until another task makes progress, an I/O event, or the next cycle."""
+        T.cond_wait = True
+        return self.next_tick()
+
+    def signal_event(self, T: Task) -> None:
+        """Set the event flag of task ``T`` (SET.EVENT, or I/O on its LUNs) and wake it if it waits for it."""
+        T.events = 1
+        if T.event_wait and T.state == "running" and T.wake > self.now:
+            T.wake = self.now
+            self._poke()
+
+    def wake_motion_waiters(self) -> None:
+        """A BRAKE: tasks blocked in a motion instruction look at the robot again at once."""
+        now = self.now
+        for T in self.tasks.values():
+            if T.motion_wait and T.state == "running" and T.wake > now:
+                T.wake = now
 
     def run_virtual(self, until: Callable[[], bool] | None = None, *, max_time_s: float | None = None,
                     max_rounds: int = 50_000_000) -> None:
@@ -335,10 +378,19 @@ class Runtime:
             self.on_wake()
 
     def wake_io(self, task: Task | None) -> None:
-        """I/O arrived: a task blocked in READ mode 0 runs at once."""
+        """I/O arrived: a task blocked in READ mode 0 runs at once; conditions are re-tested."""
         if task is not None and task.state == "running" and task.io_wait:
             task.wake = min(task.wake, self.now)
-            self._poke()
+        self.wake_conditions()
+        self._poke()
+
+    def io_event(self, task: Task) -> None:
+        """An event (connect, data, close) on one of ``task``'s TCP LUNs: wake a READ, set its event flag."""
+        if task.state == "running":
+            task.events = 1
+            if task.event_wait:
+                task.wake = min(task.wake, self.now)
+        self.wake_io(task)
 
     def next_tick(self) -> float:
         c = self.cycle_s
