@@ -97,3 +97,19 @@ def test_the_docs_name_no_file_that_is_outside_the_repository() -> None:
 def test_the_built_site_is_not_committed() -> None:
     ignored = subprocess.run(["git", "check-ignore", "-q", "site/index.html"], cwd=ROOT)
     assert ignored.returncode == 0, "site/ is not in .gitignore"
+
+
+def test_troubleshooting_covers_every_error_a_user_can_meet() -> None:
+    # Every exception of the one error tree, and every exit status the commands document, has its entry.
+    import inspect
+
+    import aioadept.errors as errors
+
+    page = (ROOT / "docs" / "troubleshooting.md").read_text(encoding="utf-8")
+    names = [n for n, obj in vars(errors).items()
+             if inspect.isclass(obj) and issubclass(obj, errors.AdeptError) and obj is not errors.AdeptError
+             and obj.__module__ == errors.__name__ and n not in ("ProtocolError",)]
+    missing = [n for n in names if f"`{n}`" not in page]
+    assert not missing, f"docs/troubleshooting.md does not explain {missing}"
+    for status in (0, 1, 2, 3, 4, 130):
+        assert re.search(rf"^\| {status} \|", page, re.M), status
