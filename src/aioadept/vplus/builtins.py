@@ -109,6 +109,9 @@ def _default_number(v: float) -> str:
     return s
 
 
+_FMT_CACHE: dict[str, tuple] = {}     # format text -> (kind, width, decimals): formats are program constants
+
+
 def _render(items: tuple) -> tuple[str, bool]:
     """Output items (values and ("fmt", spec) constants) to text; True if /S suppressed the line end."""
     out: list[str] = []
@@ -117,9 +120,12 @@ def _render(items: tuple) -> tuple[str, bool]:
     for it in items:
         if type(it) is tuple and len(it) == 2 and it[0] == "fmt":
             f = it[1]
-            m = _FMT_RE.match(f)
-            kind = m.group(1) if m else f[:1]
-            num = int(m.group(2)) if m and m.group(2) else None
+            parsed = _FMT_CACHE.get(f)
+            if parsed is None:
+                m = _FMT_RE.match(f)
+                parsed = _FMT_CACHE[f] = (m.group(1) if m else f[:1], int(m.group(2)) if m and m.group(2) else None,
+                                          int(m.group(3)) if m and m.group(3) else None)
+            kind, num, prec = parsed
             if kind == "S":
                 no_eol = True
             elif kind == "X":
@@ -129,7 +135,7 @@ def _render(items: tuple) -> tuple[str, bool]:
             elif kind in ("N", "B", "U"):
                 pass
             elif kind in ("F", "E", "G", "I", "H", "O", "D"):
-                spec = (kind, num, int(m.group(3)) if m and m.group(3) else None)
+                spec = (kind, num, prec)
             else:
                 raise VPlusError(E.ILLEGAL_VALUE, f"*Illegal value* (format /{f})")
             continue

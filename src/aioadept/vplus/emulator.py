@@ -229,9 +229,19 @@ class Emulator:
         try:
             while not stop.is_set():
                 if rt.ready_tasks():
-                    rt.run_round()
+                    # Rounds back to back while tasks are ready (a reader handing a line to the executor and the
+                    # executor's ack back to the reader take three), then let asyncio serve the sockets: writes
+                    # leave at once (transport.write), reads and new connections wait for this yield.
+                    for _ in range(32):
+                        rt.run_round()
+                        if not rt.ready_tasks():
+                            break
+                    if rt.devices is not None:
+                        rt.devices.flush()
                     await asyncio.sleep(0)
                     continue
+                if rt.devices is not None:
+                    rt.devices.flush()
                 w = rt.next_wake()
                 timeout = None if w is None else max(0.0, w - rt.now)
                 wake.clear()
