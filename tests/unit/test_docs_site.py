@@ -113,3 +113,29 @@ def test_troubleshooting_covers_every_error_a_user_can_meet() -> None:
     assert not missing, f"docs/troubleshooting.md does not explain {missing}"
     for status in (0, 1, 2, 3, 4, 130):
         assert re.search(rf"^\| {status} \|", page, re.M), status
+
+
+@pytest.mark.timeout(90)
+def test_the_getting_started_client_example_runs_against_the_simulator_as_documented() -> None:
+    page = (ROOT / "docs" / "getting-started.md").read_text(encoding="utf-8")
+    (code,) = re.findall(r"```python\n(.*?)```", page, re.S)
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert res.returncode == 0, res.stderr[-3000:]
+    lines = res.stdout.splitlines()
+    assert [ln.split()[:2] for ln in lines[:3]] == [["set_speed", "done"], ["move_rel_tool", "done"],
+                                                   ["break", "done"]]
+    assert lines[3].startswith("at rest in Pose(")
+    assert lines[4].startswith("refused: -610 ")     # the page promises the sim's out-of-reach error ack
+
+
+def test_the_cell_file_page_documents_every_key_and_no_other() -> None:
+    import dataclasses
+
+    from aioadept.apps.cell import CellConfig
+
+    page = (ROOT / "docs" / "focus.md").read_text(encoding="utf-8")
+    for section in dataclasses.fields(CellConfig):
+        keys = {f.name for f in dataclasses.fields(getattr(CellConfig(), section.name))}
+        block = page.split(f"**`[{section.name}]`**", 1)[1].split("\n\n", 2)[1]     # the section's key table
+        documented = {k for cell in re.findall(r"^\| ([^|]+) \|", block, re.M) for k in re.findall(r"`(\w+)`", cell)}
+        assert documented == keys, (section.name, documented ^ keys)
