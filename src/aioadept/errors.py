@@ -21,7 +21,8 @@ catches our types only::
     └─ RobotError                  the simulated controller refused a motion (reach, joint limit); carries the code
 
 The applications add their own subclasses of ``AdeptError`` beside their code: ``apps.focus.FocusError`` (and
-``FocusStopped``) and ``apps.processes.NodeError`` (a node process failed to start or died).
+``FocusStopped``), ``apps.focus.StopFailed`` (a stop the app sent was not acked ``done``: the robot may still be
+moving), ``capture.RunSaveError`` (a run folder file could not be written) and ``apps.processes.NodeError`` (a node process failed to start or died).
 """
 
 from __future__ import annotations

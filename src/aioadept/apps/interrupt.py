@@ -5,7 +5,7 @@ So an :class:`Interrupter` replaces asyncio's default SIGINT behaviour (cancel t
 well start a motion) with:
 
 - **first SIGINT (or SIGTERM):** in the signal callback itself, write ``stop`` on every attached robot connection
-  (``RobotClient.submit``: written in that call, before any other task of this process runs again), then cancel the
+  (``RobotClient.stop_nowait``: written in that call, before any other task of this process runs again), then cancel the
   app's main task. The app's cleanup starts no motion (see :func:`aioadept.apps.focus.ufloop`); a robot connection
   that is closing first waits for the stop's ack (:meth:`Interrupter.guard`), so the stop is confirmed, not hoped.
 - **second SIGINT:** exit at once: ``stop`` is written again where a connection is open, every child node process
@@ -105,17 +105,14 @@ class Interrupter:
         _say(f"{self.prog}: {self.signal_name}: stopping the robot (press Ctrl-C again to exit at once)")
 
     def _send_stop(self, robot: Any) -> None:
-        from aioadept.errors import ClientStateError, ConnectionLost
-
-        fut: asyncio.Future[Any]
+        # stop_nowait writes the stop in this call when connected (before any other task runs), makes calls still
+        # waiting to write raise instead of writing after it, and otherwise reconnects (auto_reconnect) or fails
+        # with a typed error: the outcome is reported either way, never taken for success.
         try:
-            sub = robot.submit(_STOP)
-        except (ClientStateError, ConnectionLost):
-            # Not connected now (lost, or closing): stop() reconnects if the client is set to, else raises a
-            # typed error at once; either way the outcome is reported, never taken for success.
-            fut = asyncio.ensure_future(robot.stop(timeout_s=self.stop_timeout_s))
-        else:
-            fut = asyncio.ensure_future(_first(sub.wait(timeout_s=self.stop_timeout_s)))
+            fut: asyncio.Future[Any] = robot.stop_nowait(timeout_s=self.stop_timeout_s)
+        except Exception as exc:  # e.g. no running loop or a closed client: report it as a failed stop
+            fut = asyncio.get_running_loop().create_future()
+            fut.set_exception(exc)
         self._stops.append((robot, fut))
 
     async def settle(self) -> list[tuple[Any, Any]]:
@@ -167,10 +164,6 @@ class Interrupter:
 
 
 _STOP = Skill("stop")
-
-
-async def _first(aw: Awaitable[Any]) -> Any:
-    return (await aw)[0]
 
 
 def _say(line: str) -> None:
