@@ -129,13 +129,18 @@ def main(argv: list[str] | None = None) -> int:
 
         try:
             vplus_cli.parse_port_map(args.map_port)
+            options = options_from_args(args)     # the same robot, state stream and faults as the Python backend
         except ValueError as exc:
             parser.error(str(exc))
         try:
-            return asyncio.run(vplus_cli.run(args))
-        except OSError as exc:
-            print(f"aioadept sim: {exc}", file=sys.stderr)
-            return 1
+            return asyncio.run(vplus_cli.run(args, options))
+        except Exception as exc:  # OSError (port taken), BusError (state endpoint taken)
+            from aioadept.errors import AdeptError
+
+            if isinstance(exc, (OSError, AdeptError)):
+                print(f"aioadept sim: {exc}", file=sys.stderr)
+                return 1
+            raise
     logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
                         format="%(asctime)s %(name)s %(levelname)s %(message)s")
     try:

@@ -23,7 +23,7 @@ import itertools
 import logging
 import time
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 from dataclasses import dataclass, field
 
@@ -519,29 +519,40 @@ class SimServer:
     # -- state stream -------------------------------------------------------------------------------------
     def robot_state(self):  # -> aioadept.bus.messages.RobotState
         """The state sample for now (what the stream publishes)."""
-        from aioadept.bus.messages import RobotState
-
-        now = self.now()
-        st = self.controller.state(now)
-        program_speed = st.speed_pct * 100.0 / self.controller.monitor_speed_pct
-        return RobotState(t_s=now, wall_time_s=self._wall0 + now, joints_deg=st.joints_deg, pose=st.pose,
-                          in_motion=st.in_motion, speed_pct=int(round(program_speed)), air=st.air)
+        return robot_state_sample(self.controller, self.now(), self._wall0)
 
     async def _publish_state(self) -> None:
-        from aioadept.bus.messages import ROBOT_STATE_TOPIC
+        assert self._publisher is not None
+        await publish_robot_states(self._publisher, self.robot_state, self.options.state_rate_hz)
 
-        assert self._loop is not None and self._publisher is not None
-        period = 1.0 / self.options.state_rate_hz
-        next_t = self._loop.time()
-        while True:
-            try:
-                self._publisher.publish_nowait(ROBOT_STATE_TOPIC, self.robot_state().to_bytes())
-            except Exception:
-                log.exception("state publish failed")
-            # A fixed schedule, not sleep(period) after the work, so the rate does not drift.
-            next_t += period
-            delay = next_t - self._loop.time()
-            if delay < -period:  # fell behind (suspended, overloaded): skip the missed samples
-                next_t = self._loop.time()
-                delay = 0.0
-            await asyncio.sleep(max(delay, 0.0))
+
+def robot_state_sample(controller: Controller, now: float, wall0: float):  # -> aioadept.bus.messages.RobotState
+    """The state-stream sample of ``controller`` at server time ``now`` (``wall0``: wall time at server time 0).
+    Shared by :class:`SimServer` and the V+ emulator backend (``aioadept sim --vplus``)."""
+    from aioadept.bus.messages import RobotState
+
+    st = controller.state(now)
+    program_speed = st.speed_pct * 100.0 / controller.monitor_speed_pct
+    return RobotState(t_s=now, wall_time_s=wall0 + now, joints_deg=st.joints_deg, pose=st.pose,
+                      in_motion=st.in_motion, speed_pct=int(round(program_speed)), air=st.air)
+
+
+async def publish_robot_states(publisher: Any, sample: Callable[[], Any], rate_hz: float) -> None:
+    """Publish ``sample()`` on ``robot.state`` at ``rate_hz`` until cancelled (the sim's state stream)."""
+    from aioadept.bus.messages import ROBOT_STATE_TOPIC
+
+    loop = asyncio.get_running_loop()
+    period = 1.0 / rate_hz
+    next_t = loop.time()
+    while True:
+        try:
+            publisher.publish_nowait(ROBOT_STATE_TOPIC, sample().to_bytes())
+        except Exception:
+            log.exception("state publish failed")
+        # A fixed schedule, not sleep(period) after the work, so the rate does not drift.
+        next_t += period
+        delay = next_t - loop.time()
+        if delay < -period:  # fell behind (suspended, overloaded): skip the missed samples
+            next_t = loop.time()
+            delay = 0.0
+        await asyncio.sleep(max(delay, 0.0))

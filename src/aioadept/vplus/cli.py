@@ -4,7 +4,9 @@ The files are loaded (problems are printed on stderr with file:line), PROGRAM ru
 task messages go to stdout as ``[task] text`` lines. Each ``FOPEN /LOCAL_PORT n`` binds ``--host`` on port n, or on
 the port that ``--map-port n=m`` gives (m = 0: an ephemeral port), and prints
 ``READY host=H port=P vport=n state=none``, the line ``aioadept.testing.running_node`` waits for.
-The robot is the Python sim's Controller (same kinematics, motion timing, --time-scale, --monitor-speed).
+The robot is the Python sim's Controller (same kinematics, motion timing, --time-scale, --monitor-speed); the
+ZeroMQ state stream (``--state-endpoint``, ``--state-rate-hz``, CURVE) and ``--fault`` work as with the Python
+backend (the READY line names the stream's endpoint).
 """
 
 from __future__ import annotations
@@ -13,8 +15,8 @@ import argparse
 import asyncio
 import signal
 import sys
-
-from aioadept.geometry import NULL, Pose
+import time
+from typing import Any
 
 
 def parse_port_map(specs: list[str]) -> dict[int, int]:
@@ -32,36 +34,52 @@ def parse_port_map(specs: list[str]) -> dict[int, int]:
     return out
 
 
-async def run(args: argparse.Namespace) -> int:
+async def run(args: argparse.Namespace, options: Any = None) -> int:
+    """Serve until SIGINT/SIGTERM. ``options`` (:class:`aioadept.sim.server.SimOptions`, from the same command
+    line) gives the robot, the state stream and the faults exactly as for the Python backend."""
+    from aioadept.sim.__main__ import options_from_args
     from aioadept.sim.controller import Controller
+    from aioadept.sim.server import publish_robot_states, robot_state_sample
     from aioadept.vplus import Emulator, RealClock
     from aioadept.vplus.iodev import Network
     from aioadept.vplus.loader import load_files
     from aioadept.vplus.robot import RobotDevice
 
+    if options is None:
+        options = options_from_args(args)
     port_map = parse_port_map(args.map_port)
-    extra = {}
-    if args.joints is not None:
-        extra["joints_deg"] = args.joints
-    ctl = Controller(tool=Pose(*args.tool) if args.tool else NULL, monitor_speed_pct=args.monitor_speed,
-                     time_scale=args.time_scale, instant=args.instant, max_speed_pct=args.max_speed, **extra)
+    ctl = Controller(joints_deg=options.joints_deg, tool=options.tool, monitor_speed_pct=options.monitor_speed_pct,
+                     time_scale=options.time_scale, instant=options.instant, max_speed_pct=options.max_speed_pct)
 
     def console(task: int, text: str) -> None:
         print(f"[{task}] {text}", flush=True)
 
     module = load_files(args.vplus)
-    emu = Emulator(module, robot=RobotDevice(ctl), clock=RealClock(), console=console, cycle_s=args.vplus_cycle)
+    clock = RealClock()
+    wall0 = time.time() - clock.now
+    emu = Emulator(module, robot=RobotDevice(ctl), clock=clock, console=console, cycle_s=args.vplus_cycle)
     for p in emu.problems:
         print(f"aioadept sim: {p}", file=sys.stderr, flush=True)
 
-    def on_listen(vport: int, host: str, port: int) -> None:
-        print(f"READY host={host} port={port} vport={vport} state=none", flush=True)
+    publisher = None
+    state = "none"
+    if options.state_endpoint is not None:
+        from aioadept.bus.pubsub import Publisher
 
-    emu.rt.devices = Network(args.host, port_map, on_listen)
+        publisher = Publisher(options.state_endpoint, bind=True, curve=options.state_curve)
+        state = publisher.actual_endpoint
+
+    def on_listen(vport: int, host: str, port: int) -> None:
+        print(f"READY host={host} port={port} vport={vport} state={state}", flush=True)
+
+    emu.rt.devices = Network(args.host, port_map, on_listen, faults=options.faults)
     loop = asyncio.get_running_loop()
     stop = asyncio.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, stop.set)
+    # the emulator's clock is the controller's time: the stream samples the arm at that time
+    states = None if publisher is None else asyncio.ensure_future(
+        publish_robot_states(publisher, lambda: robot_state_sample(ctl, clock.now, wall0), options.state_rate_hz))
     try:
         emu.execute(0, args.run)
         await emu.serve(stop)
@@ -70,4 +88,9 @@ async def run(args: argparse.Namespace) -> int:
             loop.remove_signal_handler(sig)
         for n in list(emu.rt.tasks):
             emu.rt.abort(n)
+        if states is not None:
+            states.cancel()
+            await asyncio.gather(states, return_exceptions=True)
+        if publisher is not None:
+            publisher.close()
     return 0

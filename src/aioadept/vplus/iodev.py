@@ -44,6 +44,13 @@ class Network:
     # WRITEs of the current burst of scheduler rounds, per connection, sent together by flush(): one send for
     # several acks instead of one each (the system call, not the interpreter, dominated pipelined acks)
     pending: dict[asyncio.Transport, list[bytes]] = field(default_factory=dict)
+    # fault injection of ``aioadept sim --fault`` (aioadept.sim.server.Faults), on what server connections are
+    # written: silent (nothing), ack-delay (each WRITE that much later, order kept), drop-after=N (the connection is
+    # closed right after its Nth WRITE is sent: the program then reads IOSTAT 101)
+    faults: Any = None
+    server_transports: set = field(default_factory=set)   # connections accepted by a /LOCAL_PORT server
+    _written: dict[asyncio.Transport, int] = field(default_factory=dict)
+    _delayed: dict[asyncio.Transport, deque] = field(default_factory=dict)
 
     def flush(self) -> None:
         """Send what WRITE queued (the scheduler calls it before it yields to asyncio)."""
@@ -52,7 +59,55 @@ class Network:
         pending, self.pending = self.pending, {}
         for tr, parts in pending.items():
             if not tr.is_closing():
-                tr.write(b"".join(parts))
+                self._send(tr, parts)
+
+    def _send(self, tr: asyncio.Transport, parts: list[bytes]) -> None:
+        f = self.faults
+        if f is None or tr not in self.server_transports:
+            tr.write(b"".join(parts))
+            return
+        if f.silent:
+            return
+        if f.ack_delay_s > 0:
+            loop = asyncio.get_running_loop()
+            q = self._delayed.setdefault(tr, deque())
+            due = loop.time() + f.ack_delay_s
+            for p in parts:
+                q.append((due, p))
+            if len(q) == len(parts):
+                loop.call_at(due, self._release_delayed, tr)
+            return
+        self._out(tr, parts)
+
+    def _release_delayed(self, tr: asyncio.Transport) -> None:
+        q = self._delayed.get(tr)
+        if not q:
+            return
+        loop = asyncio.get_running_loop()
+        now = loop.time() + 1e-4
+        parts = []
+        while q and q[0][0] <= now:
+            parts.append(q.popleft()[1])
+        if parts and not tr.is_closing():
+            self._out(tr, parts)
+        if q:
+            loop.call_at(q[0][0], self._release_delayed, tr)
+        else:
+            self._delayed.pop(tr, None)
+
+    def _out(self, tr: asyncio.Transport, parts: list[bytes]) -> None:
+        drop = self.faults.drop_after
+        if drop is None:
+            tr.write(b"".join(parts))
+            return
+        n = self._written.get(tr, 0)
+        take = parts[:max(drop - n, 0)]
+        if take:
+            tr.write(b"".join(take))
+        self._written[tr] = n + len(take)
+        if n + len(take) >= drop:
+            self._written.pop(tr, None)
+            tr.close()               # after what is buffered has been sent
 
 
 class TcpLun:
@@ -68,6 +123,7 @@ class TcpLun:
         self.buffered = 0
         self.paused: set[int] = set()
         self.open = False
+        self.is_server = False
 
     def new_handle(self) -> int | None:
         if len(self.conns) >= self.max_clients:
@@ -136,6 +192,9 @@ class _Proto(asyncio.Protocol):
         self.handle = h
         self.lun.conns[h] = transport   # type: ignore[assignment]
         self.lun.reserved.add(h)
+        net = self.lun.rt.devices
+        if self.lun.is_server and net is not None:
+            net.server_transports.add(transport)
         self.lun.push(100, h)
 
     def data_received(self, data: bytes) -> None:
@@ -143,6 +202,13 @@ class _Proto(asyncio.Protocol):
             self.lun.push(1, self.handle, data.decode("latin-1"))
 
     def connection_lost(self, exc: Exception | None) -> None:
+        net = self.lun.rt.devices
+        if net is not None and self.handle is not None:
+            tr = self.lun.conns.get(self.handle)
+            if tr is not None:
+                net.server_transports.discard(tr)
+                net._written.pop(tr, None)
+                net._delayed.pop(tr, None)
         if self.handle is not None and self.lun.conns.get(self.handle) is not None:
             del self.lun.conns[self.handle]
             self.lun.paused.discard(self.handle)
@@ -215,6 +281,7 @@ def fopen(rt: Any):
             if "LOCAL_PORT" in opts:
                 vport = int(float(opts["LOCAL_PORT"]))
                 dev.max_clients = int(float(opts.get("CLIENTS") or 16))
+                dev.is_server = True
                 port = net.port_map.get(vport, vport)
                 dev.open = True
                 fut = asyncio.ensure_future(loop.create_server(lambda: _Proto(dev), net.host, port))
