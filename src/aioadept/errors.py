@@ -22,7 +22,7 @@ catches our types only::
 
 The applications add their own subclasses of ``AdeptError`` beside their code: ``apps.focus.FocusError`` (and
 ``FocusStopped``), ``apps.focus.StopFailed`` (a stop the app sent was not acked ``done``: the robot may still be
-moving), ``capture.RunSaveError`` (a run folder file could not be written) and ``apps.processes.NodeError`` (a node process failed to start or died).
+moving), ``capture.RunSaveError`` (an ``OSError``, not an ``AdeptError``: run folder files not written) and ``apps.processes.NodeError`` (a node process failed to start or died).
 """
 
 from __future__ import annotations
