@@ -122,11 +122,13 @@ async def test_a_request_flood_is_answered_or_dropped_with_an_error_and_does_not
                 req.pub.send(p, zmq.NOBLOCK)
             t_normal = time.monotonic()
             req.send("feedbeef", {"t_request": time.time()})  # the request a waiting client cares about
-            async with asyncio.timeout(30):
-                await req.wait_for({"feedbeef"})
+            with contextlib.suppress(TimeoutError):
+                async with asyncio.timeout(30):
+                    await req.wait_for({"feedbeef", *ids})  # every request resolves: an answer or an explicit drop
+            missing = [rid for rid in ids if rid not in req.answers]
+            assert "feedbeef" in req.answers and not missing, \
+                f"no answer to {len(missing)} of {n}, e.g. {missing[:3]}, nor to the next: {'feedbeef' in req.answers}"
             latency = req.t_answer["feedbeef"] - t_normal
-            async with asyncio.timeout(30):
-                await req.wait_for(set(ids))  # every request resolves: an answer or an explicit drop
             after = Communicator(node.ready["request"], node.ready["response"], timeout_s=5.0)
             async with after:
                 again = await after.request("VisionRequest", {})
