@@ -1,0 +1,249 @@
+"""The live recording of a run: ``run.rrd`` in the run folder, and the stream to a viewer when one is open.
+
+:class:`RunRecording` is one more observer of the :class:`~aioadept.client.RobotClient` and the
+:class:`~aioadept.bus.Communicator` (``on_send``/``on_ack``/``on_request``/``on_response``) and takes the
+application's marks, like :class:`aioadept.capture.Recorder`. Its hooks run inside the protocol path, so they only
+put the record object on a queue (``SimpleQueue.put``, well under a microsecond); one worker thread does the rest:
+converting, forward kinematics, reading and downsampling the frame files, and Rerun's logging calls. A frame is
+therefore never read or encoded on the event loop.
+
+Where the data comes from besides the hooks: the sim's robot-state stream (``state_endpoint``; a SUB socket on the
+loop that keeps at most :data:`STATE_RATE_HZ` samples a second) gives the joints; without it the arm is drawn from
+the acked poses by inverse kinematics. The frames are the files the vision node saves with ``--save-frames``
+(``frames_dir``), named by the ``camera``/``frame_seq`` of each response.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import os
+import queue
+import threading
+import time
+import uuid
+from pathlib import Path
+from typing import Any
+
+from aioadept.record.rrd import APP_ID, CellLogger, frame_file
+
+__all__ = ["STATE_RATE_HZ", "RunRecording"]
+
+log = logging.getLogger(__name__)
+
+STATE_RATE_HZ = 25.0
+"""Robot-state samples drawn per second: smooth motion in the viewer for a fraction of the sim's 100 Hz."""
+
+_STOP = object()
+
+
+def _loop_clock() -> float:
+    try:
+        return asyncio.get_running_loop().time()
+    except RuntimeError:
+        return time.monotonic()
+
+
+class RunRecording:
+    """Record a run into ``rrd_path`` (and stream it to ``viewer_url``, a ``rerun+http://HOST:PORT/proxy``).
+
+    Use as an (async) context manager, or call :meth:`start`/:meth:`close`. ``clock_ref``: an object with
+    ``start_wall_epoch_s``/``start_loop_s`` (the run's :class:`aioadept.capture.Recorder`) so both logs share the
+    same mapping from loop time to wall time. ``name`` becomes the recording's name in the viewer.
+    """
+
+    def __init__(self, rrd_path: str | os.PathLike[str] | None, *, viewer_url: str | None = None,
+                 state_endpoint: str | None = None, frames_dir: str | os.PathLike[str] | None = None,
+                 clock_ref: Any = None, name: str | None = None) -> None:
+        if rrd_path is None and viewer_url is None:
+            raise ValueError("RunRecording: give a file (rrd_path), a viewer (viewer_url), or both")
+        import rerun as rr
+
+        self.rr = rr
+        self.rrd_path = None if rrd_path is None else Path(rrd_path)
+        self.viewer_url = viewer_url
+        self.state_endpoint = state_endpoint
+        self.frames_dir = None if frames_dir is None else Path(frames_dir)
+        if clock_ref is not None:
+            wall, loop_t = float(clock_ref.start_wall_epoch_s), float(clock_ref.start_loop_s)
+        else:
+            wall, loop_t = time.time(), _loop_clock()
+        self.loop_to_epoch_s = wall - loop_t
+        self.rec = rr.RecordingStream(APP_ID, recording_id=str(uuid.uuid4()))
+        sinks: list[Any] = []
+        if self.rrd_path is not None:
+            self.rrd_path.parent.mkdir(parents=True, exist_ok=True)
+            sinks.append(rr.FileSink(str(self.rrd_path)))
+        if viewer_url is not None:
+            sinks.append(rr.GrpcSink(viewer_url))
+        self.rec.set_sinks(*sinks)
+        if name:
+            self.rec.send_recording_name(name)
+        self.logger = CellLogger(self.rec, loop_to_epoch_s=self.loop_to_epoch_s)
+        self._q: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        self._thread: threading.Thread | None = None
+        self._state_task: asyncio.Task[None] | None = None
+        self._errors = 0
+        self.frames_missing = 0
+        self.closed = False
+
+    # -- hooks (hot path: one queue put each)
+    def on_send(self, msg: Any) -> None:
+        self._q.put(("send", msg))
+
+    def on_ack(self, result: Any) -> None:
+        self._q.put(("ack", result))
+
+    def on_request(self, request: Any) -> None:
+        self._q.put(("request", request))
+
+    def on_response(self, response: Any) -> None:
+        self._q.put(("response", response))
+
+    def mark(self, name: str, value: Any = None, *, t_s: float | None = None) -> None:
+        self._q.put(("mark", (_loop_clock() if t_s is None else t_s, name, value)))
+
+    def focus_result(self, result: Any) -> None:
+        """The run's :class:`~aioadept.apps.focus.FocusResult`: draws the focus plane at its inspection pose."""
+        self._q.put(("result", result))
+
+    # -- life cycle
+    def start(self) -> RunRecording:
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._work, name="rerun-recording", daemon=True)
+            self._thread.start()
+            if self.state_endpoint:
+                try:
+                    loop = asyncio.get_running_loop()
+                except RuntimeError:
+                    loop = None
+                if loop is not None:
+                    self._state_task = loop.create_task(self._follow_state(self.state_endpoint),
+                                                        name="rerun-state")
+        return self
+
+    async def aclose(self) -> None:
+        """Stop following the state stream, then :meth:`close` (in a thread: the final flush may take a moment)."""
+        if self._state_task is not None:
+            self._state_task.cancel()
+            await asyncio.gather(self._state_task, return_exceptions=True)
+            self._state_task = None
+        await asyncio.to_thread(self.close)
+
+    def close(self, timeout_s: float = 10.0) -> None:
+        """Log what is queued, then flush and close the file (and the viewer stream). Idempotent."""
+        if self.closed:
+            return
+        self.closed = True
+        if self._thread is not None:
+            self._q.put((_STOP, None))
+            self._thread.join(timeout_s)
+        else:
+            self._drain()
+        try:
+            self.rec.flush()
+        finally:
+            self.rec.disconnect()
+
+    def __enter__(self) -> RunRecording:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    async def __aenter__(self) -> RunRecording:
+        return self.start()
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.aclose()
+
+    # -- worker thread
+    def _work(self) -> None:
+        while True:
+            kind, obj = self._q.get()
+            if kind is _STOP:
+                return
+            self._handle(kind, obj)
+
+    def _drain(self) -> None:
+        while True:
+            try:
+                kind, obj = self._q.get_nowait()
+            except queue.Empty:
+                return
+            if kind is not _STOP:
+                self._handle(kind, obj)
+
+    def _handle(self, kind: str, obj: Any) -> None:
+        lg = self.logger
+        try:
+            if kind == "send":
+                lg.command(obj.id, obj.skill, obj.args, obj.t_send_s)
+            elif kind == "ack":
+                ack = obj.ack
+                status = getattr(ack, "status", None)
+                status_text = None if status is None else str(getattr(status, "value", status))
+                err = getattr(ack, "error_message", None) if status_text not in (None, "done") else None
+                lg.ack(obj.id, obj.skill, status_text, getattr(ack, "pose", None), obj.t_recv_s,
+                       t_send_loop_s=obj.t_send_s, error=err)
+            elif kind == "request":
+                lg.request(obj.id, obj.event_type, obj.attributes or {}, obj.t_send_s)
+            elif kind == "response":
+                attrs = dict(obj.attributes or {})
+                step = lg._step  # the sharpness of this response gets this step index
+                lg.response(obj.id, obj.event_type, attrs, obj.t_recv_s, t_send_loop_s=obj.t_send_s)
+                self._frame(attrs, step)
+            elif kind == "mark":
+                t, name, value = obj
+                lg.mark(name, value, t)
+            elif kind == "state":
+                lg.state(obj.wall_time_s, obj.joints_deg, obj.pose)
+            elif kind == "result":
+                lg.focus_plane(obj.inspection_pose, offset_mm=float(obj.peak_offset_mm))
+        except Exception:  # a recording must never take the run down; say it once, then count
+            self._errors += 1
+            if self._errors == 1:
+                log.exception("recording: could not log a %s event (further errors are counted only)", kind)
+
+    def _frame(self, attrs: dict[str, Any], step: int) -> None:
+        if self.frames_dir is None or attrs.get("error") or "frame_seq" not in attrs:
+            return
+        path = frame_file(self.frames_dir, str(attrs.get("camera", "")), int(attrs["frame_seq"]))
+        import cv2
+
+        img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED) if path.is_file() else None
+        if img is None:
+            self.frames_missing += 1
+            return
+        self.logger.frame(img, float(attrs.get("frame_t", time.time())), step=step,
+                          camera=str(attrs.get("camera", "")))
+
+    # -- robot state stream (on the loop: a SUB socket, decimated before it reaches the queue)
+    async def _follow_state(self, endpoint: str) -> None:
+        from aioadept.bus.messages import ROBOT_STATE_TOPIC, RobotState
+        from aioadept.bus.pubsub import Subscriber
+
+        min_dt = 1.0 / STATE_RATE_HZ
+        last_t = -1e9
+        last_motion: bool | None = None
+        try:
+            sub = Subscriber(endpoint, topics=[ROBOT_STATE_TOPIC], rcvhwm=16)
+        except Exception as exc:  # noqa: BLE001 - no state stream: the arm is drawn from the acks
+            log.warning("recording: cannot follow the robot state at %s (%s); drawing the arm from the acks",
+                        endpoint, exc)
+            return
+        try:
+            while True:
+                _topic, payload = await sub.recv()
+                try:
+                    st = RobotState.from_bytes(payload)
+                except Exception:  # noqa: BLE001 - a stranger's message on the topic: skip it
+                    continue
+                # Keep the first sample of every start and stop of a motion, and at most STATE_RATE_HZ otherwise.
+                if st.wall_time_s - last_t >= min_dt or st.in_motion != last_motion:
+                    last_t, last_motion = st.wall_time_s, st.in_motion
+                    self._q.put(("state", st))
+        finally:
+            with contextlib.suppress(Exception):
+                sub.close()

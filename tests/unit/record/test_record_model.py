@@ -1,0 +1,46 @@
+"""The arm the viewer draws is the arm of the kinematics module: same flange, same wrist centre."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from aioadept.record.model import chain_points_mm, joints_from_pose
+from aioadept.sim import kinematics as kin
+
+pytestmark = pytest.mark.timeout(30)
+
+JOINTS = [(0, -90, 180, 0, 90, 0), (-90, -30, 210, -90, 90, 1.5), (30, -60, 150, 20, 45, -30)]
+
+
+@pytest.mark.parametrize("joints", JOINTS)
+def test_chain_ends_at_the_flange_and_passes_the_wrist_centre(joints):
+    pts = chain_points_mm(joints)
+    m = kin.flange_matrix(joints)
+    assert pts.shape == (7, 3)
+    np.testing.assert_allclose(pts[0], 0.0)
+    np.testing.assert_allclose(pts[-1], m[:3, 3], atol=1e-9)
+    # the wrist centre is d6 behind the flange along the tool z axis
+    np.testing.assert_allclose(pts[-2], m[:3, 3] - kin.D6_MM * m[:3, 2], atol=1e-9)
+    # link lengths are the robot's
+    assert np.linalg.norm(pts[3] - pts[2]) == pytest.approx(kin.A2_MM)
+    assert np.linalg.norm(pts[5] - pts[3]) == pytest.approx(np.hypot(kin.A3_MM, kin.D4_MM))
+
+
+def test_joints_from_an_acked_pose_reproduce_the_pose():
+    joints = JOINTS[1]
+    pose = kin.forward(joints)
+    back = joints_from_pose(pose, kin.HOME_JOINTS_DEG)
+    assert back is not None
+    np.testing.assert_allclose(kin.forward(back).position_mm, pose.position_mm, atol=1e-6)
+
+
+def test_an_unreachable_pose_gives_none_not_an_error():
+    from aioadept.geometry import Pose
+
+    assert joints_from_pose(Pose(5000, 0, 0, 0, 180, 0)) is None
+
+
+def test_wrong_joint_count_is_a_clear_error():
+    with pytest.raises(ValueError, match="6 values"):
+        chain_points_mm([0, 0, 0])
