@@ -17,6 +17,7 @@ DeskTop writes between programs, are ignored.
 
 from __future__ import annotations
 
+import hashlib
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -116,7 +117,26 @@ def load_files(paths: list[str | Path], module: Module | None = None) -> Module:
     return module
 
 
+_PARSED: dict[tuple[str, str], Module] = {}
+"""Parsed files by (content hash, file name): loading the same text again (every test of a V+ file loads it)
+reuses the parsed programs, which nothing changes after loading. Bounded: cleared when it grows past 256."""
+
+
 def load_text(text: str, filename: str, module: Module) -> Module:
+    """Parse ``text`` (the contents of ``filename``) into ``module``; returns ``module``."""
+    key = (hashlib.sha256(text.encode("utf-8", "surrogatepass")).hexdigest(), filename)
+    parsed = _PARSED.get(key)
+    if parsed is None:
+        if len(_PARSED) >= 256:
+            _PARSED.clear()
+        parsed = _PARSED[key] = _parse_text(text, filename, Module())
+    module.programs.update(parsed.programs)
+    module.data.extend(parsed.data)
+    module.problems.extend(parsed.problems)
+    return module
+
+
+def _parse_text(text: str, filename: str, module: Module) -> Module:
     cur: Program | None = None
     section: str | None = None
     for n, raw in enumerate(text.replace("\r\n", "\n").replace("\r", "\n").split("\n"), 1):

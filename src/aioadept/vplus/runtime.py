@@ -48,6 +48,11 @@ class _Goto(BaseException):
 
 _GOTO = [_Goto(i) for i in range(4096)]
 
+_COMPILED: dict[tuple, tuple] = {}
+"""Code objects of compiled programs by their source text (and the DOUBLE names, which change the code): an
+emulator built again from the same files (one per test) only runs the code in a fresh namespace. The code and
+its constants are immutable; each runtime has its own namespace and data."""
+
 
 class _Missing(dict):
     """The container of an omitted argument: reading it is an undefined value."""
@@ -171,14 +176,22 @@ class Runtime:
             if not prog.executable:
                 self.not_executable[name] = prog.problems
                 continue
-            src, consts, problems = compile_program(prog, doubles)
+            key = (prog.file, prog.name, prog.line, repr(prog.params), repr(sorted(prog.source.items())),
+                   frozenset(doubles))
+            hit = _COMPILED.get(key)
+            if hit is None:
+                src, consts, problems = compile_program(prog, doubles)
+                code = None if problems else compile(src, f"<V+ {prog.name} ({prog.file})>", "exec")
+                if len(_COMPILED) >= 4096:
+                    _COMPILED.clear()
+                hit = _COMPILED[key] = (code, consts, problems)
+            code, consts, problems = hit
             if problems:
                 self.not_executable[name] = problems
                 self.problems.extend(problems)
                 continue
             ns = dict(ns_base)
             ns["_K"] = consts
-            code = compile(src, f"<V+ {prog.name} ({prog.file})>", "exec")
             exec(code, ns)
             self.programs[name] = ns["_prog"]
 
