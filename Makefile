@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: venv demo test bench docs proto clean toxiproxy
+.PHONY: venv demo test bench docs proto clean toxiproxy chromium
 
 $(STAMP): pyproject.toml requirements.lock
 	$(PY) -m venv $(VENV)
@@ -23,8 +23,18 @@ toxiproxy:
 	@if command -v go >/dev/null 2>&1; then scripts/install_toxiproxy.sh || echo "toxiproxy build failed: its fault-matrix cases will skip" >&2; \
 	else echo "no Go toolchain: the toxiproxy fault-matrix cases will skip" >&2; fi
 
+# The live viewer's browser test drives Debian's headless Chromium; installed here when missing and this machine
+# allows it (root with apt-get). Without it that test skips and says why.
+chromium:
+	@if [ -x /usr/bin/chromium ]; then :; \
+	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	  echo "installing chromium (Debian package) for the viewer's browser test" >&2; \
+	  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null) || \
+	  echo "chromium install failed: the viewer's browser test will skip" >&2; \
+	else echo "no /usr/bin/chromium and no root apt-get: the viewer's browser test will skip" >&2; fi
+
 # pytest exits 5 when it collected no tests: that is a failure, not a pass.
-test: $(STAMP) toxiproxy
+test: $(STAMP) toxiproxy chromium
 	$(BIN)/python -m pytest -q $(ARGS); rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "no tests were collected" >&2; exit 1; fi; exit $$rc
 
