@@ -91,7 +91,8 @@ def test_a_real_benchmark_in_quick_mode_gives_its_verdict(tmp_path: Path) -> Non
     assert "Communicator+Responder" in res.stdout
 
 
-@pytest.mark.parametrize("name", ["bench_bus", "bench_client", "bench_load", "bench_safety", "bench_sigint", "bench_sim",
+@pytest.mark.parametrize("name", ["bench_bus", "bench_client", "bench_load", "bench_safety", "bench_sigint",
+                                 "bench_sim",
                                   "bench_vision", "bench_vplus"])
 def test_each_benchmark_puts_the_standard_verdicts_in_its_json(name: str) -> None:
     # A benchmark without the list still runs: the table shows it as "no goal stated".
