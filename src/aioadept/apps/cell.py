@@ -60,6 +60,10 @@ class RunSection:
     out_dir: str = "runs"
     analyze: bool = True
     name: str = ""
+    record: bool = True
+    """Write ``run.rrd`` (Rerun) into every run folder when the [viewer] extra is installed (docs/record.md)."""
+    view_url: str = ""
+    """gRPC address of a live viewer each run streams to (set by ``--view``); empty: none."""
 
 
 @dataclass(slots=True)
@@ -169,21 +173,25 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
     from aioadept.capture import Recorder
     from aioadept.client import RobotClient
 
+    from aioadept.record.hook import MarkTee, open_run_recording
+
     params = params or cfg.focus
     recorder = Recorder()
+    rrd = open_run_recording(cfg, run_dir, recorder)  # run.rrd / live view; None when off or Rerun is missing
+    observers = [recorder] if rrd is None else [recorder, rrd]
     result: FocusResult | None = None
     error: str | None = None
     save_error: OSError | None = None
     started = _dt.datetime.now(_dt.timezone.utc).isoformat()
     try:
         async with RobotClient(cfg.robot.host, cfg.robot.port, connect_timeout_s=cfg.robot.connect_timeout_s,
-                               ack_timeout_s=cfg.robot.ack_timeout_s, observers=[recorder]) as rc, \
+                               ack_timeout_s=cfg.robot.ack_timeout_s, observers=observers) as rc, \
                 Communicator(cfg.vision.request_endpoint, cfg.vision.response_endpoint,
-                             timeout_s=params.vision_timeout_s, observers=[recorder]) as comm, \
+                             timeout_s=params.vision_timeout_s, observers=observers) as comm, \
                 _guarded(interrupter, rc):
             result = await ufloop(rc, comm, params.delta_z_mm, params.approach_speed, max_steps=params.max_steps,
                                   vision_timeout_s=params.vision_timeout_s, retract_speed=params.retract_speed,
-                                  recorder=recorder)
+                                  recorder=recorder if rrd is None else MarkTee(recorder, rrd))
     except BaseException as exc:
         if isinstance(exc, (asyncio.CancelledError, KeyboardInterrupt)):
             error = "interrupted"
@@ -200,6 +208,8 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
         save_error = save_run(recorder, run_dir, meta)
         if save_error is not None and result is None:
             log.error("%s", save_error)  # the run's own error propagates; this one must not vanish either
+        if rrd is not None:
+            await asyncio.shield(rrd.aclose())  # flushed and closed even when the run was cancelled
     return RunOutcome(run_dir, result, error, save_error)
 
 

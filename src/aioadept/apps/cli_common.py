@@ -21,6 +21,9 @@ def add_cell_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--vision-timeout", type=float, dest="vision_timeout", help="seconds per vision request")
     p.add_argument("--no-analyze", action="store_true", help="do not compute the timing analysis and plots")
     p.add_argument("-v", "--verbose", action="store_true")
+    from aioadept.record.hook import add_view_options
+
+    add_view_options(p)
 
 
 def apply_overrides(cfg: CellConfig, args: argparse.Namespace) -> CellConfig:
@@ -38,6 +41,8 @@ def apply_overrides(cfg: CellConfig, args: argparse.Namespace) -> CellConfig:
         cfg.run.out_dir = args.out
     if args.no_analyze:
         cfg.run.analyze = False
+    if getattr(args, "no_record", False):
+        cfg.run.record = False
     return cfg
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
+from pathlib import Path
 
 from aioadept.apps.cell import CellConfig, RunOutcome, new_run_dir, run_focus_once
 from aioadept.apps.cli_common import add_cell_options, apply_overrides, configure_logging, print_result, report_saving
@@ -52,6 +53,25 @@ def main(argv: list[str] | None = None) -> int:
         print(f"aioadept focus: cannot create a run folder in {cfg.run.out_dir!r}: {exc}; nothing was started",
               file=sys.stderr)
         return 2
+    from aioadept.record import ViewerUnavailable
+    from aioadept.record.hook import start_viewer, wait_for_viewer
+
+    try:
+        viewer = start_viewer(args, "aioadept focus", log_path=run_dir / "viewer.log")
+    except ViewerUnavailable as exc:
+        print(f"aioadept focus: --view: {exc}", file=sys.stderr)
+        return 2
+    if viewer is not None:
+        cfg.run.view_url = viewer.grpc_url
+    try:
+        return _run(cfg, run_dir)
+    finally:
+        if viewer is not None:
+            wait_for_viewer(viewer, "aioadept focus")
+            viewer.close()
+
+
+def _run(cfg: CellConfig, run_dir: Path) -> int:
     outcomes: list[RunOutcome] = []
 
     async def app(intr: Interrupter) -> int:

@@ -1,0 +1,108 @@
+"""How the applications use the recording: the ``--view`` options, the viewer's life, one recording per run.
+
+``aioadept demo``, ``focus`` and ``experiment`` call :func:`add_view_options` on their parser, :func:`start_viewer`
+before the first run (it prints the URL, or the one line that says how to install the extra), and
+:func:`open_run_recording` in :func:`aioadept.apps.cell.run_focus_once` for every run. The choice of what is
+recorded lives here, so the applications stay a few lines longer than before.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from pathlib import Path
+from typing import Any
+
+from aioadept.record import VIEWER_INSTALL_HINT, ViewerUnavailable, rerun_available
+
+__all__ = ["add_view_options", "frames_dir_of", "open_run_recording", "start_viewer", "wait_for_viewer"]
+
+log = logging.getLogger(__name__)
+
+
+def add_view_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--view", action="store_true",
+                   help="serve Rerun's web viewer and stream the run live (needs the [viewer] extra); prints the URL")
+    p.add_argument("--view-host", dest="view_host", default="127.0.0.1", metavar="ADDR",
+                   help="address the viewer binds (default 127.0.0.1; 0.0.0.0 opens it to the network, "
+                        "see docs/security.md)")
+    p.add_argument("--no-record", dest="no_record", action="store_true",
+                   help="do not write run.rrd into the run folder")
+
+
+def start_viewer(args: argparse.Namespace, prog: str, *, log_path: Path | None = None) -> Any:
+    """The :class:`~aioadept.record.ViewerServer` asked for by ``--view`` (None without it), URL printed.
+
+    Raises :class:`ViewerUnavailable` with one line (how to install the extra, or why the viewer did not start).
+    """
+    if not getattr(args, "view", False):
+        return None
+    if not rerun_available():
+        raise ViewerUnavailable(VIEWER_INSTALL_HINT)
+    from aioadept.record.viewer import ViewerServer
+
+    viewer = ViewerServer(args.view_host, log_path=log_path).start()
+    print(f"{prog}: live viewer at {viewer.url}", file=sys.stderr, flush=True)
+    return viewer
+
+
+def wait_for_viewer(viewer: Any, prog: str) -> None:
+    """After the run: keep the viewer up until Enter or Ctrl-C when a person is at the terminal."""
+    if viewer is None or not sys.stdin.isatty():
+        return
+    print(f"{prog}: the viewer stays at {viewer.url}; press Enter or Ctrl-C to close it", file=sys.stderr,
+          flush=True)
+    try:
+        sys.stdin.readline()
+    except KeyboardInterrupt:
+        pass
+
+
+def frames_dir_of(vision_args: list[str]) -> Path | None:
+    """The folder given to the vision node with ``--save-frames`` in ``vision_args`` (None if absent)."""
+    for i, a in enumerate(vision_args):
+        if a == "--save-frames" and i + 1 < len(vision_args):
+            return Path(vision_args[i + 1])
+        if a.startswith("--save-frames="):
+            return Path(a.split("=", 1)[1])
+    return None
+
+
+def open_run_recording(cfg: Any, run_dir: Path, recorder: Any) -> Any:
+    """A started :class:`~aioadept.record.RunRecording` for one run of ``cfg`` (a CellConfig), or None.
+
+    None when ``cfg.run.record`` is off and no viewer is open, or when Rerun is not installed (then the run goes on
+    without ``run.rrd``: recording is a convenience, never a reason to fail a run). Call it inside the event loop.
+    """
+    view_url = getattr(cfg.run, "view_url", "") or None
+    if not getattr(cfg.run, "record", True) and view_url is None:
+        return None
+    if not rerun_available():
+        log.debug("rerun-sdk not installed: no run.rrd (%s)", VIEWER_INSTALL_HINT)
+        return None
+    from aioadept.record.live import RunRecording
+
+    try:
+        rec = RunRecording(run_dir / "run.rrd" if getattr(cfg.run, "record", True) else None,
+                           viewer_url=view_url, state_endpoint=cfg.robot.state_endpoint or None,
+                           frames_dir=frames_dir_of(list(cfg.vision.vision_args)), clock_ref=recorder,
+                           name=run_dir.name)
+    except Exception as exc:  # noqa: BLE001 - see the docstring: never fail a run for its recording
+        log.warning("no run.rrd for this run: %s", exc)
+        return None
+    return rec.start()
+
+
+class MarkTee:
+    """Sends the application's marks to the timing recorder and to the Rerun recording."""
+
+    def __init__(self, *targets: Any) -> None:
+        self.targets = [t for t in targets if t is not None]
+
+    def mark(self, name: str, value: Any = None, *, t_s: float | None = None) -> None:
+        from aioadept.record.live import _loop_clock
+
+        t_s = _loop_clock() if t_s is None else t_s  # one instant for both logs
+        for t in self.targets:
+            t.mark(name, value, t_s=t_s)
