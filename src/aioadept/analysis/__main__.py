@@ -29,6 +29,8 @@ def _parser() -> argparse.ArgumentParser:
                    help="first complete iteration shown in the Gantt chart (default 1, as i >= 1 has tau r->v)")
     p.add_argument("--gantt-count", type=int, default=2, metavar="N",
                    help="number of iterations in the Gantt chart (default 2, as the paper's Fig. 10)")
+    p.add_argument("--no-rrd", action="store_true",
+                   help="do not write run.rrd (the Rerun recording rebuilt from the CSV logs) into each run folder")
     p.add_argument("--group-by", default="approach_speed,delta_z_mm", metavar="KEYS",
                    help="comma-separated run parameters to split the stats by in summary.json "
                         "(default: approach_speed,delta_z_mm; '' for none)")
@@ -49,6 +51,8 @@ def main(argv: list[str] | None = None) -> int:
     except (FileNotFoundError, ValueError) as exc:
         print(f"aioadept analyze: {exc}", file=sys.stderr)
         return 2
+    if not args.no_rrd:
+        _write_rrds(args.run_dirs, console)
     console.print(summary_table(summary))
     console.print(fits_table(summary))
     if len(summary.runs) <= 8:  # beyond that the list drowns the table; summary.json has every run
@@ -65,6 +69,26 @@ def main(argv: list[str] | None = None) -> int:
               "in these runs", file=sys.stderr)
         return 1
     return 0
+
+
+def _write_rrds(run_dirs: list[str], console) -> None:  # noqa: ANN001
+    """run.rrd for every analysed run folder that has none yet (a live run's own, with the robot-state stream and
+    the frames, is kept); see docs/record.md. Skipped without the [viewer] extra."""
+    from aioadept.record import rerun_available
+
+    if not rerun_available():
+        return
+    from aioadept.analysis.report import expand_run_dirs
+    from aioadept.record.from_csv import rrd_from_run
+
+    for path in expand_run_dirs(run_dirs):
+        if (path / "run.rrd").exists():
+            continue
+        try:
+            rrd_from_run(path)
+            console.print(f"wrote {path / 'run.rrd'}", markup=False, highlight=False)
+        except (OSError, ValueError) as exc:
+            print(f"aioadept analyze: no run.rrd for {path}: {exc}", file=sys.stderr)
 
 
 if __name__ == "__main__":  # pragma: no cover

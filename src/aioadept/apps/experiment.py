@@ -34,6 +34,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--time-scale", type=float, dest="time_scale", default=None, help="sim motion speed-up")
     p.add_argument("--out", default=None, help="experiment folder (default runs/experiment-<time>)")
     p.add_argument("-v", "--verbose", action="store_true")
+    from aioadept.record.hook import add_view_options
+
+    add_view_options(p)
     return p
 
 
@@ -87,10 +90,32 @@ def main(argv: list[str] | None = None) -> int:
         print(f"aioadept experiment: cannot create {str(out)!r}: {exc}; nothing was started", file=sys.stderr)
         return 2
     grid = [(int(s), dz) for s in _floats(args.speeds) for dz in _floats(args.delta_z)]
+    from aioadept.record import ViewerUnavailable, rerun_available
+    from aioadept.record.hook import start_viewer, wait_for_viewer
+
+    cfg.run.record = not args.no_record
+    if (cfg.run.record and rerun_available()) or args.view:  # frames for each run's run.rrd and the live view
+        cfg.vision.vision_args = [*cfg.vision.vision_args, "--save-frames", str(out / "frames")]
+    try:
+        viewer = start_viewer(args, "aioadept experiment", log_path=out / "logs" / "viewer.log")
+    except ViewerUnavailable as exc:
+        print(f"aioadept experiment: --view: {exc}", file=sys.stderr)
+        return 2
+    if viewer is not None:
+        cfg.run.view_url = viewer.grpc_url
+    try:
+        return _run(cfg, grid, args.runs, out)
+    finally:
+        if viewer is not None:
+            wait_for_viewer(viewer, "aioadept experiment")
+            viewer.close()
+
+
+def _run(cfg: CellConfig, grid: list[tuple[int, float]], runs: int, out: Path) -> int:
     results: list[list[Path]] = []
 
     async def app(intr: Interrupter) -> int:
-        results.append(await run_experiment(cfg, grid, args.runs, out, interrupter=intr))
+        results.append(await run_experiment(cfg, grid, runs, out, interrupter=intr))
         return 0
 
     try:
