@@ -160,6 +160,9 @@ class RunRecording:
 
     # -- worker thread
     def _work(self) -> None:
+        # The recording yields the CPU to the control loop: on a small machine they share the same cores.
+        with contextlib.suppress(OSError, AttributeError):
+            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 19)
         while True:
             kind, obj = self._q.get()
             if kind is _STOP:
