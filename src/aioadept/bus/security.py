@@ -24,10 +24,13 @@ Usage::
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import itertools
 import logging
 import os
 import threading
+import time
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -191,11 +194,7 @@ def apply_curve(sock: zmq.Socket, curve: Curve | None) -> None:
         if auth is None:
             # The authenticator's own sockets are plain ones (socket_class=zmq.Socket), so an asyncio context is
             # fine; ZAP is reached over inproc, which only works within the same libzmq context.
-            auth = ThreadAuthenticator(sock.context, log=log)
-            try:
-                auth.start()
-            except zmq.ZMQError as exc:
-                raise BusError(f"cannot start the CURVE authenticator (another ZAP handler?): {exc}") from exc
+            auth = _start_authenticator(sock.context)
             _auths[ctx_addr] = auth
         domain = f"aioadept-{next(_domains)}"
         auth.configure_curve_callback(domain, credentials_provider=_Allow(curve.allowed_clients))
@@ -204,6 +203,23 @@ def apply_curve(sock: zmq.Socket, curve: Curve | None) -> None:
     sock.setsockopt(zmq.CURVE_SECRETKEY, curve.keys.secret)
     sock.setsockopt(zmq.CURVE_PUBLICKEY, curve.keys.public)
     sock.setsockopt_string(zmq.ZAP_DOMAIN, domain)
+
+
+def _start_authenticator(ctx: zmq.Context) -> ThreadAuthenticator:
+    # libzmq closes sockets asynchronously (its reaper thread), so the ZAP endpoint of an authenticator that was
+    # just stopped may still be bound for a few milliseconds: retry EADDRINUSE for a short while before giving up.
+    deadline = time.monotonic() + 2.0
+    while True:
+        auth = ThreadAuthenticator(ctx, log=log)
+        try:
+            auth.start()
+            return auth
+        except zmq.ZMQError as exc:
+            with contextlib.suppress(Exception):
+                auth.stop()
+            if exc.errno != errno.EADDRINUSE or time.monotonic() > deadline:
+                raise BusError(f"cannot start the CURVE authenticator (another ZAP handler?): {exc}") from exc
+            time.sleep(0.01)
 
 
 def release(sock: zmq.Socket) -> None:
