@@ -69,7 +69,7 @@ def _responder_server(conn) -> None:
             return None  # no-op: empty attributes
 
         async with Responder(ANY, ANY, handler) as node:
-            conn.send((node.actual_request_endpoint, node.actual_response_endpoint))
+            conn.send((node.peer_request_endpoint, node.peer_response_endpoint))
             await stop.wait()
             await asyncio.sleep(0.05)  # shutdown grace so the STOP answer can leave; not on the measured path
 

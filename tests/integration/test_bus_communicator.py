@@ -59,7 +59,7 @@ async def test_request_gets_matching_response_with_observers_and_t_request():
 
     rec = Recorder()
     async with Responder(ANY, ANY, handler) as node:
-        async with Communicator(node.actual_request_endpoint, node.actual_response_endpoint,
+        async with Communicator(node.peer_request_endpoint, node.peer_response_endpoint,
                                 observers=[Broken(), rec]) as comm:
             t0 = time.time()
             resp = await comm.request("VisionRequest", {"camera": "c0"})
@@ -107,7 +107,7 @@ async def test_stale_and_foreign_responses_are_ignored():
                 if rid not in answered:
                     answered.append(rid)
 
-        async with Communicator(req_sub.actual_endpoint, resp_pub.actual_endpoint) as comm:
+        async with Communicator(">" + req_sub.actual_endpoint, resp_pub.actual_endpoint) as comm:
             task = asyncio.create_task(node())
             try:
                 r1 = await comm.request("VisionRequest", {"k": 1})
@@ -123,7 +123,7 @@ async def test_stale_and_foreign_responses_are_ignored():
 @pytest.mark.timeout(10)
 async def test_timeout_raises_request_timeout_and_republishes_same_id():
     async with Subscriber(ANY, bind=True) as req_sub, Publisher(ANY) as resp_pub:
-        async with Communicator(req_sub.actual_endpoint, resp_pub.actual_endpoint,
+        async with Communicator(">" + req_sub.actual_endpoint, resp_pub.actual_endpoint,
                                 republish_interval_s=0.01, republish_backoff=1.5) as comm:
             got: list[bytes] = []
 
@@ -176,7 +176,7 @@ async def test_concurrent_requests_are_routed_by_id_when_answered_out_of_order()
                     for m in reversed(range(5)):
                         resp_pub.send_nowait(encode_event("VisionResponse", ids[m], {"n2": m * m}))
 
-        async with Communicator(req_sub.actual_endpoint, resp_pub.actual_endpoint) as comm:
+        async with Communicator(">" + req_sub.actual_endpoint, resp_pub.actual_endpoint) as comm:
             task = asyncio.create_task(node())
             try:
                 results = await asyncio.gather(
@@ -196,7 +196,7 @@ async def test_repeated_id_is_answered_from_cache_not_reprocessed():
         return {"count": len(calls)}
 
     async with Responder(ANY, ANY, handler, cache_size=2) as node:
-        async with Communicator(node.actual_request_endpoint, node.actual_response_endpoint) as comm:
+        async with Communicator(node.peer_request_endpoint, node.peer_response_endpoint) as comm:
             async def ask(rid: str) -> int:
                 return (await comm.request("VisionRequest", id=rid)).attributes["count"]
 
@@ -227,7 +227,7 @@ async def test_handler_errors_become_error_attribute_and_node_keeps_serving():
         return {"ok": 1}
 
     async with Responder(ANY, ANY, handler) as node:
-        async with Communicator(node.actual_request_endpoint, node.actual_response_endpoint) as comm:
+        async with Communicator(node.peer_request_endpoint, node.peer_response_endpoint) as comm:
             r1 = await comm.request("VisionRequest", {"fail": 1})
             r2 = await comm.request("VisionRequest", {"bad": 1})
             r3 = await comm.request("VisionRequest", {})
@@ -250,7 +250,7 @@ async def test_sync_handler_in_thread_does_not_block_the_loop():
         return {"sharpness": 1.0}
 
     async with Responder(ANY, ANY, slow_graph, in_thread=True) as node:
-        async with Communicator(node.actual_request_endpoint, node.actual_response_endpoint,
+        async with Communicator(node.peer_request_endpoint, node.peer_response_endpoint,
                                 republish_interval_s=0.002, republish_backoff=1.0) as comm:
             task = asyncio.create_task(comm.request("VisionRequest", {}))
             # The loop stays responsive while the handler blocks its worker thread, and the requester keeps
@@ -268,7 +268,7 @@ async def test_sync_handler_in_thread_does_not_block_the_loop():
 async def test_paper_style_send_recv_and_topics():
     async with Responder(ANY, ANY, lambda t, i, a: {"sharpness": 2.0}, request_topic="vision.req",
                          response_topic="vision.resp") as node:
-        async with Communicator(node.actual_request_endpoint, node.actual_response_endpoint,
+        async with Communicator(node.peer_request_endpoint, node.peer_response_endpoint,
                                 request_topic="vision.req", response_topic="vision.resp") as comm:
             pb_req = epypes_pb2.Event(type="VisionRequest")
             rid = await comm.send(pb_req)
@@ -284,7 +284,7 @@ async def test_paper_style_send_recv_and_topics():
 @pytest.mark.timeout(10)
 async def test_close_fails_outstanding_and_state_errors():
     async with Subscriber(ANY, bind=True) as req_sub, Publisher(ANY) as resp_pub:
-        comm = Communicator(req_sub.actual_endpoint, resp_pub.actual_endpoint)
+        comm = Communicator(">" + req_sub.actual_endpoint, resp_pub.actual_endpoint)
         with pytest.raises(ClientStateError):
             await comm.request()
         async with comm:
@@ -337,7 +337,7 @@ async def test_plain_handler_may_answer_at_once_or_return_an_awaitable_and_answe
         return {"name": attrs["name"]}
 
     async with Responder(ANY, ANY, handler) as node, \
-            Communicator(node.actual_request_endpoint, node.actual_response_endpoint, timeout_s=5) as comm:
+            Communicator(node.peer_request_endpoint, node.peer_response_endpoint, timeout_s=5) as comm:
         assert (await comm.request("VisionRequest", {"name": "quick"})).attributes["name"] == "quick"
         order: list[str] = []
 

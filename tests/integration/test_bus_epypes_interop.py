@@ -1,14 +1,18 @@
-"""Our Communicator against an EPypes-style node, and an EPypes-style requester against our Responder.
+"""Our Communicator against an EPypes-style node, and the paper's MCN (pyadept's PubSubPair) against our Responder,
+with only addresses configured: no ``bind=`` argument, no ``@``/``>`` prefix.
 
-The peer is written the way EPypes' zeromq.py and pbprocess.py work: plain pyzmq in a thread, single-frame messages,
-SUB with prefix "", and message classes built from EPypes' own definitions (not our generated code). It has no
-answer cache: it answers every copy it gets, so our re-publication still converges.
+The peers are written the way EPypes' zeromq.py / pbprocess.py and pyadept's PubSubPair work: plain pyzmq in a
+thread, single-frame messages, SUB with prefix "", message classes built from EPypes' own definitions (not our
+generated code), and their socket roles: **every PUB binds, every SUB connects** (the EPypes node binds its response
+PUB and connects its request SUB; PubSubPair binds its request PUB and connects its response SUB). They have no
+answer cache: they answer every copy they get, so our re-publication still converges.
 """
 
 from __future__ import annotations
 
 import asyncio
 import importlib.util
+import socket
 import threading
 from pathlib import Path
 
@@ -29,14 +33,23 @@ def attrs_of(pb) -> dict:
             for e in pb.attributes.entries}
 
 
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
 @pytest.mark.timeout(10)
 async def test_communicator_with_an_epypes_style_node():
+    """EPypes node: its request SUB connects to the MCN's address, its response PUB binds. Our Communicator, given
+    just the two addresses, binds the request PUB and connects the response SUB."""
+    request_ep = f"tcp://127.0.0.1:{free_port()}"
     ctx = zmq.Context()
     sub, pub = ctx.socket(zmq.SUB), ctx.socket(zmq.PUB)
     for s in (sub, pub):
         s.setsockopt(zmq.LINGER, 0)
     sub.setsockopt_string(zmq.SUBSCRIBE, "")
-    sub.bind("tcp://127.0.0.1:*")
+    sub.connect(request_ep)
     pub.bind("tcp://127.0.0.1:*")
     stop = threading.Event()
     seen = []
@@ -56,8 +69,7 @@ async def test_communicator_with_an_epypes_style_node():
     th = threading.Thread(target=epypes_node)
     th.start()
     try:
-        async with Communicator(sub.getsockopt_string(zmq.LAST_ENDPOINT),
-                                pub.getsockopt_string(zmq.LAST_ENDPOINT)) as comm:
+        async with Communicator(request_ep, pub.getsockopt_string(zmq.LAST_ENDPOINT), timeout_s=5.0) as comm:
             r = await comm.request("VisionRequest", {"camera": "left"})
     finally:
         stop.set()
@@ -70,17 +82,21 @@ async def test_communicator_with_an_epypes_style_node():
 
 
 @pytest.mark.timeout(10)
-async def test_epypes_style_requester_with_our_responder():
-    async with Responder("tcp://127.0.0.1:*", "tcp://127.0.0.1:*",
+async def test_pyadept_pubsubpair_requester_with_our_responder():
+    """pyadept's PubSubPair binds its request PUB and connects its response SUB; our Responder, given just the two
+    addresses, connects its request SUB and binds its response PUB."""
+    request_ep = f"tcp://127.0.0.1:{free_port()}"
+    async with Responder(request_ep, "tcp://127.0.0.1:0",
                          lambda t, i, a: {"sharpness": a["n"] * 2.0, "n": a["n"]}) as node:
-        def epypes_requester() -> dict:
+        assert node.peer_request_endpoint == "@" + request_ep  # the requester binds there
+        def pubsubpair_requester() -> dict:
             ctx = zmq.Context()
             pub, sub = ctx.socket(zmq.PUB), ctx.socket(zmq.SUB)
             try:
                 for s in (sub, pub):
                     s.setsockopt(zmq.LINGER, 0)
                 sub.setsockopt_string(zmq.SUBSCRIBE, "")
-                pub.connect(node.actual_request_endpoint)
+                pub.bind(request_ep)
                 sub.connect(node.actual_response_endpoint)
                 req = ref.Event(type="VisionRequest", id="e9e9e9e9")
                 ref.add_attribute(req, "n", 21)
@@ -95,6 +111,6 @@ async def test_epypes_style_requester_with_our_responder():
                 sub.close()
                 ctx.term()
 
-        got = await asyncio.to_thread(epypes_requester)
+        got = await asyncio.to_thread(pubsubpair_requester)
     assert got == {"type": "VisionResponse", "id": "e9e9e9e9", "sharpness": 42.0, "n": 21}
     assert node.handled == 1

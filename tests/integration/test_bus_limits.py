@@ -147,7 +147,7 @@ async def test_t_deadline_that_is_not_a_finite_number_is_answered_with_an_error(
 async def test_the_communicator_refuses_bad_times_before_sending():
     calls: list[str] = []
     async with Responder(ANY, ANY, lambda _t, rid, _a: calls.append(rid) or {"ok": 1}) as node, \
-            Communicator(node.actual_request_endpoint, node.actual_response_endpoint, timeout_s=5.0) as comm:
+            Communicator(node.peer_request_endpoint, node.peer_response_endpoint, timeout_s=5.0) as comm:
         for attrs in ({"t_deadline": math.nan}, {"t_request": math.inf}, {"t_request": "now"},
                       {"t_deadline": True}):
             with pytest.raises(ValueError, match="must be a finite number"):

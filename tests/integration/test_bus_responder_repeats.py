@@ -47,7 +47,7 @@ async def test_repeat_of_a_queued_request_is_not_processed_again_after_cache_evi
             b_repeated.set()
 
     node._dispatch = counting_dispatch  # type: ignore[method-assign]
-    async with node, Communicator(node.actual_request_endpoint, node.actual_response_endpoint,
+    async with node, Communicator(node.peer_request_endpoint, node.peer_response_endpoint,
                                   timeout_s=5.0) as comm:
         await comm.request("VisionRequest", id="00000000")  # both sockets joined
         ta = asyncio.create_task(comm.request("VisionRequest", id="aaaaaaaa"))

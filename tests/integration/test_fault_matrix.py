@@ -31,6 +31,7 @@ import pytest
 
 from aioadept import Break, Here, MoveRelJoints, SetSpeed, Skill
 from aioadept.bus.communicator import Communicator
+from aioadept.bus.endpoints import peer
 from aioadept.bus.messages import ROBOT_STATE_TOPIC, RobotState
 from aioadept.bus.pubsub import Subscriber
 from aioadept.client import ClientState, RobotClient
@@ -468,7 +469,9 @@ async def test_vision_node_killed_mid_request(outcome, tmp_path):
             # A new node on the same endpoints: the same Communicator reconnects (ZeroMQ does) and is answered.
             # Its PUB is the connecting side, so ZeroMQ keeps what is published during the outage queued and
             # hands it to the new node first; a 1 s frame timeout bounds how long the stale held request blocks.
-            async with vision_node(*endpoints, "--fps", "30", "--policy", "after", "--frame-timeout", "1",
+            # READY gives the MCN's side of each endpoint; the new node takes the other side (bind where it bound).
+            async with vision_node(*(peer(e, False) for e in endpoints), "--fps", "30", "--policy", "after",
+                                   "--frame-timeout", "1",
                                    log_path=tmp_path / "vision2.log"):
                 t1 = loop.time()
                 again = await comm.request("VisionRequest", {}, timeout_s=10)

@@ -61,7 +61,7 @@ async def cell(handler, *, timeout_s=3.0, time_scale=50.0):
         responder = await stack.enter_async_context(Responder(ANY, ANY, handler))
         rc = await stack.enter_async_context(RobotClient(sim.host, sim.port))
         comm = await stack.enter_async_context(
-            Communicator(responder.actual_request_endpoint, responder.actual_response_endpoint,
+            Communicator(responder.peer_request_endpoint, responder.peer_response_endpoint,
                          timeout_s=timeout_s))
         yield rc, comm
 
@@ -196,7 +196,7 @@ async def test_a_stop_event_whose_stop_fails_raises_stop_failed_not_focus_stoppe
     vision = ScriptedVision(range(1, 100))
     async with refusing_stop_server() as (host, port, lines), RobotClient(host, port) as rc, \
             Responder(ANY, ANY, vision) as responder, \
-            Communicator(responder.actual_request_endpoint, responder.actual_response_endpoint,
+            Communicator(responder.peer_request_endpoint, responder.peer_response_endpoint,
                          timeout_s=3.0) as comm, \
             Publisher(ANY, bind=True) as stop_pub, Subscriber(stop_pub.actual_endpoint, bind=False) as sub:
 

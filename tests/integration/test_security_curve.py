@@ -130,7 +130,7 @@ async def test_vision_requests_need_an_authorised_key():
         return {"sharpness": 1.5}
 
     async with Responder(ANY, ANY, handler, curve=CurveServer(node, allowed_clients=[mcn.public])) as responder:
-        req, resp = responder.actual_request_endpoint, responder.actual_response_endpoint
+        req, resp = responder.peer_request_endpoint, responder.peer_response_endpoint
         async with Communicator(req, resp, timeout_s=0.5,
                                 curve=CurveClient(stranger, server_public=node.public)) as comm:
             with pytest.raises(RequestTimeout):

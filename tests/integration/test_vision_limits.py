@@ -23,6 +23,7 @@ import pytest
 import zmq
 import zmq.asyncio
 
+from aioadept.bus.endpoints import resolve
 from aioadept import MoveJoints, MoveRelJoints, MoveRelTool
 from aioadept.bus.communicator import Communicator, Response
 from aioadept.bus.messages import decode_event, encode_event
@@ -61,12 +62,14 @@ class RawRequester:
         self.pub = self.ctx.socket(zmq.PUB)
         self.pub.setsockopt(zmq.LINGER, 0)
         self.pub.setsockopt(zmq.SNDHWM, 0)
-        self.pub.connect(request_ep)
+        address, bind = resolve(request_ep, True)  # READY's '>addr': connect
+        (self.pub.bind if bind else self.pub.connect)(address)
         self.sub = self.ctx.socket(zmq.SUB)
         self.sub.setsockopt(zmq.LINGER, 0)
         self.sub.setsockopt(zmq.RCVHWM, 0)
         self.sub.setsockopt(zmq.SUBSCRIBE, b"")
-        self.sub.connect(response_ep)
+        address, bind = resolve(response_ep, False)
+        (self.sub.bind if bind else self.sub.connect)(address)
         self.answers: dict[str, dict] = {}
         self.t_answer: dict[str, float] = {}
         self._arrived = asyncio.Event()

@@ -156,7 +156,7 @@ async def test_node_responder_answers_cheap_requests_at_once_and_waits_for_frame
             node.handle = counting_handle
             try:
                 async with NodeResponder("tcp://127.0.0.1:0", "tcp://127.0.0.1:0", node) as responder:
-                    async with Communicator(responder.actual_request_endpoint, responder.actual_response_endpoint,
+                    async with Communicator(responder.peer_request_endpoint, responder.peer_response_endpoint,
                                             timeout_s=5.0) as comm:
                         answers = [await comm.request("VisionRequest", {"t_request": time.time()})
                                    for _ in range(4)]

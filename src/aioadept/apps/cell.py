@@ -45,7 +45,10 @@ class VisionSection:
     start: bool = True
     """Start ``aioadept vision`` on this machine."""
     request_endpoint: str = "tcp://127.0.0.1:5555"
+    """The node's request SUB, CZMQ style from the node's side: bare connects (the MCN binds it, as pyadept's
+    PubSubPair does), ``@`` makes the node bind it (the MCN connects); see docs/interfaces.md."""
     response_endpoint: str = "tcp://127.0.0.1:5556"
+    """The node's response PUB: bare binds (the MCN connects), ``>`` makes the node connect to the MCN's SUB."""
     source: str = "virtual"
     focus_offset_mm: float = 20.0
     """Virtual camera: how far along tool z beyond the approach pose the focal plane lies."""
@@ -93,7 +96,18 @@ class CellConfig:
             if bad:
                 raise ValueError(f"{source}: unknown key(s) {sorted(bad)} in [{name}]; expected {sorted(names)}")
             parts[name] = typ(**section)
-        return cls(**parts)
+        cfg = cls(**parts)
+        from aioadept.bus.endpoints import parse_endpoint
+        from aioadept.errors import BusError
+
+        for key, value in (("robot.state_endpoint", cfg.robot.state_endpoint),
+                           ("vision.request_endpoint", cfg.vision.request_endpoint),
+                           ("vision.response_endpoint", cfg.vision.response_endpoint)):
+            try:
+                parse_endpoint(value)
+            except BusError as exc:
+                raise ValueError(f"{source}: {key}: {exc}") from None
+        return cfg
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -170,6 +184,7 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
     """
     from aioadept import __version__
     from aioadept.bus import Communicator
+    from aioadept.bus.endpoints import opposite
     from aioadept.capture import Recorder
     from aioadept.client import RobotClient
 
@@ -186,7 +201,7 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
     try:
         async with RobotClient(cfg.robot.host, cfg.robot.port, connect_timeout_s=cfg.robot.connect_timeout_s,
                                ack_timeout_s=cfg.robot.ack_timeout_s, observers=observers) as rc, \
-                Communicator(cfg.vision.request_endpoint, cfg.vision.response_endpoint,
+                Communicator(opposite(cfg.vision.request_endpoint), opposite(cfg.vision.response_endpoint),
                              timeout_s=params.vision_timeout_s, observers=observers) as comm, \
                 _guarded(interrupter, rc):
             result = await ufloop(rc, comm, params.delta_z_mm, params.approach_speed, max_steps=params.max_steps,
@@ -302,7 +317,11 @@ async def running_cell(cfg: CellConfig, log_dir: Path):
         if cfg.vision.start:
             vis = await stack.enter_async_context(
                 NodeProcess("vision", vision_argv(cfg), log_path=log_dir / "vision.log"))
-            cfg.vision.request_endpoint = vis.ready.get("request", cfg.vision.request_endpoint)
-            cfg.vision.response_endpoint = vis.ready.get("response", cfg.vision.response_endpoint)
+            # READY gives the MCN's side of each link; the cell keeps the node's side (real ports, explicit roles).
+            from aioadept.bus.endpoints import opposite
+
+            cfg.vision.request_endpoint = opposite(vis.ready.get("request", opposite(cfg.vision.request_endpoint)))
+            cfg.vision.response_endpoint = opposite(vis.ready.get("response",
+                                                                  opposite(cfg.vision.response_endpoint)))
             nodes.append(vis)
         yield Cell(cfg, nodes)

@@ -21,9 +21,13 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="aioadept focus", description=__doc__.split("\n\n")[0])
     add_cell_options(p)
     p.add_argument("--robot", help="robot server HOST:PORT (default 127.0.0.1:1234)")
-    p.add_argument("--request-endpoint", dest="request_endpoint", help="vision requests (default tcp://127.0.0.1:5555)")
+    p.add_argument("--request-endpoint", dest="request_endpoint",
+                   help="PUB for vision requests: binds by default (as pyadept's MCN), '>tcp://...' connects to a "
+                        "node that binds it; the vision node's READY line prints the right form (default "
+                        "tcp://127.0.0.1:5555)")
     p.add_argument("--response-endpoint", dest="response_endpoint",
-                   help="vision responses (default tcp://127.0.0.1:5556)")
+                   help="SUB for vision responses: connects by default, '@tcp://...' binds (default "
+                        "tcp://127.0.0.1:5556)")
     return p
 
 
@@ -42,10 +46,19 @@ def main(argv: list[str] | None = None) -> int:
     if args.robot:
         host, _, port = args.robot.rpartition(":")
         cfg.robot.host, cfg.robot.port = host or "127.0.0.1", int(port)
-    if args.request_endpoint:
-        cfg.vision.request_endpoint = args.request_endpoint
-    if args.response_endpoint:
-        cfg.vision.response_endpoint = args.response_endpoint
+    # These options are the MCN's side of each link (as the node's READY line prints them); the cell file keeps
+    # the node's side.
+    from aioadept.bus.endpoints import opposite
+    from aioadept.errors import BusError
+
+    try:
+        if args.request_endpoint:
+            cfg.vision.request_endpoint = opposite(args.request_endpoint)
+        if args.response_endpoint:
+            cfg.vision.response_endpoint = opposite(args.response_endpoint)
+    except BusError as exc:
+        print(f"aioadept focus: {exc}", file=sys.stderr)
+        return 2
     cfg = apply_overrides(cfg, args)
     try:
         run_dir = new_run_dir(cfg)

@@ -3,8 +3,13 @@
 Data path (docs/bus.md)::
 
     MasterControlNode                                         vision node
-    Communicator.request()  --PUB connect--> request_endpoint  --SUB bind-->  Responder -> handler(type, id, attrs)
-    reader task (one)      <--SUB connect-- response_endpoint <--PUB bind--   (LRU cache of answers by id)
+    Communicator.request()  --PUB bind----> request_endpoint  --SUB connect-->  Responder -> handler(type, id, attrs)
+    reader task (one)      <--SUB connect-- response_endpoint <--PUB bind--     (LRU cache of answers by id)
+
+Who binds: each endpoint's CZMQ prefix (``@`` binds, ``>`` connects; :mod:`aioadept.bus.endpoints`), else the
+role's default as in pyadept/EPypes: publishers bind, subscribers connect (``bind=True``/``False`` instead makes
+every bare endpoint of that side bind/connect). ``peer_request_endpoint``/``peer_response_endpoint`` give the
+other side's explicit endpoints.
 
 - Each request gets a fresh 8-hex id (like the robot message IDs) and a ``t_request`` attribute (``time.time()``).
 - The response is the first event carrying that id; responses with another id (another requester's, or a request
@@ -35,6 +40,7 @@ import zmq
 import zmq.asyncio
 
 from aioadept.bus import epypes_pb2
+from aioadept.bus.endpoints import parse_endpoint, peer_actual
 from aioadept.bus.messages import (
     AttributeValue,
     EventMessage,
@@ -170,8 +176,9 @@ class _Pending:
 class Communicator:
     """Publish request events and await the matching responses (the MasterControlNode side).
 
-    ``async with Communicator(request_endpoint, response_endpoint) as comm:`` connects a PUB to the node's request
-    endpoint and a SUB to its response endpoint (``bind=True`` binds both instead) and starts reading responses;
+    ``async with Communicator(request_endpoint, response_endpoint) as comm:`` opens a PUB on the request endpoint
+    (binds unless ``>addr``) and a SUB on the response endpoint (connects unless ``@addr``; ``bind=True``/``False``
+    makes both bare endpoints bind/connect) and starts reading responses;
     leaving the block stops reading, fails outstanding requests with :class:`BusError` and closes the sockets.
 
     ``timeout_s`` is the default per-request timeout. Until answered, a request is re-published with the same id
@@ -195,10 +202,12 @@ class Communicator:
         republish_max_interval_s: float = 0.5,
         request_topic: bytes | str | None = None,
         response_topic: bytes | str | None = None,
-        bind: bool = False,
+        bind: bool | None = None,
         context: zmq.Context | None = None,
         curve: Curve | None = None,
     ) -> None:
+        # Parsed here, so a bad endpoint fails at construction with the reason (not at open()).
+        parse_endpoint(request_endpoint), parse_endpoint(response_endpoint)
         if not (0 < timeout_s < math.inf and 0 < republish_interval_s < math.inf and 1 <= republish_backoff < math.inf
                 and 0 < republish_max_interval_s < math.inf):  # written so that NaN fails every test
             raise ValueError("timeouts and intervals must be finite and > 0, and backoff finite and >= 1")
@@ -245,6 +254,19 @@ class Communicator:
         return self._actual_resp
 
     @property
+    def peer_request_endpoint(self) -> str:
+        """The explicit endpoint a node's request SUB uses to reach this PUB (``>addr`` if it bound, ``@addr`` if it
+        connected), with the real port."""
+        self._require_open()
+        return peer_actual(self.request_endpoint, self._bind is not False, self._actual_req)
+
+    @property
+    def peer_response_endpoint(self) -> str:
+        """The explicit endpoint a node's response PUB uses to reach this SUB."""
+        self._require_open()
+        return peer_actual(self.response_endpoint, bool(self._bind), self._actual_resp)
+
+    @property
     def pending_ids(self) -> tuple[str, ...]:
         """Ids of the requests still waiting for a response."""
         return tuple(self._pending)
@@ -263,10 +285,12 @@ class Communicator:
             raise ClientStateError(f"Communicator is {self._state}; create a new one")
         loop = self._loop = asyncio.get_running_loop()
         topics = (b"",) if self._response_topic is None else (self._response_topic,)
-        self._sub, self._actual_resp = open_socket(zmq.SUB, self.response_endpoint, bind=self._bind,
+        self._sub, self._actual_resp = open_socket(zmq.SUB, self.response_endpoint,
+                                                   bind=bool(self._bind),  # None: subscribers connect
                                                    context=self._context, topics=topics, curve=self._curve)
         try:
-            self._pub, self._actual_req = open_socket(zmq.PUB, self.request_endpoint, bind=self._bind,
+            self._pub, self._actual_req = open_socket(zmq.PUB, self.request_endpoint,
+                                                      bind=self._bind is not False,  # None: publishers bind
                                                       context=self._context, curve=self._curve)
         except BaseException:
             close_socket(self._sub)
@@ -551,7 +575,9 @@ Handler = Callable[[str, "str | None", dict], "Mapping[str, Any] | None | Awaita
 class Responder:
     """The node side: receive request events, call ``handler(type, id, attributes)``, publish the answer.
 
-    It binds a SUB on ``request_endpoint`` and a PUB on ``response_endpoint`` (``bind=False`` connects both). The
+    It opens a SUB on ``request_endpoint`` (connects unless ``@addr`` or a port 0 / wildcard address, which can only
+    be bound) and a PUB on ``response_endpoint`` (binds unless ``>addr``); ``bind=True``/``False`` makes every
+    bare endpoint bind/connect. The
     handler returns the response attributes (a mapping, or None for none); it may be a coroutine function, or a
     plain function, which with ``in_thread=True`` runs in a worker thread owned by the responder so that a slow
     image graph does not stall the loop (e.g. an acquisition task in the same process). A plain function without
@@ -589,7 +615,7 @@ class Responder:
         response_endpoint: str,
         handler: Handler,
         *,
-        bind: bool = True,
+        bind: bool | None = None,
         response_type: str | None = None,
         request_types: Iterable[str] | None = None,
         cache_size: int = 64,
@@ -623,14 +649,17 @@ class Responder:
         self._response_topic = None if response_topic is None else as_topic(response_topic)
         topics = (b"",) if request_topic is None else (request_topic,)
         self._sub, self._actual_req = open_socket(
-            zmq.SUB, request_endpoint, bind=bind, context=context, topics=topics, curve=curve,
+            zmq.SUB, request_endpoint, bind=bool(bind),  # None: subscribers connect
+            context=context, topics=topics, curve=curve,
             options={} if max_request_bytes is None else {zmq.MAXMSGSIZE: max_request_bytes})
         try:
-            self._pub, self._actual_resp = open_socket(zmq.PUB, response_endpoint, bind=bind, context=context,
-                                                       curve=curve)
+            self._pub, self._actual_resp = open_socket(zmq.PUB, response_endpoint, bind=bind is not False,
+                                                       context=context, curve=curve)  # None: publishers bind
         except BaseException:
             close_socket(self._sub)
             raise
+        self._peer_req = peer_actual(request_endpoint, bool(bind), self._actual_req)
+        self._peer_resp = peer_actual(response_endpoint, bind is not False, self._actual_resp)
         self._loop: asyncio.AbstractEventLoop | None = None
         self._fd: int | None = None
         # (type, id, attributes, awaitable the handler already returned or None: call the handler in turn)
@@ -666,6 +695,17 @@ class Responder:
     def actual_response_endpoint(self) -> str:
         """Where requesters subscribe (the real port after binding to 0)."""
         return self._actual_resp
+
+    @property
+    def peer_request_endpoint(self) -> str:
+        """The explicit endpoint a requester's PUB uses: ``>addr`` when this node bound its SUB (e.g. to port 0),
+        ``@addr`` when it connected (the requester must bind there). Pass it to :class:`Communicator` as is."""
+        return self._peer_req
+
+    @property
+    def peer_response_endpoint(self) -> str:
+        """The explicit endpoint a requester's SUB uses (``>addr`` normally: the node's PUB binds)."""
+        return self._peer_resp
 
     async def __aenter__(self) -> Responder:
         self.start()

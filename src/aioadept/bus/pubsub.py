@@ -7,6 +7,9 @@ Frames on the wire:
   ``""``). Use it towards EPypes peers.
 - ``Subscriber.recv()`` accepts both and returns ``(topic, payload)``, with ``topic == b""`` for a single frame.
 
+Endpoints are CZMQ style (:mod:`aioadept.bus.endpoints`): ``@addr`` binds, ``>addr`` connects, a bare address
+takes the socket's ``bind`` argument, whose default follows pyadept/EPypes: publishers bind, subscribers connect.
+
 Every socket is created in the constructor (so a bound socket's real port is known at once through
 ``actual_endpoint``), has ``LINGER 0`` and is closed by ``close()`` / ``async with``. Without an explicit
 ``context`` the process-wide ``zmq.asyncio.Context.instance()`` is used and never terminated by us: terminating a
@@ -27,6 +30,7 @@ import zmq
 import zmq.asyncio
 
 from aioadept.bus import security
+from aioadept.bus.endpoints import resolve
 from aioadept.bus.security import Curve
 from aioadept.errors import BusError
 
@@ -45,7 +49,7 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 DEFAULT_REQUEST_ENDPOINT = "tcp://127.0.0.1:5555"
-"""Vision requests: the node's SUB binds, the MCN's PUB connects (docs/interfaces.md)."""
+"""Vision requests: the MCN's PUB binds, the node's SUB connects, as in pyadept/EPypes (docs/interfaces.md)."""
 DEFAULT_RESPONSE_ENDPOINT = "tcp://127.0.0.1:5556"
 """Vision responses: the node's PUB binds, the MCN's SUB connects."""
 DEFAULT_STATE_ENDPOINT = "tcp://127.0.0.1:5560"
@@ -70,16 +74,22 @@ def _async_context(context: zmq.Context | None) -> zmq.asyncio.Context:
     return zmq.asyncio.Context.shadow(context.underlying)
 
 
-def _attach(sock: zmq.Socket, endpoint: str, bind: bool, curve: Curve | None = None) -> str:
-    """Set up CURVE if asked, then bind or connect ``sock``; return the endpoint actually in use (the real port
-    after binding to 0 or *)."""
+def _attach(sock: zmq.Socket, endpoint: str, bind: bool, curve: Curve | None = None) -> tuple[str, bool]:
+    """Set up CURVE if asked, then bind or connect ``sock`` as ``endpoint`` says (``@`` binds, ``>`` connects, bare:
+    ``bind``, the role's default; :mod:`aioadept.bus.endpoints`); return ``(endpoint actually in use, bound)`` (the
+    real port after binding to 0 or *)."""
+    try:
+        endpoint, bind = resolve(endpoint, bind)
+    except BusError:
+        sock.close(linger=0)
+        raise
     try:
         security.apply_curve(sock, curve)
         if bind:
             sock.bind(endpoint)
-            return sock.getsockopt_string(zmq.LAST_ENDPOINT)
+            return sock.getsockopt_string(zmq.LAST_ENDPOINT), True
         sock.connect(endpoint)
-        return endpoint
+        return endpoint, False
     except BaseException as exc:
         security.release(sock)
         sock.close(linger=0)
@@ -93,8 +103,9 @@ def open_socket(kind: int, endpoint: str, *, bind: bool, context: zmq.Context | 
                 topics: Iterable[bytes | str] = (), hwm: int = 1000,
                 curve: Curve | None = None, options: Mapping[int, int] = {}) -> tuple[zmq.Socket, str]:
     """A plain (synchronous) ZeroMQ socket with ``LINGER 0``, subscribed to ``topics`` if it is a SUB, bound or
-    connected; returns ``(socket, actual_endpoint)``. The caller owns it and must close it. ``options``: more
-    integer socket options, set before binding or connecting (e.g. ``{zmq.MAXMSGSIZE: n}``).
+    connected (``endpoint``'s ``@``/``>`` prefix, else ``bind``); returns ``(socket, actual_endpoint)``. The caller
+    owns it and must close it. ``options``: more integer socket options, set before binding or connecting (e.g.
+    ``{zmq.MAXMSGSIZE: n}``).
 
     For code that drives a socket from the loop's reader callbacks rather than through zmq.asyncio futures (the
     Communicator's response reader). Raises :class:`BusError`. With ``curve``, close it with :func:`close_socket`.
@@ -112,7 +123,7 @@ def open_socket(kind: int, endpoint: str, *, bind: bool, context: zmq.Context | 
     if kind == zmq.SUB:
         for t in topics:
             sock.setsockopt(zmq.SUBSCRIBE, as_topic(t))
-    return sock, _attach(sock, endpoint, bind, curve)
+    return sock, _attach(sock, endpoint, bind, curve)[0]
 
 
 def close_socket(sock: zmq.Socket) -> None:
@@ -179,7 +190,8 @@ class _PublisherBase(_Owned):
 class Publisher(_PublisherBase):
     """An asyncio-side PUB socket.
 
-    ``Publisher(endpoint, bind=True)`` binds (a node's output); ``bind=False`` connects (the MCN's requests).
+    A bare ``endpoint`` binds (``bind=True``, the default: publishers bind, as in EPypes); ``>addr`` or
+    ``bind=False`` connects.
     A PUB socket never blocks: with no subscriber, or a full queue, ZeroMQ drops the message. The ``*_nowait``
     methods are therefore the real work and may be called from callbacks on the loop's thread; the ``async``
     ones exist for symmetry with :class:`Subscriber`. For other threads use :class:`SyncPublisher`.
@@ -193,8 +205,8 @@ class Publisher(_PublisherBase):
         self._sock = zmq.Socket(ctx, zmq.PUB)
         self._sock.setsockopt(zmq.LINGER, 0)
         self._sock.setsockopt(zmq.SNDHWM, sndhwm)
-        self._endpoint, self._bind = endpoint, bind
-        self._actual = _attach(self._sock, endpoint, bind, curve)
+        self._endpoint = endpoint
+        self._actual, self._bind = _attach(self._sock, endpoint, bind, curve)
 
     def publish_nowait(self, topic: bytes | str, payload: bytes) -> None:
         """Send ``[topic, payload]``. Raises :class:`BusError` if the socket is closed."""
@@ -232,8 +244,8 @@ class SyncPublisher(_PublisherBase):
         self._sock = zmq.Socket(ctx, zmq.PUB)
         self._sock.setsockopt(zmq.LINGER, 0)
         self._sock.setsockopt(zmq.SNDHWM, sndhwm)
-        self._endpoint, self._bind = endpoint, bind
-        self._actual = _attach(self._sock, endpoint, bind, curve)
+        self._endpoint = endpoint
+        self._actual, self._bind = _attach(self._sock, endpoint, bind, curve)
 
     def publish(self, topic: bytes | str, payload: bytes) -> None:
         """Send ``[topic, payload]``; never blocks."""
@@ -253,7 +265,7 @@ class SyncPublisher(_PublisherBase):
 class Subscriber(_Owned):
     """An asyncio SUB socket. ``topics`` are subscription prefixes of the first frame (``b""``: everything).
 
-    ``Subscriber(endpoint)`` connects (the MCN's responses); ``bind=True`` binds (a node's request input).
+    ``Subscriber(endpoint)`` connects (subscribers connect, as in EPypes); ``@addr`` or ``bind=True`` binds.
     ``await sub.recv()`` returns ``(topic, payload)``; ``async for topic, payload in sub`` loops until closed.
     """
 
@@ -266,8 +278,8 @@ class Subscriber(_Owned):
         self._topics: list[bytes] = []
         for t in topics:
             self.subscribe(t)
-        self._endpoint, self._bind = endpoint, bind
-        self._actual = _attach(self._sock, endpoint, bind, curve)
+        self._endpoint = endpoint
+        self._actual, self._bind = _attach(self._sock, endpoint, bind, curve)
 
     @property
     def topics(self) -> tuple[bytes, ...]:

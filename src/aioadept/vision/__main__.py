@@ -6,8 +6,10 @@ thread: ``--graph-thread``) -> VisionResponse. With the ``virtual`` source a
 :class:`RobotStateFollower` subscribes to the sim's robot state stream and the virtual camera renders the
 calibration object at the tool pose of each frame's time.
 
-Prints one line ``READY request=<endpoint> response=<endpoint> ...`` on stdout once it serves (real ports when
-bound to port 0); logs every request it serves on stderr; exits 0 on SIGINT/SIGTERM. Options may come from a TOML
+Endpoints are CZMQ style (``@`` binds, ``>`` connects; bare: the request SUB connects, the response PUB binds, as
+in EPypes; :mod:`aioadept.bus.endpoints`). Prints one line ``READY request=<endpoint> response=<endpoint> ...`` on
+stdout once it serves, each endpoint as the MCN must use it (``>addr``: connect there, ``@addr``: bind there; real
+ports when bound to port 0); logs every request it serves on stderr; exits 0 on SIGINT/SIGTERM. Options may come from a TOML
 file (``--config``; keys are the long option names with ``_`` or ``-``, top level or in a ``[vision]`` table);
 command-line options override it. ``--figures OUTDIR`` writes the Fig. 7-9 pictures and exits.
 """
@@ -70,8 +72,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="virtual | folder:PATH | opencv:SPEC (device index, video file or URL); repeat for several "
                         "cameras (default: virtual)")
     p.add_argument("--state-endpoint", help="robot state stream to follow (virtual source; default tcp://127.0.0.1:5560)")
-    p.add_argument("--request-endpoint", help="bind SUB for VisionRequest events (default tcp://127.0.0.1:5555; port 0: any free port)")
-    p.add_argument("--response-endpoint", help="bind PUB for VisionResponse events (default tcp://127.0.0.1:5556; port 0: any free port)")
+    p.add_argument("--request-endpoint",
+                   help="SUB for VisionRequest events: connects to the MCN's PUB by default, as EPypes nodes do; "
+                        "'@tcp://...' binds, '>tcp://...' connects (port 0: bind any free port; default "
+                        "tcp://127.0.0.1:5555)")
+    p.add_argument("--response-endpoint",
+                   help="PUB for VisionResponse events: binds by default; '>tcp://...' connects to a bound SUB "
+                        "(port 0: any free port; default tcp://127.0.0.1:5556)")
     p.add_argument("--fps", type=float, help="grab rate cap per source (default 15)")
     p.add_argument("--buffer-size", type=int, help="frames kept per source (default 64)")
     p.add_argument("--focus-offset-mm", type=float,
@@ -169,6 +176,14 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
         value = merged[key]
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             parser.error(f"{key.replace('_', '-')} must be an integer >= 1, got {value!r}")
+    from aioadept.bus.endpoints import parse_endpoint
+    from aioadept.errors import BusError
+
+    for key in ("request_endpoint", "response_endpoint", "state_endpoint"):
+        try:
+            parse_endpoint(merged[key])
+        except BusError as exc:
+            parser.error(f"--{key.replace('_', '-')}: {exc}")
     merged["curve"] = _curve_server(parser, merged)
     return argparse.Namespace(**merged)
 
@@ -277,7 +292,9 @@ async def serve(opts: argparse.Namespace) -> int:
                                   **({"curve": opts.curve} if opts.curve is not None else {}))
         responder.start()
         cams = ",".join(acq.camera_ids)
-        print(f"READY request={responder.actual_request_endpoint} response={responder.actual_response_endpoint} "
+        # In the form the MCN uses (e.g. request=@tcp://127.0.0.1:5555: bind your PUB there; response=>tcp://...:
+        # connect your SUB there), so the line can be passed on as is.
+        print(f"READY request={responder.peer_request_endpoint} response={responder.peer_response_endpoint} "
               f"cameras={cams} fps={opts.fps:g} policy={opts.policy} graph={opts.graph} "
               f"thread={THREAD_WORDS[opts.graph_thread]}", flush=True)
         log.info("serving %s requests on %s, responses on %s; cameras %s at %g fps, policy %s, graph thread %s%s",

@@ -456,6 +456,7 @@ class RobotStateFollower:
         import zmq
 
         from aioadept.bus.messages import RobotState
+        from aioadept.errors import BusError
 
         ctx = zmq.Context.instance()
         sock = ctx.socket(zmq.SUB)
@@ -466,8 +467,11 @@ class RobotStateFollower:
                 from aioadept.bus.security import apply_curve
 
                 apply_curve(sock, self.curve)
-            sock.connect(self.endpoint)
-        except zmq.ZMQError as exc:
+            from aioadept.bus.endpoints import resolve
+
+            address, bind = resolve(self.endpoint, False)  # a subscriber: connects unless '@addr'
+            (sock.bind if bind else sock.connect)(address)
+        except (zmq.ZMQError, BusError) as exc:
             self._error = exc
             self._ready.set()
             sock.close(0)
