@@ -87,6 +87,8 @@ class RunRecording:
         self._errors = 0
         self.frames_missing = 0
         self.closed = False
+        self.error: str | None = None
+        """Why the recording could not be written completely (set by :meth:`close`), else None."""
 
     # -- hooks (hot path: one queue put each)
     def on_send(self, msg: Any) -> None:
@@ -141,10 +143,15 @@ class RunRecording:
             self._thread.join(timeout_s)
         else:
             self._drain()
+        # A recording never fails a run: a full disk (or any sink error) is said once, the run's result stands.
         try:
             self.rec.flush()
+        except Exception as exc:  # noqa: BLE001
+            self.error = f"{type(exc).__name__}: {exc}"
+            log.warning("run.rrd not fully written (%s): %s", self.rrd_path, self.error)
         finally:
-            self.rec.disconnect()
+            with contextlib.suppress(Exception):
+                self.rec.disconnect()
 
     def __enter__(self) -> RunRecording:
         return self.start()
