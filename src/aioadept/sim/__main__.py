@@ -13,6 +13,7 @@ import signal
 import sys
 
 from aioadept.geometry import NULL, Pose
+from aioadept.sim import kinematics as kin
 from aioadept.sim.server import DEFAULT_PORT, DEFAULT_STATE_ENDPOINT, Faults, SimOptions, SimServer
 
 
@@ -21,6 +22,16 @@ def _six(text: str) -> tuple[float, ...]:
     if len(vals) != 6:
         raise argparse.ArgumentTypeError(f"expected 6 comma-separated numbers, got {text!r}")
     return vals
+
+
+def _jump_limit(text: str) -> kin.JumpLimit | None:
+    if text.strip().lower() == "off":
+        return None
+    try:
+        floor, per_mm, per_deg = (float(v) for v in text.split(","))
+        return kin.JumpLimit(floor, per_mm, per_deg)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"expected FLOOR,PER_MM,PER_DEG (three numbers >= 0) or 'off', got {text!r}") from exc
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -35,6 +46,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="controller monitor speed in %% (effective speed = program speed x this / 100)")
     p.add_argument("--max-speed", type=float, default=100.0, dest="max_speed",
                    help="cap on the effective speed in %% (a safety limit: no motion runs faster)")
+    p.add_argument("--joint-jump-limit", type=_jump_limit, default="2,1,3", dest="jump_limit",
+                   metavar="FLOOR,PER_MM,PER_DEG",
+                   help="refuse (JOINT_JUMP) a Cartesian target for which a joint would turn more than FLOOR + PER_MM "
+                        "x mm + PER_DEG x degrees of the move, e.g. a wrist flip from a 2 mm step; 'off' disables")
     p.add_argument("--max-clients", type=int, default=16, dest="max_clients",
                    help="connections served at once; more are refused with a SERVER_BUSY error ack")
     p.add_argument("--allow", action="append", default=[], metavar="ADDR",
@@ -94,6 +109,7 @@ def options_from_args(args: argparse.Namespace) -> SimOptions:
         extra["joints_deg"] = args.joints
     return SimOptions(host=args.host, port=args.port, time_scale=args.time_scale, instant=args.instant,
                       monitor_speed_pct=args.monitor_speed, max_speed_pct=args.max_speed,
+                      jump_limit=args.jump_limit,
                       max_clients=args.max_clients, allow=tuple(args.allow),
                       line_timeout_s=args.line_timeout or None, stop_window_s=args.stop_window,
                       state_endpoint=state, state_rate_hz=args.state_rate_hz, faults=Faults.parse(args.fault),

@@ -166,7 +166,8 @@ class Controller:
                  motion_limits: MotionLimits = MotionLimits(), joint_limits: kin.JointLimits = kin.VIPER_S850_LIMITS,
                  max_queued_per_conn: int = 10_000, skills: Iterable[SkillSpec] | None = None,
                  version: str | None = None, max_speed_pct: float = 100.0,
-                 min_speed_pct: float = MIN_SPEED_PCT) -> None:
+                 min_speed_pct: float = MIN_SPEED_PCT,
+                 jump_limit: kin.JumpLimit | None = kin.DEFAULT_JUMP_LIMIT) -> None:
         if not 0 < monitor_speed_pct <= 100:
             raise ValueError(f"monitor_speed_pct: {monitor_speed_pct} outside (0, 100]")
         if not 0 < max_speed_pct <= 100:
@@ -174,6 +175,9 @@ class Controller:
         if not 0 < min_speed_pct <= 100:
             raise ValueError(f"min_speed_pct: {min_speed_pct} outside (0, 100]")
         self.min_speed_pct = float(min_speed_pct)
+        self.jump_limit = jump_limit
+        """Cartesian targets whose joint motion is out of proportion to their size are refused (JOINT_JUMP,
+        docs/sim.md); None turns the check off."""
         """The lowest program speed set_speed accepts (a motion at 0.001 % would hold the executor for days)."""
         joint_limits.check(joints_deg)
         self.tool = tool
@@ -516,7 +520,8 @@ class Controller:
     def move_pose(self, pose: Pose) -> SkillGen:
         """Generator for skills: inverse kinematics from the planned end, then :meth:`move_joints`."""
         try:
-            target = kin.inverse(pose, self.trajectory.end_deg, self.tool, limits=self.joint_limits)
+            target = kin.inverse(pose, self.trajectory.end_deg, self.tool, limits=self.joint_limits,
+                                 jump=self.jump_limit)
         except RobotError:
             self.take_speed_pct()  # the failed motion instruction still consumes SPEED
             raise

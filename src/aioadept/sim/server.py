@@ -94,6 +94,8 @@ class SimOptions:
     instant: bool = False
     monitor_speed_pct: float = 100.0
     max_speed_pct: float = 100.0
+    jump_limit: kin.JumpLimit | None = kin.DEFAULT_JUMP_LIMIT
+    """IK refuses a Cartesian target whose joint motion is out of proportion to its size (wrist flips); None: off."""
     max_clients: int = 16
     allow: tuple[str, ...] = ()
     line_timeout_s: float | None = 10.0
@@ -136,6 +138,12 @@ class SimOptions:
             raise ValueError("state_rate_hz: must be > 0")
         for addr in self.allow:
             ipaddress.ip_address(addr)  # ValueError for a malformed address
+
+    def make_controller(self) -> Controller:
+        """The one robot model these options describe (both sim backends build it here)."""
+        return Controller(joints_deg=self.joints_deg, tool=self.tool, monitor_speed_pct=self.monitor_speed_pct,
+                          time_scale=self.time_scale, instant=self.instant, max_speed_pct=self.max_speed_pct,
+                          jump_limit=self.jump_limit)
 
 
 class _NotAStop(Exception):
@@ -185,9 +193,7 @@ class SimServer:
 
     def __init__(self, options: SimOptions = SimOptions(), *, controller: Controller | None = None) -> None:
         self.options = options
-        self.controller = controller or Controller(
-            joints_deg=options.joints_deg, tool=options.tool, monitor_speed_pct=options.monitor_speed_pct,
-            time_scale=options.time_scale, instant=options.instant, max_speed_pct=options.max_speed_pct)
+        self.controller = controller or options.make_controller()
         self.host = options.host
         self.port = options.port
         self.state_endpoint: str | None = None

@@ -38,7 +38,6 @@ async def run(args: argparse.Namespace, options: Any = None) -> int:
     """Serve until SIGINT/SIGTERM. ``options`` (:class:`aioadept.sim.server.SimOptions`, from the same command
     line) gives the robot, the state stream and the faults exactly as for the Python backend."""
     from aioadept.sim.__main__ import options_from_args
-    from aioadept.sim.controller import Controller
     from aioadept.sim.server import publish_robot_states, robot_state_sample
     from aioadept.vplus import Emulator, RealClock
     from aioadept.vplus.iodev import Network
@@ -48,8 +47,7 @@ async def run(args: argparse.Namespace, options: Any = None) -> int:
     if options is None:
         options = options_from_args(args)
     port_map = parse_port_map(args.map_port)
-    ctl = Controller(joints_deg=options.joints_deg, tool=options.tool, monitor_speed_pct=options.monitor_speed_pct,
-                     time_scale=options.time_scale, instant=options.instant, max_speed_pct=options.max_speed_pct)
+    ctl = options.make_controller()
 
     def console(task: int, text: str) -> None:
         print(f"[{task}] {text}", flush=True)
