@@ -12,7 +12,6 @@ import datetime as _dt
 import json
 import logging
 import socket
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -78,24 +77,23 @@ class CellConfig:
 
     @classmethod
     def from_toml(cls, path: str | Path) -> CellConfig:
-        with open(path, "rb") as f:
-            data = tomllib.load(f)
-        return cls.from_dict(data, source=str(path))
+        from aioadept.configfile import load_toml
+
+        return cls.from_dict(load_toml(path), source=str(path))
 
     @classmethod
     def from_dict(cls, data: dict[str, Any], *, source: str = "config") -> CellConfig:
+        from aioadept.configfile import ConfigError, check_section
+
         known = {"robot": RobotSection, "vision": VisionSection, "focus": FocusParams, "run": RunSection}
         unknown = set(data) - set(known)
         if unknown:
-            raise ValueError(f"{source}: unknown section(s) {sorted(unknown)}; expected {sorted(known)}")
+            raise ConfigError(f"{source}: unknown section(s) {', '.join(sorted(unknown))}; expected "
+                              f"{', '.join(known)}")
         parts = {}
         for name, typ in known.items():
-            section = data.get(name, {})
-            names = {f.name for f in dataclasses.fields(typ)}
-            bad = set(section) - names
-            if bad:
-                raise ValueError(f"{source}: unknown key(s) {sorted(bad)} in [{name}]; expected {sorted(names)}")
-            parts[name] = typ(**section)
+            # Unknown keys and wrong types as one line naming file, key and what was expected (ConfigError).
+            parts[name] = typ(**check_section(typ, data.get(name, {}), f"{source} [{name}]"))
         cfg = cls(**parts)
         from aioadept.bus.endpoints import parse_endpoint
         from aioadept.errors import BusError

@@ -17,6 +17,7 @@ from pathlib import Path
 from aioadept.apps.cell import CellConfig, RunOutcome, new_run_dir, run_focus_once, running_cell
 from aioadept.apps.cli_common import add_cell_options, apply_overrides, configure_logging, print_result, report_saving
 from aioadept.apps.interrupt import Interrupter, run_interruptible
+from aioadept.configfile import report
 
 log = logging.getLogger("aioadept.demo")
 
@@ -40,8 +41,8 @@ def demo_config(args: argparse.Namespace) -> CellConfig:
         cfg.robot.state_endpoint = "tcp://127.0.0.1:0"
         cfg.vision.request_endpoint = "tcp://127.0.0.1:0"
         cfg.vision.response_endpoint = "tcp://127.0.0.1:0"
-    cfg.robot.start_sim = True
-    cfg.vision.start = True
+    # Without a file the demo starts the whole cell; a file says itself which nodes run here (start_sim = false:
+    # connect to the server at robot.host:port, e.g. a real controller, and fail if nothing answers there).
     if args.fast:
         cfg.robot.time_scale = 10.0
     if args.time_scale is not None:
@@ -68,8 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         cfg = demo_config(args)
     except (OSError, ValueError) as exc:
-        print(f"aioadept demo: {exc}", file=sys.stderr)
-        return 2
+        return report("aioadept demo", exc, verbose=args.verbose)
     try:
         run_dir = new_run_dir(cfg)
     except OSError as exc:

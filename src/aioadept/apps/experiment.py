@@ -17,6 +17,7 @@ from pathlib import Path
 from aioadept.apps.cell import CellConfig, new_run_dir, run_focus_once, running_cell
 from aioadept.apps.cli_common import configure_logging
 from aioadept.apps.interrupt import Interrupter, run_interruptible
+from aioadept.configfile import report
 
 log = logging.getLogger("aioadept.experiment")
 
@@ -75,7 +76,10 @@ async def run_experiment(cfg: CellConfig, grid: list[tuple[int, float]], runs: i
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     configure_logging(args.verbose)
-    cfg = CellConfig.from_toml(args.config) if args.config else CellConfig()
+    try:
+        cfg = CellConfig.from_toml(args.config) if args.config else CellConfig()
+    except (OSError, ValueError) as exc:
+        return report("aioadept experiment", exc, verbose=args.verbose)
     if not args.config:
         cfg.robot.port = 0
         cfg.robot.state_endpoint = cfg.vision.request_endpoint = cfg.vision.response_endpoint = "tcp://127.0.0.1:0"

@@ -13,6 +13,7 @@ from pathlib import Path
 from aioadept.apps.cell import CellConfig, RunOutcome, new_run_dir, run_focus_once
 from aioadept.apps.cli_common import add_cell_options, apply_overrides, configure_logging, print_result, report_saving
 from aioadept.apps.interrupt import Interrupter, run_interruptible
+from aioadept.configfile import report
 
 log = logging.getLogger("aioadept.focus")
 
@@ -39,8 +40,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         cfg = CellConfig.from_toml(args.config) if args.config else CellConfig()
     except (OSError, ValueError) as exc:
-        print(f"aioadept focus: {exc}", file=sys.stderr)
-        return 2
+        return report("aioadept focus", exc, verbose=args.verbose)
     cfg.robot.start_sim = False
     cfg.vision.start = False
     if args.robot:

@@ -129,8 +129,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def load_config(path: str) -> dict[str, Any]:
     """Options from a TOML file: keys normalised to ``snake_case``; raises ValueError for unknown keys."""
-    with open(path, "rb") as fh:
-        data = tomllib.load(fh)
+    from aioadept.configfile import load_toml
+
+    data = load_toml(path)  # the file named, and the line of bad TOML (the reader every --config shares)
     if isinstance(data.get("vision"), dict):
         data = data["vision"]
     out = {k.replace("-", "_"): v for k, v in data.items()}

@@ -1,0 +1,124 @@
+"""A newcomer's mistakes at the command line get one clear line and a documented exit code (issue 14).
+
+Each test runs the real ``aioadept`` console entry (``python -m aioadept``) in a subprocess, as a user would.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import socket
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import pytest
+
+from aioadept.apps.cell import free_port
+
+AIOADEPT = [sys.executable, "-m", "aioadept"]
+
+
+def run(*args: str, timeout: float = 60, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([*AIOADEPT, *args], capture_output=True, text=True, timeout=timeout, cwd=cwd)
+
+
+def one_error_line(proc: subprocess.CompletedProcess[str]) -> str:
+    """The stderr of a failed command: exactly one line, and no traceback."""
+    assert "Traceback" not in proc.stderr, proc.stderr
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1, proc.stderr
+    return lines[0]
+
+
+# ------------------------------------------------------------------------------------ config mistakes (item 2)
+BAD_CONFIGS = {
+    "unknown_key": ('[focus]\ndelta_z_mmm = 2.0\n', ["[focus]", "delta_z_mmm", "delta_z_mm"]),
+    "wrong_type": ('[focus]\ndelta_z_mm = "2.0"\n', ["[focus]", "delta_z_mm", "expected a number", "string"]),
+    "wrong_type_bool": ('[robot]\nstart_sim = "no"\n', ["[robot]", "start_sim", "true or false"]),
+    "bad_toml": ('[focus]\ndelta_z_mm = 2.0\nmax_steps = \n', ["not valid TOML", "line 3"]),
+    "unknown_section": ('[camera]\nfps = 3\n', ["camera", "expected"]),
+}
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("command", ["demo", "focus", "experiment"])
+@pytest.mark.parametrize("case", sorted(BAD_CONFIGS))
+def test_a_config_mistake_is_one_line_naming_file_and_key_with_exit_2(tmp_path, command, case):
+    text, words = BAD_CONFIGS[case]
+    cfg = tmp_path / "cell.toml"
+    cfg.write_text(text)
+    proc = run(command, "--config", str(cfg), "--out", str(tmp_path / "runs"), cwd=tmp_path)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    line = one_error_line(proc)
+    assert line.startswith(f"aioadept {command}: {cfg}"), line
+    for w in words:
+        assert w in line, (w, line)
+    assert not (tmp_path / "runs").exists()  # nothing was started, no run folder
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("command", ["demo", "focus", "experiment"])
+def test_a_missing_config_file_is_one_line(tmp_path, command):
+    proc = run(command, "--config", str(tmp_path / "nope.toml"), cwd=tmp_path)
+    assert proc.returncode == 2
+    assert one_error_line(proc) == f"aioadept {command}: {tmp_path / 'nope.toml'}: no such file"
+
+
+@pytest.mark.timeout(60)
+def test_verbose_shows_the_traceback_of_a_config_mistake(tmp_path):
+    cfg = tmp_path / "cell.toml"
+    cfg.write_text('[focus]\ndelta_z_mm = "2.0"\n')
+    proc = run("focus", "--config", str(cfg), "-v", cwd=tmp_path)
+    assert proc.returncode == 2
+    assert "Traceback" in proc.stderr and "ConfigError" in proc.stderr
+    assert proc.stderr.rstrip().splitlines()[-1].startswith(f"aioadept focus: {cfg}")
+
+
+@pytest.mark.timeout(60)
+def test_vision_config_mistakes_use_the_same_reader(tmp_path):
+    cfg = tmp_path / "vision.toml"
+    cfg.write_text("fps = \n")
+    proc = run("vision", "--config", str(cfg), cwd=tmp_path)
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr
+    assert f"{cfg}: not valid TOML" in proc.stderr and "line 1" in proc.stderr
+
+
+# --------------------------------------------------------------- demo --config with start_sim = false (item 1)
+@pytest.mark.timeout(60)
+def test_demo_with_start_sim_false_connects_to_the_configured_address_and_fails_if_nothing_is_there(tmp_path):
+    port = free_port()  # nothing listens here
+    cfg = tmp_path / "cell.toml"
+    cfg.write_text(f'[robot]\nstart_sim = false\nhost = "127.0.0.1"\nport = {port}\nconnect_timeout_s = 2.0\n'
+                   f'[vision]\nstart = false\n[run]\nout_dir = "{tmp_path / "runs"}"\n')
+    proc = run("demo", "--config", str(cfg), cwd=tmp_path)
+    assert proc.returncode != 0, proc.stdout + proc.stderr
+    assert "inspection-start pose" not in proc.stdout
+    assert f"127.0.0.1:{port}" in proc.stdout + proc.stderr
+    (run_dir,) = (tmp_path / "runs").iterdir()
+    assert not (run_dir / "logs" / "sim.log").exists()  # no sim of its own was started
+
+
+@pytest.mark.timeout(120)
+def test_demo_with_start_sim_false_uses_the_running_server(tmp_path):
+    sim = subprocess.Popen([*AIOADEPT, "sim", "--port", "0", "--time-scale", "10", "--state-endpoint",
+                            "tcp://127.0.0.1:0"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        assert sim.stdout is not None
+        ready = dict(kv.split("=", 1) for kv in sim.stdout.readline().split()[1:])
+        cfg = tmp_path / "cell.toml"
+        cfg.write_text(f'[robot]\nstart_sim = false\nhost = "{ready["host"]}"\nport = {ready["port"]}\n'
+                       f'state_endpoint = "{ready["state"]}"\n'
+                       '[vision]\nrequest_endpoint = "tcp://127.0.0.1:0"\nresponse_endpoint = "tcp://127.0.0.1:0"\n'
+                       f'[run]\nout_dir = "{tmp_path / "runs"}"\nanalyze = false\nrecord = false\n')
+        proc = run("demo", "--config", str(cfg), timeout=110, cwd=tmp_path)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        assert "inspection-start pose" in proc.stdout
+        (run_dir,) = (tmp_path / "runs").iterdir()
+        assert not (run_dir / "logs" / "sim.log").exists()  # it used our sim, not one of its own
+        assert (run_dir / "logs" / "vision.log").exists()  # vision.start (default true) is still honoured
+        assert sim.poll() is None
+    finally:
+        sim.terminate()
+        sim.wait(10)
