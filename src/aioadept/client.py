@@ -60,6 +60,7 @@ from aioadept.errors import (
     CommandError,
     ConnectError,
     ConnectionLost,
+    NotARobotServer,
     RemoteProtocolError,
 )
 from aioadept.geometry import Pose
@@ -315,12 +316,20 @@ class RobotClient:
     where documented); anything else raises ``ValueError`` at once, before anything is sent.
     - ``connector``: an async callable returning ``(reader, writer)``, to run over other streams (e.g.
       :func:`aioadept.testing.memory_connector`); ``host``/``port`` are then only used in messages.
+    - ``hello_timeout_s``: after each connect, send ``hello`` and wait this long for its ack; a peer that sends
+      nothing parseable back in time (a ZeroMQ port, a silent server) or closes the connection is not a
+      RobotServer: :meth:`connect` closes it and raises :class:`NotARobotServer`. An ``error`` ack (the
+      ``-406`` "unknown skill" of a server without the extensions) proves a RobotServer and connect goes on.
+      ``None`` (the default): no check. Keep it ``None`` for the original V+ AdeptServer, whose task halts on
+      any unknown skill (docs/protocol.md section 6). The answer is in :attr:`server_hello`; the exchange is
+      not shown to observers.
     """
 
     def __init__(self, host: str = "127.0.0.1", port: int = 1234, *, connect_timeout_s: float = 5.0,
                  ack_timeout_s: float | None = 60.0, observers: Iterable[Observer] = (),
                  id_start: int | None = None, auto_reconnect: bool = False,
-                 connector: Connector | None = None, max_line: int = MAX_ACK_LINE) -> None:
+                 connector: Connector | None = None, max_line: int = MAX_ACK_LINE,
+                 hello_timeout_s: float | None = None) -> None:
         if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 0xFFFF:
             raise ValueError(f"port: {port!r} is not a TCP port number (0..65535)")
         if id_start is not None and (isinstance(id_start, bool) or not isinstance(id_start, int)
@@ -331,6 +340,10 @@ class RobotClient:
         self.connect_timeout_s = connect_timeout_s  # validated by the properties
         self.ack_timeout_s = ack_timeout_s
         self.auto_reconnect = auto_reconnect
+        self.hello_timeout_s = _check_timeout("hello_timeout_s", hello_timeout_s)
+        self.server_hello: tuple[int | None, str] | None = None
+        """``(protocol_version, server_name)`` from the connect-time ``hello`` check; ``None`` without the check
+        or from a server that answered it with an error ack (no extensions)."""
         self._connector = connector
         self._observers: list[Observer] = list(observers)
         self._ids = IdAllocator(secrets.randbits(32) if id_start is None else id_start)
@@ -457,6 +470,28 @@ class RobotClient:
         self._state = _CONNECTED
         if reader is not None:
             self._reader_task = loop.create_task(self._read_loop(reader), name=f"RobotClient reader {self.host}")
+        if self.hello_timeout_s is not None:
+            await self._check_hello(self.hello_timeout_s)
+
+    async def _check_hello(self, timeout_s: float) -> None:
+        """The connect-time ``hello`` exchange (``hello_timeout_s``): is the peer a RobotServer at all?"""
+        # Observers see the user's traffic only (a run's timing tables must not start with our probe); connect()
+        # is awaited before any command of this client is sent, so nothing else is written meanwhile.
+        observers, self._observers = self._observers, []
+        try:
+            self.server_hello = await self.hello(timeout_s=timeout_s)
+        except CommandError as exc:  # it speaks the protocol, without the hello extension: go on
+            self.server_hello = None
+            log.info("robot server %s:%s answered hello with an error (code %s): a server without the "
+                     "extensions, going on", self.host, self.port, exc.code)
+        except (AckTimeout, ConnectionLost) as exc:
+            await self.close()
+            self._state = _NEW  # connect() may be called again
+            said = " (it closed the connection)" if isinstance(exc, ConnectionLost) else ""
+            raise NotARobotServer(f"{self.host}:{self.port} answered nothing like a RobotServer within "
+                                  f"{timeout_s:g} s{said}: is this the robot's port?") from None
+        finally:
+            self._observers = observers
 
     async def close(self) -> None:
         """Close the connection; pending waits fail with ConnectionLost. Idempotent."""

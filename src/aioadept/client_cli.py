@@ -7,7 +7,8 @@
 Each argument is ``SKILL[:ARG,ARG,...]`` (the wire syntax without the ID); integers stay integers (``set_speed:20``).
 By default each skill is its own command, awaited before the next is sent (``cmdexec``); ``--joined`` writes them
 all at once (``cmdexec_joined``). Exit status: 0 all done, 1 an ``error``/``aborted`` ack, 2 bad usage,
-3 connection failure or ack timeout, 130 interrupted (Ctrl-C: ``stop`` was sent at once, no further command, and the
+3 connection failure (also: the peer did not answer ``hello`` like a RobotServer within 2 s; ``--no-hello``
+for the original V+ AdeptServer) or ack timeout, 130 interrupted (Ctrl-C: ``stop`` was sent at once, no further command, and the
 stop was acked; 3 if it was not). A second Ctrl-C exits at once.
 """
 
@@ -65,7 +66,7 @@ def _print(results: Sequence[MessageResult], as_json: bool) -> None:
 async def _run(args: argparse.Namespace, commands: list[Skill], intr: Interrupter | None = None) -> int:
     try:
         robot = RobotClient(args.host, args.port, connect_timeout_s=args.connect_timeout,
-                            ack_timeout_s=args.timeout)
+                            ack_timeout_s=args.timeout, hello_timeout_s=None if args.no_hello else 2.0)
     except ValueError as exc:  # a timeout that is not finite and > 0, a port out of range
         print(f"aioadept send: {exc}", file=sys.stderr)
         return 2
@@ -101,6 +102,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--timeout", type=float, default=60.0, help="ack timeout per wait, seconds (default 60)")
     ap.add_argument("--connect-timeout", type=float, default=5.0, help="connect timeout, seconds (default 5)")
     ap.add_argument("--json", action="store_true", help="print one JSON object per ack")
+    ap.add_argument("--no-hello", action="store_true", dest="no_hello",
+                    help="do not check with 'hello' that the peer is a RobotServer (needed for the original V+ "
+                         "AdeptServer, which halts on skills it does not know)")
     args = ap.parse_args(list(sys.argv[1:] if argv is None else argv))
     try:
         commands = [parse_skill(s) for s in args.skills]

@@ -11,6 +11,7 @@ catches our types only::
     ├─ CommandAborted              the server flushed a command with an ``aborted`` ack (after a stop)
     │   └─ AbortedBeforeSend       a stop() came while the command waited to be written: it was never sent
     ├─ ConnectError                could not connect to a robot server (refused, unreachable, rejected)
+    │   └─ NotARobotServer         the peer did not answer the connect-time ``hello`` like a RobotServer
     ├─ ConnectionLost              the connection dropped; says which messages are known done and which are unknown
     ├─ AckTimeout (TimeoutError)   no ack in time
     ├─ ClientStateError            not connected / closed / reentered
@@ -97,6 +98,10 @@ class AbortedBeforeSend(CommandAborted):
 
 class ConnectError(AdeptError):
     """A connection to the robot server could not be established."""
+
+
+class NotARobotServer(ConnectError):
+    """The peer accepted the TCP connection but did not answer ``hello`` like a RobotServer (wrong port?)."""
 
 
 class ConnectionLost(AdeptError):

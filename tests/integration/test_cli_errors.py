@@ -122,3 +122,90 @@ def test_demo_with_start_sim_false_uses_the_running_server(tmp_path):
     finally:
         sim.terminate()
         sim.wait(10)
+
+
+# ------------------------------------------------------------------ the wrong kind of port (item 3)
+@contextlib.contextmanager
+def silent_tcp_server():
+    """A TCP port that accepts connections and never says anything (the kernel completes the handshake)."""
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    s.listen(8)
+    try:
+        yield s.getsockname()[1]
+    finally:
+        s.close()
+
+
+@contextlib.contextmanager
+def zmq_port():
+    """A bound ZeroMQ socket, as a vision node's response port is."""
+    import zmq
+
+    ctx = zmq.Context()
+    sock = ctx.socket(zmq.PUB)
+    sock.setsockopt(zmq.LINGER, 0)
+    port = sock.bind_to_random_port("tcp://127.0.0.1")
+    try:
+        yield port
+    finally:
+        sock.close()
+        ctx.term()
+
+
+@pytest.mark.timeout(40)
+@pytest.mark.parametrize("server", [silent_tcp_server, zmq_port])
+def test_send_to_something_that_is_not_a_robot_server_says_so_in_one_line(server):
+    with server() as port:
+        proc = run("send", "--port", str(port), "here", timeout=30)  # today: silent for the 60 s ack timeout
+    assert proc.returncode == 3, proc.stdout + proc.stderr
+    line = one_error_line(proc)
+    assert f"127.0.0.1:{port} answered nothing like a RobotServer within 2 s" in line
+    assert "is this the robot's port?" in line
+
+
+@pytest.mark.timeout(40)
+def test_focus_against_a_zeromq_port_says_so(tmp_path):
+    with zmq_port() as port:
+        proc = run("focus", "--robot", f"127.0.0.1:{port}", "--out", str(tmp_path), timeout=30, cwd=tmp_path)
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    assert "Traceback" not in proc.stdout + proc.stderr
+    assert f"127.0.0.1:{port} answered nothing like a RobotServer" in " ".join((proc.stdout + proc.stderr).split())
+
+
+@pytest.mark.timeout(30)
+def test_send_goes_on_with_a_server_that_answers_hello_with_unknown_skill():
+    import asyncio
+
+    from aioadept.testing import Reply, ScriptedServer
+
+    async def main() -> tuple[int, str, str]:
+        async with ScriptedServer({"hello": Reply.error(-406, "unknown skill")}) as server:
+            proc = await asyncio.create_subprocess_exec(
+                *AIOADEPT, "send", "--port", str(server.port), "set_speed:20",
+                stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE)
+            out, err = await proc.communicate()
+            assert [line.split(b":")[1] for line in server.lines()] == [b"hello", b"set_speed"]
+            return proc.returncode, out.decode(), err.decode()
+
+    code, out, err = asyncio.run(main())
+    assert code == 0, err
+    assert out.split()[1:3] == ["set_speed", "done"]
+
+
+@pytest.mark.timeout(30)
+@pytest.mark.parametrize("address", ["127.0.0.1:abc", "127.0.0.1:99999", "127.0.0.1:"])
+def test_focus_robot_address_mistake_is_one_line(tmp_path, address):
+    proc = run("focus", "--robot", address, "--out", str(tmp_path / "runs"), cwd=tmp_path)
+    assert proc.returncode == 2
+    line = one_error_line(proc)
+    assert "HOST[:PORT]" in line and address in line
+    assert not (tmp_path / "runs").exists()
+
+
+def test_focus_robot_without_a_port_means_port_1234():
+    # Not run against 127.0.0.1:1234 itself: whatever listens there on this machine is not ours to move.
+    from aioadept.apps.focus_cli import parse_robot_address
+
+    assert parse_robot_address("127.0.0.1") == ("127.0.0.1", 1234)
+    assert parse_robot_address("10.0.0.5:2000") == ("10.0.0.5", 2000)

@@ -30,9 +30,11 @@ async def test_send_sequential_prints_one_line_per_ack():
     assert code == 0, err
     lines = out.splitlines()
     assert [line.split()[1:3] for line in lines] == [["move_to", "done"], ["break", "done"], ["set_speed", "done"]]
-    assert [parse_command(x).args for x in server.lines()] == [(300, 0, 500.5, 0, 180, 0), (), (20,)]
+    # First the connect-time hello (is this a RobotServer?), in a write of its own; then the commands.
+    assert parse_command(server.lines()[0]).skill == "hello"
+    assert [parse_command(x).args for x in server.lines()[1:]] == [(300, 0, 500.5, 0, 180, 0), (), (20,)]
     assert "pose=300.000,0.000,500.000,0.000,180.000,0.000" in lines[0]
-    assert len(server.connections[0].chunks) == 3  # sequential: one write per command
+    assert len(server.connections[0].chunks) == 1 + 3  # sequential: one write per command
 
 
 @pytest.mark.timeout(20)
@@ -45,7 +47,7 @@ async def test_send_joined_json_and_error_exit_status():
     assert [(r["skill"], r["status"]) for r in records] == [("set_speed", "done"), ("move_to", "error")]
     assert records[1]["extra"] == ["-610", "location out of range"]
     assert "location out of range" in err
-    assert server.connections[0].chunks[0].count(b"\r\n") == 2  # joined: one write
+    assert server.connections[0].chunks[1].count(b"\r\n") == 2  # joined: one write (after the hello's)
 
 
 @pytest.mark.timeout(20)

@@ -36,6 +36,9 @@ class RobotSection:
     """Where the sim publishes the robot state (the virtual camera subscribes). Port 0: pick a free one."""
     connect_timeout_s: float = 5.0
     ack_timeout_s: float = 30.0
+    hello_timeout_s: float = 2.0
+    """After connecting, send ``hello`` and give up this soon if nothing like a RobotServer answers (a wrong port).
+    0: no check (the original V+ AdeptServer, whose task halts on an unknown skill)."""
     sim_args: list[str] = field(default_factory=list)
 
 
@@ -198,7 +201,8 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
     started = _dt.datetime.now(_dt.timezone.utc).isoformat()
     try:
         async with RobotClient(cfg.robot.host, cfg.robot.port, connect_timeout_s=cfg.robot.connect_timeout_s,
-                               ack_timeout_s=cfg.robot.ack_timeout_s, observers=observers) as rc, \
+                               ack_timeout_s=cfg.robot.ack_timeout_s, observers=observers,
+                               hello_timeout_s=cfg.robot.hello_timeout_s or None) as rc, \
                 Communicator(opposite(cfg.vision.request_endpoint), opposite(cfg.vision.response_endpoint),
                              timeout_s=params.vision_timeout_s, observers=observers) as comm, \
                 _guarded(interrupter, rc):

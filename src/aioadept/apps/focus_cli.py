@@ -21,7 +21,7 @@ log = logging.getLogger("aioadept.focus")
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="aioadept focus", description=__doc__.split("\n\n")[0])
     add_cell_options(p)
-    p.add_argument("--robot", help="robot server HOST:PORT (default 127.0.0.1:1234)")
+    p.add_argument("--robot", help="robot server HOST[:PORT] (default 127.0.0.1:1234; without a port: 1234)")
     p.add_argument("--request-endpoint", dest="request_endpoint",
                    help="PUB for vision requests: binds by default (as pyadept's MCN), '>tcp://...' connects to a "
                         "node that binds it; the vision node's READY line prints the right form (default "
@@ -30,6 +30,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help="SUB for vision responses: connects by default, '@tcp://...' binds (default "
                         "tcp://127.0.0.1:5556)")
     return p
+
+
+def parse_robot_address(text: str, default_port: int = 1234) -> tuple[str, int]:
+    """``"HOST[:PORT]"`` -> ``(host, port)``; the port defaults to 1234; ValueError in one line otherwise."""
+    host, sep, port = text.rpartition(":")
+    if not sep:
+        host, port = text, str(default_port)
+    if not port.isdigit() or not 0 < int(port) <= 0xFFFF:
+        raise ValueError(f"--robot {text!r}: expected HOST[:PORT] with PORT in 1..65535, e.g. 127.0.0.1:1234")
+    return host or "127.0.0.1", int(port)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -44,8 +54,10 @@ def main(argv: list[str] | None = None) -> int:
     cfg.robot.start_sim = False
     cfg.vision.start = False
     if args.robot:
-        host, _, port = args.robot.rpartition(":")
-        cfg.robot.host, cfg.robot.port = host or "127.0.0.1", int(port)
+        try:
+            cfg.robot.host, cfg.robot.port = parse_robot_address(args.robot)
+        except ValueError as exc:
+            return report("aioadept focus", exc, verbose=args.verbose)
     # These options are the MCN's side of each link (as the node's READY line prints them); the cell file keeps
     # the node's side.
     from aioadept.bus.endpoints import opposite
