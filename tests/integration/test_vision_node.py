@@ -145,7 +145,9 @@ async def test_node_responder_answers_cheap_requests_at_once_and_waits_for_frame
         assert await asyncio.to_thread(acq.wait_ready, 5.0)
         for policy in ("nearest", "after"):
             # (a generous threshold: a no-op run preempted on a loaded machine must not look expensive)
-            node = VisionNode(acq, noop_graph(), policy=policy, timeout_s=2.0, inline_max_ms=100.0)
+            # (max_frame_age_s: the "ahead" request is 0.1 s younger than any frame nearest could pick)
+            node = VisionNode(acq, noop_graph(), policy=policy, timeout_s=2.0, inline_max_ms=100.0,
+                              max_frame_age_s=1.0)
             awaited = []  # requests that went through the Responder's worker task (VisionNode.handle)
             handle = node.handle
 
@@ -166,7 +168,7 @@ async def test_node_responder_answers_cheap_requests_at_once_and_waits_for_frame
             finally:
                 node.close()
             assert all(a.attributes["sharpness"] == 0.0 for a in answers)
-            assert responder.handled == 5 and node.served == 5 and node.failed == 0
+            assert responder.handled == 5 and node.served == 5 and node.failed == 0, [a.attributes for a in answers] + [ahead.attributes]
             assert node.thread_runs == 1  # the first run (cost unknown) in the worker, the others on the loop
             assert node.inline_runs == 4
             if policy == "after":

@@ -41,7 +41,11 @@ DEFAULTS: dict[str, Any] = {
     "f_number": 2.8,
     "noise_sigma": 2.0,
     "seed": None,
-    "policy": "nearest",
+    "policy": "after",
+    "max_frame_age": 0.1,
+    "trigger": "auto",
+    "exposure_ms": 5.0,
+    "readout_ms": None,
     "frame_timeout": 1.0,
     "graph": "sharpness",
     "graph_thread": "auto",
@@ -89,8 +93,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--noise-sigma", type=float, help="virtual camera: sensor noise, grey levels (default 2)")
     p.add_argument("--seed", type=int, help="virtual camera: noise seed")
     p.add_argument("--policy", choices=("nearest", "after"),
-                   help="frame for a request: nearest in time (the paper; default) or first at/after t_request")
-    p.add_argument("--frame-timeout", type=float, help="policy 'after': max wait for the frame, s (default 1)")
+                   help="free-running sources: the frame for a request: the first exposed at/after t_request "
+                        "(default: never a frame from before the request), or nearest in time (the paper; opt-in, "
+                        "bounded by --max-frame-age)")
+    p.add_argument("--max-frame-age", type=float, metavar="S",
+                   help="policy nearest: answer with an error rather than from a frame exposed more than S seconds "
+                        "before the request (default 0.1; inf: no check)")
+    p.add_argument("--trigger", choices=("auto", "software", "free"),
+                   help="acquisition: auto (default: each request software-triggers its own exposure on sources "
+                        "that can, the virtual camera; others run free), software (insist), free (free-running at "
+                        "--fps)")
+    p.add_argument("--exposure-ms", type=float, help="virtual camera: exposure time, ms (default 5)")
+    p.add_argument("--readout-ms", type=float,
+                   help="virtual camera: readout + transfer time, ms (default: frame bytes over 1 Gbit/s GigE, 6.3 "
+                        "ms for 1024x768 mono8)")
+    p.add_argument("--frame-timeout", type=float, help="max wait for a frame, s (default 1)")
     p.add_argument("--graph", choices=("sharpness", "noop"), help="processing graph (noop: for latency tests)")
     p.add_argument("--graph-thread", choices=GRAPH_THREAD_CHOICES,
                    help="where the graph runs: auto (default: on the event loop while its measured cost is at most "
@@ -173,6 +190,21 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
     if not max_age > 0:  # NaN too
         parser.error(f"max-state-age must be > 0 seconds (inf: no check), got {merged['max_state_age']!r}")
     merged["max_state_age"] = max_age
+    try:
+        max_frame_age = float(merged["max_frame_age"])
+    except (TypeError, ValueError):
+        max_frame_age = float("nan")
+    if not max_frame_age > 0:
+        parser.error(f"max-frame-age must be > 0 seconds (inf: no check), got {merged['max_frame_age']!r}")
+    merged["max_frame_age"] = max_frame_age
+    if merged["trigger"] not in ("auto", "software", "free"):
+        parser.error(f"trigger must be auto, software or free, got {merged['trigger']!r}")
+    for key in ("exposure_ms", "readout_ms"):
+        value = merged[key]
+        if value is None and key == "readout_ms":
+            continue
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 <= value < float("inf"):
+            parser.error(f"{key.replace('_', '-')} must be a finite number >= 0, got {value!r}")
     for key in ("max_queue", "max_request_bytes"):
         value = merged[key]
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
@@ -243,7 +275,8 @@ def make_sources(opts: argparse.Namespace, pose_at: Any, state_age: Any = None) 
             sources.append(paper_camera(pose_at, focus_offset_mm=opts.focus_offset_mm,
                                         working_distance_mm=opts.working_distance_mm,
                                         optics=LensOptics(f_number=opts.f_number), noise_sigma=opts.noise_sigma,
-                                        seed=opts.seed, camera_id=unique("virtual"), state_age=state_age))
+                                        seed=opts.seed, camera_id=unique("virtual"), state_age=state_age,
+                                        exposure_ms=opts.exposure_ms, readout_ms=opts.readout_ms))
         elif kind == "folder" and arg:
             csv_path = Path(arg) / "frames.csv"
             # A recorded folder (--save-frames) replays with its times; any other folder loops, stamped live.
@@ -277,14 +310,14 @@ async def serve(opts: argparse.Namespace) -> int:
     try:
         sources = make_sources(opts, follower.pose_at if follower else None,
                                follower.state_age_s if follower else None)
-        acq = Acquisition(sources, buffer_size=opts.buffer_size, fps=opts.fps).start()
+        acq = Acquisition(sources, buffer_size=opts.buffer_size, fps=opts.fps, trigger=opts.trigger).start()
         # Serve only once every camera has a frame: the first render/read pays one-off costs (imports, caches).
         if not await asyncio.to_thread(acq.wait_ready, 10.0):
             log.warning("not every camera delivered a frame within 10 s; serving anyway")
         graph = noop_graph() if opts.graph == "noop" else sharpness_graph()
         node = VisionNode(acq, graph, policy=opts.policy, timeout_s=opts.frame_timeout, recorder=recorder,
                           graph_thread=opts.graph_thread, inline_max_ms=float(opts.graph_inline_max_ms),
-                          max_state_age_s=opts.max_state_age)
+                          max_state_age_s=opts.max_state_age, max_frame_age_s=opts.max_frame_age)
         # Frame waits are awaited on the loop and the graph runs where --graph-thread says, so the loop is never
         # blocked for longer than one cheap graph run; requests that need no waiting are answered in the socket
         # callback (NodeResponder).
@@ -297,6 +330,7 @@ async def serve(opts: argparse.Namespace) -> int:
         # connect your SUB there), so the line can be passed on as is.
         print(f"READY request={responder.peer_request_endpoint} response={responder.peer_response_endpoint} "
               f"cameras={cams} fps={opts.fps:g} policy={opts.policy} graph={opts.graph} "
+              f"trigger={'software' if any(acq.triggered.values()) else 'free'} "
               f"thread={THREAD_WORDS[opts.graph_thread]}", flush=True)
         log.info("serving %s requests on %s, responses on %s; cameras %s at %g fps, policy %s, graph thread %s%s",
                  opts.graph, responder.actual_request_endpoint, responder.actual_response_endpoint, cams, opts.fps,

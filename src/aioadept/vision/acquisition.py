@@ -1,13 +1,19 @@
-"""Continuous acquisition into ring buffers, and the frame nearest in time to a request (FxIS, Semeniuta 2018).
+"""Acquisition into ring buffers, software-triggered or free-running, and the frame for a request (FxIS,
+Semeniuta 2018).
+
+**Software trigger** (``trigger="auto"`` for sources that can, ``"software"`` to insist): the source's thread waits
+for :meth:`Acquisition.trigger`; a request triggers its own exposure and is answered from that frame, whatever the
+policy, so it costs exposure + readout and never shows a pose from before the request. **Free-running**
+(``trigger="free"``, and sources that cannot be triggered: video files, webcams, folders) works as below.
 
 Where it sits: one :class:`Acquisition` owns one grabbing thread per source (:mod:`aioadept.vision.sources`); each
 thread pushes timestamped frames into that source's :class:`FrameRing`. The processing node asks for the frame (or
 the set of frames, one per camera) that belongs to a request time:
 
-- policy ``"nearest"`` (the paper's): the buffered frame whose timestamp is nearest ``t_request``, found by binary
+- policy ``"nearest"`` (the paper's; opt-in, the node bounds its age with ``max_frame_age_s``): the buffered frame whose timestamp is nearest ``t_request``, found by binary
   search; it answers at once. **Tie rule:** when two frames are equally far, the later one wins (the robot has
   stopped before the request is sent, so the later frame is the safer picture of the stopped robot);
-- policy ``"after"``: the first frame stamped at or after ``t_request``, waiting for it up to a timeout. Correct
+- policy ``"after"`` (the default): the first frame whose exposure started at or after ``t_request``, waiting for it up to a timeout. Correct
   when the request is sent right after the robot stopped: no frame taken during the motion can be chosen, at the
   price of up to one frame period of latency.
 
@@ -28,7 +34,7 @@ import math
 import threading
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 from aioadept.errors import VisionError
@@ -38,6 +44,10 @@ log = logging.getLogger(__name__)
 
 Policy = Literal["nearest", "after"]
 POLICIES: tuple[str, ...] = ("nearest", "after")
+DEFAULT_POLICY: Policy = "after"
+"""Never a frame whose exposure started before the request was sent (``nearest`` is opt-in, with a maximum age)."""
+TriggerMode = Literal["auto", "software", "free"]
+TRIGGER_MODES: tuple[str, ...] = ("auto", "software", "free")
 
 
 class FrameRing:
@@ -216,7 +226,13 @@ class Acquisition:
     """
 
     def __init__(self, sources: Sequence[Camera], *, buffer_size: int = 64, fps: float | None = 15.0,
-                 on_frame: Callable[[Frame], None] | None = None, close_sources: bool = True) -> None:
+                 on_frame: Callable[[Frame], None] | None = None, close_sources: bool = True,
+                 trigger: TriggerMode = "free") -> None:
+        if trigger not in TRIGGER_MODES:
+            raise ValueError(f"trigger must be one of {TRIGGER_MODES}, got {trigger!r}")
+        bad = [s.camera_id for s in sources if trigger == "software" and not getattr(s, "can_trigger", False)]
+        if bad:
+            raise ValueError(f"sources {bad} cannot be software-triggered; use trigger='auto' or 'free'")
         if not sources:
             raise ValueError("Acquisition needs at least one source")
         ids = [s.camera_id for s in sources]
@@ -234,6 +250,12 @@ class Acquisition:
         self._threads: list[threading.Thread] = []
         self._errors = {cid: 0 for cid in ids}
         self._exhausted = {cid: False for cid in ids}
+        self.triggered: dict[str, bool] = {
+            s.camera_id: trigger != "free" and bool(getattr(s, "can_trigger", False)) for s in sources}
+        """Per camera: software-triggered (a frame per :meth:`trigger`) rather than free-running."""
+        self._trigger_events = {cid: threading.Event() for cid in ids}
+        self._trigger_t: dict[str, float | None] = {cid: None for cid in ids}
+        self._trigger_lock = threading.Lock()
 
     @property
     def camera_ids(self) -> tuple[str, ...]:
@@ -244,10 +266,54 @@ class Acquisition:
         if self._threads:
             raise RuntimeError("Acquisition already started")
         for src in self.sources:
-            t = threading.Thread(target=self._grab_loop, args=(src,), name=f"grab:{src.camera_id}")
+            loop = self._trigger_loop if self.triggered[src.camera_id] else self._grab_loop
+            t = threading.Thread(target=loop, args=(src,), name=f"grab:{src.camera_id}")
             t.start()
             self._threads.append(t)
+            if self.triggered[src.camera_id]:
+                self.trigger(src.camera_id)  # a first frame, so wait_ready() and the one-off costs are done
         return self
+
+    def trigger(self, camera_id: str | None = None) -> float:
+        """Software-trigger ``camera_id`` (default: the first camera): its grabbing thread starts an exposure as soon
+        as it is free. Returns the trigger's epoch time; the frame it takes has ``t_s`` (exposure start) at or
+        after it. Triggers that arrive while one is still pending share its frame."""
+        cid = camera_id if camera_id is not None else self.camera_ids[0]
+        if not self.triggered.get(cid, False):
+            raise VisionError(f"camera {cid!r} is not software-triggered")
+        with self._trigger_lock:
+            t = time.time()
+            if self._trigger_t[cid] is None:
+                self._trigger_t[cid] = t
+            self._trigger_events[cid].set()
+        return t
+
+    def _trigger_loop(self, src: Camera) -> None:
+        cid = src.camera_id
+        ring, event = self.rings[cid], self._trigger_events[cid]
+        while True:
+            event.wait()
+            if self._stop.is_set():
+                return
+            with self._trigger_lock:
+                event.clear()
+                t_trigger, self._trigger_t[cid] = self._trigger_t[cid], None
+            try:
+                frame = src.grab()
+            except Exception:
+                self._errors[cid] += 1
+                log.exception("%s: triggered grab failed", cid)
+                continue
+            if frame is None:
+                self._exhausted[cid] = True
+                log.info("%s: source exhausted after %d frames", cid, ring.pushed)
+                return
+            ring.push(replace(frame, t_trigger=t_trigger))
+            if self._on_frame is not None:
+                try:
+                    self._on_frame(frame)
+                except Exception:
+                    log.exception("%s: on_frame callback failed", cid)
 
     def _grab_loop(self, src: Camera) -> None:
         ring = self.rings[src.camera_id]
@@ -286,6 +352,8 @@ class Acquisition:
         never returns keeps ``stop()`` waiting (closing a capture under a reading thread is not safe in OpenCV).
         """
         self._stop.set()
+        for ev in self._trigger_events.values():
+            ev.set()  # wakes the triggered threads, which then see the stop
         for t in self._threads:
             t.join()
         self._threads.clear()
@@ -324,7 +392,7 @@ class Acquisition:
         except KeyError:
             raise VisionError(f"unknown camera {camera_id!r}; have {list(self.rings)}") from None
 
-    def frame_at(self, t_s: float, *, camera_id: str | None = None, policy: Policy = "nearest",
+    def frame_at(self, t_s: float, *, camera_id: str | None = None, policy: Policy = DEFAULT_POLICY,
                  timeout_s: float = 1.0) -> Frame:
         """The frame of ``camera_id`` (default: the first source) for request time ``t_s`` under ``policy``.
 
@@ -332,6 +400,14 @@ class Acquisition:
         within ``timeout_s`` (``after``), or an unknown camera or policy.
         """
         ring = self._ring(camera_id)
+        cid = camera_id or self.camera_ids[0]
+        if self.triggered.get(cid, False):
+            # Whatever the policy: this request takes its own exposure, which starts after the trigger.
+            t_trigger = self.trigger(cid)
+            frame = ring.wait_at_or_after(t_trigger, timeout_s)
+            if frame is None:
+                raise VisionError(f"no frame from {cid} within {timeout_s:.3f} s of its software trigger")
+            return frame
         if policy == "nearest":
             frame = ring.nearest(t_s)
             if frame is None:
@@ -345,10 +421,18 @@ class Acquisition:
             return frame
         raise VisionError(f"unknown policy {policy!r}; use one of {POLICIES}")
 
-    async def frame_at_async(self, t_s: float, *, camera_id: str | None = None, policy: Policy = "nearest",
+    async def frame_at_async(self, t_s: float, *, camera_id: str | None = None, policy: Policy = DEFAULT_POLICY,
                              timeout_s: float = 1.0) -> Frame:
         """:meth:`frame_at` for the event loop: ``nearest`` answers at once, ``after`` awaits the grabbing thread's
         push of the first frame at or after ``t_s`` (no thread is blocked, the loop keeps running). Same errors."""
+        cid = camera_id or self.camera_ids[0]
+        if self.triggered.get(cid, False):
+            ring = self._ring(cid)
+            t_trigger = self.trigger(cid)
+            frame = await ring.await_at_or_after(t_trigger, timeout_s)
+            if frame is None:
+                raise VisionError(f"no frame from {cid} within {timeout_s:.3f} s of its software trigger")
+            return frame
         if policy != "after":
             return self.frame_at(t_s, camera_id=camera_id, policy=policy)
         frame = await self._ring(camera_id).await_at_or_after(t_s, timeout_s)
@@ -357,7 +441,7 @@ class Acquisition:
                               f"within {timeout_s:.3f} s")
         return frame
 
-    def frame_set(self, t_s: float, *, policy: Policy = "nearest", timeout_s: float = 1.0,
+    def frame_set(self, t_s: float, *, policy: Policy = DEFAULT_POLICY, timeout_s: float = 1.0,
                   camera_ids: Sequence[str] | None = None) -> dict[str, Frame]:
         """One frame per camera for the same request time (FxIS frame sets), keyed by camera id.
 

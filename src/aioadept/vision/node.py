@@ -41,7 +41,7 @@ from typing import Any, Literal
 
 from aioadept.bus.communicator import Responder
 from aioadept.errors import VisionError
-from aioadept.vision.acquisition import Acquisition, Policy
+from aioadept.vision.acquisition import DEFAULT_POLICY, Acquisition, Policy
 from aioadept.vision.graph import CompGraph
 from aioadept.vision.sharpness import measure, sharpness_graph
 from aioadept.vision.sources import Frame, FrameRecorder
@@ -51,6 +51,10 @@ log = logging.getLogger(__name__)
 GraphThread = Literal["auto", "always", "never"]
 GRAPH_THREAD_MODES: tuple[str, ...] = ("auto", "always", "never")
 
+
+DEFAULT_MAX_FRAME_AGE_S = 0.1
+"""Policy ``nearest``: the oldest frame (its exposure start, s before ``t_request``) the node answers from; older is
+an error. 1.5 frame periods at 15 fps: the nearest frame of a healthy free-running camera is always younger."""
 
 DEFAULT_MAX_STATE_AGE_S = 0.5
 """Oldest robot pose (s behind the frame) the node answers from: 50 periods of the sim's 100 Hz stream, far above
@@ -84,9 +88,14 @@ class VisionNode:
     """Weight of the newest run in ``cost_ms``: one slow outlier (a page fault, a preempted run) moves the average by
     a fifth, and a few normal runs bring it back."""
 
-    def __init__(self, acquisition: Acquisition, graph: CompGraph | None = None, *, policy: Policy = "nearest",
+    def __init__(self, acquisition: Acquisition, graph: CompGraph | None = None, *, policy: Policy = DEFAULT_POLICY,
                  timeout_s: float = 1.0, recorder: FrameRecorder | None = None, graph_thread: GraphThread = "auto",
-                 inline_max_ms: float = 5.0, max_state_age_s: float = DEFAULT_MAX_STATE_AGE_S) -> None:
+                 inline_max_ms: float = 5.0, max_state_age_s: float = DEFAULT_MAX_STATE_AGE_S,
+                 max_frame_age_s: float = DEFAULT_MAX_FRAME_AGE_S) -> None:
+        if isinstance(max_frame_age_s, bool) or not (isinstance(max_frame_age_s, (int, float))
+                                                     and max_frame_age_s > 0):
+            raise ValueError(f"max_frame_age_s must be > 0 (inf: no check), got {max_frame_age_s!r}")
+        self.max_frame_age_s = float(max_frame_age_s)
         if isinstance(max_state_age_s, bool) or not (isinstance(max_state_age_s, (int, float))
                                                      and max_state_age_s > 0):  # NaN fails too
             raise ValueError(f"max_state_age_s must be > 0 (inf: no check), got {max_state_age_s!r}")
@@ -190,7 +199,13 @@ class VisionNode:
                     out[f"{key}.{cid}"] = result[key]
 
     def _refuse_stale(self, frame: Frame, t_request: float) -> dict[str, Any] | None:
-        """The error result for a frame rendered from a robot pose older than ``max_state_age_s``, else None."""
+        """The error result for a frame rendered from a robot pose older than ``max_state_age_s``, or (policy
+        ``nearest``) exposed more than ``max_frame_age_s`` before the request; else None."""
+        frame_age = t_request - frame.t_s
+        if frame_age > self.max_frame_age_s:
+            self.stale += 1
+            return {"error": f"stale frame: exposed {frame_age * 1e3:.1f} ms before the request (limit "
+                             f"{self.max_frame_age_s * 1e3:g} ms)", **self._frame_attrs(frame, t_request)}
         age = frame.pose_age_s
         if age is None or age <= self.max_state_age_s:
             return None
@@ -200,9 +215,19 @@ class VisionNode:
         else:
             why = f"robot state stream silent for {age:.2f} s"
         return {"error": f"stale robot state: {why} at the frame's time (limit {self.max_state_age_s:g} s); the "
-                         "tool pose is unknown, so no sharpness is measured",
-                "camera": frame.camera_id, "frame_t": frame.t_s, "frame_seq": int(frame.seq),
-                "frame_age_ms": (t_request - frame.t_s) * 1e3}
+                         "tool pose is unknown, so no sharpness is measured", **self._frame_attrs(frame, t_request)}
+
+    @staticmethod
+    def _frame_attrs(frame: Frame, t_request: float) -> dict[str, Any]:
+        """Which frame answered and when it was exposed (docs/interfaces.md)."""
+        attrs: dict[str, Any] = {
+            "camera": frame.camera_id, "frame_t": frame.t_s, "frame_seq": int(frame.seq),
+            "frame_age_ms": (t_request - frame.t_s) * 1e3, "t_exposure_start": frame.t_s,
+            "exposure_ms": frame.exposure_s * 1e3, "readout_ms": frame.readout_s * 1e3,
+        }
+        if frame.t_trigger is not None:
+            attrs["t_trigger"] = frame.t_trigger
+        return attrs
 
     def _count(self, out: dict[str, Any]) -> dict[str, Any]:
         if "error" in out:
@@ -241,10 +266,8 @@ class VisionNode:
         # concurrent use would only skew a heuristic.
         self.cost_ms = cost_ms if self.cost_ms is None else \
             self.cost_ms + self.COST_EWMA_ALPHA * (cost_ms - self.cost_ms)
-        attrs: dict[str, Any] = {
-            "frame_t": frame.t_s, "proc_time_ms": res.proc_time_ms, "camera": frame.camera_id,
-            "frame_seq": int(frame.seq), "frame_age_ms": (t_request - frame.t_s) * 1e3,
-        }
+        attrs = self._frame_attrs(frame, t_request)
+        attrs["proc_time_ms"] = res.proc_time_ms
         if res.ok:
             attrs["sharpness"] = float(res.sharpness)
         else:
@@ -269,7 +292,8 @@ class VisionNode:
     def answers_at_once(self) -> bool:
         """Whether the next request can be answered on the loop without waiting: policy ``nearest`` (no frame
         wait), the graph on the loop (:meth:`runs_inline`) and no :meth:`handle` in progress (keeps arrival order)."""
-        return self.policy == "nearest" and self._active == 0 and self.runs_inline()
+        return (self.policy == "nearest" and not any(self.acquisition.triggered.values()) and self._active == 0
+                and self.runs_inline())
 
     def respond(self, event_type: str, event_id: str | None,
                 attributes: Mapping[str, Any]) -> dict[str, Any] | Awaitable[dict[str, Any]]:

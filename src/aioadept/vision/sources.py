@@ -43,12 +43,23 @@ class Frame:
     camera_id: str
     seq: int
     pose_age_s: float | None = None
+    exposure_s: float = 0.0
+    """How long the sensor integrated, from ``t_s`` (the exposure start); 0 when the source does not say."""
+    readout_s: float = 0.0
+    """From the end of the exposure until the frame was in memory (sensor readout + GigE transfer)."""
+    t_trigger: float | None = None
+    """Epoch s of the software trigger that took this frame; None for a free-running grab."""
 
 
 class Camera(abc.ABC):
-    """The interface every source implements. Use as a context manager or call :meth:`close`."""
+    """The interface every source implements. Use as a context manager or call :meth:`close`.
+
+    ``can_trigger``: the source takes a frame when asked (a software trigger: a virtual or GenICam camera), so a
+    request can trigger its own exposure; sources that cannot (video files, webcams, folders) run free.
+    """
 
     camera_id: str
+    can_trigger: bool = False
 
     @abc.abstractmethod
     def grab(self) -> Frame | None:

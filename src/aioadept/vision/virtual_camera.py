@@ -184,6 +184,16 @@ def camera_facing_tool(tool_pose: Pose, distance_mm: float) -> Pose:
 
 
 # ------------------------------------------------------------------------------------------ the camera
+DEFAULT_EXPOSURE_MS = 5.0
+"""Exposure of the virtual camera: a typical short machine-vision exposure under good light."""
+GIGE_BITS_PER_S = 1e9
+"""GigE Vision link rate the readout time is derived from."""
+
+
+def gige_readout_ms(frame_bytes: int, bits_per_s: float = GIGE_BITS_PER_S) -> float:
+    """Time to move a frame over the link: ``frame_bytes * 8 / bits_per_s`` (6.29 ms for 1024x768 mono8)."""
+    return frame_bytes * 8 / bits_per_s * 1e3
+
 _DIRECT_BLUR_PX = 16.0
 """Blur diameters up to this are filtered at full resolution; larger ones on a shrunk copy (bounded cost)."""
 
@@ -206,8 +216,16 @@ class VirtualCamera(Camera):
                  noise_sigma: float = 2.0, background: int = 18, seed: int | None = None,
                  max_blur_px: float = 48.0, camera_id: str = "virtual",
                  clock: Callable[[], float] = time.time,
-                 state_age: Callable[[float], float] | None = None) -> None:
+                 state_age: Callable[[float], float] | None = None, exposure_ms: float = DEFAULT_EXPOSURE_MS,
+                 readout_ms: float | None = None, sleep: Callable[[float], None] | None = time.sleep) -> None:
+        if not (0 <= exposure_ms < math.inf) or (readout_ms is not None and not (0 <= readout_ms < math.inf)):
+            raise ValueError(f"exposure_ms and readout_ms must be finite and >= 0, got {exposure_ms!r}, "
+                             f"{readout_ms!r}")
         self.camera_id = camera_id
+        self.exposure_ms = float(exposure_ms)
+        self.readout_ms = float(readout_ms) if readout_ms is not None else \
+            gige_readout_ms(optics.width_px * optics.height_px)
+        self._sleep = sleep
         self._state_age = state_age
         self.max_blur_px = float(max_blur_px)
         self.camera_pose = camera_pose
@@ -312,13 +330,24 @@ class VirtualCamera(Camera):
             frame = cv2.add(frame, window, dtype=cv2.CV_8U)
         return frame
 
+    can_trigger = True
+
     def grab(self) -> Frame:
+        """Expose now (``t_s``) for ``exposure_ms``, showing the pose at the exposure's mid-time, and deliver the
+        frame no earlier than a real camera would: after the exposure and the readout (``sleep``; None renders
+        without waiting, for tests and figures)."""
         t_s = self._clock()
-        pose = self._pose_source(t_s) if self._pose_source is not None else None
-        # Asked after pose_source, which may have waited for a sample covering t_s.
-        age = self._state_age(t_s) if self._state_age is not None else None
+        exposure_s, readout_s = self.exposure_ms / 1e3, self.readout_ms / 1e3
+        t_mid = t_s + exposure_s / 2.0
+        pose = self._pose_source(t_mid) if self._pose_source is not None else None
+        # Asked after pose_source, which may have waited for a sample covering t_mid.
+        age = self._state_age(t_mid) if self._state_age is not None else None
         image = self.render(pose)
-        frame = Frame(image, t_s, self.camera_id, self._seq, age)
+        if self._sleep is not None:
+            left = t_s + exposure_s + readout_s - self._clock()
+            if left > 0:
+                self._sleep(left)  # the physical exposure + readout time, not a readiness wait
+        frame = Frame(image, t_s, self.camera_id, self._seq, age, exposure_s, readout_s)
         self._seq += 1
         return frame
 

@@ -206,7 +206,7 @@ async def test_async_wait_times_out_with_the_error_and_forgets_the_waiter():
             await acq.frame_at_async(time.time() + 60, camera_id="c", policy="after", timeout_s=0.05)
         assert 0.04 <= time.monotonic() - t0 < 2.0
         assert acq.rings["c"]._waiters == []
-        near = await acq.frame_at_async(time.time(), camera_id="c")  # nearest: at once
+        near = await acq.frame_at_async(time.time(), camera_id="c", policy="nearest")  # at once
         assert near.seq == 2
         with pytest.raises(VisionError, match="unknown camera"):
             await acq.frame_at_async(1.0, camera_id="zz", policy="after")

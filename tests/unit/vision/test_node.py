@@ -51,7 +51,7 @@ def test_node_answers_from_the_nearest_frame_of_each_camera():
     b = Replay("b", [(10.0, blank), (11.2, sharp)])
     with Acquisition([a, b], fps=None) as acq:
         _loaded(acq, {"a": 12.0, "b": 11.2})
-        node = VisionNode(acq)
+        node = VisionNode(acq, policy="nearest", max_frame_age_s=float("inf"))
         try:
             out = node.process("VisionRequest", "id1", {"t_request": 11.1})
             only_b = node.process("VisionRequest", "id2", {"t_request": 10.2, "camera": "b"})
@@ -91,7 +91,9 @@ def test_options_from_config_file_and_command_line(tmp_path):
     opts = resolve_options(["--config", str(cfg), "--fps", "7"])
     assert opts.fps == 7.0 and opts.policy == "after" and opts.source == ["folder:/data"]
     assert opts.focus_offset_mm == 12.5 and opts.buffer_size == 64
-    assert resolve_options([]).source == ["virtual"] and resolve_options([]).policy == "nearest"
+    # No stale frames by default: 'after' (the demo's cell says the same), software trigger where possible.
+    assert resolve_options([]).source == ["virtual"] and resolve_options([]).policy == "after"
+    assert (resolve_options([]).trigger, resolve_options([]).max_frame_age) == ("auto", 0.1)
     bad = tmp_path / "bad.toml"
     bad.write_text("frames_per_second = 3\n")
     with pytest.raises(SystemExit):
@@ -242,9 +244,9 @@ async def test_auto_keeps_an_expensive_graph_in_the_worker_and_comes_back_when_i
 async def test_respond_answers_at_once_only_when_nothing_needs_waiting():
     with Acquisition([Replay("a", [(5.0, np.zeros((8, 8), np.uint8))])], fps=None) as acq:
         _loaded(acq, {"a": 5.0})
-        node = VisionNode(acq, noop_graph(), graph_thread="never")
+        node = VisionNode(acq, noop_graph(), graph_thread="never", policy="nearest")
         after = VisionNode(acq, noop_graph(), graph_thread="never", policy="after", timeout_s=0.05)
-        auto = VisionNode(acq, noop_graph(), inline_max_ms=100.0)
+        auto = VisionNode(acq, noop_graph(), inline_max_ms=100.0, policy="nearest")
         try:
             now = node.respond("VisionRequest", "a", {"t_request": 5.0})
             assert isinstance(now, dict) and now["sharpness"] == 0.0 and node.inline_runs == 1
@@ -351,7 +353,8 @@ def test_virtual_camera_frames_carry_the_age_of_the_robot_state():
     clock = [100.0]
     follower = RobotStateFollower("tcp://127.0.0.1:1", history=PoseHistory(), clock=lambda: clock[0])
     assert follower.state_age_s() == float("inf")
-    cam = paper_camera(None, noise_sigma=0.0, clock=lambda: clock[0], state_age=follower.state_age_s)
+    cam = paper_camera(None, noise_sigma=0.0, clock=lambda: clock[0], state_age=follower.state_age_s,
+                       exposure_ms=0.0, sleep=None)
     assert cam.grab().pose_age_s == float("inf")
     follower.history.add(99.0, APPROACH)
     assert cam.grab().pose_age_s == pytest.approx(1.0) and follower.state_age_s(98.0) == 0.0

@@ -104,9 +104,11 @@ def test_grab_uses_the_pose_source_at_the_frame_time():
         return APPROACH @ Pose(z=20)
 
     times = iter([100.0, 100.1])
-    cam = paper_camera(pose_at, clock=lambda: next(times), camera_id="cam0")
+    cam = paper_camera(pose_at, clock=lambda: next(times), camera_id="cam0", sleep=None)
     f0, f1 = cam.grab(), cam.grab()
-    assert asked == [100.0, 100.1] and (f0.t_s, f1.t_s) == (100.0, 100.1) and (f0.seq, f1.seq) == (0, 1)
+    # The pose at the exposure's mid-time (5 ms exposure by default); t_s is the exposure start.
+    assert asked == pytest.approx([100.0025, 100.1025]) and (f0.t_s, f1.t_s) == (100.0, 100.1) and (f0.seq, f1.seq) == (0, 1)
+    assert (f0.exposure_s, f0.readout_s) == (0.005, pytest.approx(1024 * 768 * 8 / 1e9))
     assert f0.camera_id == "cam0" and measure(f0.image).ok
 
 
