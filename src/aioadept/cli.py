@@ -6,6 +6,7 @@ imports a subcommand's module when it is called so ``aioadept --help`` stays fas
 
 from __future__ import annotations
 
+import argparse
 import importlib
 import sys
 
@@ -19,6 +20,21 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "analyze": ("aioadept.analysis.__main__", "analyse run folders: the paper's timing metrics and plots"),
     "experiment": ("aioadept.apps.experiment", "repeat the demo over a parameter grid, then analyse"),
 }
+
+
+def description(doc: str | None) -> str:
+    """A module docstring's first paragraph as a subcommand's ``--help`` shows it: without ````literal```` markup."""
+    return (doc or "").split("\n\n")[0].replace("``", "")
+
+
+class DefaultsHelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Adds "(default: X)" to an option's help unless the help already says its default, or there is none."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        if "default" in text or action.default in (None, False, [], argparse.SUPPRESS):
+            return text
+        return super()._get_help_string(action)
 
 
 def _usage() -> str:

@@ -24,6 +24,7 @@ from aioadept.apps.interrupt import Interrupter, run_interruptible
 from aioadept.client import ExecResult, MessageResult, RobotClient
 from aioadept.commands import Skill
 from aioadept.errors import AckTimeout, CommandAborted, CommandError, ConnectError, ConnectionLost
+from aioadept.cli import description
 
 
 def parse_skill(text: str) -> Skill:
@@ -93,8 +94,32 @@ async def _nothing() -> AsyncIterator[None]:
     yield None
 
 
+def _is_number(tok: str) -> bool:
+    try:
+        float(tok)
+    except ValueError:
+        return False
+    return True
+
+
+def _syntax_hint(tokens: Sequence[str]) -> str:
+    """The expected form of the arguments, with the user's own words rewritten into it when they look like
+    ``move_to 300 0 500 ...`` (arguments given as separate words)."""
+    fixed: list[str] = []
+    for tok in tokens:
+        if _is_number(tok) and fixed:
+            fixed[-1] += ("," if ":" in fixed[-1] else ":") + tok
+        else:
+            fixed.append(tok)
+    if fixed != list(tokens):
+        return (f"each argument is SKILL[:ARG,ARG,...], one word per skill: did you mean "
+                f"'aioadept send {' '.join(fixed)}'?")
+    return ("each argument is SKILL[:ARG,ARG,...], one word per skill, e.g. "
+            "'aioadept send move_to:300,0,500,0,180,0 break'")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="aioadept send", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="aioadept send", description=description(__doc__))
     ap.add_argument("skills", nargs="+", metavar="SKILL[:ARGS]", help="skill calls, e.g. move_to:1,2,3,4,5,6")
     ap.add_argument("--host", default="127.0.0.1", help="robot server address (default 127.0.0.1)")
     ap.add_argument("--port", type=int, default=1234, help="robot server port (default 1234)")
@@ -109,7 +134,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         commands = [parse_skill(s) for s in args.skills]
     except ValueError as exc:
-        print(f"aioadept send: {exc}", file=sys.stderr)
+        print(f"aioadept send: {exc}; {_syntax_hint(args.skills)}", file=sys.stderr)
         return 2
 
     async def app(intr: Interrupter) -> int:

@@ -209,3 +209,21 @@ def test_focus_robot_without_a_port_means_port_1234():
 
     assert parse_robot_address("127.0.0.1") == ("127.0.0.1", 1234)
     assert parse_robot_address("10.0.0.5:2000") == ("10.0.0.5", 2000)
+
+
+# ------------------------------------------------------------------ send with the arguments as words (item 4)
+@pytest.mark.timeout(30)
+def test_send_with_arguments_as_separate_words_shows_the_right_form():
+    proc = run("send", "move_to", "300", "0", "500", "0", "180", "0")
+    assert proc.returncode == 2
+    line = one_error_line(proc)
+    assert "SKILL[:ARG,ARG,...]" in line
+    assert "did you mean 'aioadept send move_to:300,0,500,0,180,0'?" in line
+
+
+@pytest.mark.timeout(30)
+def test_send_with_a_bad_skill_name_shows_an_example():
+    proc = run("send", "Move_To:1,2")
+    assert proc.returncode == 2
+    line = one_error_line(proc)
+    assert "e.g. 'aioadept send move_to:300,0,500,0,180,0 break'" in line

@@ -17,13 +17,14 @@ from pathlib import Path
 from aioadept.apps.cell import CellConfig, RunOutcome, new_run_dir, run_focus_once, running_cell
 from aioadept.apps.cli_common import add_cell_options, apply_overrides, configure_logging, print_result, report_saving
 from aioadept.apps.interrupt import Interrupter, run_interruptible
+from aioadept.cli import description
 from aioadept.configfile import report
 
 log = logging.getLogger("aioadept.demo")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="aioadept demo", description=__doc__.split("\n\n")[0])
+    p = argparse.ArgumentParser(prog="aioadept demo", description=description(__doc__))
     add_cell_options(p)
     p.add_argument("--time-scale", type=float, dest="time_scale",
                    help="run the simulated motion this many times faster than real time (default 1)")

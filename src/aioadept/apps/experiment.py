@@ -17,6 +17,7 @@ from pathlib import Path
 from aioadept.apps.cell import CellConfig, new_run_dir, run_focus_once, running_cell
 from aioadept.apps.cli_common import configure_logging
 from aioadept.apps.interrupt import Interrupter, run_interruptible
+from aioadept.cli import description
 from aioadept.configfile import report
 
 log = logging.getLogger("aioadept.experiment")
@@ -27,7 +28,7 @@ def _floats(text: str) -> list[float]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="aioadept experiment", description=__doc__.split("\n\n")[0])
+    p = argparse.ArgumentParser(prog="aioadept experiment", description=description(__doc__))
     p.add_argument("--config", type=Path, help="cell description (TOML)")
     p.add_argument("--speeds", default="5,25,50,75,100", help="approach speeds (default: the paper's)")
     p.add_argument("--delta-z", dest="delta_z", default="1.5,2.0,2.5", help="z steps in mm (default: the paper's)")

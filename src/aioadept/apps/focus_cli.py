@@ -13,13 +13,14 @@ from pathlib import Path
 from aioadept.apps.cell import CellConfig, RunOutcome, new_run_dir, run_focus_once
 from aioadept.apps.cli_common import add_cell_options, apply_overrides, configure_logging, print_result, report_saving
 from aioadept.apps.interrupt import Interrupter, run_interruptible
+from aioadept.cli import description
 from aioadept.configfile import report
 
 log = logging.getLogger("aioadept.focus")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="aioadept focus", description=__doc__.split("\n\n")[0])
+    p = argparse.ArgumentParser(prog="aioadept focus", description=description(__doc__))
     add_cell_options(p)
     p.add_argument("--robot", help="robot server HOST[:PORT] (default 127.0.0.1:1234; without a port: 1234)")
     p.add_argument("--request-endpoint", dest="request_endpoint",

@@ -12,6 +12,7 @@ import logging
 import signal
 import sys
 
+from aioadept.cli import DefaultsHelpFormatter, description
 from aioadept.geometry import NULL, Pose
 from aioadept.sim import kinematics as kin
 from aioadept.sim.server import DEFAULT_PORT, DEFAULT_STATE_ENDPOINT, Faults, SimOptions, SimServer
@@ -35,8 +36,8 @@ def _jump_limit(text: str) -> kin.JumpLimit | None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="aioadept sim", description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p = argparse.ArgumentParser(prog="aioadept sim", description=description(__doc__),
+                                formatter_class=DefaultsHelpFormatter)
     p.add_argument("--host", default="127.0.0.1", help="address to bind")
     p.add_argument("--port", type=int, default=DEFAULT_PORT, help="TCP port (0: pick a free one)")
     p.add_argument("--time-scale", type=float, default=1.0, dest="time_scale",

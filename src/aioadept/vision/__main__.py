@@ -25,6 +25,8 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
+from aioadept.cli import description
+
 log = logging.getLogger("aioadept.vision")
 
 GRAPH_THREAD_CHOICES = ("auto", "always", "never")  # aioadept.vision.node.GRAPH_THREAD_MODES, without importing it
@@ -69,7 +71,7 @@ THREAD_WORDS = {"auto": "auto", "always": "worker", "never": "loop"}
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="aioadept vision", description=__doc__.split("\n\n")[0],
+    p = argparse.ArgumentParser(prog="aioadept vision", description=description(__doc__),
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--config", metavar="FILE", help="TOML file with any of these options (CLI overrides it)")
     p.add_argument("--source", action="append", metavar="SPEC",
