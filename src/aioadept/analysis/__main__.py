@@ -1,13 +1,14 @@
 """``aioadept analyze RUN_DIR...``: the paper's timing metrics, fits and figures for one or many recorded runs.
 
 Exit codes: 0 analysed; 1 no complete approach iteration in the runs (outputs are still written, with n = 0);
-2 bad arguments or a path that holds no readable run.
+2 bad arguments, or no readable run in any path (paths without one are skipped with a note).
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 __all__ = ["main"]
 
@@ -17,9 +18,11 @@ def _parser() -> argparse.ArgumentParser:
         prog="aioadept analyze",
         description="Compute the paper's timing quantities (tau_r, switching durations; eqs. 1-5) over run folders "
                     "written by aioadept.capture, pool them across runs, fit their distributions and write figures "
-                    "like the paper's Figs. 9-13, summary.json and iterations.csv.",
-        epilog="Exit codes: 0 analysed; 1 no complete approach iteration (outputs still written); 2 a path with no "
-               "readable run or bad arguments. See docs/analysis.md.")
+                    "like the paper's Figs. 9-13, summary.json and iterations.csv: into the run folder for one "
+                    "run, into ./analysis/ (created in the current folder) for several, unless --out. Folders "
+                    "without a run (e.g. the logs a failed demo leaves) are skipped with a note.",
+        epilog="Exit codes: 0 analysed; 1 no complete approach iteration (outputs still written); 2 no readable "
+               "run in any path, or bad arguments. See docs/analysis.md.")
     p.add_argument("run_dirs", nargs="+", metavar="RUN_DIR",
                    help="a run folder (with run.json), or a folder whose subfolders are runs")
     p.add_argument("--out", metavar="DIR", default=None,
@@ -44,6 +47,10 @@ def main(argv: list[str] | None = None) -> int:
     from aioadept.analysis.report import analyze_runs, fits_table, summary_table
 
     console = Console()
+    args.run_dirs = _with_runs(args.run_dirs)
+    if not args.run_dirs:
+        print("aioadept analyze: no run folder (run.json) in any of the paths given", file=sys.stderr)
+        return 2
     try:
         summary = analyze_runs(args.run_dirs, args.out, plots=not args.no_plots, gantt_first=args.gantt_first,
                                gantt_count=args.gantt_count,
@@ -69,6 +76,20 @@ def main(argv: list[str] | None = None) -> int:
               "in these runs", file=sys.stderr)
         return 1
     return 0
+
+
+def _with_runs(paths: list[str]) -> list[str]:
+    """The paths that hold a run (``run.json`` here or below); each other one is skipped with a one-line note, so
+    ``analyze runs/*`` works beside the logs-only folder a failed demo leaves."""
+    kept = []
+    for p in paths:
+        path = Path(p)
+        if (path / "run.json").is_file() or (path.is_dir() and next(path.rglob("run.json"), None) is not None):
+            kept.append(p)
+        else:
+            why = "no such folder" if not path.exists() else "no run.json here or below (e.g. a failed run's logs)"
+            print(f"aioadept analyze: skipping {p}: {why}", file=sys.stderr)
+    return kept
 
 
 def _write_rrds(run_dirs: list[str], console) -> None:  # noqa: ANN001

@@ -144,7 +144,9 @@ def _lognormal_panel(ax: Any, x: np.ndarray, fit: Any, *, letter: str, xlabel: s
         # No spread (e.g. a batch written in one write: every send gap is 0): a histogram would be one
         # meaningless block, so say what the values are instead.
         ax.axvline(x[0], color=MINMAX_COLOR, linestyle="--", linewidth=1.2)
-        ax.text(0.5, 0.5, f"all {x.size} values = {x[0]:.3f} ms\n(min = max, no distribution to fit)",
+        why = ("our client writes a joined batch in one write\n(docs/analysis.md)" if x[0] == 0
+               else "min = max, no distribution to fit")
+        ax.text(0.5, 0.5, f"all {x.size} values {x[0]:.3f} ms:\n{why}",
                 transform=ax.transAxes, ha="center", va="center", color="#333333",
                 bbox={"facecolor": "white", "edgecolor": "#cccccc"})
         ax.set_xlim(x[0] - 1.0, x[0] + 1.0)
