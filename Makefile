@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: venv demo test bench docs proto clean toxiproxy chromium
+.PHONY: venv demo test bench docs proto clean toxiproxy chromium gige
 
 $(STAMP): pyproject.toml requirements.lock
 	$(PY) -m venv $(VENV)
@@ -33,8 +33,24 @@ chromium:
 	  echo "chromium install failed: the viewer's browser test will skip" >&2; \
 	else echo "no /usr/bin/chromium and no root apt-get: the viewer's browser test will skip" >&2; fi
 
+# The GigE Vision source's extra (pyproject's [gige]: aravis-python, PyGObject) and the Debian packages PyGObject
+# builds with, installed when missing and this machine allows it (root with apt-get). Without them the GigE tests
+# (tests/integration/test_gige_camera.py, against Aravis's fake camera on 127.0.0.1) skip and say why.
+GIGE_PINS := aravis-python==0.8.31.post1 pygobject==3.50.2 pycairo==1.29.2
+GIGE_DEBS := libgirepository1.0-dev libcairo2-dev pkg-config libusb-1.0-0
+gige: $(STAMP)
+	@if $(BIN)/python -c "import aravis, gi" >/dev/null 2>&1; then :; else \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1 && \
+	     ! dpkg -s $(GIGE_DEBS) >/dev/null 2>&1; then \
+	    echo "installing $(GIGE_DEBS) (Debian packages) for the GigE source's PyGObject" >&2; \
+	    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(GIGE_DEBS) >/dev/null) || \
+	    echo "apt-get failed: PyGObject may not build" >&2; \
+	  fi; \
+	  $(BIN)/pip install --quiet $(GIGE_PINS) || echo "[gige] extra failed to install: the GigE tests will skip" >&2; \
+	fi
+
 # pytest exits 5 when it collected no tests: that is a failure, not a pass.
-test: $(STAMP) toxiproxy chromium
+test: $(STAMP) toxiproxy chromium gige
 	$(BIN)/python -m pytest -q $(ARGS); rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "no tests were collected" >&2; exit 1; fi; exit $$rc
 

@@ -47,6 +47,7 @@ DEFAULTS: dict[str, Any] = {
     "max_frame_age": 0.1,
     "trigger": "auto",
     "exposure_ms": 5.0,
+    "pixel_format": "Mono8",
     "readout_ms": None,
     "frame_timeout": 1.0,
     "graph": "sharpness",
@@ -75,8 +76,9 @@ def build_parser() -> argparse.ArgumentParser:
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--config", metavar="FILE", help="TOML file with any of these options (CLI overrides it)")
     p.add_argument("--source", action="append", metavar="SPEC",
-                   help="virtual | folder:PATH | opencv:SPEC (device index, video file or URL); repeat for several "
-                        "cameras (default: virtual)")
+                   help="virtual | gige:ADDRESS (a GigE Vision camera's IPv4 address, opened by address, never by "
+                        "discovery; needs the [gige] extra) | folder:PATH | opencv:SPEC (device index, video file or "
+                        "URL); repeat for several cameras (default: virtual)")
     p.add_argument("--state-endpoint", help="robot state stream to follow (virtual source; default tcp://127.0.0.1:5560)")
     p.add_argument("--request-endpoint",
                    help="SUB for VisionRequest events: connects to the MCN's PUB by default, as EPypes nodes do; "
@@ -105,12 +107,18 @@ def build_parser() -> argparse.ArgumentParser:
                    help="acquisition: auto (default: each request software-triggers its own exposure on sources "
                         "that can, the virtual camera; others run free), software (insist), free (free-running at "
                         "--fps)")
-    p.add_argument("--exposure-ms", type=float, help="virtual camera: exposure time, ms (default 5)")
+    p.add_argument("--exposure-ms", type=float,
+                   help="exposure time, ms: the virtual camera's, and written to GigE cameras (default 5)")
+    p.add_argument("--pixel-format", help="GigE cameras: PixelFormat written at open: Mono8 (default), Mono16, "
+                                          "BayerRG8/GR8/GB8/BG8 (converted to mono8)")
     p.add_argument("--readout-ms", type=float,
                    help="virtual camera: readout + transfer time, ms (default: frame bytes over 1 Gbit/s GigE, 6.3 "
                         "ms for 1024x768 mono8)")
     p.add_argument("--frame-timeout", type=float, help="max wait for a frame, s (default 1)")
-    p.add_argument("--graph", choices=("sharpness", "noop"), help="processing graph (noop: for latency tests)")
+    p.add_argument("--graph", choices=("sharpness", "frame-sharpness", "noop"),
+                   help="processing graph: sharpness (the paper's, of the calibration object; default), "
+                        "frame-sharpness (the whole frame, no object search: aiming a real camera), noop (latency "
+                        "tests)")
     p.add_argument("--graph-thread", choices=GRAPH_THREAD_CHOICES,
                    help="where the graph runs: auto (default: on the event loop while its measured cost is at most "
                         "--graph-inline-max-ms, else in the node's worker thread), always (worker), never (loop)")
@@ -285,17 +293,22 @@ def make_sources(opts: argparse.Namespace, pose_at: Any, state_age: Any = None) 
             sources.append(ImageFolderSource(arg, camera_id=unique("folder"),
                                              timestamps_csv=csv_path if csv_path.exists() else None,
                                              loop=not csv_path.exists()))
+        elif kind == "gige" and arg:
+            from aioadept.vision.gige import GigECamera
+
+            sources.append(GigECamera(arg, camera_id=unique(f"gige:{arg}"), exposure_ms=opts.exposure_ms or None,
+                                      pixel_format=opts.pixel_format, timeout_s=float(opts.frame_timeout)))
         elif kind == "opencv" and arg:
             sources.append(OpenCVSource(arg, camera_id=unique(f"opencv:{arg}")))
         else:
-            raise ValueError(f"bad --source {spec!r}: use virtual, folder:PATH or opencv:SPEC")
+            raise ValueError(f"bad --source {spec!r}: use virtual, gige:ADDRESS, folder:PATH or opencv:SPEC")
     return sources
 
 
 async def serve(opts: argparse.Namespace) -> int:
     from aioadept.vision.acquisition import Acquisition
     from aioadept.vision.node import NodeResponder, VisionNode, noop_graph
-    from aioadept.vision.sharpness import sharpness_graph
+    from aioadept.vision.sharpness import frame_sharpness_graph, sharpness_graph
     from aioadept.vision.sources import FrameRecorder
     from aioadept.vision.virtual_camera import RobotStateFollower
 
@@ -316,7 +329,8 @@ async def serve(opts: argparse.Namespace) -> int:
         # Serve only once every camera has a frame: the first render/read pays one-off costs (imports, caches).
         if not await asyncio.to_thread(acq.wait_ready, 10.0):
             log.warning("not every camera delivered a frame within 10 s; serving anyway")
-        graph = noop_graph() if opts.graph == "noop" else sharpness_graph()
+        graph = (noop_graph() if opts.graph == "noop" else
+                 frame_sharpness_graph() if opts.graph == "frame-sharpness" else sharpness_graph())
         node = VisionNode(acq, graph, policy=opts.policy, timeout_s=opts.frame_timeout, recorder=recorder,
                           graph_thread=opts.graph_thread, inline_max_ms=float(opts.graph_inline_max_ms),
                           max_state_age_s=opts.max_state_age, max_frame_age_s=opts.max_frame_age)

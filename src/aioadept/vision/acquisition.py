@@ -70,6 +70,9 @@ class FrameRing:
         # Event-loop waiters for "first frame at or after t": (t_s, loop, future), resolved by push().
         self._waiters: list[tuple[float, asyncio.AbstractEventLoop, asyncio.Future[Frame]]] = []
         self.pushed = 0
+        # The newest failed triggered grab: (epoch s it started, error). A wait for a frame at or after a time no
+        # later than that start was waiting for that grab, so it gets the error at once instead of a timeout.
+        self._failure: tuple[float, VisionError] | None = None
 
     def __len__(self) -> int:
         return self._count
@@ -108,6 +111,28 @@ class FrameRing:
             except RuntimeError:  # that loop is closed: nobody is waiting any more
                 pass
         self._waiters = keep
+
+    def fail(self, t_started: float, exc: VisionError) -> None:
+        """A software-triggered grab that started at ``t_started`` failed: every wait for a frame at or after a
+        time up to ``t_started`` (it was waiting for that grab) raises ``exc`` now; later waits are unaffected."""
+        with self._cond:
+            self._failure = (t_started, exc)
+            self._cond.notify_all()
+            keep = []
+            for waiter in self._waiters:
+                t_s, loop, fut = waiter
+                if t_s > t_started:
+                    keep.append(waiter)
+                    continue
+                try:
+                    loop.call_soon_threadsafe(_reject, fut, exc)
+                except RuntimeError:
+                    pass
+            self._waiters = keep
+
+    def _failed_for(self, t_s: float) -> VisionError | None:
+        f = self._failure
+        return f[1] if f is not None and t_s <= f[0] else None
 
     def frames(self) -> list[Frame]:
         """All buffered frames, oldest first."""
@@ -168,6 +193,8 @@ class FrameRing:
                 i = self._bisect_left(t_s)
                 if i < self._count:
                     return self._frames[self._phys(i)]
+                if (exc := self._failed_for(t_s)) is not None:
+                    raise exc
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
                     return None
@@ -184,6 +211,8 @@ class FrameRing:
             i = self._bisect_left(t_s)
             if i < self._count:
                 return self._frames[self._phys(i)]
+            if (exc := self._failed_for(t_s)) is not None:
+                raise exc
             if timeout_s <= 0:
                 return None
             fut: asyncio.Future[Frame] = loop.create_future()
@@ -203,6 +232,11 @@ class FrameRing:
 def _resolve(fut: asyncio.Future[Frame], frame: Frame) -> None:
     if not fut.done():  # not timed out or cancelled meanwhile
         fut.set_result(frame)
+
+
+def _reject(fut: asyncio.Future[Frame], exc: BaseException) -> None:
+    if not fut.done():
+        fut.set_exception(exc)
 
 
 @dataclass(frozen=True, slots=True)
@@ -298,11 +332,19 @@ class Acquisition:
             with self._trigger_lock:
                 event.clear()
                 t_trigger, self._trigger_t[cid] = self._trigger_t[cid], None
+            t_started = time.time()
             try:
                 frame = src.grab()
-            except Exception:
+            except Exception as exc:
                 self._errors[cid] += 1
-                log.exception("%s: triggered grab failed", cid)
+                if isinstance(exc, VisionError):  # a camera's own words (timeout, lost frame, camera gone)
+                    log.warning("%s: triggered grab failed: %s", cid, exc)
+                    err = exc
+                else:
+                    log.exception("%s: triggered grab failed", cid)
+                    err = VisionError(f"{cid}: grab failed: {type(exc).__name__}: {exc}")
+                # The requests waiting for this exposure get the error now, not after their timeout.
+                ring.fail(t_started, err)
                 continue
             if frame is None:
                 self._exhausted[cid] = True
@@ -374,7 +416,10 @@ class Acquisition:
         """Wait until every source has buffered a frame (a node announces READY only then); False on timeout."""
         deadline = time.monotonic() + timeout_s
         for ring in self.rings.values():
-            if ring.wait_at_or_after(-math.inf, max(0.0, deadline - time.monotonic())) is None:
+            try:
+                if ring.wait_at_or_after(-math.inf, max(0.0, deadline - time.monotonic())) is None:
+                    return False
+            except VisionError:  # the first triggered grab failed
                 return False
         return True
 

@@ -203,6 +203,22 @@ def sharpness_graph(**hyperparameters: Any) -> CompGraph:
     return graph.with_frozen(**hyperparameters) if hyperparameters else graph
 
 
+def frame_sharpness_graph(sobel_ksize: int = 3) -> CompGraph:
+    """Sharpness of the whole frame, no object search: the same Sobel-x profile measure as :func:`sharpness_graph`
+    on every pixel. For aiming and focusing a real camera at any scene (and for a camera's test pattern), where the
+    calibration object may not be in view. Free input token ``image``; output ``sharpness``."""
+    return CompGraph(
+        func_dict={"sobel_x": sobel_x, "h_profile_sobelx": h_profile_sobelx, "measure_sharpness": measure_sharpness},
+        func_io={
+            "sobel_x": (("image", "sobel_ksize"), "sobelx_im"),
+            "h_profile_sobelx": (("sobelx_im",), "profile_sx"),
+            "measure_sharpness": (("profile_sx",), "sharpness"),
+        },
+        frozen_tokens={"sobel_ksize": sobel_ksize},
+        name="frame-sharpness",
+    )
+
+
 @dataclass(frozen=True, slots=True)
 class SharpnessResult:
     """Outcome of measuring one image: ``sharpness`` or ``error`` (exactly one is set), region and timing."""
