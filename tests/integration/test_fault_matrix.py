@@ -445,7 +445,8 @@ class _Republishes:
 async def test_vision_node_killed_mid_request(outcome, tmp_path):
     """vision node SIGKILLed while it holds a request, then restarted on the same endpoints"""
     seen = _Republishes()
-    node_args = ("--fps", "30", "--policy", "after", "--frame-timeout", "30")
+    # A free-running camera, so a request for a frame 60 s ahead is held (a triggered one answers it at once).
+    node_args = ("--fps", "30", "--trigger", "free", "--policy", "after", "--frame-timeout", "30")
     async with vision_node("tcp://127.0.0.1:0", "tcp://127.0.0.1:0", *node_args,
                            log_path=tmp_path / "vision1.log") as vis:
         endpoints = vis.ready["request"], vis.ready["response"]
@@ -457,7 +458,8 @@ async def test_vision_node_killed_mid_request(outcome, tmp_path):
             t0 = loop.time()
             held = asyncio.create_task(comm.request("VisionRequest", {"t_request": time.time() + 60},
                                                     timeout_s=2.0))
-            await seen.wait(2)  # re-published twice without an answer: the node holds it
+            async with asyncio.timeout(10):
+                await seen.wait(2)  # re-published twice without an answer: the node holds it
             vis.proc.kill()
             with pytest.raises(RequestTimeout) as info:
                 await held
@@ -470,8 +472,8 @@ async def test_vision_node_killed_mid_request(outcome, tmp_path):
             # Its PUB is the connecting side, so ZeroMQ keeps what is published during the outage queued and
             # hands it to the new node first; a 1 s frame timeout bounds how long the stale held request blocks.
             # READY gives the MCN's side of each endpoint; the new node takes the other side (bind where it bound).
-            async with vision_node(*(peer(e, False) for e in endpoints), "--fps", "30", "--policy", "after",
-                                   "--frame-timeout", "1",
+            async with vision_node(*(peer(e, False) for e in endpoints), "--fps", "30", "--trigger", "free",
+                                   "--policy", "after", "--frame-timeout", "1",
                                    log_path=tmp_path / "vision2.log"):
                 t1 = loop.time()
                 again = await comm.request("VisionRequest", {}, timeout_s=10)

@@ -302,10 +302,10 @@ async def test_send_second_sigint_exits_at_once_while_the_stop_is_unanswered():
 
 
 # --------------------------------------------------------------------------------------------- aioadept demo
-def _demo_config(tmp_path: Path, state_endpoint: str, sim_args: list[str] = ()) -> Path:
+def _demo_config(tmp_path: Path, state_endpoint: str, sim_args: list[str] = (), hello_timeout_s: float = 2.0) -> Path:
     cfg = tmp_path / "cell.toml"
     cfg.write_text(
-        "[robot]\nport = 0\n"
+        f"[robot]\nport = 0\nhello_timeout_s = {hello_timeout_s}\n"
         f'state_endpoint = "{state_endpoint}"\n'
         f"sim_args = {json.dumps(list(sim_args))}\n"
         "[vision]\n"
@@ -342,12 +342,13 @@ async def test_demo_first_sigint_stops_the_arm_then_the_nodes_and_exits_130(tmp_
 
 @pytest.mark.timeout(120)
 async def test_demo_second_sigint_exits_at_once_and_kills_the_nodes(tmp_path):
-    # The sim acks 3 s late, so the first interrupt is still waiting for the stop's ack when the second comes.
+    # The sim acks 3 s late, so the first interrupt is still waiting for the stop's ack when the second comes (and
+    # the connect-time hello check, 2 s, is off: its answer would come late too).
     state = f"tcp://127.0.0.1:{free_port()}"
     watch = StateWatch(state)
     seen: list[str] = []
     try:
-        proc = await _spawn("demo", "--config", str(_demo_config(tmp_path, state, ["--fault", "ack-delay=3"])))
+        proc = await _spawn("demo", "--config", str(_demo_config(tmp_path, state, ["--fault", "ack-delay=3"], hello_timeout_s=0)))
         try:
             await watch.until(lambda st: st.in_motion, "in motion", timeout_s=60)
             os.kill(proc.pid, signal.SIGINT)
