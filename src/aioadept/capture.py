@@ -27,6 +27,7 @@ from __future__ import annotations
 import asyncio
 import csv
 import json
+import math
 import os
 import platform
 import socket
@@ -57,17 +58,23 @@ ROBOT_COLUMNS: tuple[str, ...] = (
 VISION_COLUMNS: tuple[str, ...] = (
     "seq", "id", "event_type", "attempts", "t_send_s", "t_recv_s", "response_type", "sharpness", "frame_t_epoch_s",
     "proc_time_ms", "error", "request_attributes", "response_extra",
+    "t_trigger_epoch_s", "t_exposure_start_epoch_s", "exposure_ms", "readout_ms", "frame_seq",
 )
+# Columns added after FORMAT_VERSION 1 was first written (issue 12): a run folder without them still loads (None).
+_VISION_OPTIONAL = ("t_trigger_epoch_s", "t_exposure_start_epoch_s", "exposure_ms", "readout_ms", "frame_seq")
 MARK_COLUMNS: tuple[str, ...] = ("seq", "t_s", "name", "value")
 
 # Response attributes that get their own column; any other attribute goes to the JSON column ``response_extra``.
 _VISION_KNOWN = {"sharpness": "sharpness", "frame_t": "frame_t_epoch_s", "proc_time_ms": "proc_time_ms",
-                 "error": "error"}
+                 "error": "error", "t_trigger": "t_trigger_epoch_s", "t_exposure_start": "t_exposure_start_epoch_s",
+                 "exposure_ms": "exposure_ms", "readout_ms": "readout_ms", "frame_seq": "frame_seq"}
 
 CLOCK_NOTES = {
     "t_send_s/t_recv_s": "client side, asyncio loop clock (loop.time(), monotonic seconds) at write/read",
     "t_start_s/t_done_s": "robot server clock: seconds since server start, 1 ms resolution (V+ TIMER(-3))",
     "frame_t_epoch_s": "vision node, time.time() epoch seconds when the frame was taken",
+    "t_trigger_epoch_s/t_exposure_start_epoch_s": "vision node, time.time() epoch seconds of the software trigger "
+                                                  "(empty: free-running) and of the exposure start",
     "marks.t_s": "same loop clock as t_send_s",
     "start_wall_epoch_s/start_loop_s": "read together when the recorder was created: epoch = loop + difference",
 }
@@ -116,6 +123,13 @@ class VisionRecord:
     attempts: int = 1
     request_attributes: Mapping[str, Any] = field(default_factory=dict)
     response_extra: Mapping[str, Any] = field(default_factory=dict)
+    t_trigger_epoch_s: float | None = None
+    """Epoch s of the software trigger that took the frame (None: free-running, or an older node)."""
+    t_exposure_start_epoch_s: float | None = None
+    exposure_ms: float | None = None
+    readout_ms: float | None = None
+    """From the exposure's end until the frame was in the node's memory (sensor readout + transfer)."""
+    frame_seq: int | None = None
 
     @property
     def answered(self) -> bool:
@@ -410,6 +424,8 @@ def _vision_records(requests: Sequence[Any], responses: Sequence[Any]) -> tuple[
             resp.event_type, _float(attrs.get("sharpness")), _float(attrs.get("frame_t")),
             _float(attrs.get("proc_time_ms")), None if attrs.get("error") in (None, "") else str(attrs["error"]),
             attempts[rid], req_attrs, {k: v for k, v in attrs.items() if k not in _VISION_KNOWN},
+            _float(attrs.get("t_trigger")), _float(attrs.get("t_exposure_start")), _float(attrs.get("exposure_ms")),
+            _float(attrs.get("readout_ms")), _int(attrs.get("frame_seq")),
         ))
     return tuple(rows)
 
@@ -424,6 +440,11 @@ def _float(value: Any) -> float | None:
         return float(value)
     except (TypeError, ValueError):
         return None
+
+
+def _int(value: Any) -> int | None:
+    f = _float(value)
+    return int(f) if f is not None and math.isfinite(f) else None
 
 
 def _cell(value: Any) -> str:
@@ -447,7 +468,8 @@ def _robot_row(r: RobotRecord) -> tuple[Any, ...]:
 def _vision_row(v: VisionRecord) -> tuple[Any, ...]:
     return (v.seq, v.id, v.event_type, v.attempts, v.t_send_s, v.t_recv_s, v.response_type, v.sharpness,
             v.frame_t_epoch_s, v.proc_time_ms, v.error, _json(dict(v.request_attributes)),
-            _json(dict(v.response_extra)))
+            _json(dict(v.response_extra)), v.t_trigger_epoch_s, v.t_exposure_start_epoch_s, v.exposure_ms,
+            v.readout_ms, v.frame_seq)
 
 
 def _write_csv(path: Path, columns: Sequence[str], rows: Iterable[Sequence[Any]]) -> None:
@@ -505,16 +527,16 @@ def load_run(run_dir: str | os.PathLike[str]) -> Run:
     except json.JSONDecodeError as exc:
         raise ValueError(f"{meta_path}: {exc}") from exc
     robot = tuple(_parse_robot(r) for r in _read_csv(path / "robot.csv", ROBOT_COLUMNS))
-    vision = tuple(_parse_vision(r) for r in _read_csv(path / "vision.csv", VISION_COLUMNS))
+    vision = tuple(_parse_vision(r) for r in _read_csv(path / "vision.csv", VISION_COLUMNS, _VISION_OPTIONAL))
     marks = tuple(Mark(int(r["seq"]), float(r["t_s"]), r["name"], json.loads(r["value"]) if r["value"] else None)
                   for r in _read_csv(path / "marks.csv", MARK_COLUMNS))
     return Run(robot, vision, marks, metadata, path)
 
 
-def _read_csv(path: Path, columns: Sequence[str]) -> list[dict[str, str]]:
+def _read_csv(path: Path, columns: Sequence[str], optional: Sequence[str] = ()) -> list[dict[str, str]]:
     with path.open(newline="", encoding="utf-8") as f:
         reader = csv.DictReader(f)
-        missing = [c for c in columns if c not in (reader.fieldnames or ())]
+        missing = [c for c in columns if c not in (reader.fieldnames or ()) and c not in optional]
         if missing:
             raise ValueError(f"{path}: missing columns {missing}")
         return list(reader)
@@ -553,6 +575,9 @@ def _parse_vision(r: dict[str, str]) -> VisionRecord:
             _opt_str(r["response_type"]), _opt_float(r["sharpness"]), _opt_float(r["frame_t_epoch_s"]),
             _opt_float(r["proc_time_ms"]), _opt_str(r["error"]), int(r["attempts"] or 1),
             json.loads(r["request_attributes"] or "{}"), json.loads(r["response_extra"] or "{}"),
+            _opt_float(r.get("t_trigger_epoch_s") or ""), _opt_float(r.get("t_exposure_start_epoch_s") or ""),
+            _opt_float(r.get("exposure_ms") or ""), _opt_float(r.get("readout_ms") or ""),
+            _opt_int(r.get("frame_seq") or ""),
         )
     except (ValueError, json.JSONDecodeError) as exc:
         raise ValueError(f"vision.csv row {r.get('seq')!r}: {exc}") from exc

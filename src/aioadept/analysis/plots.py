@@ -1,7 +1,8 @@
 """Figures like the paper's Figs. 9-13, written as PNG files.
 
 - :func:`plot_sharpness`  Fig. 9: sharpness after each motion increment, red line at the maximum;
-- :func:`plot_gantt`      Fig. 10: vision (orange) and robot (blue) requests as bars from send to receive;
+- :func:`plot_gantt`      Fig. 10: vision (orange) and robot (blue) requests as bars from send to receive, each vision
+  request with its trigger, exposure, readout and processing drawn inside it as sub-spans;
 - :func:`plot_normal_hist` Fig. 11: histogram of tau_r with the fitted Gaussian PDF;
 - :func:`plot_lognormal_pair` Figs. 12 and 13: two histograms (A, B) with fitted log-normal PDFs and min/max lines.
 
@@ -28,6 +29,8 @@ ROBOT_COLOR = "#4e79a7"   # blue, as the paper's robot requests
 HIST_COLOR = "#a0c4e8"
 FIT_COLOR = "#1f3b73"
 MINMAX_COLOR = "#c0392b"
+SPAN_COLORS = {"trigger": "#7f7f7f", "exposure": "#edc948", "readout": "#b07aa1", "processing": "#59a14f"}
+"""Sub-spans of a vision request in Fig. 10: trigger latency, exposure, readout + transfer, graph processing."""
 
 
 def _figure(width_in: float, height_in: float) -> Any:
@@ -79,12 +82,14 @@ def plot_sharpness(sharpness: Sequence[float], path: str | os.PathLike[str], *, 
     return _save(fig, path)
 
 
-def plot_gantt(bars: Sequence[tuple[str, str, float, float | None]], path: str | os.PathLike[str], *,
+def plot_gantt(bars: Sequence[tuple[Any, ...]], path: str | os.PathLike[str], *,
                title: str | None = None) -> Path:
     """Fig. 10: one row per request, a bar from send to receive (ms from the first send).
 
     ``bars`` are ``(kind, label, t_send_s, t_recv_s)`` in send order, ``kind`` "vision" or "robot"; a request
-    never answered (``t_recv_s`` None) is drawn hatched to the end of the window.
+    never answered (``t_recv_s`` None) is drawn hatched to the end of the window. A fifth element, a sequence of
+    ``(name, start_s, end_s)`` on the same clock, draws those sub-spans as narrow bars inside the request's bar
+    (names from :data:`SPAN_COLORS`: trigger, exposure, readout, processing), with a legend entry each.
     """
     if not bars:
         raise ValueError("bars: nothing to draw")
@@ -93,7 +98,9 @@ def plot_gantt(bars: Sequence[tuple[str, str, float, float | None]], path: str |
     n = len(bars)
     fig = _figure(9.0, max(2.6, 0.36 * n + 1.4))
     ax = fig.add_subplot()
-    for row, (kind, _label, ts, tr) in enumerate(bars):
+    spans_seen: list[str] = []
+    for row, bar in enumerate(bars):
+        kind, _label, ts, tr = bar[:4]
         color = VISION_COLOR if kind == "vision" else ROBOT_COLOR
         start = (ts - t0) * 1000.0
         end = ((tr if tr is not None else t_end) - t0) * 1000.0
@@ -101,6 +108,13 @@ def plot_gantt(bars: Sequence[tuple[str, str, float, float | None]], path: str |
         width = max(end - start, (t_end - t0) * 1000.0 * 0.002)
         ax.barh(row, width, left=start, height=0.6, color=color, edgecolor=color if tr is not None else "black",
                 hatch=None if tr is not None else "//", linewidth=0.8)
+        for name, s0, s1 in (bar[4] if len(bar) > 4 and bar[4] else ()):
+            if s1 < s0:
+                continue
+            ax.barh(row, max((s1 - s0) * 1000.0, (t_end - t0) * 1000.0 * 0.002), left=(s0 - t0) * 1000.0,
+                    height=0.3, color=SPAN_COLORS.get(name, "black"), linewidth=0)
+            if name not in spans_seen:
+                spans_seen.append(name)
     ax.set_yticks(range(n), [b[1] for b in bars], fontsize=9)
     ax.invert_yaxis()  # first request on top, time flows down and right like the paper's chart
     ax.set_xlabel("time since the first request in the window, ms (client loop clock)")
@@ -109,7 +123,9 @@ def plot_gantt(bars: Sequence[tuple[str, str, float, float | None]], path: str |
     from matplotlib.patches import Patch
 
     ax.legend(handles=[Patch(color=VISION_COLOR, label="vision request"),
-                       Patch(color=ROBOT_COLOR, label="robot request")], loc="upper right", fontsize=9)
+                       Patch(color=ROBOT_COLOR, label="robot request"),
+                       *(Patch(color=SPAN_COLORS.get(n, "black"), label=f"  {n}") for n in spans_seen)],
+              loc="upper right", fontsize=9)
     ax.set_title(title or "Vision (orange) and robot (blue) requests in the approach loop (cf. paper Fig. 10)")
     return _save(fig, path)
 

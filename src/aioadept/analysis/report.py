@@ -26,7 +26,7 @@ from aioadept.analysis.metrics import QUANTITIES, Iteration, Stats, describe, it
 from aioadept.capture import Run, load_run, write_atomic
 
 __all__ = ["DEFAULT_GROUP_BY", "FIGURES", "Group", "RunInfo", "Summary", "analyze_runs", "expand_run_dirs",
-           "fits_table", "gantt_bars", "group_stats", "summary_table",
+           "fits_table", "gantt_bars", "group_stats", "summary_table", "vision_spans",
            "write_figures"]
 
 FIGURES = {
@@ -153,10 +153,33 @@ def _names(paths: Sequence[Path]) -> list[str]:
     return [str(p.resolve().relative_to(common)) or p.name for p in paths]
 
 
+def vision_spans(run: Run, v: Any) -> list[tuple[str, float, float]]:
+    """A vision request's trigger, exposure, readout and processing as ``(name, start_s, end_s)`` on the client's
+    loop clock (the node's epoch times shifted by run.json's ``start_wall_epoch_s - start_loop_s``; one machine, or
+    clocks in step): trigger = software trigger to exposure start, exposure and readout from the node's values,
+    processing = the graph's ``proc_time_ms`` right after the readout. Empty without those columns."""
+    meta = run.metadata
+    if v.t_exposure_start_epoch_s is None or "start_wall_epoch_s" not in meta or "start_loop_s" not in meta:
+        return []
+    offset = float(meta["start_wall_epoch_s"]) - float(meta["start_loop_s"])
+    t_exp = v.t_exposure_start_epoch_s - offset
+    spans: list[tuple[str, float, float]] = []
+    if v.t_trigger_epoch_s is not None:
+        spans.append(("trigger", v.t_trigger_epoch_s - offset, t_exp))
+    t_exp_end = t_exp + (v.exposure_ms or 0.0) / 1e3
+    spans.append(("exposure", t_exp, t_exp_end))
+    t_in_memory = t_exp_end + (v.readout_ms or 0.0) / 1e3
+    spans.append(("readout", t_exp_end, t_in_memory))
+    if v.proc_time_ms is not None:
+        spans.append(("processing", t_in_memory, t_in_memory + v.proc_time_ms / 1e3))
+    return spans
+
+
 def gantt_bars(run: Run, iterations: Sequence[Iteration], *, first: int = 1,
-               count: int = 2) -> tuple[list[tuple[str, str, float, float | None]], tuple[int, int]]:
+               count: int = 2) -> tuple[list[tuple[Any, ...]], tuple[int, int]]:
     """The requests of ``count`` complete iterations of ``run`` from position ``first`` (clamped to what exists),
-    as ``(kind, label, t_send_s, t_recv_s)`` bars for :func:`plots.plot_gantt`, and the iteration indices shown."""
+    as ``(kind, label, t_send_s, t_recv_s)`` bars for :func:`plots.plot_gantt` (vision bars with a fifth element,
+    their :func:`vision_spans`), and the iteration indices shown."""
     done = [it for it in iterations if it.complete and it.run == run.name]
     if not done:
         return [], (0, 0)
@@ -164,11 +187,12 @@ def gantt_bars(run: Run, iterations: Sequence[Iteration], *, first: int = 1,
     window = done[first:first + max(1, count)]
     t0, t1 = window[0].t_vreq_s, window[-1].t_b_rresp_s
     label_of = {it.vision_id: it.index for it in window}
-    bars: list[tuple[str, str, float, float | None]] = []
+    bars: list[tuple[Any, ...]] = []
     for v in run.vision:
         if v.t_send_s is not None and t0 <= v.t_send_s <= t1:
             i = label_of.get(v.id)
-            bars.append(("vision", f"vision (i={i})" if i is not None else "vision", v.t_send_s, v.t_recv_s))
+            bars.append(("vision", f"vision (i={i})" if i is not None else "vision", v.t_send_s, v.t_recv_s,
+                         vision_spans(run, v)))
     for r in run.robot:
         if r.t_send_s is not None and t0 <= r.t_send_s <= t1:
             bars.append(("robot", r.skill, r.t_send_s, r.t_recv_s))
