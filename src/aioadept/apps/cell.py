@@ -57,6 +57,13 @@ class VisionSection:
     fps: float = 15.0
     policy: str = "after"
     """Frame choice: "nearest" in time to the request (the paper), or the first frame "after" it."""
+    trigger: str = "auto"
+    """Acquisition: "auto" (each request software-triggers its own exposure on cameras that can), "software"
+    (insist: an error for a camera that cannot), "free" (free-running at ``fps``)."""
+    exposure_ms: float = 5.0
+    """Exposure time, ms: the virtual camera's, and written to a GigE camera (``source = "gige:ADDRESS"``)."""
+    pixel_format: str = "Mono8"
+    """GigE cameras: the PixelFormat written at open (Mono8, Mono16, Bayer..8)."""
     vision_args: list[str] = field(default_factory=list)
 
 
@@ -98,6 +105,18 @@ class CellConfig:
             # Unknown keys and wrong types as one line naming file, key and what was expected (ConfigError).
             parts[name] = typ(**check_section(typ, data.get(name, {}), f"{source} [{name}]"))
         cfg = cls(**parts)
+        v = cfg.vision
+        where = f"{source} [vision]"
+        if v.policy not in ("after", "nearest"):
+            raise ConfigError(f'{where}: policy = "{v.policy}": expected "after" or "nearest"')
+        if v.trigger not in ("auto", "software", "free"):
+            raise ConfigError(f'{where}: trigger = "{v.trigger}": expected "auto", "software" or "free"')
+        if not 0 < v.exposure_ms < float("inf"):
+            raise ConfigError(f"{where}: exposure_ms = {v.exposure_ms!r}: expected a finite number of ms > 0")
+        from aioadept.vision.gige import PIXEL_FORMATS
+
+        if v.pixel_format not in PIXEL_FORMATS:
+            raise ConfigError(f'{where}: pixel_format = "{v.pixel_format}": expected one of {", ".join(PIXEL_FORMATS)}')
         from aioadept.bus.endpoints import parse_endpoint
         from aioadept.errors import BusError
 
@@ -154,6 +173,7 @@ def vision_argv(cfg: CellConfig) -> list[str]:
     return ["vision", "--source", v.source, "--state-endpoint", cfg.robot.state_endpoint,
             "--request-endpoint", v.request_endpoint, "--response-endpoint", v.response_endpoint,
             "--focus-offset-mm", str(v.focus_offset_mm), "--fps", str(v.fps), "--policy", v.policy,
+            "--trigger", v.trigger, "--exposure-ms", str(v.exposure_ms), "--pixel-format", v.pixel_format,
             *v.vision_args]
 
 

@@ -119,4 +119,20 @@ def _run(cfg: CellConfig, run_dir: Path) -> int:
     code = report_saving(outcome, analyze=cfg.run.analyze, prog="aioadept demo")
     if code == 0 and cfg.run.analyze:
         log.info("plots and summary.json written to %s", run_dir)
+        _print_cycle(run_dir)
     return code
+
+
+def _print_cycle(run_dir: Path) -> None:
+    """The cycle split motion / vision and the vision floor, as summary.json's ``cycle`` holds them (issue 12)."""
+    import json
+
+    from aioadept.analysis.report import cycle_line
+
+    try:
+        line = cycle_line(json.loads((run_dir / "summary.json").read_text(encoding="utf-8")).get("cycle") or {})
+    except (OSError, ValueError) as exc:
+        log.warning("summary.json unreadable: %s", exc)
+        return
+    if line:
+        print(line)

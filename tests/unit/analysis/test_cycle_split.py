@@ -1,0 +1,59 @@
+"""summary.json's ``cycle``: the focus loop's cycle time split motion / vision / MCN and the vision part's floor
+(exposure + readout + graph), and the line the demo prints from it (issue 12)."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+
+from aioadept.analysis import analyze_runs
+from aioadept.analysis.report import cycle_line
+from aioadept.analysis.synthetic import synthetic_recorder
+from aioadept.capture import load_run
+
+
+def _run_with_exposure(tmp_path):
+    rec, params = synthetic_recorder(seed=4, n_steps=6, vision_mean_ms=30.0)
+    run_dir = rec.save(tmp_path / "run", metadata=params)
+    path = run_dir / "vision.csv"
+    with open(path, newline="") as fh:
+        reader = csv.DictReader(fh)
+        cols, rows = reader.fieldnames, list(reader)
+    for r in rows:  # what a software-triggered node reports
+        r["exposure_ms"], r["readout_ms"] = "5.0", "6.3"
+    with open(path, "w", newline="") as fh:
+        w = csv.DictWriter(fh, cols)
+        w.writeheader()
+        w.writerows(rows)
+    return run_dir
+
+
+def test_summary_json_splits_the_cycle_and_states_the_vision_floor(tmp_path):
+    run_dir = _run_with_exposure(tmp_path)
+    summary = analyze_runs([run_dir], plots=False)
+    cyc = json.loads((run_dir / "summary.json").read_text())["cycle"]
+    assert cyc == pytest.approx(dict(summary.cycle))
+    its = [it for it in summary.iterations if it.complete]
+    assert cyc["n_cycles"] == len(its) - 1 >= 4
+    # the parts are medians of their own; their sum is the cycle for each cycle, so close to it in the medians
+    assert cyc["motion_ms"] + cyc["vision_ms"] + cyc["mcn_ms"] == pytest.approx(cyc["cycle_ms"])
+    vision_ms = sorted((it.t_vresp_s - it.t_vreq_s) * 1e3 for it in its[:-1])
+    assert cyc["vision_ms"] == pytest.approx(vision_ms[len(vision_ms) // 2] if len(vision_ms) % 2 else
+                                             (vision_ms[len(vision_ms) // 2 - 1] + vision_ms[len(vision_ms) // 2]) / 2)
+    run = load_run(run_dir)
+    graph = sorted(v.proc_time_ms for v in run.vision if v.id in {it.vision_id for it in its[:-1]})
+    assert cyc["exposure_ms"] == 5.0 and cyc["readout_ms"] == 6.3
+    assert cyc["graph_ms"] == pytest.approx(sorted(graph)[len(graph) // 2] if len(graph) % 2 else
+                                            (graph[len(graph) // 2 - 1] + graph[len(graph) // 2]) / 2)
+    assert cyc["vision_floor_ms"] == pytest.approx(11.3 + cyc["graph_ms"], abs=1.0)
+    assert cyc["vision_ratio"] == pytest.approx(cyc["vision_ms"] / cyc["vision_floor_ms"])
+    assert cyc["cycle_ratio"] == pytest.approx(cyc["cycle_ms"] / (cyc["motion_ms"] + cyc["vision_floor_ms"]))
+    line = cycle_line(cyc)
+    assert line.startswith(f"cycle {cyc['cycle_ms']:.1f} ms = motion {cyc['motion_ms']:.1f} + vision ")
+    assert "vision floor" in line and "exposure 5.0 + readout 6.3 + graph" in line
+
+
+def test_no_cycles_no_line():
+    assert cycle_line({"n_cycles": 0, "cycle_ms": None}) is None
