@@ -37,7 +37,7 @@ def _gige_missing() -> str | None:
 MISSING = _gige_missing()
 if MISSING:
     warnings.warn(f"GIGE TESTS SKIPPED: {MISSING}", stacklevel=1)
-pytestmark = pytest.mark.skipif(MISSING is not None,
+needs_gige = pytest.mark.skipif(MISSING is not None,
                                 reason=f"!!! GigE camera tests NOT RUN: {MISSING} (make test installs it)")
 
 
@@ -71,7 +71,7 @@ class FakeCamera:
 
 
 @pytest.fixture
-def fake_camera():
+def fake_camera():  # tests that use it are @needs_gige
     cam = FakeCamera()
     try:
         yield cam
@@ -79,6 +79,7 @@ def fake_camera():
         cam.stop()
 
 
+@needs_gige
 @pytest.mark.timeout(30)
 def test_triggered_grabs_with_the_exposure_set_on_the_camera(fake_camera):
     from aioadept.vision.gige import GigECamera
@@ -99,6 +100,7 @@ def test_triggered_grabs_with_the_exposure_set_on_the_camera(fake_camera):
         assert frames[0].image.std() > 0  # the fake camera's test pattern, not an empty buffer
 
 
+@needs_gige
 @pytest.mark.timeout(30)
 def test_a_camera_that_vanishes_is_a_vision_error_not_a_hang(fake_camera):
     from aioadept.vision.gige import GigECamera
@@ -119,6 +121,7 @@ def test_a_camera_name_instead_of_an_address_is_refused_without_discovery():
         GigECamera("Aravis-Fake-GV01")
 
 
+@needs_gige
 @pytest.mark.timeout(60)
 async def test_a_node_served_by_the_gige_camera_answers_with_a_frame_and_a_sharpness(tmp_path, fake_camera):
     async with running_node("vision", "--source", "gige:127.0.0.1", "--trigger", "software", "--exposure-ms", "3",
