@@ -13,7 +13,8 @@ from aioadept.bus import epypes_pb2
 from aioadept.bus.communicator import Communicator, Request, Responder, Response
 from aioadept.bus.messages import EventMessage, decode_event, encode_event
 from aioadept.bus.pubsub import Publisher, Subscriber
-from aioadept.errors import BusError, ClientStateError, RequestTimeout, VisionError
+from aioadept.bus.errors import RemoteError
+from aioadept.errors import BusError, ClientStateError, RequestTimeout
 
 ANY = "tcp://127.0.0.1:*"
 
@@ -232,7 +233,7 @@ async def test_handler_errors_become_error_attribute_and_node_keeps_serving():
             r2 = await comm.request("VisionRequest", {"bad": 1})
             r3 = await comm.request("VisionRequest", {})
     assert r1.error == "no object found" and r1.attributes == {"error": "no object found"}
-    with pytest.raises(VisionError) as info:
+    with pytest.raises(RemoteError) as info:
         r1.raise_for_error()
     assert info.value.attributes == {"error": "no object found"}
     assert r2.error.startswith("response not encodable")
@@ -355,3 +356,61 @@ async def test_plain_handler_may_answer_at_once_or_return_an_awaitable_and_answe
         await asyncio.gather(slow, quick)
     assert order == ["slow", "after-slow"]
     assert node.handled == 3 and node.errors == 0
+
+
+async def until(predicate, timeout_s: float = 5.0) -> bool:
+    """Poll ``predicate`` on the loop until it holds or ``timeout_s`` passes (no readiness sleep: a deadline)."""
+    deadline = time.monotonic() + timeout_s
+    while not predicate():
+        if time.monotonic() > deadline:
+            return False
+        await asyncio.sleep(0.01)
+    return True
+
+
+@pytest.mark.timeout(15)
+async def test_send_without_recv_leaves_no_pending_entries_on_any_path(monkeypatch):
+    # Answered: the entries leave the registry when the answers arrive, not when recv() takes them.
+    async with Responder(ANY, ANY, lambda t, i, a: {"ok": 1}) as node:
+        async with Communicator(node.peer_request_endpoint, node.peer_response_endpoint) as comm:
+            first = await comm.send(EventMessage("VisionRequest", "000000a1"))
+            second = await comm.send(EventMessage("VisionRequest", "000000a2"))
+            assert await until(lambda: comm.pending_ids == ()), comm.pending_ids
+            assert node.handled == 2
+            # The outcomes are kept for recv(), in send order.
+            assert (await comm.recv()).id == first and (await comm.recv()).id == second
+    # Timed out, and closed: nobody ever calls recv().
+    async with Subscriber(ANY, bind=True) as req_sub:
+        async with Communicator(">" + req_sub.actual_endpoint, "tcp://127.0.0.1:1", timeout_s=0.2) as comm:
+            await comm.send(EventMessage("VisionRequest", "000000b1"))
+            assert comm.pending_ids == ("000000b1",)
+            assert await until(lambda: comm.pending_ids == ()), comm.pending_ids
+            with pytest.raises(RequestTimeout):
+                await comm.recv()
+            await comm.send(EventMessage("VisionRequest", "000000b2"))
+            # The id is free again once settled, even before recv().
+            await comm.send(EventMessage("VisionRequest", "000000b1"))
+        assert comm.pending_ids == ()
+        # More sends than are kept without recv(): the oldest is forgotten (and not pending).
+        monkeypatch.setattr("aioadept.bus.communicator.MAX_UNRECEIVED", 2)
+        async with Communicator(">" + req_sub.actual_endpoint, "tcp://127.0.0.1:1", timeout_s=5) as comm:
+            ids = [await comm.send(EventMessage("VisionRequest")) for _ in range(3)]
+            assert comm.pending_ids == tuple(ids[1:])
+            task = asyncio.ensure_future(comm.recv())
+            await until(lambda: False, 0.05)
+            assert not task.done()
+        with pytest.raises(BusError, match="closed"):
+            await task
+
+
+@pytest.mark.timeout(10)
+async def test_a_cancelled_request_leaves_no_pending_entry():
+    async with Subscriber(ANY, bind=True) as req_sub:
+        async with Communicator(">" + req_sub.actual_endpoint, "tcp://127.0.0.1:1", timeout_s=5) as comm:
+            task = asyncio.create_task(comm.request())
+            await req_sub.recv()
+            assert len(comm.pending_ids) == 1
+            task.cancel()
+            with pytest.raises(asyncio.CancelledError):
+                await task
+            assert comm.pending_ids == ()

@@ -31,6 +31,7 @@ from aioadept.client import RobotClient
 from aioadept.errors import VisionError
 from aioadept.geometry import Pose
 from aioadept.testing.nodes import running_node
+from aioadept.vision import raise_for_error
 from aioadept.vision.virtual_camera import paper_approach_pose, paper_camera
 
 FREE = "tcp://127.0.0.1:0"
@@ -175,7 +176,7 @@ async def test_t_deadline_and_t_request_that_are_not_finite_numbers_are_error_an
         assert attrs.get("error") == f"bad request: {key} must be a finite number (epoch s), got {value}", \
             (what, attrs)
         with pytest.raises(VisionError, match="must be a finite number"):
-            Response("x", "VisionResponse", attrs, 0.0, 0.0).raise_for_error()  # what the MCN's code gets
+            raise_for_error(Response("x", "VisionResponse", attrs, 0.0, 0.0))  # what the MCN's code gets
     assert "sharpness" in last
 
 
@@ -261,5 +262,5 @@ async def test_no_answer_from_a_frozen_pose_when_the_robot_state_stream_is_silen
         assert resp.error.startswith("stale robot state: robot state stream silent for ") and \
             "(limit 0.5 s)" in resp.error, resp.error
         with pytest.raises(VisionError, match="stale robot state"):
-            resp.raise_for_error()
+            raise_for_error(resp)
     assert good["sharpness"] > 0 and resumed["sharpness"] > 0 and back["sharpness"] > 0

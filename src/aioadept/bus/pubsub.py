@@ -1,4 +1,7 @@
-"""ZeroMQ publish/subscribe sockets with owned lifetimes: the transport under the Communicator and the state stream.
+"""The publish and subscribe roles of the bus: owned PUB/SUB sockets with topic frames (the robot state stream, the
+virtual camera's state reader, tools). Sockets are opened and closed by the one socket layer,
+:mod:`aioadept.bus.sockets`, which request/response pairing uses too; ``as_topic``, ``open_socket`` and
+``close_socket`` are re-exported here for code that imported them from this module.
 
 Frames on the wire:
 
@@ -6,6 +9,7 @@ Frames on the wire:
 - ``send(payload)`` sends one frame, as EPypes nodes do (their SUB sockets ``recv()`` single frames with prefix
   ``""``). Use it towards EPypes peers.
 - ``Subscriber.recv()`` accepts both and returns ``(topic, payload)``, with ``topic == b""`` for a single frame.
+- ``SyncPublisher`` / ``SyncSubscriber`` are the same roles for one plain thread.
 
 Endpoints are CZMQ style (:mod:`aioadept.bus.endpoints`): ``@addr`` binds, ``>addr`` connects, a bare address
 takes the socket's ``bind`` argument, whose default follows pyadept/EPypes: publishers bind, subscribers connect.
@@ -23,15 +27,14 @@ from __future__ import annotations
 
 import asyncio
 import logging
-from collections.abc import AsyncIterator, Iterable, Mapping
+import math
+from collections.abc import AsyncIterator, Iterable
 from typing import Any
 
 import zmq
-import zmq.asyncio
 
-from aioadept.bus import security
-from aioadept.bus.endpoints import resolve
 from aioadept.bus.security import Curve
+from aioadept.bus.sockets import as_topic, attach, close_socket, make_socket, open_socket
 from aioadept.errors import BusError
 
 __all__ = [
@@ -41,6 +44,7 @@ __all__ = [
     "Publisher",
     "SyncPublisher",
     "Subscriber",
+    "SyncSubscriber",
     "as_topic",
     "close_socket",
     "open_socket",
@@ -54,82 +58,6 @@ DEFAULT_RESPONSE_ENDPOINT = "tcp://127.0.0.1:5556"
 """Vision responses: the node's PUB binds, the MCN's SUB connects."""
 DEFAULT_STATE_ENDPOINT = "tcp://127.0.0.1:5560"
 """Robot state stream (topic ``robot.state``): the sim's PUB binds."""
-
-
-def as_topic(topic: bytes | str) -> bytes:
-    """A topic as the bytes of its first frame (str is UTF-8 encoded)."""
-    if isinstance(topic, bytes):
-        return topic
-    if isinstance(topic, str):
-        return topic.encode()
-    raise BusError(f"topic must be bytes or str, got {type(topic).__name__}")
-
-
-def _async_context(context: zmq.Context | None) -> zmq.asyncio.Context:
-    if context is None:
-        return zmq.asyncio.Context.instance()
-    if isinstance(context, zmq.asyncio.Context):
-        return context
-    # A plain context given by the caller: shadow it (no ownership, the caller terminates it).
-    return zmq.asyncio.Context.shadow(context.underlying)
-
-
-def _attach(sock: zmq.Socket, endpoint: str, bind: bool, curve: Curve | None = None) -> tuple[str, bool]:
-    """Set up CURVE if asked, then bind or connect ``sock`` as ``endpoint`` says (``@`` binds, ``>`` connects, bare:
-    ``bind``, the role's default; :mod:`aioadept.bus.endpoints`); return ``(endpoint actually in use, bound)`` (the
-    real port after binding to 0 or *)."""
-    try:
-        endpoint, bind = resolve(endpoint, bind)
-    except BusError:
-        sock.close(linger=0)
-        raise
-    try:
-        security.apply_curve(sock, curve)
-        if bind:
-            sock.bind(endpoint)
-            return sock.getsockopt_string(zmq.LAST_ENDPOINT), True
-        sock.connect(endpoint)
-        return endpoint, False
-    except BaseException as exc:
-        security.release(sock)
-        sock.close(linger=0)
-        if not isinstance(exc, zmq.ZMQError):
-            raise
-        verb = "bind" if bind else "connect"
-        raise BusError(f"cannot {verb} {endpoint!r}: {exc}") from exc
-
-
-def open_socket(kind: int, endpoint: str, *, bind: bool, context: zmq.Context | None = None,
-                topics: Iterable[bytes | str] = (), hwm: int = 1000,
-                curve: Curve | None = None, options: Mapping[int, int] = {}) -> tuple[zmq.Socket, str]:
-    """A plain (synchronous) ZeroMQ socket with ``LINGER 0``, subscribed to ``topics`` if it is a SUB, bound or
-    connected (``endpoint``'s ``@``/``>`` prefix, else ``bind``); returns ``(socket, actual_endpoint)``. The caller
-    owns it and must close it. ``options``: more integer socket options, set before binding or connecting (e.g.
-    ``{zmq.MAXMSGSIZE: n}``).
-
-    For code that drives a socket from the loop's reader callbacks rather than through zmq.asyncio futures (the
-    Communicator's response reader). Raises :class:`BusError`. With ``curve``, close it with :func:`close_socket`.
-    """
-    ctx = _async_context(context)
-    sock = zmq.Socket(ctx, kind)
-    sock.setsockopt(zmq.LINGER, 0)
-    sock.setsockopt(zmq.RCVHWM if kind == zmq.SUB else zmq.SNDHWM, hwm)
-    try:
-        for opt, value in options.items():
-            sock.setsockopt(opt, value)
-    except zmq.ZMQError as exc:
-        sock.close(linger=0)
-        raise BusError(f"socket option {opt} = {value!r}: {exc}") from exc
-    if kind == zmq.SUB:
-        for t in topics:
-            sock.setsockopt(zmq.SUBSCRIBE, as_topic(t))
-    return sock, _attach(sock, endpoint, bind, curve)[0]
-
-
-def close_socket(sock: zmq.Socket) -> None:
-    """Close a socket from :func:`open_socket` (linger 0), releasing its CURVE authenticator share if any."""
-    security.release(sock)
-    sock.close(linger=0)
 
 
 class _Owned:
@@ -199,14 +127,11 @@ class Publisher(_PublisherBase):
 
     def __init__(self, endpoint: str, *, bind: bool = True, context: zmq.Context | None = None,
                  sndhwm: int = 1000, curve: Curve | None = None) -> None:
-        ctx = _async_context(context)
-        # A plain (synchronous) socket on the same context: sends never wait, so the asyncio machinery of
+        # A plain (synchronous) socket on the asyncio context: sends never wait, so the asyncio machinery of
         # zmq.asyncio (a future per send) would be pure overhead on the hot path.
-        self._sock = zmq.Socket(ctx, zmq.PUB)
-        self._sock.setsockopt(zmq.LINGER, 0)
-        self._sock.setsockopt(zmq.SNDHWM, sndhwm)
+        self._sock = make_socket(zmq.PUB, context=context, flavour="plain", hwm=sndhwm)
         self._endpoint = endpoint
-        self._actual, self._bind = _attach(self._sock, endpoint, bind, curve)
+        self._actual, self._bind = attach(self._sock, endpoint, bind, curve)
 
     def publish_nowait(self, topic: bytes | str, payload: bytes) -> None:
         """Send ``[topic, payload]``. Raises :class:`BusError` if the socket is closed."""
@@ -240,12 +165,9 @@ class SyncPublisher(_PublisherBase):
 
     def __init__(self, endpoint: str, *, bind: bool = True, context: zmq.Context | None = None,
                  sndhwm: int = 1000, curve: Curve | None = None) -> None:
-        ctx = context if context is not None else zmq.Context.instance()
-        self._sock = zmq.Socket(ctx, zmq.PUB)
-        self._sock.setsockopt(zmq.LINGER, 0)
-        self._sock.setsockopt(zmq.SNDHWM, sndhwm)
+        self._sock = make_socket(zmq.PUB, context=context, flavour="thread", hwm=sndhwm)
         self._endpoint = endpoint
-        self._actual, self._bind = _attach(self._sock, endpoint, bind, curve)
+        self._actual, self._bind = attach(self._sock, endpoint, bind, curve)
 
     def publish(self, topic: bytes | str, payload: bytes) -> None:
         """Send ``[topic, payload]``; never blocks."""
@@ -271,15 +193,16 @@ class Subscriber(_Owned):
 
     def __init__(self, endpoint: str, *, topics: Iterable[bytes | str] = (b"",), bind: bool = False,
                  context: zmq.Context | None = None, rcvhwm: int = 1000, curve: Curve | None = None) -> None:
-        ctx = _async_context(context)
-        self._sock = ctx.socket(zmq.SUB)
-        self._sock.setsockopt(zmq.LINGER, 0)
-        self._sock.setsockopt(zmq.RCVHWM, rcvhwm)
+        self._sock = make_socket(zmq.SUB, context=context, flavour="asyncio", hwm=rcvhwm)
         self._topics: list[bytes] = []
-        for t in topics:
-            self.subscribe(t)
+        try:
+            for t in topics:
+                self.subscribe(t)
+        except BaseException:
+            close_socket(self._sock)
+            raise
         self._endpoint = endpoint
-        self._actual, self._bind = _attach(self._sock, endpoint, bind, curve)
+        self._actual, self._bind = attach(self._sock, endpoint, bind, curve)
 
     @property
     def topics(self) -> tuple[bytes, ...]:
@@ -333,4 +256,49 @@ class Subscriber(_Owned):
         return self
 
     async def __aexit__(self, *exc: object) -> None:
+        self.close()
+
+
+class SyncSubscriber(_Owned):
+    """A SUB socket for a plain thread (e.g. the virtual camera's robot-state reader). Use it from ONE thread only.
+
+    Same frames and defaults as :class:`Subscriber` (connects unless ``@addr`` or ``bind=True``); without
+    ``context`` it uses the process-wide ``zmq.Context.instance()``. ``recv(timeout_s)`` returns ``(topic,
+    payload)`` or None when nothing came in time, so a reader thread can look at its stop flag regularly;
+    ``with SyncSubscriber(...) as sub:`` closes it.
+    """
+
+    def __init__(self, endpoint: str, *, topics: Iterable[bytes | str] = (b"",), bind: bool = False,
+                 context: zmq.Context | None = None, rcvhwm: int = 1000, curve: Curve | None = None) -> None:
+        self._topics = tuple(as_topic(t) for t in topics)
+        self._sock = make_socket(zmq.SUB, context=context, flavour="thread", hwm=rcvhwm, topics=self._topics)
+        self._endpoint = endpoint
+        self._actual, self._bind = attach(self._sock, endpoint, bind, curve)
+
+    @property
+    def topics(self) -> tuple[bytes, ...]:
+        return self._topics
+
+    def recv(self, timeout_s: float | None = None) -> tuple[bytes, bytes] | None:
+        """The next message as ``(topic, payload)`` (topic ``b""`` for a single frame), or None if none arrived
+        within ``timeout_s`` (None: wait for ever). Raises :class:`BusError` if the socket is closed or a message
+        has more than two frames."""
+        if timeout_s is not None and not (0 <= timeout_s < math.inf):
+            raise ValueError(f"timeout_s must be a finite number >= 0 or None, got {timeout_s!r}")
+        try:
+            if timeout_s is not None and not self._sock.poll(round(timeout_s * 1000), zmq.POLLIN):
+                return None
+            frames: list[Any] = self._sock.recv_multipart()
+        except zmq.ZMQError as exc:
+            raise BusError(f"receive on {self._actual} failed: {exc}") from exc
+        if len(frames) == 2:
+            return frames[0], frames[1]
+        if len(frames) == 1:
+            return b"", frames[0]
+        raise BusError(f"expected 1 or 2 frames on {self._actual}, got {len(frames)}")
+
+    def __enter__(self) -> SyncSubscriber:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
         self.close()

@@ -27,6 +27,7 @@ _EXPORTS = {
     "Acquisition": "acquisition", "FrameRing": "acquisition",
     "VisionNode": "node", "noop_graph": "node",
     "write_figures": "figures",
+    "raise_for_error": "responses",
 }
 
 __all__ = sorted(_EXPORTS)

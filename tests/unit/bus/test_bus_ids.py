@@ -3,7 +3,9 @@
 import re
 
 from aioadept.bus.communicator import Response, new_request_id, response_type_for
-from aioadept.errors import VisionError
+from aioadept.bus.errors import RemoteError
+from aioadept.errors import BusError, VisionError
+from aioadept.vision import raise_for_error
 
 import pytest
 
@@ -24,5 +26,19 @@ def test_response_error_helpers():
     ok = Response("0badcafe", "VisionResponse", {"sharpness": 1.0}, 1.0, 1.25)
     assert ok.error is None and ok.raise_for_error() is ok and ok.latency_s == 0.25
     bad = Response("0badcafe", "VisionResponse", {"error": "no object found"}, 1.0, 1.5)
-    with pytest.raises(VisionError, match="no object found"):
+    with pytest.raises(RemoteError, match="no object found") as info:
         bad.raise_for_error()
+    # The bus raises its own error; it knows nothing of vision.
+    assert isinstance(info.value, BusError) and not isinstance(info.value, VisionError)
+    assert info.value.attributes == {"error": "no object found"} and info.value.request_id == "0badcafe"
+    assert info.value.error == "no object found"
+
+
+def test_vision_maps_an_error_answer_to_vision_error():
+    ok = Response("0badcafe", "VisionResponse", {"sharpness": 1.0}, 1.0, 1.25)
+    assert raise_for_error(ok) is ok
+    bad = Response("0badcafe", "VisionResponse", {"error": "no object found"}, 1.0, 1.5)
+    with pytest.raises(VisionError, match="no object found") as info:
+        raise_for_error(bad)
+    assert info.value.attributes == {"error": "no object found"}
+    assert isinstance(info.value.__cause__, RemoteError)
