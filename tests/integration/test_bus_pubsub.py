@@ -9,7 +9,7 @@ import pytest
 import zmq
 import zmq.asyncio
 
-from aioadept.bus.pubsub import Publisher, Subscriber, SyncPublisher
+from aioadept.bus.pubsub import Publisher, Subscriber, SyncPublisher, SyncSubscriber
 from aioadept.errors import BusError
 
 ANY = "tcp://127.0.0.1:*"
@@ -111,3 +111,26 @@ async def test_own_context_is_used_and_not_terminated():
         sync_ctx.term()
     finally:
         ctx.term()
+
+
+@pytest.mark.timeout(10)
+def test_sync_subscriber_in_a_plain_thread_gets_topic_frames_and_times_out():
+    # The role the virtual camera's robot-state reader uses: a SUB for one plain thread, with a receive timeout.
+    with SyncPublisher(ANY) as pub, SyncSubscriber(">" + pub.actual_endpoint, topics=("robot.state",)) as sub:
+        assert not sub.bound and sub.topics == (b"robot.state",)
+        assert sub.recv(timeout_s=0.0) is None  # nothing yet: None, never a hang
+        got = None
+        for _ in range(500):  # slow joiner: publish until the subscription is live (a retry, not a sleep)
+            pub.publish("other.topic", b"not for us")
+            pub.publish("robot.state", b"sample")
+            got = sub.recv(timeout_s=0.01)
+            if got is not None:
+                break
+        assert got == (b"robot.state", b"sample")
+        with pytest.raises(ValueError):
+            sub.recv(timeout_s=-1)
+    assert sub.closed and pub.closed
+    with pytest.raises(BusError):
+        sub.recv(timeout_s=0.0)
+    with pytest.raises(BusError, match="cannot connect"):
+        SyncSubscriber(">tcp://127.0.0.1:notaport")

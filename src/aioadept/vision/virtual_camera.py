@@ -450,10 +450,10 @@ def _interpolate(m0: np.ndarray, m1: np.ndarray, a: float) -> np.ndarray:
 class RobotStateFollower:
     """Subscribes to the sim's robot state stream and fills a :class:`PoseHistory`, stamped on receipt.
 
-    One owned non-daemon thread with its own ZeroMQ SUB socket (linger 0). :meth:`start` connects, :meth:`stop`
-    sets the stop flag, joins the thread and closes the socket; also a context manager. Samples are stamped with
-    ``time.time()`` at receipt (the frame clock), so the camera and the history share one clock even if the sim's
-    clock drifts; the state's own ``wall_time_s`` is kept as :attr:`last_state`.
+    One owned non-daemon thread reading a :class:`aioadept.bus.pubsub.SyncSubscriber`. :meth:`start` connects,
+    :meth:`stop` sets the stop flag, joins the thread and closes the socket; also a context manager. Samples are
+    stamped with ``time.time()`` at receipt (the frame clock), so the camera and the history share one clock even if
+    the sim's clock drifts; the state's own ``wall_time_s`` is kept as :attr:`last_state`.
     """
 
     def __init__(self, endpoint: str, *, history: PoseHistory | None = None, topic: bytes = b"robot.state",
@@ -482,40 +482,34 @@ class RobotStateFollower:
         return self
 
     def _run(self) -> None:
-        import zmq
-
         from aioadept.bus.messages import RobotState
+        from aioadept.bus.pubsub import SyncSubscriber
         from aioadept.errors import BusError
 
-        ctx = zmq.Context.instance()
-        sock = ctx.socket(zmq.SUB)
         try:
-            sock.setsockopt(zmq.LINGER, 0)
-            sock.setsockopt(zmq.SUBSCRIBE, self.topic)
-            if self.curve is not None:
-                from aioadept.bus.security import apply_curve
-
-                apply_curve(sock, self.curve)
-            from aioadept.bus.endpoints import resolve
-
-            address, bind = resolve(self.endpoint, False)  # a subscriber: connects unless '@addr'
-            (sock.bind if bind else sock.connect)(address)
-        except (zmq.ZMQError, BusError) as exc:
+            # A plain subscriber of the bus: connects unless '@addr', CURVE if the stream uses it.
+            sub = SyncSubscriber(self.endpoint, topics=(self.topic,), curve=self.curve)
+        except BusError as exc:
             self._error = exc
             self._ready.set()
-            sock.close(0)
             return
         self._ready.set()
-        poller = zmq.Poller()
-        poller.register(sock, zmq.POLLIN)
-        try:
+        with sub:
             while not self._stop.is_set():
-                if not poller.poll(100):  # wake up regularly to see the stop flag
+                try:
+                    message = sub.recv(timeout_s=0.1)  # wake up regularly to see the stop flag
+                except BusError as exc:
+                    if exc.__cause__ is not None:  # the socket itself failed (ZeroMQ error): stop following
+                        log.error("robot state: %s", exc)
+                        break
+                    log.warning("robot state: %s", exc)  # a message of three frames: not ours, keep following
                     continue
-                parts = sock.recv_multipart()
+                if message is None:
+                    continue
                 t_s = self._clock()
-                # [topic, payload] frames; a single frame carries the topic as a prefix.
-                payload = parts[-1] if len(parts) > 1 else parts[0][len(self.topic):]
+                topic, payload = message
+                if not topic:  # a single frame carries the topic as a prefix
+                    payload = payload[len(self.topic):]
                 try:
                     state = RobotState.from_bytes(payload)
                 except Exception as exc:  # a bad sample must not kill the camera
@@ -524,8 +518,6 @@ class RobotStateFollower:
                 self.history.add(t_s, state.pose)
                 self.last_state = state
                 self.received += 1
-        finally:
-            sock.close(0)
 
     def pose_at(self, t_s: float) -> Pose | None:
         """The tool pose at epoch ``t_s``: waits (up to ``max_wait_s``) for a state sample received at or after
