@@ -168,9 +168,10 @@ class _RawClient:
 
     def __init__(self, ctx: zmq.asyncio.Context, req_ep: str, resp_ep: str) -> None:
         self.pub, self.sub = ctx.socket(zmq.PUB), ctx.socket(zmq.SUB)
-        self.pub.connect(req_ep)
+        # The node's READY line gives the peer form ('>addr': connect there); a raw socket takes the bare address.
+        self.pub.connect(req_ep.lstrip(">"))
         self.sub.setsockopt(zmq.SUBSCRIBE, b"")
-        self.sub.connect(resp_ep)
+        self.sub.connect(resp_ep.lstrip(">"))
         self.replies: list[tuple[bytes, bytes]] = []
 
     async def join(self) -> None:
