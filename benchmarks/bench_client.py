@@ -249,7 +249,7 @@ async def measure(port_ack: int, port_echo: int, quick: bool) -> dict:
 
 async def breakdown(n: int = 100, batches: int = 300) -> dict:
     """CPU per message of each stage, in process and without sockets (the profile behind the ratios)."""
-    import aioadept.client as client_mod
+    import aioadept.client.registry as client_mod
     from aioadept.client import ClientState, RobotClient
     from aioadept.commands import Skill
     from aioadept.geometry import Pose
@@ -279,14 +279,14 @@ async def breakdown(n: int = 100, batches: int = 300) -> dict:
             s.cancel()
         subs = [robot._send(calls) for _ in range(batches)]
         replies = [b"".join([m.encode() + tail for m in s.ids]) for s in subs]
-        saved = client_mod._make_result, client_mod._make_ack, client_mod._RESULT_TWIN
-        # ablation: no Ack/MessageResult objects (the inline build is off without the twin)
-        client_mod._make_result = client_mod._make_ack = lambda *a: a
+        saved = client_mod._make_result, client_mod._RESULT_TWIN
+        # ablation: no MessageResult objects (the inline build is off without the twin; the reader builds Acks)
+        client_mod._make_result = lambda *a: a
         client_mod._RESULT_TWIN = None
         try:
             clock("client_same_without_building_results", lambda: [robot._feed(r, 0.0) for r in replies])
         finally:
-            client_mod._make_result, client_mod._make_ack, client_mod._RESULT_TWIN = saved
+            client_mod._make_result, client_mod._RESULT_TWIN = saved
         for s in subs:
             s.cancel()
 

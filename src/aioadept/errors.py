@@ -30,35 +30,18 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
+# The root and the protocol errors live in the sans-IO core (it imports nothing from here); the tree is one.
+from aioadept.protocol.errors import AdeptError, LocalProtocolError, ProtocolError, RemoteProtocolError
+
 if TYPE_CHECKING:  # pragma: no cover
     from aioadept.protocol import Ack
 
-
-class AdeptError(Exception):
-    """Base of every error raised by aioadept."""
-
-
-class ProtocolError(AdeptError):
-    """Bytes on the wire that break the line protocol."""
-
-
-class LocalProtocolError(ProtocolError):
-    """We were asked to encode something the protocol cannot carry (e.g. a line over 128 characters)."""
-
-
-class RemoteProtocolError(ProtocolError):
-    """The peer sent something that does not parse.
-
-    ``code`` is the V+-style error code (see :mod:`aioadept.protocol.codes`) that a server answers with, and ``id``
-    the message ID when one could be recovered from the line, so that the error ack can be routed.
-    """
-
-    def __init__(self, code: int, message: str, *, id: str | None = None, line: bytes | None = None) -> None:
-        super().__init__(f"{message} (code {code})")
-        self.code = code
-        self.message = message
-        self.id = id
-        self.line = line
+__all__ = [
+    "AbortedBeforeSend", "AckTimeout", "AdeptError", "BusEncodeError", "BusError", "ClientStateError",
+    "CommandAborted", "CommandError", "ConnectError", "ConnectionLost", "GraphError", "LocalProtocolError",
+    "NotARobotServer", "ObjectNotFound", "ProtocolError", "RemoteProtocolError", "RequestTimeout", "RobotError",
+    "VisionError",
+]
 
 
 class CommandError(AdeptError):

@@ -207,7 +207,7 @@ async def test_a_stop_whose_caller_is_cancelled_while_reconnecting_is_still_writ
             await robot.here()  # the server drops us instead of acking
         gate.clear()
         caller = asyncio.create_task(robot.stop())
-        await until(lambda: robot._connect_lock is not None and robot._connect_lock.locked(), "reconnecting")
+        await until(lambda: robot.reconnecting, "reconnecting")
         caller.cancel()
         with pytest.raises(asyncio.CancelledError):
             await caller
@@ -238,7 +238,7 @@ async def test_commands_waiting_to_be_written_when_stop_is_called_are_never_sent
         moves = [asyncio.create_task(robot.cmdexec(MoveToolZ(5))),
                  asyncio.create_task(robot.cmdexec(SetSpeed(50), MoveToolZ(5))),
                  asyncio.create_task(robot.cmdexec_joined(SetSpeed(50), MoveToolZ(5)))]
-        await until(lambda: robot._connect_lock is not None and robot._connect_lock.locked(), "reconnecting")
+        await until(lambda: robot.reconnecting, "reconnecting")
         stop = asyncio.create_task(robot.stop())
         await asyncio.sleep(0)
         gate.set()
@@ -317,7 +317,7 @@ async def test_close_during_a_stops_reconnect_wins_the_stop_raises_client_state_
             await robot.here()
         gate.clear()
         stop = asyncio.create_task(robot.stop())
-        await until(lambda: robot._connect_lock is not None and robot._connect_lock.locked(), "reconnecting")
+        await until(lambda: robot.reconnecting, "reconnecting")
         await robot.close()
         gate.set()
         with pytest.raises(ClientStateError, match="closed while reconnecting"):

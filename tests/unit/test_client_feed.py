@@ -1,13 +1,12 @@
-"""The client's inline ack fast path gives exactly what the general parser gives (no sockets)."""
+"""The client's registry (PendingCalls, sans-IO) driven with bytes: its inline ack fast path gives exactly what
+the general parser gives, acks reach their messages, a lost connection fails them all (no sockets, no loop)."""
 
 from __future__ import annotations
-
-import asyncio
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from aioadept.client import ClientState, RobotClient
+from aioadept.client import PendingCalls
 from aioadept.commands import Skill
 from aioadept.errors import RemoteProtocolError
 from aioadept.geometry import Pose
@@ -16,13 +15,55 @@ from aioadept.protocol import Ack, Status, encode_ack, parse_ack
 POSES = [Pose(1, 2, 3, 4, 5, 6), Pose(480.014, -0.038, 709.975, 0.0, 179.995, 0.004)]
 
 
-def wired_client() -> tuple[RobotClient, list[bytes]]:
-    written: list[bytes] = []
-    robot = RobotClient()
-    robot._loop = asyncio.new_event_loop()
-    robot._write = written.append
-    robot._state = ClientState.CONNECTED
-    return robot, written
+class Box:
+    """A future double: what the registry needs of a per-message future or a waiter."""
+
+    def __init__(self) -> None:
+        self.value: object = None
+        self.error: BaseException | None = None
+        self._done = False
+
+    def done(self) -> bool:
+        return self._done
+
+    def set_result(self, value: object) -> None:
+        assert not self._done
+        self.value, self._done = value, True
+
+    def set_exception(self, exc: BaseException) -> None:
+        assert not self._done
+        self.error, self._done = exc, True
+
+    def result(self) -> object:
+        assert self._done and self.error is None
+        return self.value
+
+
+class Wired:
+    """A registry and what a client would have written through it."""
+
+    def __init__(self, id_start: int = 0x1000) -> None:
+        self.reg = PendingCalls(id_start=id_start)
+        self.stats = self.reg.stats
+        self.written: list[bytes] = []
+
+    def submit(self, *commands):
+        calls = tuple(c for command in commands for c in command.calls())
+        sub, wire = self.reg.register(calls, Box)
+        self.written.append(wire)
+        return sub
+
+    def feed(self, data: bytes, t_recv: float) -> None:
+        self.reg.receive(data, t_recv)
+
+    @property
+    def pending_ids(self) -> tuple[str, ...]:
+        return self.reg.pending_ids
+
+
+def wired_client() -> tuple[Wired, list[bytes]]:
+    w = Wired()
+    return w, w.written
 
 
 line_kind = st.sampled_from(["done", "done_same", "error", "aborted", "bad_time", "inf_time", "unknown", "extra"])
@@ -57,7 +98,7 @@ def test_inline_fast_path_matches_parse_ack(kinds, split):
             lines.append(line)
         stream = b"".join(lines)
         for k in range(0, len(stream), split * 37):
-            robot._feed(stream[k:k + split * 37], 5.0)
+            robot.feed(stream[k:k + split * 37], 5.0)
         for i, line in enumerate(lines):
             try:
                 want = parse_ack(line.rstrip(b"\r\n"))
@@ -76,7 +117,6 @@ def test_inline_fast_path_matches_parse_ack(kinds, split):
         assert robot.stats.bad_lines + robot.stats.unknown_acks == len(kinds) - routed
     finally:
         sub.cancel()
-        robot._loop.close()
 
 
 def test_first_ack_with_an_empty_pose_is_a_bad_line():
@@ -84,12 +124,11 @@ def test_first_ack_with_an_empty_pose_is_a_bad_line():
     robot, written = wired_client()
     try:
         sub = robot.submit(Skill("noop"))
-        robot._feed(f"{sub.ids[0]}:done:1.000,2.000:\r\n".encode(), 5.0)
+        robot.feed(f"{sub.ids[0]}:done:1.000,2.000:\r\n".encode(), 5.0)
         assert sub.results == [None] and sub.remaining == 1
         assert robot.stats.bad_lines == 1 and robot.stats.acks == 0
     finally:
         sub.cancel()
-        robot._loop.close()
 
 
 def test_repeated_times_text_gives_the_same_values_as_parsing_it():
@@ -104,15 +143,14 @@ def test_repeated_times_text_gives_the_same_values_as_parsing_it():
                  encode_ack(Ack(ids[1], Status.DONE, 1.5, 1.5, pose)),
                  encode_ack(Ack(ids[2], Status.DONE, 1.5, 1.5, pose)).replace(b"1.500,1.500", b"1.500,nan"),
                  encode_ack(Ack(ids[3], Status.DONE, 1.5, 2.25, pose))]
-        robot._feed(b"".join(lines[:2]), 5.0)
-        robot._feed(b"".join(lines[2:]), 6.0)
+        robot.feed(b"".join(lines[:2]), 5.0)
+        robot.feed(b"".join(lines[2:]), 6.0)
         assert [r.ack if r else None for r in sub.results] == [
             Ack(ids[0], Status.DONE, 1.5, 1.5, pose), Ack(ids[1], Status.DONE, 1.5, 1.5, pose), None,
             Ack(ids[3], Status.DONE, 1.5, 2.25, pose)]
         assert robot.stats.bad_lines == 1 and sub.remaining == 1
     finally:
         sub.cancel()
-        robot._loop.close()
 
 
 def test_fast_path_builds_exactly_the_values_the_constructors_build():
@@ -123,7 +161,7 @@ def test_fast_path_builds_exactly_the_values_the_constructors_build():
     try:
         sub = robot.submit(Skill("noop", 1), Skill("noop", 2))
         a, b = sub.ids
-        robot._feed(encode_ack(Ack(a, Status.DONE, 1.0, 2.0, pose)) + encode_ack(Ack(b, Status.DONE, 1.0, 2.0, pose)),
+        robot.feed(encode_ack(Ack(a, Status.DONE, 1.0, 2.0, pose)) + encode_ack(Ack(b, Status.DONE, 1.0, 2.0, pose)),
                     7.0)
         got = sub.results[1]
         want = MessageResult(b, "noop", (2,), sub.batch, sub.t_send_s, 7.0, Ack(b, Status.DONE, 1.0, 2.0, pose))
@@ -131,7 +169,6 @@ def test_fast_path_builds_exactly_the_values_the_constructors_build():
         assert got == want and hash(got.ack) == hash(want.ack) and repr(got) == repr(want)
     finally:
         sub.cancel()
-        robot._loop.close()
 
 
 def test_acks_out_of_order_reach_their_own_messages():
@@ -144,8 +181,8 @@ def test_acks_out_of_order_reach_their_own_messages():
         order = [3, 0, 4, 5, 1, 2]
         lines = [encode_ack(Ack(ids[k], Status.DONE, float(k), float(k), pose)) if k != 5 else
                  encode_ack(Ack.error(ids[k], -610, "out of range", 5.0, 5.0, pose)) for k in order]
-        robot._feed(b"".join(lines[:3]), 1.0)
-        robot._feed(b"".join(lines[3:]), 2.0)
+        robot.feed(b"".join(lines[:3]), 1.0)
+        robot.feed(b"".join(lines[3:]), 2.0)
         assert [r.id for r in sub.results] == list(ids)
         assert [(r.args, r.ack.t_done_s) for r in sub.results] == [((k,), float(k)) for k in range(6)]
         assert [r.ack.status for r in sub.results] == [Status.DONE] * 5 + [Status.ERROR]
@@ -153,4 +190,34 @@ def test_acks_out_of_order_reach_their_own_messages():
         assert sub.remaining == 0 and robot.pending_ids == () and robot.stats.acks == 6
     finally:
         sub.cancel()
-        robot._loop.close()
+
+
+def test_register_writes_ids_and_lines_and_a_lost_connection_says_what_is_known_done():
+    """Registered before the write (the IDs are pending as soon as the bytes exist); fail_all empties the registry
+    and tells each batch which messages are acked and which are unresolved."""
+    from aioadept.errors import ConnectionLost
+
+    w = Wired(id_start=0xFFFFFFFE)
+    sub = w.submit(Skill("noop", 1), Skill("noop", 2), Skill("noop", 3))
+    assert w.written[0] == b"fffffffe:noop:1\r\nffffffff:noop:2\r\n00000001:noop:3\r\n"  # 00000000 never issued
+    assert w.pending_ids == sub.ids == ("fffffffe", "ffffffff", "00000001")
+    sub._waiter = waiter = Box()
+    w.feed(encode_ack(Ack("fffffffe", Status.DONE, 1.0, 1.0, POSES[0])), 1.0)
+    assert w.pending_ids == ("ffffffff", "00000001") and not waiter.done()
+    assert w.reg.fail_all("peer closed") == [sub]
+    assert w.pending_ids == () and sub.done() and sub.lost_reason == "peer closed" and waiter.result() == 2
+    assert sub.futures[0].result() is sub.results[0]
+    for fut, mid in zip(sub.futures[1:], sub.ids[1:]):
+        assert isinstance(fut.error, ConnectionLost) and fut.error.unresolved == (mid,)
+
+
+def test_a_released_message_s_late_ack_is_counted_not_routed():
+    w = Wired()
+    sub = w.submit(Skill("noop"))
+    assert w.reg.release(sub) and not w.reg.release(sub)  # idempotent
+    assert w.pending_ids == () and w.reg.abandoned_ids == sub.ids
+    w.feed(encode_ack(Ack(sub.ids[0], Status.DONE, 1.0, 1.0, POSES[0])), 1.0)
+    assert sub.results == [None] and w.stats.late_acks == 1 and w.stats.unknown_acks == 0
+    w.feed(encode_ack(Ack(sub.ids[0], Status.DONE, 1.0, 1.0, POSES[0])), 2.0)  # a second one is unknown
+    assert w.stats.unknown_acks == 1 and w.stats.unexpected[-1][1:] == (
+        "unknown_ack", encode_ack(Ack(sub.ids[0], Status.DONE, 1.0, 1.0, POSES[0]))[:-2])

@@ -114,11 +114,9 @@ async def test_an_id_still_pending_or_given_up_is_never_issued_again():
                 await robot.cmdexec(Break(), timeout_s=0.01)  # 00000101, given up
             pending, gone = held.ids[0], "00000101"
             assert pending == "00000100" and robot.pending_ids == (pending,)
-            robot._ids._next = 0x100                          # as after 2**32 - 1 more IDs
-            robot._issued += 0xFFFFFFFF
+            robot.registry.come_round(0x100)                  # as after 2**32 - 1 more IDs
             await robot.cmdexec(Here())
-            robot._ids._next = 0x100
-            robot._issued += 0xFFFFFFFF
+            robot.registry.come_round(0x100)
             await robot.cmdexec_joined(SetSpeed(5), Skill("enable_air"))
             held.cancel()
     finally:

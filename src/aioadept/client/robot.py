@@ -10,9 +10,11 @@ and drives the sans-IO core (:mod:`aioadept.protocol`) over asyncio::
 
 How it works, and the promises it keeps:
 
-- One write path (:meth:`RobotClient._send`): IDs are allocated, every message of the batch is registered in the
-  pending registry (ID -> submission) *before* the bytes are written, then the batch goes out in one write.
-- One place routes acks (:meth:`RobotClient._feed`): on TCP it runs in the transport's ``data_received`` (a
+- One write path (``RobotClient._send``): the sans-IO registry (:class:`~aioadept.client.PendingCalls`) allocates
+  IDs and registers every message of the batch (ID -> submission) *before* the bytes are written, then the batch
+  goes out in one write.
+- One place routes acks (:meth:`PendingCalls.receive`, over the one :class:`~aioadept.protocol.AckReader`): on TCP
+  it runs in the transport's ``data_received`` (a
   protocol, not a reader task: one loop turn less per round trip); with a ``connector`` that returns asyncio
   streams (tests, in-memory pairs) a single reader task feeds it. It does nothing else: no per-message logging, no
   per-message task. A waiter waits on one future per batch; ``submit`` adds a future per message.
@@ -36,21 +38,34 @@ How it works, and the promises it keeps:
 from __future__ import annotations
 
 import asyncio
-import enum
-import functools
 import logging
-import math
-import numbers
 import operator
 import secrets
-import socket
-import time
 from collections import deque
+from collections.abc import Awaitable, Callable, Iterable, Sequence
 from itertools import chain
-from collections.abc import Awaitable, Callable, Iterable, Iterator, Sequence
-from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any
 
+from aioadept.client.registry import (
+    W_LOST as _W_LOST,
+    W_TIMED_OUT as _W_TIMED_OUT,
+    PendingCalls,
+    Submission,
+    calls_of as _calls_of,
+    check_timeout as _check_timeout,
+    lost as _lost,
+)
+from aioadept.client.results import (
+    _EXEC_TWIN,
+    ClientState,
+    ClientStats,
+    ExecResult,
+    MessageResult,
+    Observer,
+    SentMessage,
+    _make_exec,
+)
+from aioadept.client.transport import AckProtocol, loop_fns, read_loop, set_nodelay
 from aioadept.commands import Command
 from aioadept.errors import (
     AbortedBeforeSend,
@@ -61,239 +76,20 @@ from aioadept.errors import (
     ConnectError,
     ConnectionLost,
     NotARobotServer,
-    RemoteProtocolError,
 )
 from aioadept.geometry import Pose
-from aioadept.protocol.messages import _make_ack, fast_constructor
-from aioadept.protocol import (
-    HELLO_SKILL,
-    HERE_SKILL,
-    MAX_ACK_LINE,
-    NO_ID,
-    STOP_SKILL,
-    Ack,
-    AckParser,
-    IdAllocator,
-    LineFramer,
-    Oversize,
-    SkillCall,
-    Status,
-    parse_ack,
-)
+from aioadept.protocol import HELLO_SKILL, HERE_SKILL, MAX_ACK_LINE, STOP_SKILL, SkillCall, Status
 
-__all__ = [
-    "ClientState", "ClientStats", "CommandResult", "Connector", "ExecResult", "MessageResult", "Observer",
-    "RobotClient", "SentMessage", "Submission",
-]
+__all__ = ["Connector", "RobotClient"]
 
-log = logging.getLogger(__name__)
+log = logging.getLogger("aioadept.client")
 
 Connector = Callable[[], Awaitable[tuple[asyncio.StreamReader, asyncio.StreamWriter]]]
 """An async callable that opens a (reader, writer) pair; the default opens TCP to ``host:port``."""
 
-_READ_SIZE = 1 << 16
 _CLOSE_FLUSH_S = 1.0
-_ABANDONED_MEMORY = 4096  # how many cancelled/timed-out IDs we remember to tell late acks from unknown ones
-_UNEXPECTED_MEMORY = 100
-
-
-# ---------------------------------------------------------------------------------------------------- values
-@dataclass(frozen=True, slots=True)
-class SentMessage:
-    """One command message as written (observer ``on_send``). ``t_send_s`` is ``loop.time()`` at the write."""
-
-    id: str
-    skill: str
-    args: tuple
-    batch: int
-    t_send_s: float
-
-
-@dataclass(frozen=True, slots=True)
-class MessageResult:
-    """One command message and its ack (observer ``on_ack``; element of every result).
-
-    ``t_send_s`` / ``t_recv_s`` are client loop-clock seconds at the write and at the read that delivered the ack;
-    the ack's ``t_start_s`` / ``t_done_s`` are server-clock seconds.
-    """
-
-    id: str
-    skill: str
-    args: tuple
-    batch: int
-    t_send_s: float
-    t_recv_s: float
-    ack: Ack
-
-    @property
-    def status(self) -> Status:
-        return self.ack.status
-
-    @property
-    def ok(self) -> bool:
-        return self.ack.status is _DONE
-
-    @property
-    def pose(self) -> Pose:
-        return self.ack.pose
-
-    @property
-    def rtt_s(self) -> float:
-        """Client round trip: read time minus write time (seconds)."""
-        return self.t_recv_s - self.t_send_s
-
-
-@dataclass(frozen=True, slots=True)
-class CommandResult:
-    """The messages of one command, in the order they were sent."""
-
-    command: Command | None
-    messages: tuple[MessageResult, ...]
-
-    @property
-    def pose(self) -> Pose:
-        """The pose in the last ack (for a motion with break: where the robot came to rest)."""
-        return self.messages[-1].ack.pose
-
-
-@dataclass(frozen=True, slots=True)
-class ExecResult:
-    """What :meth:`RobotClient.cmdexec` / :meth:`RobotClient.cmdexec_joined` return.
-
-    ``messages``: every message's result in send order; ``commands``: the same grouped per command (built on
-    first use, since most callers only look at the last pose).
-    """
-
-    messages: tuple[MessageResult, ...]
-    sent: tuple[Command | None, ...]
-    """The commands, in order."""
-    sizes: tuple[int, ...] = field(repr=False)
-    """How many messages each command has."""
-
-    @property
-    def commands(self) -> tuple[CommandResult, ...]:
-        out = []
-        i = 0
-        for command, n in zip(self.sent, self.sizes):
-            out.append(CommandResult(command, self.messages[i:i + n]))
-            i += n
-        return tuple(out)
-
-    @property
-    def pose(self) -> Pose:
-        """The pose in the last ack."""
-        return self.messages[-1].ack.pose
-
-    def __iter__(self) -> Iterator[MessageResult]:
-        return iter(self.messages)
-
-    def __len__(self) -> int:
-        return len(self.messages)
-
-    def __getitem__(self, index: int) -> MessageResult:
-        return self.messages[index]
-
-
-class ClientState(str, enum.Enum):
-    NEW = "new"
-    CONNECTED = "connected"
-    LOST = "lost"          # the peer closed or the socket failed; connect() again to go on
-    CLOSED = "closed"      # close() was called; connect() again to reuse
-
-
-_DONE = Status.DONE
-_BASE_TIME = asyncio.BaseEventLoop.time
-_BASE_CREATE_FUTURE = asyncio.BaseEventLoop.create_future
 # Enum member lookups cost ~0.3 us each in 3.11; the hot paths compare against these module constants instead.
 _NEW, _CONNECTED, _LOST, _CLOSED = ClientState.NEW, ClientState.CONNECTED, ClientState.LOST, ClientState.CLOSED
-
-
-@dataclass(slots=True)
-class ClientStats:
-    """Counters of the unusual; all zero on a healthy connection except ``acks``/``messages_sent``."""
-
-    messages_sent: int = 0
-    acks: int = 0
-    late_acks: int = 0
-    """Acks for messages whose waiter was cancelled or timed out (dropped quietly)."""
-    unknown_acks: int = 0
-    """Acks whose ID was never pending here."""
-    unroutable_errors: int = 0
-    """``error`` acks with ID ``00000000``: the server could not read an ID from a line we sent."""
-    bad_lines: int = 0
-    """Lines from the server that do not parse as acks (or are over the length limit)."""
-    unexpected: deque = field(default_factory=lambda: deque(maxlen=_UNEXPECTED_MEMORY))
-    """The most recent unknown/unroutable/bad lines, as ``(loop_time_s, kind, bytes)``."""
-
-
-class Observer(Protocol):
-    def on_send(self, msg: SentMessage) -> None: ...
-    def on_ack(self, result: MessageResult) -> None: ...
-
-
-# ------------------------------------------------------------------------------------------------ submission
-_W_ACKED = 0       # waiter results: why a batch's waiter woke up
-_W_TIMED_OUT = 1
-_W_LOST = 2
-
-
-class Submission:
-    """The messages written together in one write (one batch), and their state in the pending registry.
-
-    Returned by :meth:`RobotClient.submit`. ``futures`` holds a future per message (only for ``submit``; the
-    ``cmdexec`` path does without them): each resolves to a :class:`MessageResult` whatever the ack's status (so
-    an ignored future never logs "exception never retrieved"), or fails with :class:`ConnectionLost`. :meth:`wait`
-    turns statuses into errors and removes the messages from the registry; call it (or :meth:`cancel`) once.
-    """
-
-    # No __slots__: the rarely changed fields are class-level defaults, so creating one (per write, on the round
-    # trip's critical path) sets only what every batch needs.
-    futures: tuple[asyncio.Future[MessageResult], ...] | None = None
-    _waiter: asyncio.Future[int] | None = None
-    _deadline = 0.0
-    _timer: asyncio.TimerHandle | None = None
-    _settled = False
-    _lost_reason: str | None = None
-    _first_bad = -1  # index of the first non-done ack (in send order), -1 if none
-    _next_i = 0  # where the next ack is expected in ``ids`` (one after the previous ack's)
-
-    def __init__(self, client: RobotClient, ids: tuple[str, ...], calls: Sequence[SkillCall], batch: int) -> None:
-        self._client = client
-        self.ids = ids
-        self.calls = calls
-        self.batch = batch
-        self.t_send_s = 0.0
-        self.results: list[MessageResult | None] = [None] * len(ids)
-        self.remaining = len(ids)
-
-    def _index(self, mid: str) -> int:
-        """The index of message ``mid`` (registered, so present); expected one after the previous ack's."""
-        ids = self.ids
-        i = self._next_i
-        if i >= len(ids) or ids[i] != mid:
-            i = ids.index(mid)
-        self._next_i = i + 1
-        return i
-
-    def done(self) -> bool:
-        """True when every message is acked or the connection was lost."""
-        return self.remaining == 0 or self._lost_reason is not None
-
-    async def wait(self, *, timeout_s: float | None = None) -> tuple[MessageResult, ...]:
-        """All results in send order. Raises CommandError / CommandAborted (first failing message, after all
-        acks are in; ``exc.results`` holds them), ConnectionLost, or AckTimeout (``timeout_s=None``: the client's
-        ``ack_timeout_s``; else finite and > 0, or ValueError)."""
-        if timeout_s is not None:
-            _check_timeout("timeout_s", timeout_s)
-        return await self._client._wait(self, timeout_s)
-
-    def cancel(self) -> None:
-        """Stop waiting: forget the messages (late acks are dropped and counted). The robot is not stopped."""
-        self._client._release(self)
-
-    def __repr__(self) -> str:
-        done = len(self.ids) - self.remaining
-        return f"<Submission batch={self.batch} ids={list(self.ids)} acked={done}/{len(self.ids)}>"
 
 
 # ---------------------------------------------------------------------------------------------------- client
@@ -346,20 +142,14 @@ class RobotClient:
         or from a server that answered it with an error ack (no extensions)."""
         self._connector = connector
         self._observers: list[Observer] = list(observers)
-        self._ids = IdAllocator(secrets.randbits(32) if id_start is None else id_start)
-        self._framer = LineFramer(max_line=max_line)
-        self._parser = AckParser()
-        # id -> submission. The one registry of pending messages. An ack's index in its submission is found from
-        # the one after the previous ack (acks come in order), else by search (Submission._index).
-        self._pending: dict[str, Submission] = {}
+        self._registry = PendingCalls(id_start=secrets.randbits(32) if id_start is None else id_start,
+                                      max_line=max_line)
+        self._registry.on_unexpected = self._log_unexpected
+        self._observers_changed()
         # Waiters with the default timeout, in deadline order, watched by ONE timer (a timer per wait costs
         # ~10-30 us of loop time per round trip on a small VM; deadlines of a constant timeout come in order).
         self._deadlines: deque[Submission] = deque()
         self._watchdog: asyncio.TimerHandle | None = None
-        # IDs given up by their waiter (cancel/timeout), to count their late acks; dict as an ordered set.
-        self._abandoned: dict[str, None] = {}
-        self._batch = 0
-        self._issued = 0  # IDs taken from self._ids so far (see _send)
         self._state = _NEW
         self._transport: asyncio.BaseTransport | None = None
         self._write: Callable[[bytes], None] | None = None
@@ -368,14 +158,27 @@ class RobotClient:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._loop_fns: tuple = (None, None, None)  # see _bind_loop
         self._lost_reason: BaseException | None = None
-        self._server_error: Ack | None = None  # the last error ack without an ID on this connection
         self._in_context = False
         self._connect_lock: asyncio.Lock | None = None
         self._closes = 0  # close() calls, so a reconnect that raced one does not resurrect the client
         # stop() calls so far: a call that began before a stop and had not yet written its command never writes it
         self._stops = 0
         self._stop_tasks: set[asyncio.Task[MessageResult]] = set()
-        self.stats = ClientStats()
+
+    @property
+    def stats(self) -> ClientStats:
+        """Counters of acks and of the unusual (unknown, late, bad lines), kept by the registry."""
+        return self._registry.stats
+
+    @property
+    def registry(self) -> PendingCalls:
+        """The sans-IO registry of pending messages (read its state; the client drives it)."""
+        return self._registry
+
+    @property
+    def reconnecting(self) -> bool:
+        """True while an ``auto_reconnect`` reconnect is in progress (calls wait for it)."""
+        return self._connect_lock is not None and self._connect_lock.locked()
 
     @property
     def connect_timeout_s(self) -> float:
@@ -407,13 +210,15 @@ class RobotClient:
     @property
     def pending_ids(self) -> tuple[str, ...]:
         """IDs written and not yet acked (nor given up)."""
-        return tuple(self._pending)
+        return self._registry.pending_ids
 
     def add_observer(self, observer: Observer) -> None:
         self._observers.append(observer)
+        self._observers_changed()
 
     def remove_observer(self, observer: Observer) -> None:
         self._observers.remove(observer)
+        self._observers_changed()
 
     async def __aenter__(self) -> RobotClient:
         if self._in_context:
@@ -447,7 +252,8 @@ class RobotClient:
                     write = writer.write
                     closed = None
                 else:
-                    proto = _AckProtocol(self, loop)
+                    proto = AckProtocol(self._registry.receive, self._bind_loop(loop)[1], self._on_transport_lost,
+                                        loop)
                     transport, _ = await loop.create_connection(lambda: proto, self.host, self.port)
                     write = transport.write  # type: ignore[attr-defined]
                     closed = proto.closed
@@ -456,17 +262,11 @@ class RobotClient:
                 from None
         except OSError as exc:
             raise ConnectError(f"connect to {self.host}:{self.port}: {exc}") from exc
-        sock = transport.get_extra_info("socket")
-        if sock is not None:
-            try:  # small writes must leave at once (asyncio sets this too; uvloop may not)
-                sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            except (OSError, AttributeError):
-                pass
+        set_nodelay(transport)
         self._loop = loop
         self._transport, self._write, self._transport_closed = transport, write, closed
-        self._framer.reset()
+        self._registry.reset()
         self._lost_reason = None
-        self._server_error = None
         self._state = _CONNECTED
         if reader is not None:
             self._reader_task = loop.create_task(self._read_loop(reader), name=f"RobotClient reader {self.host}")
@@ -478,6 +278,7 @@ class RobotClient:
         # Observers see the user's traffic only (a run's timing tables must not start with our probe); connect()
         # is awaited before any command of this client is sent, so nothing else is written meanwhile.
         observers, self._observers = self._observers, []
+        self._observers_changed()
         try:
             self.server_hello = await self.hello(timeout_s=timeout_s)
         except CommandError as exc:  # it speaks the protocol, without the hello extension: go on
@@ -492,6 +293,7 @@ class RobotClient:
                                   f"{timeout_s:g} s{said}: is this the robot's port?") from None
         finally:
             self._observers = observers
+            self._observers_changed()
 
     async def close(self) -> None:
         """Close the connection; pending waits fail with ConnectionLost. Idempotent."""
@@ -499,7 +301,7 @@ class RobotClient:
         self._state = _CLOSED
         self._closes += 1
         if was is _CONNECTED:
-            self._fail_pending("client closed the connection")
+            self._registry.fail_all("client closed the connection")
         await self._teardown()
 
     async def _teardown(self) -> None:
@@ -534,180 +336,24 @@ class RobotClient:
                 await closed
 
     # ------------------------------------------------------------------------------------------- reading
+    def _feed(self, data: bytes, t_recv: float) -> None:
+        """Route every ack in ``data`` (read at loop time ``t_recv``): the registry's ``receive``."""
+        self._registry.receive(data, t_recv)
+
     async def _read_loop(self, reader: asyncio.StreamReader) -> None:
-        """The only reader: cut the stream into lines and route each ack to its submission."""
-        feed = self._feed
-        loop_time = self._bind_loop(asyncio.get_running_loop())[1]
-        reason: BaseException | None = None
-        try:
-            while True:
-                data = await reader.read(_READ_SIZE)
-                if not data:
-                    break
-                feed(data, loop_time())
-        except (OSError, ConnectionError) as exc:
-            reason = exc
-        except Exception as exc:  # a bug here must not leave waiters hanging forever
-            log.exception("RobotClient reader failed")
-            reason = exc
-        # CancelledError (close/teardown) propagates: close() fails pending waiters itself.
+        """The only reader on the streams path (see :func:`aioadept.client.transport.read_loop`)."""
+        reason = await read_loop(reader, self._registry.receive, self._bind_loop(asyncio.get_running_loop())[1])
         self._on_lost(reason)
 
-    def _feed(self, data: bytes, t_recv: float) -> None:
-        """Route every ack in ``data`` (read at loop time ``t_recv``). The hot path of the client."""
-        pending_pop = self._pending.pop
-        parser = self._parser
-        pose_text, pose = parser._pose_text, parser._pose
-        times_text = parser._times_text
-        t_start, t_done = parser._times
-        make_result = _make_result
-        make_ack = _make_ack
-        ack_twin = _ACK_TWIN
-        result_twin = _RESULT_TWIN
-        ack_cls = Ack
-        result_cls = MessageResult
-        isfinite = math.isfinite
-        notify = self._notify_ack if self._observers else None
-        cur = None  # the submission of the previous ack, and its fields: consecutive acks mostly share one
-        calls: Sequence[SkillCall] = ()
-        results: list[MessageResult | None] = []
-        futs = None
-        ids: tuple[str, ...] = ()
-        batch = 0
-        j = 0
-        t_send = 0.0
-        fast = 0  # acks routed here (not by _route)
-        count = 0  # of them, acks of `cur` not yet subtracted from cur.remaining (one update per run of a batch)
-        try:
-            for item in self._framer.feed(data):
-                if type(item) is not bytes:
-                    self._unexpected("oversize", item.head, t_recv)  # type: ignore[union-attr]
-                    continue
-                # Fast path, inline because it runs once per ack: a plain `done` ack carrying the same pose text as
-                # the previous ack, checked exactly as AckParser.parse checks it (times text repeated within a
-                # millisecond is not parsed again either). Anything else takes _route().
-                parts = item.split(b":")  # type: ignore[union-attr]
-                if len(parts) == 4 and parts[3] == pose_text and parts[1] == b"done":
-                    # No ID syntax check needed: only IDs we issued are in the registry, so a hit proves it valid;
-                    # UnicodeDecodeError and a wrong number of times are ValueErrors like a bad float.
-                    try:
-                        mid = parts[0].decode("ascii")
-                        if parts[2] != times_text:
-                            ts, td = map(float, parts[2].split(b","))
-                            if not isfinite(ts + td):
-                                raise ValueError
-                            times_text, t_start, t_done = parts[2], ts, td
-                    except ValueError:
-                        mid = ""
-                    sub = pending_pop(mid, None) if mid else None
-                    if sub is not None:
-                        if sub is not cur:
-                            if count:
-                                _settle(cur, count)  # type: ignore[arg-type]
-                                fast += count
-                                count = 0
-                            if cur is not None:
-                                cur._next_i = j
-                            cur = sub
-                            calls, results, futs, ids = sub.calls, sub.results, sub.futures, sub.ids
-                            batch, t_send, j = sub.batch, sub.t_send_s, sub._next_i
-                        # Its index: one after the previous ack's (acks come in order), else search.
-                        i = j if j < len(ids) and ids[j] == mid else ids.index(mid)
-                        j = i + 1
-                        call = calls[i]
-                        if result_twin is not None:
-                            # make_result(..., make_ack(...)) inline: two calls cost more than the objects
-                            ack = ack_twin()
-                            ack.id = mid
-                            ack.status = _DONE
-                            ack.t_start_s = t_start
-                            ack.t_done_s = t_done
-                            ack.pose = pose
-                            ack.extra = ()
-                            ack.__class__ = ack_cls
-                            result = result_twin()
-                            result.id = mid
-                            result.skill = call.skill
-                            result.args = call.args
-                            result.batch = batch
-                            result.t_send_s = t_send
-                            result.t_recv_s = t_recv
-                            result.ack = ack
-                            result.__class__ = result_cls
-                        else:
-                            result = make_result(mid, call.skill, call.args, batch, t_send, t_recv,
-                                                 make_ack(mid, _DONE, t_start, t_done, pose, ()))
-                        results[i] = result
-                        count += 1
-                        if futs is not None and not futs[i].done():
-                            futs[i].set_result(result)
-                        if notify is not None:
-                            notify(result)
-                        continue
-                self._route(item, t_recv)  # type: ignore[arg-type]
-                pose_text, pose = parser._pose_text, parser._pose
-                times_text = parser._times_text
-                t_start, t_done = parser._times
-        finally:
-            if cur is not None:
-                cur._next_i = j
-            fast += count
-            if count:  # _settle(cur, count) inline
-                cur.remaining -= count  # type: ignore[union-attr]
-                if not cur.remaining and cur._waiter is not None and not cur._waiter.done():  # type: ignore
-                    cur._waiter.set_result(_W_ACKED)  # type: ignore[union-attr]
-            self.stats.acks += fast
-            if times_text is not parser._times_text:  # keep the last times for the next read
-                parser._times_text, parser._times = times_text, (t_start, t_done)
+    def _on_transport_lost(self, transport: asyncio.BaseTransport | None, exc: BaseException | None) -> None:
+        if self._transport is transport:  # never a later connection's business
+            self._on_lost(exc)
 
-    def _route(self, line: bytes, t_recv: float) -> None:
-        """The general path for one ack line: any status, any pose, unknown IDs, garbage."""
-        try:
-            ack = self._parser.parse(line)
-        except RemoteProtocolError:
-            self._unexpected("bad_line", line, t_recv)
-            return
-        sub = self._pending.pop(ack.id, None)
-        if sub is None:
-            self._unmatched(ack, line, t_recv)
-            return
-        i = sub._index(ack.id)
-        call = sub.calls[i]
-        result = _make_result(ack.id, call.skill, call.args, sub.batch, sub.t_send_s, t_recv, ack)
-        sub.results[i] = result
-        if ack.status is not _DONE and (sub._first_bad < 0 or i < sub._first_bad):
-            sub._first_bad = i
-        if sub.futures is not None and not sub.futures[i].done():
-            sub.futures[i].set_result(result)
-        sub.remaining -= 1
-        if not sub.remaining and sub._waiter is not None and not sub._waiter.done():
-            sub._waiter.set_result(_W_ACKED)
-        self.stats.acks += 1
-        if self._observers:
-            self._notify_ack(result)
-
-    def _unmatched(self, ack: Ack, line: bytes, t_recv: float) -> None:
-        if ack.id in self._abandoned:
-            del self._abandoned[ack.id]
-            self.stats.late_acks += 1
-        elif ack.id == NO_ID:
-            # Kept for the loss that usually follows: a server refusing us (too many clients, address not
-            # allowed) sends one such ack and closes, and the user should read why, not just "closed by peer".
-            self._server_error = ack
-            self._unexpected("unroutable_error", line, t_recv)
-        else:
-            self._unexpected("unknown_ack", line, t_recv)
-
-    def _unexpected(self, kind: str, line: bytes, t_recv: float) -> None:
-        stats = self.stats
-        if kind == "unknown_ack":
-            stats.unknown_acks += 1
-        elif kind == "unroutable_error":
-            stats.unroutable_errors += 1
-        else:
-            stats.bad_lines += 1
-        stats.unexpected.append((t_recv, kind, bytes(line)))
+    def _log_unexpected(self, kind: str, line: bytes, t_recv: float) -> None:
         log.warning("robot server %s:%s sent %s: %r", self.host, self.port, kind.replace("_", " "), line[:80])
+
+    def _observers_changed(self) -> None:
+        self._registry.on_result = self._notify_ack if self._observers else None
 
     def _on_lost(self, reason: BaseException | None) -> None:
         if self._state is not _CONNECTED:
@@ -715,29 +361,16 @@ class RobotClient:
         self._state = _LOST
         self._lost_reason = reason
         why = f"connection to {self.host}:{self.port} lost" + (f": {reason}" if reason else " (closed by peer)")
-        if self._server_error is not None:
-            err = self._server_error
+        if self._registry.server_error is not None:
+            err = self._registry.server_error
             why += f" after the server's error ack: {err.error_message} (code {err.error_code})"
-        log.warning("%s with %d message(s) unacked", why, len(self._pending))
-        self._fail_pending(why)
+        log.warning("%s with %d message(s) unacked", why, len(self._registry))
+        self._registry.fail_all(why)
 
-    def _fail_pending(self, why: str) -> None:
-        pending, self._pending = self._pending, {}
-        subs = {id(sub): sub for sub in pending.values()}  # in send order
-        for sub in subs.values():
-            if sub.futures is not None:
-                for mid, fut in zip(sub.ids, sub.futures):
-                    if mid in pending and not fut.done():
-                        # Per message; wait() merges them into one error with the whole batch's sets.
-                        fut.set_exception(_lost(why, unresolved=(mid,)))
-        for sub in subs.values():
-            sub._lost_reason = why
-            if sub._waiter is not None and not sub._waiter.done():
-                sub._waiter.set_result(_W_LOST)
 
     # ------------------------------------------------------------------------------------------- writing
     def _send(self, calls: Sequence[SkillCall], *, futures: bool = False) -> Submission:
-        """The one write path: allocate IDs, register the messages, then write the batch in one call."""
+        """The one write path: the registry allocates IDs and registers the messages, then one write."""
         if self._state is not _CONNECTED:
             self._raise_not_connected()
         loop = self._loop
@@ -746,91 +379,31 @@ class RobotClient:
         fns = self._loop_fns
         if fns[0] is not loop:
             fns = self._bind_loop(loop)
-        n = len(calls)
-        pending = self._pending
-        # An ID is never one still pending or given up (its late ack may still come) on this client. The counter
-        # cycles through the 2**32 - 1 IDs other than 00000000, so the first 2**32 - 1 IDs it issues are all
-        # distinct: only after that (_issued counts them) can an ID repeat, and only then are IDs checked (the
-        # check on every send costs ~0.1-0.25 us per message).
-        issued = self._issued = self._issued + n
-        if n == 1:
-            # IdAllocator.next() inline (a round trip's send; a call costs more than the work): the next ID unless
-            # it is 00000000 or the last before the wrap, which next() handles.
-            allocator = self._ids
-            k = allocator._next
-            if 0 < k < 0xFFFFFFFF:
-                allocator._next = k + 1
-                mid = "%08x" % k
-            else:
-                mid = allocator.next()
-            if issued > 0xFFFFFFFF and (mid in pending or mid in self._abandoned):
-                mid = self._unused_ids(1)[0]
-            ids: tuple[str, ...] = (mid,)
-            data = f"{mid}:{calls[0].wire}\r\n".encode("ascii")
-        else:
-            ids = tuple(self._ids.take(n))
-            if issued > 0xFFFFFFFF and (not pending.keys().isdisjoint(ids)
-                                        or not self._abandoned.keys().isdisjoint(ids)):
-                ids = self._unused_ids(n)
-            data = "".join([f"{mid}:{call.wire}\r\n" for mid, call in zip(ids, calls)]).encode("ascii")
-        batch = self._batch = self._batch + 1
-        # Submission(self, ids, calls, batch), inline for the same reason.
-        sub = _new_submission(Submission)
-        sub._client = self
-        sub.ids = ids
-        sub.calls = calls
-        sub.batch = batch
-        sub.results = [None] * n
-        sub.remaining = n
-        if futures:
-            new_future = fns[2]
-            sub.futures = tuple(new_future() for _ in range(n))
         # Registered before the write, so an ack can never beat its entry.
-        if n == 1:
-            pending[ids[0]] = sub
-        else:
-            pending.update(dict.fromkeys(ids, sub))
+        sub, data = self._registry.register(calls, fns[2] if futures else None)
+        sub._owner = self
         sub.t_send_s = fns[1]()
         try:
             write(data)
         except (OSError, ConnectionError, RuntimeError) as exc:
-            for mid in ids:
-                pending.pop(mid, None)
-            sub._settled = True
-            raise _lost(f"write to {self.host}:{self.port} failed: {exc}", unresolved=tuple(ids)) from exc
-        self.stats.messages_sent += n
+            self._registry.unregister(sub)
+            raise _lost(f"write to {self.host}:{self.port} failed: {exc}", unresolved=tuple(sub.ids)) from exc
+        self._registry.stats.messages_sent += len(sub.ids)
         if self._observers:
             self._notify_send(sub)
         return sub
 
-    def _unused_ids(self, n: int) -> tuple[str, ...]:
-        """The next ``n`` IDs that are neither pending nor given up (the slow path of :meth:`_send`)."""
-        out: dict[str, None] = {}
-        pending, abandoned, allocator = self._pending, self._abandoned, self._ids
-        while len(out) < n:
-            mid = allocator.next()
-            self._issued += 1
-            if mid not in pending and mid not in abandoned:
-                out[mid] = None
-        return tuple(out)
-
     def _bind_loop(self, loop: asyncio.AbstractEventLoop) -> tuple:
-        """``(loop, clock, new_future)``: ``loop.time`` and ``loop.create_future`` without a Python frame each when
-        they are asyncio's own (``time.monotonic()`` and ``Future(loop=loop)``, exactly what those do)."""
-        clock = loop.time
-        if getattr(clock, "__func__", None) is _BASE_TIME:
-            clock = time.monotonic
-        new_future: Callable[[], asyncio.Future] = loop.create_future
-        if getattr(new_future, "__func__", None) is _BASE_CREATE_FUTURE:
-            new_future = functools.partial(asyncio.Future, loop=loop)
-        fns = self._loop_fns = (loop, clock, new_future)
+        """``(loop, clock, new_future)`` for ``loop``, remembered (see :func:`aioadept.client.transport.loop_fns`)."""
+        fns = self._loop_fns = loop_fns(loop)
         return fns
+
 
     def _raise_not_connected(self) -> None:
         if self._state is _LOST:
             said = ""
-            if self._server_error is not None:
-                err = self._server_error
+            if self._registry.server_error is not None:
+                err = self._registry.server_error
                 said = f" after the server's error ack: {err.error_message} (code {err.error_code})"
             raise _lost(f"connection to {self.host}:{self.port} is lost{said}, nothing was sent "
                         "(call connect() to reconnect)")
@@ -944,20 +517,11 @@ class RobotClient:
             waiter.set_result(_W_TIMED_OUT)
 
     def _release(self, sub: Submission) -> None:
-        """Remove a submission's messages from the registry (idempotent); remember the unacked ones."""
-        if sub._settled:
+        """Remove a submission's messages from the registry (idempotent); cancel its timer and futures."""
+        if not self._registry.release(sub):
             return
-        sub._settled = True
         if sub._timer is not None:
             sub._timer.cancel()
-        if sub.remaining and sub._lost_reason is None:
-            pending = self._pending
-            abandoned = self._abandoned
-            for mid, r in zip(sub.ids, sub.results):
-                if r is None and pending.pop(mid, None) is not None:
-                    abandoned[mid] = None
-                    if len(abandoned) > _ABANDONED_MEMORY:
-                        del abandoned[next(iter(abandoned))]
         if sub.futures is not None:
             for fut in sub.futures:
                 if fut.done():
@@ -965,6 +529,7 @@ class RobotClient:
                         fut.exception()  # mark retrieved
                 else:
                     fut.cancel()
+
 
     # ------------------------------------------------------------------------------------------- public API
     def submit(self, *commands: Command | SkillCall) -> Submission:
@@ -1193,82 +758,14 @@ class RobotClient:
                 log.exception("observer %r failed in on_ack", obs)
 
     def __repr__(self) -> str:
-        return f"<RobotClient {self.host}:{self.port} {self._state.value} pending={len(self._pending)}>"
+        return f"<RobotClient {self.host}:{self.port} {self._state.value} pending={len(self._registry)}>"
 
 
-class _AckProtocol(asyncio.Protocol):
-    """The default TCP path: bytes go straight from the transport into :meth:`RobotClient._feed`.
 
-    Measured on a 2-core VM, a reader task between the stream and the registry costs one extra loop turn per
-    round trip (~10-20 us, about 10 % of a loopback round trip); this protocol routes acks in the transport's own
-    callback, as the bare ``readuntil`` client's wake-up does. Connectors that return streams (tests, in-memory
-    pairs) use the reader task instead; both feed the same method.
-    """
-
-    def __init__(self, client: RobotClient, loop: asyncio.AbstractEventLoop) -> None:
-        self._client = client
-        self._feed = client._feed
-        self._time = client._bind_loop(loop)[1]
-        self._transport: asyncio.BaseTransport | None = None
-        self.closed: asyncio.Future[None] = loop.create_future()
-
-    def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        self._transport = transport
-
-    def data_received(self, data: bytes) -> None:
-        try:
-            self._feed(data, self._time())
-        except Exception:  # a bug in routing must not kill the transport silently
-            log.exception("RobotClient failed routing acks")
-
-    def eof_received(self) -> bool:
-        return False  # close our side too: the server hung up
-
-    def connection_lost(self, exc: Exception | None) -> None:
-        if not self.closed.done():
-            self.closed.set_result(None)
-        if self._client._transport is self._transport:  # never a later connection's business
-            self._client._on_lost(exc)
-
-
-def _settle(sub: Submission, count: int) -> None:
-    """``count`` more acks of ``sub`` are in; wake its waiter when that was the last."""
-    sub.remaining -= count
-    if not sub.remaining and sub._waiter is not None and not sub._waiter.done():
-        sub._waiter.set_result(_W_ACKED)
-
-
-def _lost(reason: str, *, acked: tuple[str, ...] = (), unresolved: tuple[str, ...] = ()) -> ConnectionLost:
-    exc = ConnectionLost(reason, acked=acked, unresolved=unresolved)
-    exc.reason = reason  # type: ignore[attr-defined]  # the text without the id lists, to re-raise merged
-    return exc
-
-
-_new_submission = object.__new__
 _CALLS_OF_COMMAND = operator.attrgetter("_calls")  # Command._calls; AttributeError for anything else
-_make_exec = fast_constructor(ExecResult, ("messages", "sent", "sizes"))
-_make_result = fast_constructor(MessageResult, ("id", "skill", "args", "batch", "t_send_s", "t_recv_s", "ack"))
-# The twins behind _make_ack / _make_result, for _feed's inline build; both or neither (then it calls them).
-_ACK_TWIN = getattr(_make_ack, "twin", None)
-_RESULT_TWIN = getattr(_make_result, "twin", None) if _ACK_TWIN is not None else None
-_EXEC_TWIN = getattr(_make_exec, "twin", None)
 _STOP = SkillCall(STOP_SKILL)
 _HERE = SkillCall(HERE_SKILL)
 _HELLO = SkillCall(HELLO_SKILL)
-
-
-def _check_timeout(name: str, value: object, *, none_ok: bool = True) -> float | None:
-    """``value`` as seconds: ``None`` (if ``none_ok``) or a finite real > 0; else ValueError naming ``name``."""
-    if value is None:
-        if none_ok:
-            return None
-        raise ValueError(f"{name}: a number of seconds is required, not None")
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{name}: {value!r} is not a number of seconds")
-    seconds = float(value)
-    if not (math.isfinite(seconds) and seconds > 0):
-        raise ValueError(f"{name}: {value!r} is not a finite number of seconds > 0")
-    return seconds
 
 
 def _log_orphan_stop(task: asyncio.Task[MessageResult]) -> None:
@@ -1279,15 +776,3 @@ def _log_orphan_stop(task: asyncio.Task[MessageResult]) -> None:
         log.error("a stop whose caller was cancelled failed: %s", task.exception())
 
 
-def _calls_of(commands: Iterable[Command | SkillCall]) -> tuple[SkillCall, ...]:
-    out: list[SkillCall] = []
-    for i, c in enumerate(commands):
-        if isinstance(c, Command):
-            out.extend(c.calls())
-        elif isinstance(c, SkillCall):
-            out.append(c)
-        else:
-            raise TypeError(f"commands[{i}]: {c!r} is not a Command")
-    if not out:
-        raise ValueError("commands: nothing to send")
-    return out  # type: ignore[return-value]

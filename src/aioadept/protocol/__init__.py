@@ -7,6 +7,11 @@ simulated server (:mod:`aioadept.sim.server`) both drive it::
     for item in framer.feed(chunk):            # complete lines (bytes) or Oversize events
         msg = parse_command(item)             # CommandMessage, or raises RemoteProtocolError(code, ...)
     wire = encode_ack(Ack(id, Status.DONE, t_start_s, t_done_s, pose))
+    for ack in AckReader().feed(chunk):       # the client side: Ack, or BadAck / Oversize for a non-ack line
+        ...
+
+Its errors (the root ``AdeptError`` and the protocol errors) are in :mod:`aioadept.protocol.errors`, re-exported
+by :mod:`aioadept.errors`.
 """
 
 from aioadept.protocol.codes import DEFAULT_TEXT, ErrorCode, describe
@@ -20,7 +25,6 @@ from aioadept.protocol.messages import (
     PROTOCOL_VERSION,
     STOP_SKILL,
     Ack,
-    AckParser,
     CommandMessage,
     IdAllocator,
     SkillCall,
@@ -34,10 +38,11 @@ from aioadept.protocol.messages import (
     recover_id,
     sanitize_text,
 )
+from aioadept.protocol.reader import AckParser, AckReader, BadAck
 
 __all__ = [
     "DEFAULT_TEXT", "DELIMITER", "HELLO_SKILL", "HERE_SKILL", "ID_LENGTH", "MAX_ACK_LINE", "MAX_LINE", "MAX_SKILL_NAME", "NO_ID", "PROTOCOL_VERSION", "STOP_SKILL",
-    "Ack", "AckParser", "CommandMessage", "ErrorCode", "IdAllocator", "LineFramer", "Oversize", "SkillCall", "Status",
+    "Ack", "AckParser", "AckReader", "BadAck", "CommandMessage", "ErrorCode", "IdAllocator", "LineFramer", "Oversize", "SkillCall", "Status",
     "check_skill_name", "describe", "encode_ack", "encode_command", "format_arg", "parse_ack", "parse_command",
     "recover_id", "sanitize_text",
 ]

@@ -24,9 +24,9 @@ from dataclasses import dataclass, field
 from typing import Any
 from enum import Enum
 
-from aioadept.errors import LocalProtocolError, RemoteProtocolError
 from aioadept.geometry import Pose
 from aioadept.protocol.codes import DEFAULT_TEXT, ErrorCode
+from aioadept.protocol.errors import LocalProtocolError, RemoteProtocolError
 from aioadept.protocol.framing import DELIMITER, MAX_LINE
 
 ID_LENGTH = 8
@@ -368,55 +368,6 @@ def fast_constructor(cls: type, names: tuple[str, ...]) -> Callable[..., Any]:
 
 _make_pose = fast_constructor(Pose, ("x", "y", "z", "yaw", "pitch", "roll"))
 _make_ack = fast_constructor(Ack, ("id", "status", "t_start_s", "t_done_s", "pose", "extra"))
-
-
-class AckParser:
-    """:func:`parse_ack` for a stream of acks: same results and errors, faster.
-
-    It builds values with :func:`fast_constructor` and remembers the last pose text and the last times text,
-    because consecutive acks often repeat them: the pose of every ack written while the robot stands still, and
-    the times of acks written in the same millisecond (server clock resolution). The same text yields the same
-    (immutable) Pose object and the same floats without parsing them again.
-    """
-
-    __slots__ = ("_pose_text", "_pose", "_times_text", "_times")
-
-    def __init__(self) -> None:
-        self._pose_text: bytes | None = None  # None until a pose has been parsed: never equal to a field
-        self._pose: Pose | None = None
-        self._times_text: bytes | None = None
-        self._times = (0.0, 0.0)
-
-    def parse(self, line: bytes) -> Ack:
-        parts = line.split(b":")
-        if len(parts) != 4 or parts[3] != self._pose_text or parts[1] != b"done":
-            ack = parse_ack(line)
-            if len(parts) >= 4:
-                self._pose_text = parts[3]
-                self._pose = ack.pose
-                self._times_text = parts[2]
-                self._times = (ack.t_start_s, ack.t_done_s)
-            return ack
-        # A plain `done` ack with the pose of the previous one: only the head and times are new. bytes.isalnum()
-        # is ASCII-only, so this checks the ID exactly as parse_ack does; float() takes ASCII bytes.
-        mid = parts[0]
-        if len(mid) != ID_LENGTH or not mid.isalnum():
-            return parse_ack(line)
-        if parts[2] != self._times_text:
-            times = parts[2].split(b",")
-            if len(times) != 2:
-                return parse_ack(line)
-            try:
-                t_start = float(times[0])
-                t_done = float(times[1])
-            except ValueError:
-                return parse_ack(line)
-            if not math.isfinite(t_start + t_done):
-                return parse_ack(line)
-            self._times_text = parts[2]
-            self._times = (t_start, t_done)
-        t_start, t_done = self._times
-        return _make_ack(mid.decode("ascii"), _DONE, t_start, t_done, self._pose, ())
 
 
 class IdAllocator:
