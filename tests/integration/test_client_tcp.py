@@ -19,7 +19,7 @@ from aioadept.errors import (
     ConnectionLost,
 )
 from aioadept.geometry import Pose
-from aioadept.protocol import Ack, LineFramer, Status, encode_ack, parse_ack, parse_command
+from aioadept.protocol import Ack, AckReader, LineFramer, Status, encode_ack, parse_command
 from aioadept.testing import Reply, ScriptedServer
 
 POSE = Pose(480.014, -0.038, 709.975, 0.0, 179.995, 0.004)
@@ -465,13 +465,13 @@ async def test_oversize_command_line_gets_an_error_ack_with_its_id():
     async with ScriptedServer() as server:
         reader, writer = await asyncio.open_connection(server.host, server.port)
         writer.write(b"0000abcd:set_speed:" + b"1" * 200 + b"\r\n0000abce:break\r\n")
-        framer = LineFramer(1024)
-        acks = []
+        ack_reader = AckReader()
+        acks: list[Ack] = []
         while len(acks) < 2:
-            acks += framer.feed(await reader.read(4096))
+            acks += ack_reader.acks(await reader.read(4096))
         writer.close()
         await writer.wait_closed()
-    first, second = (parse_ack(a) for a in acks)
+    first, second = acks
     assert (first.id, first.status, first.error_code) == ("0000abcd", Status.ERROR, -402)
     assert (second.id, second.status) == ("0000abce", Status.DONE)
 

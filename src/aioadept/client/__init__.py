@@ -1,10 +1,10 @@
 """The asyncio client of a robot server (the paper's MasterControlNode ↔ RobotServer link), by role:
 
-- :mod:`~aioadept.client.results`: the values it gives back (``MessageResult``, ``ExecResult``, ...);
-- :mod:`~aioadept.client.registry`: ``PendingCalls``, the sans-IO registry of pending messages (IDs, routing
+- ``client/results.py``: the values it gives back (``MessageResult``, ``ExecResult``, ...);
+- ``client/registry.py``: ``PendingCalls``, the sans-IO registry of pending messages (IDs, routing
   acks to submissions, failing them all on a lost connection), driven by bytes in unit tests;
-- :mod:`~aioadept.client.transport`: the asyncio transport (TCP protocol callback, or a stream reader task);
-- :mod:`~aioadept.client.robot`: ``RobotClient``, lifecycle, timeouts, the stop path and the public calls.
+- ``client/transport.py``: the asyncio transport (TCP protocol callback, or a stream reader task);
+- ``client/robot.py``: ``RobotClient``, lifecycle, timeouts, the stop path and the public calls.
 
 Import everything from here: ``from aioadept.client import RobotClient``.
 """

@@ -3,7 +3,7 @@
 
 Where it sits in the data path: :class:`~aioadept.client.RobotClient` asks it for a batch's IDs and wire bytes
 (:meth:`PendingCalls.register`, *before* it writes them), feeds it every chunk it reads with the read time
-(:meth:`PendingCalls.receive`: an :class:`~aioadept.protocol.AckReader` cuts the chunk into acks, each is routed to
+(``PendingCalls.receive``: an :class:`~aioadept.protocol.AckReader` cuts the chunk into acks, each is routed to
 its :class:`Submission`), and tells it when a waiter gives up (:meth:`PendingCalls.release`, in ``finally``) or
 the connection drops (:meth:`PendingCalls.fail_all`: every pending submission learns which of its messages are
 known done and which are unresolved). Unit tests drive it with bytes and read its state::

@@ -1,5 +1,9 @@
 """RobotClient: the asyncio side of the robot line protocol (the paper's MasterControlNode ↔ RobotServer link).
 
+(Over 500 lines on purpose: it is one state machine, connection state, waits and the stop path, whose round-trip
+path is inlined and measured (benchmarks/bench_client.py); its pure parts already live beside it in results.py,
+registry.py and transport.py, and splitting the rest into mixins would scatter one object's state.)
+
 It sits between the commands (:mod:`aioadept.commands`, values that expand to skill calls) and the TCP connection,
 and drives the sans-IO core (:mod:`aioadept.protocol`) over asyncio::
 
@@ -13,7 +17,7 @@ How it works, and the promises it keeps:
 - One write path (``RobotClient._send``): the sans-IO registry (:class:`~aioadept.client.PendingCalls`) allocates
   IDs and registers every message of the batch (ID -> submission) *before* the bytes are written, then the batch
   goes out in one write.
-- One place routes acks (:meth:`PendingCalls.receive`, over the one :class:`~aioadept.protocol.AckReader`): on TCP
+- One place routes acks (``PendingCalls.receive``, over the one :class:`~aioadept.protocol.AckReader`): on TCP
   it runs in the transport's ``data_received`` (a
   protocol, not a reader task: one loop turn less per round trip); with a ``connector`` that returns asyncio
   streams (tests, in-memory pairs) a single reader task feeds it. It does nothing else: no per-message logging, no
@@ -341,7 +345,7 @@ class RobotClient:
         self._registry.receive(data, t_recv)
 
     async def _read_loop(self, reader: asyncio.StreamReader) -> None:
-        """The only reader on the streams path (see :func:`aioadept.client.transport.read_loop`)."""
+        """The only reader on the streams path (see ``client/transport.py``'s ``read_loop``)."""
         reason = await read_loop(reader, self._registry.receive, self._bind_loop(asyncio.get_running_loop())[1])
         self._on_lost(reason)
 
@@ -394,7 +398,7 @@ class RobotClient:
         return sub
 
     def _bind_loop(self, loop: asyncio.AbstractEventLoop) -> tuple:
-        """``(loop, clock, new_future)`` for ``loop``, remembered (see :func:`aioadept.client.transport.loop_fns`)."""
+        """``(loop, clock, new_future)`` for ``loop``, remembered (see ``client/transport.py``'s ``loop_fns``)."""
         fns = self._loop_fns = loop_fns(loop)
         return fns
 
