@@ -27,10 +27,7 @@ KNOWN_CYCLES: list[frozenset[str]] = [
 # simulator, the bus must not know its users.
 FORBIDDEN = [("aioadept.vision", "aioadept.sim"), ("aioadept.bus", "aioadept.vision"),
              ("aioadept.protocol", "aioadept.client"), ("aioadept.client", "aioadept.sim")]
-KNOWN_WRONG_WAY = {
-    # to be removed by issue 13 item 2/5
-    ("aioadept.vision.virtual_camera", "aioadept.sim.kinematics"),
-}
+KNOWN_WRONG_WAY: set[tuple[str, str]] = set()
 
 
 def module_name(path: Path) -> str:

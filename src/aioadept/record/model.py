@@ -13,7 +13,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from aioadept.geometry import Pose
-from aioadept.sim import kinematics as kin
+from aioadept.robots import viper_s850 as kin
 
 __all__ = ["LINK_NAMES", "chain_points_mm", "joints_from_pose"]
 

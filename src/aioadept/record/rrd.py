@@ -45,7 +45,7 @@ import numpy as np
 
 from aioadept.geometry import Pose, rel_tool
 from aioadept.record.model import LINK_NAMES, chain_points_mm, joints_from_pose
-from aioadept.sim import kinematics as kin
+from aioadept.robots import viper_s850 as kin
 
 __all__ = ["APP_ID", "IMAGE_MAX_WIDTH", "CellLogger", "FrameRef", "frame_file"]
 

@@ -12,7 +12,7 @@ In-process use for tests: :func:`aioadept.testing.sim.running_sim`.
 """
 
 from aioadept.sim.controller import Controller, SkillResult, SkillSpec
-from aioadept.sim.kinematics import HOME_JOINTS_DEG, forward, inverse
+from aioadept.robots.viper_s850 import HOME_JOINTS_DEG, forward, inverse
 from aioadept.sim.server import Faults, SimOptions, SimServer
 
 __all__ = ["HOME_JOINTS_DEG", "Controller", "Faults", "SimOptions", "SimServer", "SkillResult", "SkillSpec",

@@ -14,7 +14,7 @@ import sys
 
 from aioadept.cli import DefaultsHelpFormatter, description
 from aioadept.geometry import NULL, Pose
-from aioadept.sim import kinematics as kin
+from aioadept.robots import viper_s850 as kin
 from aioadept.sim.server import DEFAULT_PORT, DEFAULT_STATE_ENDPOINT, Faults, SimOptions, SimServer
 
 

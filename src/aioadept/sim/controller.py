@@ -69,7 +69,7 @@ from aioadept.protocol import (
     parse_command,
     recover_id,
 )
-from aioadept.sim import kinematics as kin
+from aioadept.robots import viper_s850 as kin
 from aioadept.sim.motion import MotionLimits, Trajectory
 
 SERVER_NAME = "aioadept-sim"

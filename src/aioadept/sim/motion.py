@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aioadept.sim.kinematics import MAX_JOINT_SPEED_DEG_S
+from aioadept.robots.viper_s850 import MAX_JOINT_SPEED_DEG_S
 
 
 @dataclass(frozen=True, slots=True)

@@ -32,7 +32,7 @@ from aioadept.errors import RemoteProtocolError
 from aioadept.protocol import (
     MAX_LINE, NO_ID, STOP_SKILL, Ack, CommandMessage, ErrorCode, LineFramer, Oversize, encode_ack, parse_command,
 )
-from aioadept.sim import kinematics as kin
+from aioadept.robots import viper_s850 as kin
 from aioadept.sim.controller import Controller, Outgoing
 
 log = logging.getLogger(__name__)

@@ -159,12 +159,12 @@ def paper_approach_pose(forward: Callable[[Sequence[float]], Pose] | None = None
     """The approach pose of the paper's focus application: where ``init_move`` leaves the robot.
 
     ``MoveJoints([0,-90,180,0,90,0]); MoveRelJoints([-90,60,30,-90,0,0]); MoveRelTool([40,-25,185,0,0,0]);
-    MoveRelJoints([0,0,0,0,0,1.5])``, computed with the sim's kinematics (``aioadept.sim.kinematics``): forward
+    MoveRelJoints([0,0,0,0,0,1.5])``, computed with the Viper s850 kinematics (``aioadept.robots.viper_s850``): forward
     kinematics of the joints after the first two moves, the tool-frame move, inverse kinematics for its joints,
     and forward kinematics again after the J6 increment. ``forward`` may replace the sim's forward function (the
     inverse then becomes a tool-frame composition, which is what a J6 rotation is for a flange on the J6 axis).
     """
-    from aioadept.sim import kinematics as kin
+    from aioadept.robots import viper_s850 as kin
 
     fk = forward or kin.forward
     joints = [h + d for h, d in zip(PAPER_HOME_JOINTS_DEG, PAPER_REL_JOINTS_DEG)]

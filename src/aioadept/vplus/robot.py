@@ -49,7 +49,7 @@ from typing import Union
 from aioadept.errors import RobotError
 from aioadept.geometry import Pose, inverse_transform
 from aioadept.protocol import ErrorCode
-from aioadept.sim import kinematics as kin
+from aioadept.robots import viper_s850 as kin
 from aioadept.sim.controller import Controller
 from aioadept.vplus import errors as E
 from aioadept.vplus.locations import PrecisionPoint, Transform, compose, trans
