@@ -50,13 +50,15 @@ __all__ = [
     "open_socket",
 ]
 
+from aioadept import defaults as _defaults  # noqa: E402
+
 log = logging.getLogger(__name__)
 
-DEFAULT_REQUEST_ENDPOINT = "tcp://127.0.0.1:5555"
+DEFAULT_REQUEST_ENDPOINT = _defaults.REQUEST_ENDPOINT
 """Vision requests: the MCN's PUB binds, the node's SUB connects, as in pyadept/EPypes (docs/interfaces.md)."""
-DEFAULT_RESPONSE_ENDPOINT = "tcp://127.0.0.1:5556"
+DEFAULT_RESPONSE_ENDPOINT = _defaults.RESPONSE_ENDPOINT
 """Vision responses: the node's PUB binds, the MCN's SUB connects."""
-DEFAULT_STATE_ENDPOINT = "tcp://127.0.0.1:5560"
+DEFAULT_STATE_ENDPOINT = _defaults.STATE_ENDPOINT
 """Robot state stream (topic ``robot.state``): the sim's PUB binds."""
 
 

@@ -37,8 +37,9 @@ from aioadept.sim.controller import Controller, Outgoing
 
 log = logging.getLogger(__name__)
 
-DEFAULT_PORT = 1234
-DEFAULT_STATE_ENDPOINT = "tcp://127.0.0.1:5560"
+# The defaults of a cell are written once, in aioadept.defaults.
+from aioadept.defaults import ROBOT_PORT as DEFAULT_PORT, STATE_ENDPOINT as DEFAULT_STATE_ENDPOINT  # noqa: E402
+
 READ_SIZE = 4096
 """Bytes taken from one connection per read: about a hundred command lines, so one flooding peer's turn is short."""
 LINES_PER_TURN = 32
