@@ -13,6 +13,7 @@ import dataclasses
 import sys
 import tomllib
 import traceback
+import types
 import typing
 from pathlib import Path
 from typing import Any
@@ -53,6 +54,10 @@ def _type_name(value: Any) -> str:
 def _matches(value: Any, hint: Any) -> tuple[bool, str]:
     """Whether ``value`` (from TOML) fits the annotation ``hint``, and what was expected in words."""
     origin = typing.get_origin(hint)
+    if origin in (typing.Union, types.UnionType):  # e.g. ``str | list[str]``: any arm will do
+        arms = [a for a in typing.get_args(hint) if a is not type(None)]
+        results = [_matches(value, a) for a in arms]
+        return any(ok for ok, _ in results), " or ".join(w for _, w in results if w)
     if origin is list:
         (item,) = typing.get_args(hint) or (Any,)
         ok = isinstance(value, list) and all(_matches(v, item)[0] for v in value)
@@ -86,7 +91,7 @@ def check_section(typ: type, section: Any, where: str) -> dict[str, Any]:
         ok, expected = _matches(value, hints.get(key, Any))
         if not ok:
             raise ConfigError(f"{where}: {key} = {_show(value)}: expected {expected}, got {_type_name(value)}")
-        if hints.get(key) is float and isinstance(value, int):
+        if hints.get(key) in (float, float | None) and isinstance(value, int) and not isinstance(value, bool):
             out[key] = float(value)
     return out
 

@@ -42,13 +42,14 @@ BAD_CONFIGS = {
 
 
 @pytest.mark.timeout(60)
-@pytest.mark.parametrize("command", ["demo", "focus", "experiment"])
+@pytest.mark.parametrize("command", ["demo", "focus", "experiment", "vision"])
 @pytest.mark.parametrize("case", sorted(BAD_CONFIGS))
 def test_a_config_mistake_is_one_line_naming_file_and_key_with_exit_2(tmp_path, command, case):
     text, words = BAD_CONFIGS[case]
     cfg = tmp_path / "cell.toml"
     cfg.write_text(text)
-    proc = run(command, "--config", str(cfg), "--out", str(tmp_path / "runs"), cwd=tmp_path)
+    out = [] if command == "vision" else ["--out", str(tmp_path / "runs")]  # the node has no run folder
+    proc = run(command, "--config", str(cfg), *out, cwd=tmp_path)
     assert proc.returncode == 2, proc.stdout + proc.stderr
     line = one_error_line(proc)
     assert line.startswith(f"aioadept {command}: {cfg}"), line
@@ -58,7 +59,7 @@ def test_a_config_mistake_is_one_line_naming_file_and_key_with_exit_2(tmp_path, 
 
 
 @pytest.mark.timeout(60)
-@pytest.mark.parametrize("command", ["demo", "focus", "experiment"])
+@pytest.mark.parametrize("command", ["demo", "focus", "experiment", "vision"])
 def test_a_missing_config_file_is_one_line(tmp_path, command):
     proc = run(command, "--config", str(tmp_path / "nope.toml"), cwd=tmp_path)
     assert proc.returncode == 2

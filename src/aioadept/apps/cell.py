@@ -18,21 +18,23 @@ from typing import Any
 
 from aioadept.apps.focus import FocusParams, FocusResult, ufloop
 from aioadept.apps.processes import NodeProcess, watch
+from aioadept.defaults import ROBOT_HOST, ROBOT_PORT, STATE_ENDPOINT
+from aioadept.vision.options import VisionOptions
 
 log = logging.getLogger(__name__)
 
 
 @dataclass(slots=True)
 class RobotSection:
-    host: str = "127.0.0.1"
-    port: int = 1234
+    host: str = ROBOT_HOST
+    port: int = ROBOT_PORT
     """0 with ``start_sim``: pick a free port."""
     start_sim: bool = True
     """Start ``aioadept sim`` on this machine (else connect to a running server, e.g. a real controller)."""
     time_scale: float = 1.0
     """Sim motion speed-up (1 = real time)."""
     monitor_speed: int = 100
-    state_endpoint: str = "tcp://127.0.0.1:5560"
+    state_endpoint: str = STATE_ENDPOINT
     """Where the sim publishes the robot state (the virtual camera subscribes). Port 0: pick a free one."""
     connect_timeout_s: float = 5.0
     ack_timeout_s: float = 30.0
@@ -43,28 +45,14 @@ class RobotSection:
 
 
 @dataclass(slots=True)
-class VisionSection:
+class VisionSection(VisionOptions):
+    """The cell file's ``[vision]`` table: every option of the vision node (:class:`VisionOptions`, the one schema
+    ``aioadept vision --config`` reads too), and what only a starter needs."""
+
     start: bool = True
     """Start ``aioadept vision`` on this machine."""
-    request_endpoint: str = "tcp://127.0.0.1:5555"
-    """The node's request SUB, CZMQ style from the node's side: bare connects (the MCN binds it, as pyadept's
-    PubSubPair does), ``@`` makes the node bind it (the MCN connects); see docs/interfaces.md."""
-    response_endpoint: str = "tcp://127.0.0.1:5556"
-    """The node's response PUB: bare binds (the MCN connects), ``>`` makes the node connect to the MCN's SUB."""
-    source: str = "virtual"
-    focus_offset_mm: float = 20.0
-    """Virtual camera: how far along tool z beyond the approach pose the focal plane lies."""
-    fps: float = 15.0
-    policy: str = "after"
-    """Frame choice: "nearest" in time to the request (the paper), or the first frame "after" it."""
-    trigger: str = "auto"
-    """Acquisition: "auto" (each request software-triggers its own exposure on cameras that can), "software"
-    (insist: an error for a camera that cannot), "free" (free-running at ``fps``)."""
-    exposure_ms: float = 5.0
-    """Exposure time, ms: the virtual camera's, and written to a GigE camera (``source = "gige:ADDRESS"``)."""
-    pixel_format: str = "Mono8"
-    """GigE cameras: the PixelFormat written at open (Mono8, Mono16, Bayer..8)."""
     vision_args: list[str] = field(default_factory=list)
+    """Further command-line arguments for the node."""
 
 
 @dataclass(slots=True)
@@ -103,30 +91,23 @@ class CellConfig:
         parts = {}
         for name, typ in known.items():
             # Unknown keys and wrong types as one line naming file, key and what was expected (ConfigError).
-            parts[name] = typ(**check_section(typ, data.get(name, {}), f"{source} [{name}]"))
+            where = f"{source} [{name}]"
+            if typ is VisionSection:
+                parts[name] = VisionSection.from_table(data.get(name, {}), where)
+            else:
+                parts[name] = typ(**check_section(typ, data.get(name, {}), where))
         cfg = cls(**parts)
         v = cfg.vision
-        where = f"{source} [vision]"
-        if v.policy not in ("after", "nearest"):
-            raise ConfigError(f'{where}: policy = "{v.policy}": expected "after" or "nearest"')
-        if v.trigger not in ("auto", "software", "free"):
-            raise ConfigError(f'{where}: trigger = "{v.trigger}": expected "auto", "software" or "free"')
-        if not 0 < v.exposure_ms < float("inf"):
-            raise ConfigError(f"{where}: exposure_ms = {v.exposure_ms!r}: expected a finite number of ms > 0")
-        from aioadept.vision.gige import PIXEL_FORMATS
-
-        if v.pixel_format not in PIXEL_FORMATS:
-            raise ConfigError(f'{where}: pixel_format = "{v.pixel_format}": expected one of {", ".join(PIXEL_FORMATS)}')
+        if not v.exposure_ms > 0:  # the node takes 0 (a camera's own minimum); a cell's camera must expose
+            raise ConfigError(f"{source} [vision]: exposure_ms = {v.exposure_ms!r}: expected a finite number of "
+                              f"ms > 0")
         from aioadept.bus.endpoints import parse_endpoint
         from aioadept.errors import BusError
 
-        for key, value in (("robot.state_endpoint", cfg.robot.state_endpoint),
-                           ("vision.request_endpoint", cfg.vision.request_endpoint),
-                           ("vision.response_endpoint", cfg.vision.response_endpoint)):
-            try:
-                parse_endpoint(value)
-            except BusError as exc:
-                raise ValueError(f"{source}: {key}: {exc}") from None
+        try:
+            parse_endpoint(cfg.robot.state_endpoint)
+        except BusError as exc:
+            raise ConfigError(f"{source}: robot.state_endpoint: {exc}") from None
         return cfg
 
     def to_dict(self) -> dict[str, Any]:
@@ -169,12 +150,30 @@ def sim_argv(cfg: CellConfig) -> list[str]:
 
 
 def vision_argv(cfg: CellConfig) -> list[str]:
+    """The node's command line: the addresses of the cell, then every ``[vision]`` option not at its default."""
     v = cfg.vision
-    return ["vision", "--source", v.source, "--state-endpoint", cfg.robot.state_endpoint,
+    argv = ["vision", "--state-endpoint", cfg.robot.state_endpoint,
             "--request-endpoint", v.request_endpoint, "--response-endpoint", v.response_endpoint,
             "--focus-offset-mm", str(v.focus_offset_mm), "--fps", str(v.fps), "--policy", v.policy,
-            "--trigger", v.trigger, "--exposure-ms", str(v.exposure_ms), "--pixel-format", v.pixel_format,
-            *v.vision_args]
+            "--trigger", v.trigger, "--exposure-ms", str(v.exposure_ms), "--pixel-format", v.pixel_format]
+    for spec in v.sources():
+        argv += ["--source", spec]
+    written = {"state_endpoint", "request_endpoint", "response_endpoint", "focus_offset_mm", "fps", "policy",
+               "trigger", "exposure_ms", "pixel_format", "source"}
+    default = VisionOptions()
+    for f in dataclasses.fields(VisionOptions):
+        value = getattr(v, f.name)
+        if f.name in written or value == getattr(default, f.name) or value is None:
+            continue
+        flag = "--" + f.name.replace("_", "-")
+        if isinstance(value, bool):
+            argv += [flag] if value else []
+        elif isinstance(value, list):
+            for item in value:
+                argv += [flag, str(item)]
+        else:
+            argv += [flag, str(value)]
+    return [*argv, *v.vision_args]
 
 
 def new_run_dir(cfg: CellConfig, base: Path | None = None) -> Path:

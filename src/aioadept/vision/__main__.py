@@ -31,40 +31,11 @@ log = logging.getLogger("aioadept.vision")
 
 GRAPH_THREAD_CHOICES = ("auto", "always", "never")  # aioadept.vision.node.GRAPH_THREAD_MODES, without importing it
 
-DEFAULTS: dict[str, Any] = {
-    "source": ["virtual"],
-    "state_endpoint": "tcp://127.0.0.1:5560",
-    "request_endpoint": "tcp://127.0.0.1:5555",
-    "response_endpoint": "tcp://127.0.0.1:5556",
-    "fps": 15.0,
-    "buffer_size": 64,
-    "focus_offset_mm": 20.0,
-    "working_distance_mm": 300.0,
-    "f_number": 2.8,
-    "noise_sigma": 2.0,
-    "seed": None,
-    "policy": "after",
-    "max_frame_age": 0.1,
-    "trigger": "auto",
-    "exposure_ms": 5.0,
-    "pixel_format": "Mono8",
-    "readout_ms": None,
-    "frame_timeout": 1.0,
-    "graph": "sharpness",
-    "graph_thread": "auto",
-    "graph_inline_max_ms": 5.0,
-    "inline": False,
-    "save_frames": None,
-    "figures": None,
-    "log_level": "INFO",
-    "curve_secret": None,
-    "state_curve_secret": None,
-    "state_curve_server": None,
-    "curve_allow": None,
-    "max_state_age": 0.5,
-    "max_queue": 32,
-    "max_request_bytes": 1 << 20,
-}
+from aioadept.vision.options import VisionOptions  # noqa: E402  (light: neither OpenCV nor ZeroMQ)
+
+DEFAULTS: dict[str, Any] = VisionOptions().to_dict()
+DEFAULTS["source"] = ["virtual"]
+"""Every option's default: one schema, :class:`aioadept.vision.options.VisionOptions`."""
 
 
 # The READY line's ``thread=`` field: where graphs run.
@@ -155,16 +126,30 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def load_config(path: str) -> dict[str, Any]:
-    """Options from a TOML file: keys normalised to ``snake_case``; raises ValueError for unknown keys."""
+    """Options from a TOML file, checked against the one vision schema (:class:`VisionOptions`); raises
+    :class:`aioadept.configfile.ConfigError` naming the file and the key.
+
+    A file with a ``[vision]`` (or ``[robot]``, ``[focus]``, ``[run]``) table is read as a cell file (``examples/cell.toml``: the whole file is checked as
+    ``demo`` checks it; the node takes ``[vision]``, and the robot's ``state_endpoint`` unless ``[vision]`` has its
+    own; a starter's ``start`` is ignored and ``vision_args`` come before the command line's). Otherwise the options
+    are the top-level keys, with ``_`` or ``-``.
+    """
     from aioadept.configfile import load_toml
 
     data = load_toml(path)  # the file named, and the line of bad TOML (the reader every --config shares)
-    if isinstance(data.get("vision"), dict):
-        data = data["vision"]
-    out = {k.replace("-", "_"): v for k, v in data.items()}
-    unknown = sorted(set(out) - set(DEFAULTS))
-    if unknown:
-        raise ValueError(f"{path}: unknown options {unknown}")
+    if set(data) & {"robot", "vision", "focus", "run"}:  # a cell file: one schema, checked as demo checks it
+        from aioadept.apps.cell import CellConfig
+
+        cfg = CellConfig.from_dict(data, source=str(path))
+        table = {str(k).replace("-", "_") for k in (data.get("vision") or {})}
+        out = {k: v for k, v in cfg.vision.to_dict().items() if k in table}
+        if "state_endpoint" not in out and "state_endpoint" in (data.get("robot") or {}):
+            out["state_endpoint"] = cfg.robot.state_endpoint
+        if cfg.vision.vision_args:
+            out["vision_args"] = list(cfg.vision.vision_args)
+    else:
+        opts = VisionOptions.from_table(data, str(path))
+        out = {k: v for k, v in opts.to_dict().items() if k in {str(k).replace("-", "_") for k in data}}
     if isinstance(out.get("source"), str):
         out["source"] = [out["source"]]
     return out
@@ -178,8 +163,13 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
     if args.config:
         try:
             merged.update(load_config(args.config))
-        except (OSError, ValueError, tomllib.TOMLDecodeError) as exc:
-            parser.error(str(exc))
+        except (OSError, ValueError, tomllib.TOMLDecodeError) as exc:  # one line naming the file and the key
+            from aioadept.configfile import report
+
+            raise SystemExit(report("aioadept vision", exc)) from None
+        extra = merged.pop("vision_args", None)
+        if extra:  # the cell file's further arguments, overridden by the command line's
+            args = parser.parse_args([*extra, *argv])
     for key, value in vars(args).items():
         if key != "config" and value is not None:
             merged[key] = value

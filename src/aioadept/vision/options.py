@@ -1,0 +1,147 @@
+"""The vision node's options as one dataclass: the single schema of a ``[vision]`` table, for both ``aioadept
+vision --config FILE`` and the cell file of ``demo``/``focus``/``experiment`` (``examples/cell.toml``).
+
+:class:`VisionOptions` lists every option with its type and default; :meth:`VisionOptions.from_table` checks a TOML
+table against it once (unknown keys, wrong types, bad values), with errors naming the file and the key
+(:class:`aioadept.configfile.ConfigError`). :data:`SOURCES` is the registry of camera sources a ``source`` spec may
+name. Importing this module loads neither OpenCV nor ZeroMQ.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from aioadept.defaults import REQUEST_ENDPOINT, RESPONSE_ENDPOINT, STATE_ENDPOINT
+
+SOURCES: dict[str, str] = {
+    "virtual": "the virtual camera, rendering the calibration object at the robot's tool pose (no argument)",
+    "gige": "gige:ADDRESS, a GigE Vision camera's IPv4 address (opened by address; needs the [gige] extra)",
+    "folder": "folder:PATH, images of a folder (a --save-frames folder replays with its times)",
+    "opencv": "opencv:SPEC, an OpenCV capture: device index, video file or URL",
+}
+"""Source kinds -> what the spec means; ``aioadept.vision.__main__.make_sources`` builds one camera per spec."""
+
+POLICIES = ("nearest", "after")
+TRIGGERS = ("auto", "software", "free")
+GRAPHS = ("sharpness", "frame-sharpness", "noop")
+GRAPH_THREADS = ("auto", "always", "never")
+
+
+def check_source(spec: Any) -> str:
+    """``spec`` if it names a registered source (with its argument where one is needed); ValueError otherwise."""
+    if not isinstance(spec, str):
+        raise ValueError(f"expected a source spec string, got {spec!r}")
+    kind, sep, arg = spec.partition(":")
+    if kind not in SOURCES or (kind == "virtual" and sep) or (kind != "virtual" and not arg):
+        raise ValueError(f"bad source {spec!r}: use virtual, gige:ADDRESS, folder:PATH or opencv:SPEC")
+    return spec
+
+
+@dataclass(slots=True)
+class VisionOptions:
+    """Every option of ``aioadept vision`` (the long option names with ``_``), with its default."""
+
+    source: str | list[str] = "virtual"
+    """One source spec or a list of them (several cameras); see :data:`SOURCES`."""
+    state_endpoint: str = STATE_ENDPOINT
+    request_endpoint: str = REQUEST_ENDPOINT
+    """The node's request SUB, CZMQ style from the node's side: bare connects (the MCN binds it, as pyadept's
+    PubSubPair does), ``@`` makes the node bind it (the MCN connects); see docs/interfaces.md."""
+    response_endpoint: str = RESPONSE_ENDPOINT
+    """The node's response PUB: bare binds (the MCN connects), ``>`` makes the node connect to the MCN's SUB."""
+    fps: float = 15.0
+    buffer_size: int = 64
+    focus_offset_mm: float = 20.0
+    """Virtual camera: how far along tool z beyond the approach pose the focal plane lies."""
+    working_distance_mm: float = 300.0
+    f_number: float = 2.8
+    noise_sigma: float = 2.0
+    seed: int | None = None
+    policy: str = "after"
+    """Frame choice: "nearest" in time to the request (the paper), or the first frame "after" it."""
+    max_frame_age: float = 0.1
+    trigger: str = "auto"
+    """Acquisition: "auto" (each request software-triggers its own exposure on cameras that can), "software"
+    (insist: an error for a camera that cannot), "free" (free-running at ``fps``)."""
+    exposure_ms: float = 5.0
+    """Exposure time, ms: the virtual camera's, and written to a GigE camera (``source = "gige:ADDRESS"``)."""
+    pixel_format: str = "Mono8"
+    """GigE cameras: the PixelFormat written at open (Mono8, Mono16, Bayer..8)."""
+    readout_ms: float | None = None
+    frame_timeout: float = 1.0
+    graph: str = "sharpness"
+    graph_thread: str = "auto"
+    graph_inline_max_ms: float = 5.0
+    inline: bool = False
+    save_frames: str | None = None
+    figures: str | None = None
+    log_level: str = "INFO"
+    curve_secret: str | None = None
+    state_curve_secret: str | None = None
+    state_curve_server: str | None = None
+    curve_allow: str | list[str] | None = None
+    max_state_age: float = 0.5
+    max_queue: int = 32
+    max_request_bytes: int = 1 << 20
+
+    @classmethod
+    def from_table(cls, table: Any, where: str) -> VisionOptions:
+        """The options of a TOML table (keys with ``_`` or ``-``), checked once; ``where`` names the file and table
+        in messages (``"cell.toml [vision]"``). Raises :class:`~aioadept.configfile.ConfigError`."""
+        from aioadept.configfile import ConfigError, check_section
+
+        if isinstance(table, dict):
+            table = {str(k).replace("-", "_"): v for k, v in table.items()}
+        opts = cls(**check_section(cls, table, where))
+        try:
+            opts.check()
+        except ValueError as exc:
+            raise ConfigError(f"{where}: {exc}") from None
+        return opts
+
+    def sources(self) -> list[str]:
+        return [self.source] if isinstance(self.source, str) else list(self.source)
+
+    def check(self) -> None:
+        """Values the types alone do not catch; ValueError naming the key."""
+        specs = self.sources()
+        if not specs:
+            raise ValueError("source = []: expected at least one source")
+        for spec in specs:
+            try:
+                check_source(spec)
+            except ValueError as exc:
+                raise ValueError(f"source: {exc}") from None
+        for key, allowed in (("policy", POLICIES), ("trigger", TRIGGERS), ("graph", GRAPHS),
+                             ("graph_thread", GRAPH_THREADS)):
+            value = getattr(self, key)
+            if value not in allowed:
+                raise ValueError(f'{key} = "{value}": expected one of {", ".join(allowed)}')
+        from aioadept.vision.gige import PIXEL_FORMATS
+
+        if self.pixel_format not in PIXEL_FORMATS:
+            raise ValueError(f'pixel_format = "{self.pixel_format}": expected one of {", ".join(PIXEL_FORMATS)}')
+        for key in ("exposure_ms", "readout_ms"):
+            value = getattr(self, key)
+            if value is not None and not 0 <= value < math.inf:
+                raise ValueError(f"{key} = {value!r}: expected a finite number >= 0")
+        for key in ("max_state_age", "max_frame_age"):
+            if not getattr(self, key) > 0:
+                raise ValueError(f"{key} = {getattr(self, key)!r}: expected seconds > 0 (inf: no check)")
+        for key in ("max_queue", "max_request_bytes", "buffer_size"):
+            if getattr(self, key) < 1:
+                raise ValueError(f"{key} = {getattr(self, key)!r}: expected an integer >= 1")
+        from aioadept.bus.endpoints import parse_endpoint
+        from aioadept.errors import BusError
+
+        for key in ("request_endpoint", "response_endpoint", "state_endpoint"):
+            try:
+                parse_endpoint(getattr(self, key))
+            except BusError as exc:
+                raise ValueError(f"{key}: {exc}") from None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(VisionOptions)}
