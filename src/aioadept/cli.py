@@ -22,6 +22,19 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
+EXTRAS: dict[str, str] = {"cv2": "vision", "scipy": "analysis", "matplotlib": "analysis"}
+"""Top-level modules of the optional extras (pyproject.toml) -> the extra that installs them."""
+
+
+def missing_extra(exc: ModuleNotFoundError) -> str | None:
+    """The one line telling which extra to install, when ``exc`` is a module of an extra; else None."""
+    top = (exc.name or "").split(".")[0]
+    extra = EXTRAS.get(top)
+    if extra is None:
+        return None
+    return f"needs the {extra!r} extra ({top} is not installed): pip install 'aioadept[{extra}]'"
+
+
 def description(doc: str | None) -> str:
     """A module docstring's first paragraph as a subcommand's ``--help`` shows it: without ````literal```` markup."""
     return (doc or "").split("\n\n")[0].replace("``", "")
@@ -61,12 +74,16 @@ def main(argv: list[str] | None = None) -> int:
     module_name = SUBCOMMANDS[name][0]
     try:
         module = importlib.import_module(module_name)
+        return int(module.main(args[1:]) or 0)
     except ModuleNotFoundError as exc:
         if exc.name == module_name:
             print(f"aioadept: {name} is not available in this version", file=sys.stderr)
             return 2
-        raise
-    return int(module.main(args[1:]) or 0)
+        hint = missing_extra(exc)
+        if hint is None:
+            raise
+        print(f"aioadept {name}: {hint}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":  # pragma: no cover
