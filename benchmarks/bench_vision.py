@@ -240,6 +240,10 @@ NODE_ARGV = [sys.executable, "-m", "aioadept.vision", "--graph", "noop", "--sour
              # No sim publishes robot state here: without --max-state-age inf every answer would be the
              # "stale robot state" error (the node's frozen-pose check), not a measurement.
              "--state-endpoint", "tcp://127.0.0.1:9", "--max-state-age", "inf", "--fps", "15",
+             # Free-running with the nearest frame: this measures the node's own overhead over raw ZeroMQ. A
+             # software-triggered camera (the default) adds its exposure + readout, 11.3 ms by model, per request:
+             # benchmarks/bench_trigger.py measures that against its floor.
+             "--trigger", "free", "--policy", "nearest", "--max-frame-age", "1",
              "--request-endpoint", "tcp://127.0.0.1:0", "--response-endpoint", "tcp://127.0.0.1:0"]
 # (server, client) pairs, each measured once per round in this order.
 KINDS: tuple[tuple[str, str], ...] = (
