@@ -20,7 +20,6 @@ KNOWN_CYCLES: list[frozenset[str]] = [
     # to be removed by issue 13 item 2/5
     frozenset({"aioadept.record", "aioadept.record.viewer"}),
     frozenset({"aioadept.vplus.builtins", "aioadept.vplus.iodev", "aioadept.vplus.runtime"}),
-    frozenset({"aioadept.sim.__main__", "aioadept.vplus.cli"}),
 ]
 
 # Dependencies that point the wrong way: (importer prefix, imported prefix). The vision side must not need the

@@ -1,4 +1,4 @@
-"""``aioadept demo``: the whole simulated cell doing focus calibration, as separate processes on loopback.
+"""The demo (``aioadept demo``): the whole simulated cell doing focus calibration, as separate processes on loopback.
 
 It starts the simulated controller (``aioadept sim``) and the vision node with its virtual camera
 (``aioadept vision``), runs the focus application in this process (the MasterControlNode), prints the found pose and
@@ -9,48 +9,13 @@ once (:mod:`aioadept.apps.interrupt`).
 
 from __future__ import annotations
 
-import argparse
 import logging
-import sys
 from pathlib import Path
 
-from aioadept.apps.cell import CellConfig, RunOutcome, new_run_dir, run_focus_once, running_cell
-from aioadept.apps.cli_common import add_cell_options, apply_overrides, configure_logging, print_result, report_saving
-from aioadept.apps.interrupt import Interrupter, run_interruptible
-from aioadept.cli import description
-from aioadept.configfile import report
+from aioadept.apps.cell import CellConfig, RunOutcome, run_focus_once, running_cell
+from aioadept.apps.interrupt import Interrupter
 
 log = logging.getLogger("aioadept.demo")
-
-
-def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="aioadept demo", description=description(__doc__))
-    add_cell_options(p)
-    p.add_argument("--time-scale", type=float, dest="time_scale",
-                   help="run the simulated motion this many times faster than real time (default 1)")
-    p.add_argument("--fast", action="store_true", help="same as --time-scale 10")
-    p.add_argument("--focus-offset-mm", type=float, dest="focus_offset_mm",
-                   help="virtual camera: focal plane distance beyond the approach pose along tool z (default 20)")
-    return p
-
-
-def demo_config(args: argparse.Namespace) -> CellConfig:
-    cfg = CellConfig.from_toml(args.config) if args.config else CellConfig()
-    if not args.config:
-        # Free ports, so the demo runs beside anything else on this machine.
-        cfg.robot.port = 0
-        cfg.robot.state_endpoint = "tcp://127.0.0.1:0"
-        cfg.vision.request_endpoint = "tcp://127.0.0.1:0"
-        cfg.vision.response_endpoint = "tcp://127.0.0.1:0"
-    # Without a file the demo starts the whole cell; a file says itself which nodes run here (start_sim = false:
-    # connect to the server at robot.host:port, e.g. a real controller, and fail if nothing answers there).
-    if args.fast:
-        cfg.robot.time_scale = 10.0
-    if args.time_scale is not None:
-        cfg.robot.time_scale = args.time_scale
-    if args.focus_offset_mm is not None:
-        cfg.vision.focus_offset_mm = args.focus_offset_mm
-    return apply_overrides(cfg, args)
 
 
 async def run_demo(cfg: CellConfig, run_dir: Path, *, interrupter: Interrupter | None = None) -> RunOutcome:
@@ -60,79 +25,3 @@ async def run_demo(cfg: CellConfig, run_dir: Path, *, interrupter: Interrupter |
                  cell.cfg.vision.request_endpoint, cell.cfg.vision.response_endpoint)
         outcome: RunOutcome = await cell.run(run_focus_once(cell.cfg, run_dir, interrupter=interrupter))
     return outcome
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Exit codes as ``aioadept focus``: 0, 1 failed (or a stop failed), 2 bad options / no run folder, 4 result
-    printed but not fully saved, 130 interrupted with the robot stopped (and every node stopped)."""
-    args = build_parser().parse_args(argv)
-    configure_logging(args.verbose)
-    try:
-        cfg = demo_config(args)
-    except (OSError, ValueError) as exc:
-        return report("aioadept demo", exc, verbose=args.verbose)
-    try:
-        run_dir = new_run_dir(cfg)
-    except OSError as exc:
-        print(f"aioadept demo: cannot create a run folder in {cfg.run.out_dir!r}: {exc}; nothing was started",
-              file=sys.stderr)
-        return 2
-    log.info("run folder %s", run_dir)
-    from aioadept.record import ViewerUnavailable, rerun_available
-
-    if (cfg.run.record and rerun_available()) or args.view:  # the frames the node served, for run.rrd and the view
-        cfg.vision.vision_args = [*cfg.vision.vision_args, "--save-frames", str(run_dir / "frames")]
-    from aioadept.record.hook import start_viewer, wait_for_viewer
-
-    try:
-        viewer = start_viewer(args, "aioadept demo", log_path=run_dir / "logs" / "viewer.log")
-    except ViewerUnavailable as exc:
-        print(f"aioadept demo: --view: {exc}", file=sys.stderr)
-        return 2
-    if viewer is not None:
-        cfg.run.view_url = viewer.grpc_url
-    try:
-        return _run(cfg, run_dir)
-    finally:
-        if viewer is not None:
-            wait_for_viewer(viewer, "aioadept demo")
-            viewer.close()
-
-
-def _run(cfg: CellConfig, run_dir: Path) -> int:
-    outcomes: list[RunOutcome] = []
-
-    async def app(intr: Interrupter) -> int:
-        outcomes.append(await run_demo(cfg, run_dir, interrupter=intr))
-        return 0
-
-    try:
-        code = run_interruptible(app, prog="aioadept demo")
-    except Exception as exc:  # one clear line for the user; details are in the run folder's logs
-        log.error("demo failed: %s: %s", type(exc).__name__, exc)
-        return 1
-    if code or not outcomes:
-        return code or 1
-    outcome = outcomes[0]
-    assert outcome.result is not None
-    print_result(outcome.result, run_dir)
-    code = report_saving(outcome, analyze=cfg.run.analyze, prog="aioadept demo")
-    if code == 0 and cfg.run.analyze:
-        log.info("plots and summary.json written to %s", run_dir)
-        _print_cycle(run_dir)
-    return code
-
-
-def _print_cycle(run_dir: Path) -> None:
-    """The cycle split motion / vision and the vision floor, as summary.json's ``cycle`` holds them (issue 12)."""
-    import json
-
-    from aioadept.analysis.report import cycle_line
-
-    try:
-        line = cycle_line(json.loads((run_dir / "summary.json").read_text(encoding="utf-8")).get("cycle") or {})
-    except (OSError, ValueError) as exc:
-        log.warning("summary.json unreadable: %s", exc)
-        return
-    if line:
-        print(line)

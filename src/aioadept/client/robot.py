@@ -50,6 +50,7 @@ from collections.abc import Awaitable, Callable, Iterable, Sequence
 from itertools import chain
 from typing import Any
 
+from aioadept import defaults
 from aioadept.client.registry import (
     W_LOST as _W_LOST,
     W_TIMED_OUT as _W_TIMED_OUT,
@@ -125,7 +126,7 @@ class RobotClient:
       not shown to observers.
     """
 
-    def __init__(self, host: str = "127.0.0.1", port: int = 1234, *, connect_timeout_s: float = 5.0,
+    def __init__(self, host: str = defaults.ROBOT_HOST, port: int = defaults.ROBOT_PORT, *, connect_timeout_s: float = 5.0,
                  ack_timeout_s: float | None = 60.0, observers: Iterable[Observer] = (),
                  id_start: int | None = None, auto_reconnect: bool = False,
                  connector: Connector | None = None, max_line: int = MAX_ACK_LINE,

@@ -22,7 +22,7 @@ SOURCES: dict[str, str] = {
     "folder": "folder:PATH, images of a folder (a --save-frames folder replays with its times)",
     "opencv": "opencv:SPEC, an OpenCV capture: device index, video file or URL",
 }
-"""Source kinds -> what the spec means; ``aioadept.vision.__main__.make_sources`` builds one camera per spec."""
+"""Source kinds -> what the spec means; ``aioadept.vision.service.make_sources`` builds one camera per spec."""
 
 POLICIES = ("nearest", "after")
 TRIGGERS = ("auto", "software", "free")

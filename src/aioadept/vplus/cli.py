@@ -34,18 +34,16 @@ def parse_port_map(specs: list[str]) -> dict[int, int]:
     return out
 
 
-async def run(args: argparse.Namespace, options: Any = None) -> int:
+async def run(args: argparse.Namespace, options: Any) -> int:
     """Serve until SIGINT/SIGTERM. ``options`` (:class:`aioadept.sim.server.SimOptions`, from the same command
-    line) gives the robot, the state stream and the faults exactly as for the Python backend."""
-    from aioadept.sim.__main__ import options_from_args
+    line: ``aioadept.cli.sim.options_from_args``) gives the robot, the state stream and the faults exactly as for
+    the Python backend."""
     from aioadept.sim.server import publish_robot_states, robot_state_sample
     from aioadept.vplus import Emulator, RealClock
     from aioadept.vplus.iodev import Network
     from aioadept.vplus.loader import load_files
     from aioadept.vplus.robot import RobotDevice
 
-    if options is None:
-        options = options_from_args(args)
     port_map = parse_port_map(args.map_port)
     ctl = options.make_controller()
 

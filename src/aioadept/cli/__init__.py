@@ -1,24 +1,26 @@
 """The ``aioadept`` console script: one entry point, one subcommand per node or tool.
 
-Each subcommand lives next to the code it runs and exposes ``main(argv) -> int``; this module only dispatches, and
-imports a subcommand's module when it is called so ``aioadept --help`` stays fast.
+Each subcommand is one module of this package (``cli/sim.py``, ``cli/send.py``, ...) exposing ``main(argv) -> int``;
+they share one options layer (:mod:`aioadept.cli.options`). This module only dispatches, and imports a subcommand's
+module when it is called so ``aioadept --help`` stays fast.
 """
 
 from __future__ import annotations
 
-import argparse
 import importlib
 import sys
 
+from aioadept.cli.options import DefaultsHelpFormatter, description  # noqa: F401  (public names)
+
 # name -> (module with main(argv), one-line help)
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
-    "sim": ("aioadept.sim.__main__", "run the simulated Adept controller (RobotServer) over TCP"),
-    "send": ("aioadept.client_cli", "send commands to a robot server and print the acks"),
-    "vision": ("aioadept.vision.__main__", "run the image acquisition + processing node"),
-    "focus": ("aioadept.apps.focus_cli", "run focus-plane calibration against a robot server and vision node"),
-    "demo": ("aioadept.apps.demo", "start the whole simulated cell and run focus calibration"),
-    "analyze": ("aioadept.analysis.__main__", "analyse run folders: the paper's timing metrics and plots"),
-    "experiment": ("aioadept.apps.experiment", "repeat the demo over a parameter grid, then analyse"),
+    "sim": ("aioadept.cli.sim", "run the simulated Adept controller (RobotServer) over TCP"),
+    "send": ("aioadept.cli.send", "send commands to a robot server and print the acks"),
+    "vision": ("aioadept.cli.vision", "run the image acquisition + processing node"),
+    "focus": ("aioadept.cli.focus", "run focus-plane calibration against a robot server and vision node"),
+    "demo": ("aioadept.cli.demo", "start the whole simulated cell and run focus calibration"),
+    "analyze": ("aioadept.cli.analyze", "analyse run folders: the paper's timing metrics and plots"),
+    "experiment": ("aioadept.cli.experiment", "repeat the demo over a parameter grid, then analyse"),
 }
 
 
@@ -33,21 +35,6 @@ def missing_extra(exc: ModuleNotFoundError) -> str | None:
     if extra is None:
         return None
     return f"needs the {extra!r} extra ({top} is not installed): pip install 'aioadept[{extra}]'"
-
-
-def description(doc: str | None) -> str:
-    """A module docstring's first paragraph as a subcommand's ``--help`` shows it: without ````literal```` markup."""
-    return (doc or "").split("\n\n")[0].replace("``", "")
-
-
-class DefaultsHelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
-    """Adds "(default: X)" to an option's help unless the help already says its default, or there is none."""
-
-    def _get_help_string(self, action: argparse.Action) -> str | None:
-        text = action.help or ""
-        if "default" in text or action.default in (None, False, [], argparse.SUPPRESS):
-            return text
-        return super()._get_help_string(action)
 
 
 def _usage() -> str:

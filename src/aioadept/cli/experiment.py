@@ -1,0 +1,115 @@
+"""``aioadept experiment``: the paper's experiment — focus runs over a grid of approach speed x delta_z, N each.
+
+The nodes are started once; each run gets its own run folder; the analysis then pools all runs (the paper pooled
+32 runs over speed {5, 25, 50, 75, 100} x delta_z {1.5, 2.0, 2.5}). Ctrl-C stops the robot and ends the whole
+experiment (no further run starts); a second Ctrl-C kills the nodes and exits at once.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from pathlib import Path
+
+from aioadept.apps.cell import CellConfig
+from aioadept.apps.experiment import run_experiment
+from aioadept.apps.interrupt import Interrupter, run_interruptible
+from aioadept.cli.options import add_config, add_verbose, configure_logging, description, report
+
+log = logging.getLogger("aioadept.experiment")
+
+
+def _floats(text: str) -> list[float]:
+    return [float(x) for x in text.split(",") if x.strip()]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="aioadept experiment", description=description(__doc__))
+    add_config(p, "cell description (TOML)", type=Path)
+    p.add_argument("--speeds", default="5,25,50,75,100", help="approach speeds (default: the paper's)")
+    p.add_argument("--delta-z", dest="delta_z", default="1.5,2.0,2.5", help="z steps in mm (default: the paper's)")
+    p.add_argument("--runs", type=int, default=2, help="runs per grid point (default 2)")
+    p.add_argument("--time-scale", type=float, dest="time_scale", default=None, help="sim motion speed-up")
+    p.add_argument("--out", default=None, help="experiment folder (default runs/experiment-<time>)")
+    add_verbose(p)
+    from aioadept.record.hook import add_view_options
+
+    add_view_options(p)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    configure_logging(args.verbose)
+    try:
+        cfg = CellConfig.from_toml(args.config) if args.config else CellConfig()
+    except (OSError, ValueError) as exc:
+        return report("aioadept experiment", exc, verbose=args.verbose)
+    if not args.config:
+        cfg.robot.port = 0
+        cfg.robot.state_endpoint = cfg.vision.request_endpoint = cfg.vision.response_endpoint = "tcp://127.0.0.1:0"
+    if args.time_scale is not None:
+        cfg.robot.time_scale = args.time_scale
+    import datetime as _dt
+
+    out = Path(args.out or Path(cfg.run.out_dir) / f"experiment-{_dt.datetime.now():%Y%m%d-%H%M%S}")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        print(f"aioadept experiment: cannot create {str(out)!r}: {exc}; nothing was started", file=sys.stderr)
+        return 2
+    grid = [(int(s), dz) for s in _floats(args.speeds) for dz in _floats(args.delta_z)]
+    from aioadept.record import ViewerUnavailable, rerun_available
+    from aioadept.record.hook import start_viewer, wait_for_viewer
+
+    cfg.run.record = not args.no_record
+    if (cfg.run.record and rerun_available()) or args.view:  # frames for each run's run.rrd and the live view
+        cfg.vision.vision_args = [*cfg.vision.vision_args, "--save-frames", str(out / "frames")]
+    try:
+        viewer = start_viewer(args, "aioadept experiment", log_path=out / "logs" / "viewer.log")
+    except ViewerUnavailable as exc:
+        print(f"aioadept experiment: --view: {exc}", file=sys.stderr)
+        return 2
+    if viewer is not None:
+        cfg.run.view_url = viewer.grpc_url
+    try:
+        return _run(cfg, grid, args.runs, out)
+    finally:
+        if viewer is not None:
+            wait_for_viewer(viewer, "aioadept experiment")
+            viewer.close()
+
+
+def _run(cfg: CellConfig, grid: list[tuple[int, float]], runs: int, out: Path) -> int:
+    results: list[list[Path]] = []
+
+    async def app(intr: Interrupter) -> int:
+        results.append(await run_experiment(cfg, grid, runs, out, interrupter=intr))
+        return 0
+
+    try:
+        code = run_interruptible(app, prog="aioadept experiment")
+    except Exception as exc:
+        log.error("experiment failed: %s: %s", type(exc).__name__, exc)
+        return 1
+    if code:
+        return code
+    run_dirs = results[0]
+    if not run_dirs:
+        log.error("no run succeeded")
+        return 1
+    from aioadept.analysis import analyze_runs
+
+    try:
+        analyze_runs(run_dirs, out / "analysis")
+    except (OSError, ValueError) as exc:
+        print(f"aioadept experiment: the runs are saved in {out}, but the analysis was not written: {exc}",
+              file=sys.stderr)
+        return 4
+    log.info("analysis of %d runs written to %s", len(run_dirs), out / "analysis")
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,112 @@
+"""``aioadept focus``: run focus calibration against a robot server and a vision node given by address.
+
+The same command works with the simulator or a real controller: nothing is started here, only connected to.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from pathlib import Path
+
+from aioadept.apps.cell import CellConfig, RunOutcome, new_run_dir, run_focus_once
+from aioadept import defaults
+from aioadept.apps.interrupt import Interrupter, run_interruptible
+from aioadept.cli.options import (add_cell_options, add_robot_option, apply_overrides, configure_logging, description,
+                                  parse_robot_address, report, with_default)
+from aioadept.cli.report import print_result, report_saving
+
+log = logging.getLogger("aioadept.focus")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="aioadept focus", description=description(__doc__))
+    add_cell_options(p)
+    add_robot_option(p)
+    p.add_argument("--request-endpoint", dest="request_endpoint",
+                   help=with_default("PUB for vision requests: binds by default (as pyadept's MCN), '>tcp://...' "
+                                     "connects to a node that binds it; the vision node's READY line prints the "
+                                     "right form", defaults.REQUEST_ENDPOINT))
+    p.add_argument("--response-endpoint", dest="response_endpoint",
+                   help=with_default("SUB for vision responses: connects by default, '@tcp://...' binds",
+                                     defaults.RESPONSE_ENDPOINT))
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Exit codes: 0 found and saved; 1 the run failed (or a stop failed); 2 bad options or no run folder (nothing
+    was moved); 4 found and printed, but files of the run folder were not written; 130 interrupted, robot stopped."""
+    args = build_parser().parse_args(argv)
+    configure_logging(args.verbose)
+    try:
+        cfg = CellConfig.from_toml(args.config) if args.config else CellConfig()
+    except (OSError, ValueError) as exc:
+        return report("aioadept focus", exc, verbose=args.verbose)
+    cfg.robot.start_sim = False
+    cfg.vision.start = False
+    if args.robot:
+        try:
+            cfg.robot.host, cfg.robot.port = parse_robot_address(args.robot)
+        except ValueError as exc:
+            return report("aioadept focus", exc, verbose=args.verbose)
+    # These options are the MCN's side of each link (as the node's READY line prints them); the cell file keeps
+    # the node's side.
+    from aioadept.bus.endpoints import opposite
+    from aioadept.errors import BusError
+
+    try:
+        if args.request_endpoint:
+            cfg.vision.request_endpoint = opposite(args.request_endpoint)
+        if args.response_endpoint:
+            cfg.vision.response_endpoint = opposite(args.response_endpoint)
+    except BusError as exc:
+        print(f"aioadept focus: {exc}", file=sys.stderr)
+        return 2
+    cfg = apply_overrides(cfg, args)
+    try:
+        run_dir = new_run_dir(cfg)
+    except OSError as exc:  # before any connection: the robot is not moved for a run that could not be kept
+        print(f"aioadept focus: cannot create a run folder in {cfg.run.out_dir!r}: {exc}; nothing was started",
+              file=sys.stderr)
+        return 2
+    from aioadept.record import ViewerUnavailable
+    from aioadept.record.hook import start_viewer, wait_for_viewer
+
+    try:
+        viewer = start_viewer(args, "aioadept focus", log_path=run_dir / "viewer.log")
+    except ViewerUnavailable as exc:
+        print(f"aioadept focus: --view: {exc}", file=sys.stderr)
+        return 2
+    if viewer is not None:
+        cfg.run.view_url = viewer.grpc_url
+    try:
+        return _run(cfg, run_dir)
+    finally:
+        if viewer is not None:
+            wait_for_viewer(viewer, "aioadept focus")
+            viewer.close()
+
+
+def _run(cfg: CellConfig, run_dir: Path) -> int:
+    outcomes: list[RunOutcome] = []
+
+    async def app(intr: Interrupter) -> int:
+        outcomes.append(await run_focus_once(cfg, run_dir, interrupter=intr))
+        return 0
+
+    try:
+        code = run_interruptible(app, prog="aioadept focus")
+    except Exception as exc:
+        log.error("focus failed: %s: %s (log in %s)", type(exc).__name__, exc, run_dir)
+        return 1
+    if code or not outcomes:
+        return code or 1
+    outcome = outcomes[0]
+    assert outcome.result is not None
+    print_result(outcome.result, run_dir)
+    return report_saving(outcome, analyze=cfg.run.analyze, prog="aioadept focus")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

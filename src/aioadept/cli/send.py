@@ -1,0 +1,149 @@
+"""``aioadept send``: send skill calls to a robot server from the shell and print one line per ack.
+
+    aioadept send --host 127.0.0.1 --port 1234 "move_to:300,0,500,0,180,0" break
+    aioadept send --joined "set_speed:20" "move_rel_tool:0,0,2.5,0,0,0" break
+    aioadept send --json here
+
+Each argument is ``SKILL[:ARG,ARG,...]`` (the wire syntax without the ID); integers stay integers (``set_speed:20``).
+By default each skill is its own command, awaited before the next is sent (``cmdexec``); ``--joined`` writes them
+all at once (``cmdexec_joined``). Exit status: 0 all done, 1 an ``error``/``aborted`` ack, 2 bad usage,
+3 connection failure (also: the peer did not answer ``hello`` like a RobotServer within 2 s; ``--no-hello``
+for the original V+ AdeptServer) or ack timeout, 130 interrupted (Ctrl-C: ``stop`` was sent at once, no further command, and the
+stop was acked; 3 if it was not). A second Ctrl-C exits at once.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import sys
+from collections.abc import AsyncIterator, Sequence
+
+from aioadept import defaults
+from aioadept.apps.interrupt import Interrupter, run_interruptible
+from aioadept.client import ExecResult, MessageResult, RobotClient
+from aioadept.commands import Skill
+from aioadept.errors import AckTimeout, CommandAborted, CommandError, ConnectError, ConnectionLost
+from aioadept.cli.options import description
+
+
+def parse_skill(text: str) -> Skill:
+    """``"move_to:1,2,3,4,5,6"`` -> ``Skill("move_to", 1, 2, 3, 4, 5, 6)``; ValueError naming what is wrong."""
+    name, sep, rest = text.partition(":")
+    args: list[int | float] = []
+    if sep:
+        for i, tok in enumerate(rest.split(",")):
+            tok = tok.strip()
+            try:
+                args.append(int(tok))
+            except ValueError:
+                try:
+                    args.append(float(tok))
+                except ValueError:
+                    raise ValueError(f"{text!r}: argument {i} ({tok!r}) is not a number") from None
+    return Skill(name, *args)
+
+
+def _line(r: MessageResult) -> str:
+    a = r.ack
+    pose = ",".join("%.3f" % v for v in a.pose.as_tuple())
+    extra = (" " + ":".join(a.extra)) if a.extra else ""
+    return (f"{r.id} {r.skill:<15} {a.status.value:<7} t={a.t_start_s:.3f}..{a.t_done_s:.3f} pose={pose} "
+            f"rtt={r.rtt_s * 1e3:.2f}ms{extra}")
+
+
+def _record(r: MessageResult) -> dict:
+    a = r.ack
+    return {"id": r.id, "skill": r.skill, "args": list(r.args), "status": a.status.value,
+            "t_start_s": a.t_start_s, "t_done_s": a.t_done_s, "pose": list(a.pose.as_tuple()),
+            "extra": list(a.extra), "t_send_s": r.t_send_s, "t_recv_s": r.t_recv_s, "batch": r.batch}
+
+
+def _print(results: Sequence[MessageResult], as_json: bool) -> None:
+    for r in results:
+        print(json.dumps(_record(r)) if as_json else _line(r), flush=True)
+
+
+async def _run(args: argparse.Namespace, commands: list[Skill], intr: Interrupter | None = None) -> int:
+    try:
+        robot = RobotClient(args.host, args.port, connect_timeout_s=args.connect_timeout,
+                            ack_timeout_s=args.timeout, hello_timeout_s=None if args.no_hello else 2.0)
+    except ValueError as exc:  # a timeout that is not finite and > 0, a port out of range
+        print(f"aioadept send: {exc}", file=sys.stderr)
+        return 2
+    try:
+        async with robot, (intr.guard(robot) if intr is not None else _nothing()):
+            try:
+                res: ExecResult = await (robot.cmdexec_joined(*commands) if args.joined
+                                         else robot.cmdexec(*commands))
+            except (CommandError, CommandAborted) as exc:
+                done = getattr(exc, "completed", None)
+                _print(done.messages if done is not None else (), args.json)
+                _print(getattr(exc, "results", ()), args.json)
+                print(f"aioadept send: {exc}", file=sys.stderr)
+                return 1
+            _print(res.messages, args.json)
+            return 0
+    except (ConnectError, ConnectionLost, AckTimeout) as exc:
+        print(f"aioadept send: {exc}", file=sys.stderr)
+        return 3
+
+
+@contextlib.asynccontextmanager
+async def _nothing() -> AsyncIterator[None]:
+    yield None
+
+
+def _is_number(tok: str) -> bool:
+    try:
+        float(tok)
+    except ValueError:
+        return False
+    return True
+
+
+def _syntax_hint(tokens: Sequence[str]) -> str:
+    """The expected form of the arguments, with the user's own words rewritten into it when they look like
+    ``move_to 300 0 500 ...`` (arguments given as separate words)."""
+    fixed: list[str] = []
+    for tok in tokens:
+        if _is_number(tok) and fixed:
+            fixed[-1] += ("," if ":" in fixed[-1] else ":") + tok
+        else:
+            fixed.append(tok)
+    if fixed != list(tokens):
+        return (f"each argument is SKILL[:ARG,ARG,...], one word per skill: did you mean "
+                f"'aioadept send {' '.join(fixed)}'?")
+    return ("each argument is SKILL[:ARG,ARG,...], one word per skill, e.g. "
+            "'aioadept send move_to:300,0,500,0,180,0 break'")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="aioadept send", description=description(__doc__))
+    ap.add_argument("skills", nargs="+", metavar="SKILL[:ARGS]", help="skill calls, e.g. move_to:1,2,3,4,5,6")
+    ap.add_argument("--host", default=defaults.ROBOT_HOST, help=f"robot server address (default {defaults.ROBOT_HOST})")
+    ap.add_argument("--port", type=int, default=defaults.ROBOT_PORT,
+                    help=f"robot server port (default {defaults.ROBOT_PORT})")
+    ap.add_argument("--joined", action="store_true", help="write all messages at once (cmdexec_joined)")
+    ap.add_argument("--timeout", type=float, default=60.0, help="ack timeout per wait, seconds (default 60)")
+    ap.add_argument("--connect-timeout", type=float, default=5.0, help="connect timeout, seconds (default 5)")
+    ap.add_argument("--json", action="store_true", help="print one JSON object per ack")
+    ap.add_argument("--no-hello", action="store_true", dest="no_hello",
+                    help="do not check with 'hello' that the peer is a RobotServer (needed for the original V+ "
+                         "AdeptServer, which halts on skills it does not know)")
+    args = ap.parse_args(list(sys.argv[1:] if argv is None else argv))
+    try:
+        commands = [parse_skill(s) for s in args.skills]
+    except ValueError as exc:
+        print(f"aioadept send: {exc}; {_syntax_hint(args.skills)}", file=sys.stderr)
+        return 2
+
+    async def app(intr: Interrupter) -> int:
+        return await _run(args, commands, intr)
+
+    return run_interruptible(app, prog="aioadept send", stop_timeout_s=args.timeout, stop_failed_code=3)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

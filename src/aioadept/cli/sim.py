@@ -1,0 +1,183 @@
+"""``aioadept sim``: run the simulated Adept controller (RobotServer + Viper s850) until SIGINT/SIGTERM.
+
+Prints ``READY host=H port=P state=ENDPOINT`` on stdout once it listens (the real port when started with
+``--port 0``; ``state=none`` without a state stream), so starters wait for that line instead of sleeping.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import logging
+import signal
+import sys
+
+from aioadept import defaults
+from aioadept.cli.options import DefaultsHelpFormatter, description
+from aioadept.geometry import NULL, Pose
+from aioadept.robots import viper_s850 as kin
+from aioadept.sim.server import DEFAULT_PORT, DEFAULT_STATE_ENDPOINT, Faults, SimOptions, SimServer
+
+
+def _six(text: str) -> tuple[float, ...]:
+    vals = tuple(float(v) for v in text.split(","))
+    if len(vals) != 6:
+        raise argparse.ArgumentTypeError(f"expected 6 comma-separated numbers, got {text!r}")
+    return vals
+
+
+def _jump_limit(text: str) -> kin.JumpLimit | None:
+    if text.strip().lower() == "off":
+        return None
+    try:
+        floor, per_mm, per_deg = (float(v) for v in text.split(","))
+        return kin.JumpLimit(floor, per_mm, per_deg)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"expected FLOOR,PER_MM,PER_DEG (three numbers >= 0) or 'off', got {text!r}") from exc
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="aioadept sim", description=description(__doc__),
+                                formatter_class=DefaultsHelpFormatter)
+    p.add_argument("--host", default=defaults.ROBOT_HOST, help="address to bind")
+    p.add_argument("--port", type=int, default=DEFAULT_PORT, help="TCP port (0: pick a free one)")
+    p.add_argument("--time-scale", type=float, default=1.0, dest="time_scale",
+                   help="motions run this many times faster (the ack clock stays real time)")
+    p.add_argument("--instant", action="store_true", help="motions complete at once (for tests)")
+    p.add_argument("--monitor-speed", type=float, default=100.0, dest="monitor_speed",
+                   help="controller monitor speed in %% (effective speed = program speed x this / 100)")
+    p.add_argument("--max-speed", type=float, default=100.0, dest="max_speed",
+                   help="cap on the effective speed in %% (a safety limit: no motion runs faster)")
+    p.add_argument("--joint-jump-limit", type=_jump_limit, default="2,1,3", dest="jump_limit",
+                   metavar="FLOOR,PER_MM,PER_DEG",
+                   help="refuse (JOINT_JUMP) a Cartesian target for which a joint would turn more than FLOOR + PER_MM "
+                        "x mm + PER_DEG x degrees of the move, e.g. a wrist flip from a 2 mm step; 'off' disables")
+    p.add_argument("--max-clients", type=int, default=16, dest="max_clients",
+                   help="connections served at once; more are refused with a SERVER_BUSY error ack")
+    p.add_argument("--allow", action="append", default=[], metavar="ADDR",
+                   help="accept clients only from this IP address (repeatable; default: any)")
+    p.add_argument("--line-timeout", type=float, default=10.0, dest="line_timeout",
+                   help="close a connection that is in the middle of a line and receives nothing for this many "
+                        "seconds, or whose line is still incomplete 6 times as long after its first byte (0: never)")
+    p.add_argument("--stop-window", type=float, default=1.0, dest="stop_window",
+                   help="over --max-clients, a new connection may still send stop for this many seconds (the "
+                        "reserved stop path); anything else is refused")
+    p.add_argument("--state-curve-secret", metavar="FILE", dest="state_curve_secret",
+                   help="CURVE: the sim's secret certificate (NAME.key_secret); encrypts the state stream and admits "
+                        "only subscribers that know the sim's public key (docs/security.md)")
+    p.add_argument("--state-curve-allow", action="append", default=[], metavar="FILE", dest="state_curve_allow",
+                   help="CURVE: public certificate (NAME.key) of a subscriber allowed in (repeatable)")
+    p.add_argument("--state-endpoint", default=DEFAULT_STATE_ENDPOINT, dest="state_endpoint",
+                   help="ZeroMQ PUB endpoint of the robot state stream ('none' to disable)")
+    p.add_argument("--state-rate-hz", type=float, default=100.0, dest="state_rate_hz",
+                   help="robot state samples per second")
+    p.add_argument("--fault", action="append", default=[], metavar="SPEC",
+                   help="inject a fault: ack-delay=SECONDS, drop-after=N (messages), silent (repeatable)")
+    p.add_argument("--tool", type=_six, default=None, metavar="X,Y,Z,YAW,PITCH,ROLL",
+                   help="TOOL transform (mm, degrees); default NULL")
+    p.add_argument("--joints", type=_six, default=None, metavar="J1,...,J6",
+                   help="initial joint angles in degrees (default: home 0,-90,180,0,90,0)")
+    p.add_argument("--log-level", default="WARNING", dest="log_level", help="logging level on stderr")
+    v = p.add_argument_group("V+ emulator (instead of the Python skill table; docs/vplus.md)")
+    v.add_argument("--vplus", nargs="+", metavar="FILE", default=None,
+                   help="run these V+ .V2 modules in the emulator; the Python skill table is not used")
+    v.add_argument("--run", metavar="PROGRAM", default=None, help="with --vplus: the program to run in task 0")
+    v.add_argument("--map-port", action="append", default=[], metavar="VPORT=HOSTPORT", dest="map_port",
+                   help="with --vplus: FOPEN /LOCAL_PORT VPORT binds HOSTPORT instead (0: ephemeral; repeatable)")
+    v.add_argument("--vplus-cycle", type=float, default=0.016, dest="vplus_cycle", metavar="SECONDS",
+                   help="with --vplus: the trajectory cycle that WAIT waits for")
+    return p
+
+
+def _state_curve(args: argparse.Namespace):  # -> CurveServer | None
+    if not args.state_curve_secret:
+        if args.state_curve_allow:
+            raise ValueError("--state-curve-allow needs --state-curve-secret")
+        return None
+    from aioadept.bus.security import CurveServer, load_keypair
+
+    keys = load_keypair(args.state_curve_secret)
+    if keys.secret is None:
+        raise ValueError(f"{args.state_curve_secret} holds no secret key (give the .key_secret file)")
+    allowed = [load_keypair(f).public for f in args.state_curve_allow] or None
+    return CurveServer(keys, allowed_clients=allowed)
+
+
+def options_from_args(args: argparse.Namespace) -> SimOptions:
+    """Raises ``ValueError`` for inconsistent values."""
+    state = None if args.state_endpoint.lower() == "none" else args.state_endpoint
+    extra = {}
+    if args.joints is not None:
+        extra["joints_deg"] = args.joints
+    return SimOptions(host=args.host, port=args.port, time_scale=args.time_scale, instant=args.instant,
+                      monitor_speed_pct=args.monitor_speed, max_speed_pct=args.max_speed,
+                      jump_limit=args.jump_limit,
+                      max_clients=args.max_clients, allow=tuple(args.allow),
+                      line_timeout_s=args.line_timeout or None, stop_window_s=args.stop_window,
+                      state_endpoint=state, state_rate_hz=args.state_rate_hz, faults=Faults.parse(args.fault),
+                      state_curve=_state_curve(args),
+                      tool=Pose(*args.tool) if args.tool else NULL, **extra)
+
+
+async def run(options: SimOptions) -> int:
+    loop = asyncio.get_running_loop()
+    stop = asyncio.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(sig, stop.set)
+    try:
+        async with SimServer(options) as sim:
+            state = sim.state_endpoint or "none"
+            print(f"READY host={sim.host} port={sim.port} state={state}", flush=True)
+            await stop.wait()
+    finally:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            loop.remove_signal_handler(sig)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.vplus is None and (args.run or args.map_port):
+        parser.error("--run and --map-port need --vplus")
+    if args.vplus is not None:
+        if not args.run:
+            parser.error("--vplus needs --run PROGRAM")
+        from aioadept.vplus import cli as vplus_cli
+
+        try:
+            vplus_cli.parse_port_map(args.map_port)
+            options = options_from_args(args)     # the same robot, state stream and faults as the Python backend
+        except ValueError as exc:
+            parser.error(str(exc))
+        try:
+            return asyncio.run(vplus_cli.run(args, options))
+        except Exception as exc:  # OSError (port taken), BusError (state endpoint taken)
+            from aioadept.errors import AdeptError
+
+            if isinstance(exc, (OSError, AdeptError)):
+                print(f"aioadept sim: {exc}", file=sys.stderr)
+                return 1
+            raise
+    logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
+                        format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    try:
+        options = options_from_args(args)
+    except ValueError as exc:
+        parser.error(str(exc))
+    try:
+        return asyncio.run(run(options))
+    except OSError as exc:  # e.g. the port is taken
+        print(f"aioadept sim: {exc}", file=sys.stderr)
+        return 1
+    except Exception as exc:  # BusError binding the state endpoint, etc.
+        from aioadept.errors import AdeptError
+
+        if isinstance(exc, AdeptError):
+            print(f"aioadept sim: {exc}", file=sys.stderr)
+            return 1
+        raise
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,261 @@
+"""``aioadept vision``: image acquisition + processing in one process (the paper's ImAcqService + ImProcNode).
+
+Data path: sources -> one grabbing thread each -> ring buffers -> (VisionRequest over ZeroMQ) -> frame for
+``t_request`` (awaited on the event loop) -> sharpness graph (on the loop when cheap, else in the node's worker
+thread: ``--graph-thread``) -> VisionResponse. With the ``virtual`` source a
+:class:`RobotStateFollower` subscribes to the sim's robot state stream and the virtual camera renders the
+calibration object at the tool pose of each frame's time.
+
+Endpoints are CZMQ style (``@`` binds, ``>`` connects; bare: the request SUB connects, the response PUB binds, as
+in EPypes; :mod:`aioadept.bus.endpoints`). Prints one line ``READY request=<endpoint> response=<endpoint> ...`` on
+stdout once it serves, each endpoint as the MCN must use it (``>addr``: connect there, ``@addr``: bind there; real
+ports when bound to port 0); logs every request it serves on stderr; exits 0 on SIGINT/SIGTERM. Options may come from a TOML
+file (``--config``; keys are the long option names with ``_`` or ``-``, top level or in a ``[vision]`` table);
+command-line options override it. ``--figures OUTDIR`` writes the Fig. 7-9 pictures and exits.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import logging
+import sys
+import tomllib
+from typing import Any
+
+from aioadept import defaults
+from aioadept.cli.options import description, with_default
+
+log = logging.getLogger("aioadept.vision")
+
+GRAPH_THREAD_CHOICES = ("auto", "always", "never")  # aioadept.vision.node.GRAPH_THREAD_MODES, without importing it
+
+from aioadept.vision.options import VisionOptions  # noqa: E402  (light: neither OpenCV nor ZeroMQ)
+
+DEFAULTS: dict[str, Any] = VisionOptions().to_dict()
+DEFAULTS["source"] = ["virtual"]
+"""Every option's default: one schema, :class:`aioadept.vision.options.VisionOptions`."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="aioadept vision", description=description(__doc__),
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--config", metavar="FILE", help="TOML file with any of these options (CLI overrides it)")
+    p.add_argument("--source", action="append", metavar="SPEC",
+                   help="virtual | gige:ADDRESS (a GigE Vision camera's IPv4 address, opened by address, never by "
+                        "discovery; needs the [gige] extra) | folder:PATH | opencv:SPEC (device index, video file or "
+                        "URL); repeat for several cameras (default: virtual)")
+    p.add_argument("--state-endpoint", help=with_default("robot state stream to follow (virtual source)",
+                                                          defaults.STATE_ENDPOINT))
+    p.add_argument("--request-endpoint",
+                   help=with_default("SUB for VisionRequest events: connects to the MCN's PUB by default, as EPypes "
+                                     "nodes do; '@tcp://...' binds, '>tcp://...' connects (port 0: bind any free "
+                                     "port)", defaults.REQUEST_ENDPOINT))
+    p.add_argument("--response-endpoint",
+                   help=with_default("PUB for VisionResponse events: binds by default; '>tcp://...' connects to a "
+                                     "bound SUB (port 0: any free port)", defaults.RESPONSE_ENDPOINT))
+    p.add_argument("--fps", type=float, help="grab rate cap per source (default 15)")
+    p.add_argument("--buffer-size", type=int, help="frames kept per source (default 64)")
+    p.add_argument("--focus-offset-mm", type=float,
+                   help="virtual camera: focal plane this far along tool +z from the approach pose (default 20)")
+    p.add_argument("--working-distance-mm", type=float,
+                   help="virtual camera: lens to target at the approach pose (default 300)")
+    p.add_argument("--f-number", type=float, help="virtual camera: lens f-number (default 2.8)")
+    p.add_argument("--noise-sigma", type=float, help="virtual camera: sensor noise, grey levels (default 2)")
+    p.add_argument("--seed", type=int, help="virtual camera: noise seed")
+    p.add_argument("--policy", choices=("nearest", "after"),
+                   help="free-running sources: the frame for a request: the first exposed at/after t_request "
+                        "(default: never a frame from before the request), or nearest in time (the paper; opt-in, "
+                        "bounded by --max-frame-age)")
+    p.add_argument("--max-frame-age", type=float, metavar="S",
+                   help="policy nearest: answer with an error rather than from a frame exposed more than S seconds "
+                        "before the request (default 0.1; inf: no check)")
+    p.add_argument("--trigger", choices=("auto", "software", "free"),
+                   help="acquisition: auto (default: each request software-triggers its own exposure on sources "
+                        "that can, the virtual camera; others run free), software (insist), free (free-running at "
+                        "--fps)")
+    p.add_argument("--exposure-ms", type=float,
+                   help="exposure time, ms: the virtual camera's, and written to GigE cameras (default 5)")
+    p.add_argument("--pixel-format", help="GigE cameras: PixelFormat written at open: Mono8 (default), Mono16, "
+                                          "BayerRG8/GR8/GB8/BG8 (converted to mono8)")
+    p.add_argument("--readout-ms", type=float,
+                   help="virtual camera: readout + transfer time, ms (default: frame bytes over 1 Gbit/s GigE, 6.3 "
+                        "ms for 1024x768 mono8)")
+    p.add_argument("--frame-timeout", type=float, help="max wait for a frame, s (default 1)")
+    p.add_argument("--graph", choices=("sharpness", "frame-sharpness", "noop"),
+                   help="processing graph: sharpness (the paper's, of the calibration object; default), "
+                        "frame-sharpness (the whole frame, no object search: aiming a real camera), noop (latency "
+                        "tests)")
+    p.add_argument("--graph-thread", choices=GRAPH_THREAD_CHOICES,
+                   help="where the graph runs: auto (default: on the event loop while its measured cost is at most "
+                        "--graph-inline-max-ms, else in the node's worker thread), always (worker), never (loop)")
+    p.add_argument("--graph-inline-max-ms", type=float,
+                   help="--graph-thread auto: moving average of a run's cost, ms, up to which it runs on the loop "
+                        "(default 5)")
+    p.add_argument("--inline", action="store_true", default=None,
+                   help="same as --graph-thread never (kept for old command lines)")
+    p.add_argument("--max-state-age", type=float, metavar="S",
+                   help="virtual camera: answer with an error instead of a sharpness when the newest robot state "
+                        "is more than S seconds older than the frame (the state stream went silent; default 0.5; "
+                        "inf: no check)")
+    p.add_argument("--max-queue", type=int, metavar="N",
+                   help="requests kept waiting; when full the oldest waiting one is dropped and answered with a "
+                        "'dropped:' error (default 32)")
+    p.add_argument("--max-request-bytes", type=int, metavar="N",
+                   help="larger request frames are discarded unparsed and their sender disconnected "
+                        "(ZMQ_MAXMSGSIZE; default 1048576)")
+    p.add_argument("--save-frames", metavar="DIR", help="save every served frame (PNG + frames.csv) into DIR")
+    p.add_argument("--figures", metavar="OUTDIR", help="write the graph / intermediate results / sweep pictures "
+                                                         "(Figs. 7-9) into OUTDIR and exit")
+    p.add_argument("--log-level", help="DEBUG, INFO (default), WARNING")
+    p.add_argument("--state-curve-secret", metavar="FILE",
+                   help="CURVE for the robot state stream: this node's secret certificate (NAME.key_secret)")
+    p.add_argument("--state-curve-server", metavar="FILE",
+                   help="CURVE for the robot state stream: the sim's public certificate (NAME.key)")
+    p.add_argument("--curve-secret", metavar="FILE",
+                   help="CURVE: this node's secret certificate (NAME.key_secret, aioadept.bus.security.save_keypair); "
+                        "turns on CURVE authentication and encryption of requests and responses (docs/security.md)")
+    p.add_argument("--curve-allow", action="append", metavar="FILE",
+                   help="CURVE: public certificate (NAME.key) of a requester allowed in (repeatable; without any, "
+                        "every requester that knows the node's public key is accepted)")
+    return p
+
+
+def load_config(path: str) -> dict[str, Any]:
+    """Options from a TOML file, checked against the one vision schema (:class:`VisionOptions`); raises
+    :class:`aioadept.configfile.ConfigError` naming the file and the key.
+
+    A file with a ``[vision]`` (or ``[robot]``, ``[focus]``, ``[run]``) table is read as a cell file (``examples/cell.toml``: the whole file is checked as
+    ``demo`` checks it; the node takes ``[vision]``, and the robot's ``state_endpoint`` unless ``[vision]`` has its
+    own; a starter's ``start`` is ignored and ``vision_args`` come before the command line's). Otherwise the options
+    are the top-level keys, with ``_`` or ``-``.
+    """
+    from aioadept.configfile import load_toml
+
+    data = load_toml(path)  # the file named, and the line of bad TOML (the reader every --config shares)
+    if set(data) & {"robot", "vision", "focus", "run"}:  # a cell file: one schema, checked as demo checks it
+        from aioadept.apps.cell import CellConfig
+
+        cfg = CellConfig.from_dict(data, source=str(path))
+        table = {str(k).replace("-", "_") for k in (data.get("vision") or {})}
+        out = {k: v for k, v in cfg.vision.to_dict().items() if k in table}
+        if "state_endpoint" not in out and "state_endpoint" in (data.get("robot") or {}):
+            out["state_endpoint"] = cfg.robot.state_endpoint
+        if cfg.vision.vision_args:
+            out["vision_args"] = list(cfg.vision.vision_args)
+    else:
+        opts = VisionOptions.from_table(data, str(path))
+        out = {k: v for k, v in opts.to_dict().items() if k in {str(k).replace("-", "_") for k in data}}
+    if isinstance(out.get("source"), str):
+        out["source"] = [out["source"]]
+    return out
+
+
+def resolve_options(argv: list[str]) -> argparse.Namespace:
+    """Defaults < config file < command line."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    merged = dict(DEFAULTS)
+    if args.config:
+        try:
+            merged.update(load_config(args.config))
+        except (OSError, ValueError, tomllib.TOMLDecodeError) as exc:  # one line naming the file and the key
+            from aioadept.configfile import report
+
+            raise SystemExit(report("aioadept vision", exc)) from None
+        extra = merged.pop("vision_args", None)
+        if extra:  # the cell file's further arguments, overridden by the command line's
+            args = parser.parse_args([*extra, *argv])
+    for key, value in vars(args).items():
+        if key != "config" and value is not None:
+            merged[key] = value
+    if merged["policy"] not in ("nearest", "after"):
+        parser.error(f"policy must be nearest or after, got {merged['policy']!r}")
+    if merged["inline"]:
+        if merged["graph_thread"] not in ("auto", "never"):
+            parser.error("--inline means --graph-thread never; do not give both")
+        merged["graph_thread"] = "never"
+    if merged["graph_thread"] not in GRAPH_THREAD_CHOICES:
+        parser.error(f"graph-thread must be one of {', '.join(GRAPH_THREAD_CHOICES)}, got {merged['graph_thread']!r}")
+    if float(merged["graph_inline_max_ms"]) < 0:
+        parser.error("graph-inline-max-ms must be >= 0")
+    try:
+        max_age = float(merged["max_state_age"])
+    except (TypeError, ValueError):
+        max_age = float("nan")
+    if not max_age > 0:  # NaN too
+        parser.error(f"max-state-age must be > 0 seconds (inf: no check), got {merged['max_state_age']!r}")
+    merged["max_state_age"] = max_age
+    try:
+        max_frame_age = float(merged["max_frame_age"])
+    except (TypeError, ValueError):
+        max_frame_age = float("nan")
+    if not max_frame_age > 0:
+        parser.error(f"max-frame-age must be > 0 seconds (inf: no check), got {merged['max_frame_age']!r}")
+    merged["max_frame_age"] = max_frame_age
+    if merged["trigger"] not in ("auto", "software", "free"):
+        parser.error(f"trigger must be auto, software or free, got {merged['trigger']!r}")
+    for key in ("exposure_ms", "readout_ms"):
+        value = merged[key]
+        if value is None and key == "readout_ms":
+            continue
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 <= value < float("inf"):
+            parser.error(f"{key.replace('_', '-')} must be a finite number >= 0, got {value!r}")
+    for key in ("max_queue", "max_request_bytes"):
+        value = merged[key]
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            parser.error(f"{key.replace('_', '-')} must be an integer >= 1, got {value!r}")
+    from aioadept.bus.endpoints import parse_endpoint
+    from aioadept.errors import BusError
+
+    for key in ("request_endpoint", "response_endpoint", "state_endpoint"):
+        try:
+            parse_endpoint(merged[key])
+        except BusError as exc:
+            parser.error(f"--{key.replace('_', '-')}: {exc}")
+    merged["curve"] = _curve_server(parser, merged)
+    return argparse.Namespace(**merged)
+
+
+def _curve_server(parser: argparse.ArgumentParser, merged: dict[str, Any]) -> Any:
+    """The CurveServer of --curve-secret/--curve-allow, or None (CURVE off, the default)."""
+    allow = merged["curve_allow"]
+    if isinstance(allow, str):
+        allow = [allow]
+    if not merged["curve_secret"]:
+        if allow:
+            parser.error("--curve-allow needs --curve-secret")
+        return None
+    from aioadept.bus.security import CurveServer, load_keypair
+
+    try:
+        keys = load_keypair(merged["curve_secret"])
+        if keys.secret is None:
+            raise ValueError(f"{merged['curve_secret']} holds no secret key (give the .key_secret file)")
+        return CurveServer(keys, allowed_clients=[load_keypair(f).public for f in allow] if allow else None)
+    except ValueError as exc:
+        parser.error(str(exc))
+
+
+def main(argv: list[str] | None = None) -> int:
+    opts = resolve_options(list(sys.argv[1:] if argv is None else argv))
+    logging.basicConfig(level=getattr(logging, str(opts.log_level).upper(), logging.INFO), stream=sys.stderr,
+                        format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    if opts.figures:
+        from aioadept.vision.figures import write_figures
+
+        for path in write_figures(opts.figures, focus_offset_mm=opts.focus_offset_mm):
+            print(path)
+        return 0
+    from aioadept.errors import AdeptError
+    from aioadept.vision.service import serve
+
+    try:
+        return asyncio.run(serve(opts))
+    except (ValueError, OSError, AdeptError) as exc:
+        log.error("%s", exc)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

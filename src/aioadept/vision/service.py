@@ -1,0 +1,144 @@
+"""The vision node as a service: build the cameras of ``--source`` specs, serve requests until SIGINT/SIGTERM
+(:func:`serve`); ``aioadept vision`` (:mod:`aioadept.cli.vision`) parses the options and calls it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import logging
+import signal
+from pathlib import Path
+from typing import Any
+
+log = logging.getLogger("aioadept.vision")
+
+# The READY line's ``thread=`` field: where graphs run.
+THREAD_WORDS = {"auto": "auto", "always": "worker", "never": "loop"}
+
+
+def _state_curve(opts: argparse.Namespace) -> Any:
+    """The CurveClient for the robot state stream, or None (plain, the default)."""
+    secret, server = getattr(opts, "state_curve_secret", None), getattr(opts, "state_curve_server", None)
+    if not secret and not server:
+        return None
+    if not (secret and server):
+        raise SystemExit("aioadept vision: --state-curve-secret and --state-curve-server go together")
+    from aioadept.bus.security import CurveClient, load_keypair
+
+    return CurveClient(load_keypair(secret), load_keypair(server).public)
+
+
+def make_sources(opts: argparse.Namespace, pose_at: Any, state_age: Any = None) -> list[Any]:
+    """Camera objects for the ``--source`` specs (unique camera ids). ``pose_at`` / ``state_age``: the robot state
+    follower's, for virtual cameras."""
+    from aioadept.vision.sources import ImageFolderSource, OpenCVSource
+    from aioadept.vision.virtual_camera import LensOptics, paper_camera
+
+    sources: list[Any] = []
+    seen: set[str] = set()
+
+    def unique(cid: str) -> str:
+        base, n = cid, 1
+        while cid in seen:
+            cid, n = f"{base}{n}", n + 1
+        seen.add(cid)
+        return cid
+
+    for spec in opts.source:
+        kind, _, arg = spec.partition(":")
+        if kind == "virtual":
+            sources.append(paper_camera(pose_at, focus_offset_mm=opts.focus_offset_mm,
+                                        working_distance_mm=opts.working_distance_mm,
+                                        optics=LensOptics(f_number=opts.f_number), noise_sigma=opts.noise_sigma,
+                                        seed=opts.seed, camera_id=unique("virtual"), state_age=state_age,
+                                        exposure_ms=opts.exposure_ms, readout_ms=opts.readout_ms))
+        elif kind == "folder" and arg:
+            csv_path = Path(arg) / "frames.csv"
+            # A recorded folder (--save-frames) replays with its times; any other folder loops, stamped live.
+            sources.append(ImageFolderSource(arg, camera_id=unique("folder"),
+                                             timestamps_csv=csv_path if csv_path.exists() else None,
+                                             loop=not csv_path.exists()))
+        elif kind == "gige" and arg:
+            from aioadept.vision.gige import GigECamera
+
+            sources.append(GigECamera(arg, camera_id=unique(f"gige:{arg}"), exposure_ms=opts.exposure_ms or None,
+                                      pixel_format=opts.pixel_format, timeout_s=float(opts.frame_timeout)))
+        elif kind == "opencv" and arg:
+            sources.append(OpenCVSource(arg, camera_id=unique(f"opencv:{arg}")))
+        else:
+            raise ValueError(f"bad --source {spec!r}: use virtual, gige:ADDRESS, folder:PATH or opencv:SPEC")
+    return sources
+
+
+async def serve(opts: argparse.Namespace) -> int:
+    from aioadept.vision.acquisition import Acquisition
+    from aioadept.vision.node import NodeResponder, VisionNode, noop_graph
+    from aioadept.vision.sharpness import frame_sharpness_graph, sharpness_graph
+    from aioadept.vision.sources import FrameRecorder
+    from aioadept.vision.virtual_camera import RobotStateFollower
+
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(sig, stop.set)
+
+    follower = None
+    if any(s.split(":", 1)[0] == "virtual" for s in opts.source):
+        follower = RobotStateFollower(opts.state_endpoint, curve=_state_curve(opts)).start()
+    recorder = FrameRecorder(opts.save_frames) if opts.save_frames else None
+    acq = node = responder = None
+    try:
+        sources = make_sources(opts, follower.pose_at if follower else None,
+                               follower.state_age_s if follower else None)
+        acq = Acquisition(sources, buffer_size=opts.buffer_size, fps=opts.fps, trigger=opts.trigger).start()
+        # Serve only once every camera has a frame: the first render/read pays one-off costs (imports, caches).
+        if not await asyncio.to_thread(acq.wait_ready, 10.0):
+            log.warning("not every camera delivered a frame within 10 s; serving anyway")
+        graph = (noop_graph() if opts.graph == "noop" else
+                 frame_sharpness_graph() if opts.graph == "frame-sharpness" else sharpness_graph())
+        node = VisionNode(acq, graph, policy=opts.policy, timeout_s=opts.frame_timeout, recorder=recorder,
+                          graph_thread=opts.graph_thread, inline_max_ms=float(opts.graph_inline_max_ms),
+                          max_state_age_s=opts.max_state_age, max_frame_age_s=opts.max_frame_age)
+        # Frame waits are awaited on the loop and the graph runs where --graph-thread says, so the loop is never
+        # blocked for longer than one cheap graph run; requests that need no waiting are answered in the socket
+        # callback (NodeResponder).
+        responder = NodeResponder(opts.request_endpoint, opts.response_endpoint, node,
+                                  max_queue=opts.max_queue, max_request_bytes=opts.max_request_bytes,
+                                  **({"curve": opts.curve} if opts.curve is not None else {}))
+        responder.start()
+        cams = ",".join(acq.camera_ids)
+        # In the form the MCN uses (e.g. request=@tcp://127.0.0.1:5555: bind your PUB there; response=>tcp://...:
+        # connect your SUB there), so the line can be passed on as is.
+        print(f"READY request={responder.peer_request_endpoint} response={responder.peer_response_endpoint} "
+              f"cameras={cams} fps={opts.fps:g} policy={opts.policy} graph={opts.graph} "
+              f"trigger={'software' if any(acq.triggered.values()) else 'free'} "
+              f"thread={THREAD_WORDS[opts.graph_thread]}", flush=True)
+        log.info("serving %s requests on %s, responses on %s; cameras %s at %g fps, policy %s, graph thread %s%s",
+                 opts.graph, responder.actual_request_endpoint, responder.actual_response_endpoint, cams, opts.fps,
+                 opts.policy, opts.graph_thread,
+                 f", following robot state on {opts.state_endpoint}" if follower else "")
+        stop_task = asyncio.create_task(stop.wait())
+        serve_task = asyncio.create_task(responder.wait_closed())
+        done, _ = await asyncio.wait({stop_task, serve_task}, return_when=asyncio.FIRST_COMPLETED)
+        stop_task.cancel()
+        if serve_task in done and serve_task.exception() is not None:
+            log.error("responder failed: %r", serve_task.exception())
+            return 1
+        serve_task.cancel()
+        log.info("stopping: %d requests served (%d failed, %d of them for a stale robot state), %d dropped (queue "
+                 "full), %d refused (bad t_deadline); graph runs on the loop %d, in the worker %d",
+                 node.served, node.failed, node.stale, responder.dropped, responder.rejected, node.inline_runs,
+                 node.thread_runs)
+        return 0
+    finally:
+        if responder is not None:
+            await responder.aclose()
+        if node is not None:
+            node.close()
+        if acq is not None:
+            acq.stop()
+        if follower is not None:
+            follower.stop()
+        if recorder is not None:
+            recorder.close()
