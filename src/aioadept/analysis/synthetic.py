@@ -26,6 +26,7 @@ import numpy as np
 from aioadept.bus import Request, Response
 from aioadept.capture import Recorder
 from aioadept.client import MessageResult, SentMessage
+from aioadept.robots import paper_cell
 from aioadept.geometry import Pose
 from aioadept.protocol import Ack, Status
 
@@ -99,7 +100,7 @@ def synthetic_recorder(*, seed: int = 0, approach_speed: int = 25, delta_z_mm: f
         return abs(dz_mm) / speed_mm_s + 0.1  # + acceleration, deceleration and settling
 
     # init_move: one cmdexec of four motions (each its own batch of motion + break)
-    for joints in ((0, -90, 180, 0, 90, 0), (-90, 60, 30, -90, 0, 0)):
+    for joints in (paper_cell.HOME_JOINTS_DEG, paper_cell.REL_JOINTS_DEG):
         t = robot_batch([("move_joints", tuple(float(j) for j in joints)), ("break", ())], t, 0.8) + 0.0005
 
     sharp_peak = 60.0

@@ -126,8 +126,8 @@ class RobotClient:
       not shown to observers.
     """
 
-    def __init__(self, host: str = defaults.ROBOT_HOST, port: int = defaults.ROBOT_PORT, *, connect_timeout_s: float = 5.0,
-                 ack_timeout_s: float | None = 60.0, observers: Iterable[Observer] = (),
+    def __init__(self, host: str = defaults.ROBOT_HOST, port: int = defaults.ROBOT_PORT, *,
+                 connect_timeout_s: float = 5.0, ack_timeout_s: float | None = 60.0, observers: Iterable[Observer] = (),
                  id_start: int | None = None, auto_reconnect: bool = False,
                  connector: Connector | None = None, max_line: int = MAX_ACK_LINE,
                  hello_timeout_s: float | None = None) -> None:

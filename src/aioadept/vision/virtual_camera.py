@@ -46,16 +46,16 @@ import cv2
 import numpy as np
 
 from aioadept.geometry import NULL, Pose, inverse_transform
+from aioadept.robots import paper_cell
 from aioadept.vision.sources import Camera, Frame
 
 log = logging.getLogger(__name__)
 
-# The paper's init_move (Semeniuta & Falkman 2019, "Coroutines"): joints of the home configuration, the relative
-# joint move, the tool-frame move and the final J6 rotation that together reach the approach pose.
-PAPER_HOME_JOINTS_DEG = (0.0, -90.0, 180.0, 0.0, 90.0, 0.0)
-PAPER_REL_JOINTS_DEG = (-90.0, 60.0, 30.0, -90.0, 0.0, 0.0)
-PAPER_REL_TOOL = (40.0, -25.0, 185.0, 0.0, 0.0, 0.0)
-PAPER_REL_JOINTS_2_DEG = (0.0, 0.0, 0.0, 0.0, 0.0, 1.5)
+# The paper's init_move, written once in aioadept.robots.paper_cell (these names are kept for old imports).
+PAPER_HOME_JOINTS_DEG = paper_cell.HOME_JOINTS_DEG
+PAPER_REL_JOINTS_DEG = paper_cell.REL_JOINTS_DEG
+PAPER_REL_TOOL = paper_cell.REL_TOOL
+PAPER_REL_JOINTS_2_DEG = paper_cell.REL_JOINTS_2_DEG
 
 
 @dataclass(frozen=True, slots=True)
@@ -158,8 +158,8 @@ def disk_kernel(diameter_px: float) -> np.ndarray:
 def paper_approach_pose(forward: Callable[[Sequence[float]], Pose] | None = None) -> Pose:
     """The approach pose of the paper's focus application: where ``init_move`` leaves the robot.
 
-    ``MoveJoints([0,-90,180,0,90,0]); MoveRelJoints([-90,60,30,-90,0,0]); MoveRelTool([40,-25,185,0,0,0]);
-    MoveRelJoints([0,0,0,0,0,1.5])``, computed with the Viper s850 kinematics (``aioadept.robots.viper_s850``): forward
+    The motions of :mod:`aioadept.robots.paper_cell` (``MoveJoints([0,-90,180,0,90,0]); MoveRelJoints(...);
+    MoveRelTool(...); MoveRelJoints(...)``), computed with the Viper s850 kinematics (``aioadept.robots.viper_s850``): forward
     kinematics of the joints after the first two moves, the tool-frame move, inverse kinematics for its joints,
     and forward kinematics again after the J6 increment. ``forward`` may replace the sim's forward function (the
     inverse then becomes a tool-frame composition, which is what a J6 rotation is for a flange on the J6 axis).
