@@ -41,7 +41,8 @@ Semantics, following the original V+ AdeptServer (FACTS.md):
   +-360 deg, joint values within +-3600 deg (then the joint limits), positions within +-10 m; a second message
   with an ID still pending on the same connection is refused (``stop`` excepted: it is never refused).
 
-Skills live in a table (:attr:`Controller.skills`); :meth:`Controller.register` adds user skills. A skill is a
+Skills live in a table (:attr:`Controller.skills`, from :mod:`aioadept.sim.skills`); :meth:`Controller.register`
+adds user skills. A skill is a
 function ``skill(ctl, args)`` that returns ``None`` (done now), a :class:`SkillResult` (done, with trailing
 fields), or a generator that yields the server time it wants to be resumed at and finally returns one of those.
 It raises :class:`aioadept.errors.RobotError` to answer an ``error`` ack.
@@ -49,17 +50,15 @@ It raises :class:`aioadept.errors.RobotError` to answer an ``error`` ack.
 
 from __future__ import annotations
 
-import math
 from collections import deque
-from collections.abc import Callable, Generator, Hashable, Iterable, Sequence
+from collections.abc import Generator, Hashable, Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any, Union
+from typing import Any
 
 from aioadept.errors import RemoteProtocolError, RobotError
-from aioadept.geometry import NULL, Pose, rel_tool, rel_world
+from aioadept.geometry import NULL, Pose
 from aioadept.protocol import (
     NO_ID,
-    PROTOCOL_VERSION,
     STOP_SKILL,
     Ack,
     CommandMessage,
@@ -72,21 +71,10 @@ from aioadept.protocol import (
 from aioadept.robots import viper_s850 as kin
 from aioadept.sim.motion import MotionLimits, Trajectory
 
-SERVER_NAME = "aioadept-sim"
-MIN_SPEED_PCT = 1.0
-"""Lowest program speed accepted by set_speed. The V+ manuals give SPEED's scale (100 = normal full speed, 50 =
-half) but no lower bound; the protocol's set_speed argument is an integer 0..100 in the paper's grammar, so 1 % is
-the slowest speed a client of the original protocol can ask for. Below it a motion would hold the single executor
-(and every client's queue) for hours."""
-MAX_POSITION_MM = 10_000.0
-"""Largest position or displacement component accepted (mm): ten times the Viper s850's reach."""
-MAX_ROTATION_DEG = 360.0
-"""Largest pose rotation (yaw, pitch, roll, absolute or relative) accepted, in degrees: a full turn. Beyond it the
-value is a client's error (1e20 deg), never a motion."""
-MAX_JOINT_DEG = 3600.0
-"""Largest joint angle or joint displacement accepted before the joint-limit check (ten turns)."""
-AIR_SIGNAL = 8
-"""The digital output that enable_air / disable_air switch (AdeptServer uses signal 8)."""
+# The table's names, re-exported: their old import path.
+from aioadept.sim.skills import (_STOP_RUN, AIR_SIGNAL, MAX_JOINT_DEG, MAX_POSITION_MM, MAX_ROTATION_DEG,  # noqa: F401
+                                 MIN_SPEED_PCT, SERVER_NAME, SkillFunc, SkillGen, SkillResult, SkillSpec,
+                                 default_skills)
 
 ConnId = Hashable
 
@@ -97,34 +85,6 @@ class Outgoing:
 
     conn: ConnId
     ack: Ack
-
-
-@dataclass(frozen=True, slots=True)
-class SkillResult:
-    """What a finished skill answers: trailing fields after the pose (``extra``)."""
-
-    extra: tuple[str, ...] = ()
-
-
-SkillGen = Generator[float, None, Union[SkillResult, None]]
-SkillFunc = Callable[["Controller", tuple[float, ...]], Union[SkillResult, None, SkillGen]]
-
-
-@dataclass(frozen=True, slots=True)
-class SkillSpec:
-    """One entry of the skill table.
-
-    ``nargs``: the argument counts accepted (None: any). ``immediate``: served when read instead of queued (only
-    for skills that never move the arm or wait; ``stop`` is handled by the controller itself). ``readonly``: a
-    query that neither moves nor waits nor changes state; served when read if its connection has nothing pending
-    (so it never waits behind another client's motion), else in turn behind that connection's own commands.
-    """
-
-    name: str
-    func: SkillFunc
-    nargs: tuple[int, ...] | None = (0,)
-    immediate: bool = False
-    readonly: bool = False
 
 
 @dataclass(slots=True)
@@ -532,121 +492,6 @@ class Controller:
         while self.trajectory.t_rest_s > self.now_s:
             yield self.trajectory.t_rest_s
         return None
-
-
-# -- the AdeptServer skills ------------------------------------------------------------------------------------
-
-def _finite(args: Sequence[float]) -> None:
-    for a in args:
-        if not math.isfinite(a):
-            raise RobotError(ErrorCode.ILLEGAL_VALUE, "argument is not finite")
-
-
-def _check_pose_args(args: Sequence[float], what: str) -> None:
-    """Six pose numbers: finite, positions within MAX_POSITION_MM, rotations within MAX_ROTATION_DEG.
-
-    Checked before any arithmetic: trigonometry of 1e20 degrees is noise that can land on a reachable pose.
-    """
-    _finite(args)
-    for i, a in enumerate(args):
-        if i < 3 and abs(a) > MAX_POSITION_MM:
-            raise RobotError(ErrorCode.ILLEGAL_VALUE, f"{what} {'xyz'[i]} {a:.6g} mm beyond +-{MAX_POSITION_MM:g}")
-        if i >= 3 and abs(a) > MAX_ROTATION_DEG:
-            raise RobotError(ErrorCode.ILLEGAL_VALUE,
-                             f"{what} rotation {a:.6g} deg beyond +-{MAX_ROTATION_DEG:g}")
-
-
-def _check_joint_args(args: Sequence[float], what: str) -> None:
-    # Angles a joint could have (within a few turns) go on to the joint-limit check, which names the joint
-    # (JOINT_LIMIT); only absurd magnitudes stop here.
-    _finite(args)
-    for i, a in enumerate(args):
-        if abs(a) > MAX_JOINT_DEG:
-            raise RobotError(ErrorCode.ILLEGAL_VALUE, f"{what} J{i + 1} {a:.6g} deg beyond +-{MAX_JOINT_DEG:g}")
-
-
-def _move_to(ctl: Controller, args: tuple[float, ...]) -> SkillGen:
-    _check_pose_args(args, "target")
-    return (yield from ctl.move_pose(Pose(*args)))
-
-
-def _move_joints(ctl: Controller, args: tuple[float, ...]) -> SkillGen:
-    _check_joint_args(args, "target")
-    return (yield from ctl.move_joints(args))
-
-
-def _move_rel_world(ctl: Controller, args: tuple[float, ...]) -> SkillGen:
-    _check_pose_args(args, "displacement")
-    return (yield from ctl.move_pose(rel_world(ctl.here, args)))
-
-
-def _move_rel_tool(ctl: Controller, args: tuple[float, ...]) -> SkillGen:
-    _check_pose_args(args, "displacement")
-    return (yield from ctl.move_pose(rel_tool(ctl.here, args)))
-
-
-def _move_rel_joints(ctl: Controller, args: tuple[float, ...]) -> SkillGen:
-    _check_joint_args(args, "displacement")
-    return (yield from ctl.move_joints([a + d for a, d in zip(ctl.joints_deg, args)]))
-
-
-def _break(ctl: Controller, args: tuple[float, ...]) -> SkillGen:
-    return (yield from ctl.wait_rest())
-
-
-def _set_speed(ctl: Controller, args: tuple[float, ...]) -> None:
-    (speed,) = args
-    if not ctl.min_speed_pct <= speed <= 100:
-        raise RobotError(ErrorCode.ILLEGAL_VALUE, f"speed {speed:.6g} outside {ctl.min_speed_pct:g}..100")
-    ctl.pending_speed_pct = float(speed)
-
-
-def _enable_air(ctl: Controller, args: tuple[float, ...]) -> None:
-    ctl.signals[AIR_SIGNAL] = True
-
-
-def _disable_air(ctl: Controller, args: tuple[float, ...]) -> None:
-    ctl.signals[AIR_SIGNAL] = False
-
-
-def _here(ctl: Controller, args: tuple[float, ...]) -> SkillResult:
-    # The ack's pose is HERE already; the joints follow as trailing fields for tools that want them.
-    return SkillResult((",".join("%.3f" % j for j in ctl.joints_deg),))
-
-
-def _hello(ctl: Controller, args: tuple[float, ...]) -> SkillResult:
-    return SkillResult((str(PROTOCOL_VERSION), f"{SERVER_NAME} {ctl.version}"))
-
-
-def _stop_placeholder(ctl: Controller, args: tuple[float, ...]) -> None:  # pragma: no cover - never called
-    raise AssertionError("stop is handled by the controller")
-
-
-def _stop_wait(ctl: Controller, args: tuple[float, ...]) -> SkillGen:
-    return (yield from ctl.wait_rest())
-
-
-_STOP_RUN = SkillSpec(STOP_SKILL, _stop_wait, (0,))
-"""What a stop runs once read: wait for rest. Stops are recognised by this spec (never aborted by a stop)."""
-
-
-def default_skills() -> list[SkillSpec]:
-    """The AdeptServer skills plus our extensions (stop, here, hello)."""
-    six = (6,)
-    return [
-        SkillSpec("move_to", _move_to, six),
-        SkillSpec("move_joints", _move_joints, six),
-        SkillSpec("move_rel_world", _move_rel_world, six),
-        SkillSpec("move_rel_tool", _move_rel_tool, six),
-        SkillSpec("move_rel_joints", _move_rel_joints, six),
-        SkillSpec("break", _break, (0,)),
-        SkillSpec("set_speed", _set_speed, (1,)),
-        SkillSpec("enable_air", _enable_air, (0,)),
-        SkillSpec("disable_air", _disable_air, (0,)),
-        SkillSpec("here", _here, (0,), readonly=True),
-        SkillSpec("hello", _hello, (0,), readonly=True),
-        SkillSpec("stop", _stop_placeholder, (0,), immediate=True),
-    ]
 
 
 __all__ = [
