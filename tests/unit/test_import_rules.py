@@ -159,3 +159,20 @@ def test_errors_and_protocol_do_not_import_each_other():
     assert not any(d.startswith("aioadept.protocol.errors") is False and d == "aioadept.errors"
                    for m in g if m.startswith("aioadept.protocol") for d in g[m])
     assert "aioadept.errors" not in set().union(*(g[m] for m in g if m.startswith("aioadept.protocol")))
+
+
+LONG_FILE_MARKER = "over 500 lines"
+"""A src file over 500 lines says why in its module docstring's first lines, with these words (any case)."""
+
+
+def test_files_over_500_lines_say_why():
+    unexplained = []
+    for path in sorted(PKG.rglob("*.py")):
+        text = path.read_text(encoding="utf-8")
+        if text.count("\n") <= 500:
+            continue
+        doc = ast.get_docstring(ast.parse(text)) or ""
+        head = "\n".join(doc.splitlines()[:12]).lower()
+        if LONG_FILE_MARKER not in " ".join(head.split()):
+            unexplained.append(f"{path.relative_to(SRC)} ({text.count(chr(10))} lines)")
+    assert unexplained == [], f"over 500 lines without a why ('{LONG_FILE_MARKER} because ...') at the top: {unexplained}"

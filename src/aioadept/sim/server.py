@@ -1,5 +1,9 @@
 """The asyncio TCP adapter of the simulated controller: sockets, the server clock, timers, the state stream.
 
+(Over 500 lines because the stop path and the admission of connections, the parts that must never miss a
+``stop``, share the server's clock, timers and connection table with the line reader; kept in one module so
+the safety path reads in one place. Candidate seam for a later split: the admission/stop-window code.)
+
 It owns everything with I/O and leaves the behaviour to the pure :class:`aioadept.sim.controller.Controller`:
 
 - every chunk read from a client goes through the protocol core's :class:`LineFramer` (V+ READ is not line-framed
