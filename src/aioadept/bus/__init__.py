@@ -10,7 +10,7 @@ By role, over one socket layer:
 - :mod:`aioadept.bus.messages`: the edge to Protobuf: EPypes ``Event``/``Image`` and our ``RobotState`` <-> bytes.
 - :mod:`aioadept.bus.endpoints`, :mod:`aioadept.bus.security`: CZMQ endpoints, CURVE.
 - :mod:`aioadept.bus.errors`: what the bus raises (``BusError`` and below, ``RemoteError`` for an ``error``
-  answer). The bus knows none of its users: vision maps its errors itself (:func:`aioadept.vision.raise_for_error`).
+  answer). The bus knows none of its users: vision maps its errors itself (:func:`aioadept.vision.responses.raise_for_error`).
 
 See docs/bus.md for the schema, endpoints and the request/response protocol.
 """

@@ -8,7 +8,7 @@
     └─ RemoteError                     the peer answered a request with an ``error`` attribute
 
 The bus never raises a user's error type: a vision caller maps a :class:`RemoteError` (or a response's ``error``)
-to :class:`~aioadept.errors.VisionError` with :func:`aioadept.vision.raise_for_error`.
+to :class:`~aioadept.errors.VisionError` with :func:`aioadept.vision.responses.raise_for_error`.
 """
 
 from __future__ import annotations

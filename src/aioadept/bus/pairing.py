@@ -71,7 +71,7 @@ class Response:
 
     def raise_for_error(self) -> Response:
         """Raise :class:`~aioadept.bus.errors.RemoteError` (with the attributes) if the peer answered with an
-        ``error``; else return self. A vision caller wants :func:`aioadept.vision.raise_for_error` instead, which
+        ``error``; else return self. A vision caller wants :func:`aioadept.vision.responses.raise_for_error` instead, which
         raises :class:`~aioadept.errors.VisionError`."""
         if "error" in self.attributes:
             raise RemoteError(f"{self.event_type} {self.id}: {self.attributes['error']}", request_id=self.id,
