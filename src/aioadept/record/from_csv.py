@@ -68,8 +68,10 @@ def rrd_from_run(run_dir: str | os.PathLike[str], out: str | os.PathLike[str] | 
                 lg.request(obj.id, obj.event_type, obj.request_attributes, obj.t_send_s)
             elif kind == "response":
                 attrs: dict[str, Any] = dict(obj.response_extra)
+                # frame_seq has its own vision.csv column since the trigger spans (older folders: response_extra)
                 for key, val in (("sharpness", obj.sharpness), ("frame_t", obj.frame_t_epoch_s),
-                                 ("proc_time_ms", obj.proc_time_ms), ("error", obj.error)):
+                                 ("proc_time_ms", obj.proc_time_ms), ("error", obj.error),
+                                 ("frame_seq", getattr(obj, "frame_seq", None))):
                     if val is not None:
                         attrs[key] = val
                 step = lg._step
