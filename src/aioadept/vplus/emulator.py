@@ -224,17 +224,29 @@ class Emulator:
     async def serve(self, stop: asyncio.Event) -> None:
         """Run the tasks on the asyncio loop, in real time, until ``stop`` is set (needs a :class:`RealClock`)."""
         rt = self.rt
-        wake = asyncio.Event()
-        rt.on_wake = wake.set
+        loop = asyncio.get_running_loop()
+        # While every task waits, the loop sleeps on one future: a wake-up (I/O, EXECUTE, SET.EVENT), the next
+        # task's wake time or ``stop`` completes it. (An asyncio.Event and asyncio.wait over two new tasks cost
+        # several loop turns and task creations per sleep: a large part of a round trip.)
+        sleeper: list[asyncio.Future | None] = [None]
+
+        def wake() -> None:
+            f = sleeper[0]
+            if f is not None and not f.done():
+                f.set_result(None)
+
+        rt.on_wake = wake
+        stopper = asyncio.ensure_future(stop.wait())
+        stopper.add_done_callback(lambda _: wake())
         try:
             while not stop.is_set():
-                if rt.ready_tasks():
+                if rt.any_ready():
                     # Rounds back to back while tasks are ready (a reader handing a line to the executor and the
                     # executor's ack back to the reader take three), then let asyncio serve the sockets: writes
                     # leave at once (transport.write), reads and new connections wait for this yield.
                     for _ in range(32):
                         rt.run_round()
-                        if not rt.ready_tasks():
+                        if not rt.any_ready():
                             break
                     if rt.devices is not None:
                         rt.devices.flush()
@@ -243,16 +255,17 @@ class Emulator:
                 if rt.devices is not None:
                     rt.devices.flush()
                 w = rt.next_wake()
-                timeout = None if w is None else max(0.0, w - rt.now)
-                wake.clear()
-                waiters = [asyncio.ensure_future(wake.wait()), asyncio.ensure_future(stop.wait())]
+                f = sleeper[0] = loop.create_future()
+                timer = None if w is None else loop.call_at(loop.time() + max(0.0, w - rt.now), wake)
                 try:
-                    await asyncio.wait(waiters, timeout=timeout, return_when=asyncio.FIRST_COMPLETED)
+                    await f
                 finally:
-                    for f in waiters:
-                        f.cancel()
+                    sleeper[0] = None
+                    if timer is not None:
+                        timer.cancel()
         finally:
             rt.on_wake = None
+            stopper.cancel()
 
 
 def make_robot(controller: Any = None) -> Any:

@@ -19,6 +19,7 @@ precision, so the last digits of a decomposed value may differ from a controller
 from __future__ import annotations
 
 import math
+import struct
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
@@ -58,7 +59,17 @@ class Transform:
 
     @classmethod
     def from_pose(cls, pose: Pose) -> Transform:
-        return trans(*pose.as_tuple())
+        # HERE of a robot at rest asks for the same pose again and again (every ack of the server does): the
+        # last one is kept (the function is pure; the numpy rotation took most of an ack's HERE)
+        xs = pose.as_tuple()
+        key = _pack6(*xs)                  # bit-exact: 0.0 and -0.0 give different signs downstream
+        last = _LAST_POSE
+        if last[0] == key and cls is Transform:
+            return last[1]
+        t = trans(*xs)
+        if cls is Transform:
+            _LAST_POSE[:] = [key, t]
+        return t
 
     # -- reading ----------------------------------------------------------------------------------------
     @property
@@ -95,9 +106,14 @@ class Transform:
     def decompose(self) -> tuple[float, float, float, float, float, float]:
         """V+ ``DECOMPOSE``: ``(x, y, z, yaw, pitch, roll)`` in mm and degrees; yaw = 0 at pitch 0 or 180."""
         r = self.rows
+        last = _LAST_DECOMPOSED
+        if last[0] is r:
+            return last[1]                 # the same location again (HERE at rest), a pure function of rows
         rot = np.array(((r[0], r[1], r[2]), (r[4], r[5], r[6]), (r[8], r[9], r[10])))
         yaw, pitch, roll = rotation_to_zyz(rot)
-        return (r[3], r[7], r[11], yaw, pitch, roll)
+        out = (r[3], r[7], r[11], yaw, pitch, roll)
+        _LAST_DECOMPOSED[:] = [r, out]
+        return out
 
     def to_pose(self) -> Pose:
         """The same location as the :class:`aioadept.geometry.Pose` the controller model takes."""
@@ -136,6 +152,11 @@ class PrecisionPoint:
 
     def __repr__(self) -> str:
         return "#PPOINT(%s)" % ", ".join("%.3f" % v for v in self.joints_deg)
+
+
+_LAST_POSE: list = [None, None]           # (packed pose, Transform) of the last Transform.from_pose
+_LAST_DECOMPOSED: list = [None, None]     # (rows object, six numbers) of the last Transform.decompose
+_pack6 = struct.Struct("<6d").pack
 
 
 def trans(x: float = 0.0, y: float = 0.0, z: float = 0.0, yaw: float = 0.0, pitch: float = 0.0,

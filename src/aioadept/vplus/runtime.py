@@ -128,6 +128,7 @@ class Runtime:
         self.problems: list[LoadProblem] = list(module.problems)
         self.not_executable: dict[str, list[LoadProblem]] = {}
         self.tasks: dict[int, Task] = {}
+        self._order: list[Task] = []       # self.tasks by task number (the round-robin order), kept by _set_task
         self.signals: dict[int, bool] = {}
         self.timers: dict[int, float] = {}
         self.t0 = self.clock.now
@@ -216,7 +217,7 @@ class Runtime:
         t = Task(num, program, wake=self.now, cycles=cycles)
         t.state = "running"
         t.gen = self._task_main(t, program, args)
-        self.tasks[num] = t
+        self._set_task(num, t)
         self._poke()
         return t
 
@@ -268,15 +269,28 @@ class Runtime:
 
     def kill(self, num: int) -> None:
         self.abort(num)
-        self.tasks.pop(num, None)
+        self._set_task(num, None)
+
+    def _set_task(self, num: int, t: Task | None) -> None:
+        if t is None:
+            self.tasks.pop(num, None)
+        else:
+            self.tasks[num] = t
+        self._order = [self.tasks[n] for n in sorted(self.tasks)]
 
     def ready_tasks(self) -> list[Task]:
         now = self.now
-        return [t for t in sorted(self.tasks.values(), key=lambda t: t.num)
-                if t.state == "running" and t.wake <= now]
+        return [t for t in self._order if t.state == "running" and t.wake <= now]
+
+    def any_ready(self) -> bool:
+        now = self.now
+        for t in self._order:
+            if t.wake <= now and t.state == "running":
+                return True
+        return False
 
     def next_wake(self) -> float | None:
-        ws = [t.wake for t in self.tasks.values() if t.state == "running"]
+        ws = [t.wake for t in self._order if t.state == "running"]
         return min(ws) if ws else None
 
     def active(self) -> bool:
