@@ -340,3 +340,57 @@ async def test_stop_nowait_writes_the_stop_before_it_returns_and_its_task_carrie
         with pytest.raises(ClientStateError):  # closed: the task fails, nothing is written
             await robot.stop_nowait()
     assert [parse_command(x).skill for x in server.lines()] == ["move_rel_tool", "break", "stop"]
+
+
+# ------------------------------------------------------------------------------------------ half-dead server
+@pytest.mark.timeout(30)
+async def test_a_stop_to_a_server_that_accepts_and_never_answers_fails_within_stop_timeout_not_ack_timeout():
+    """A half-dead server (host gone without closing): the stop fails with AckTimeout after ``stop_timeout_s``
+    (5 s by default), not after ``ack_timeout_s`` (60 s; today the stop hung that long)."""
+    async def silent(reader, writer, lines):
+        while data := await reader.read(65536):
+            lines.append(data)  # reads everything, answers nothing
+
+    async with raw_server(silent) as (port, lines):
+        async with RobotClient("127.0.0.1", port) as robot:
+            assert robot.ack_timeout_s == 60.0 and robot.stop_timeout_s == 5.0
+            loop = asyncio.get_running_loop()
+            t0 = loop.time()
+            with pytest.raises(AckTimeout, match="within 5.0 s"):
+                await robot.stop()
+            assert 4.9 <= loop.time() - t0 < 20.0
+            assert robot.pending_ids == ()
+            robot.stop_timeout_s = 0.3  # the default can be set
+            with pytest.raises(AckTimeout, match="within 0.3 s"):
+                await robot.stop()
+    assert b"".join(lines).count(b":stop\r\n") == 2
+
+
+# ------------------------------------------------------------------------------------------ write refused
+@pytest.mark.timeout(20)
+@pytest.mark.parametrize("auto", [True, False])
+async def test_a_connected_stop_whose_write_fails_is_handed_to_the_reconnect_and_reaches_the_server(auto):
+    """The transport refuses the stop's write (here: our side was half-closed with write_eof, over real TCP) while
+    the client still thinks it is connected: the connection counts as lost, and with auto-reconnect the stop's task
+    reconnects and the stop reaches the server; without, ConnectionLost saying nothing was sent."""
+    async with sim_on(instant=True) as sim:
+        writers = []
+
+        async def tcp():
+            reader, writer = await asyncio.open_connection(sim.host, sim.port)
+            writers.append(writer)
+            return reader, writer
+
+        async with RobotClient(sim.host, sim.port, connector=tcp, auto_reconnect=auto) as robot:
+            await robot.here()
+            writers[0].write_eof()  # every later write on this transport raises
+            assert robot.state is ClientState.CONNECTED
+            if auto:
+                result = await robot.stop()
+                assert result.ok and result.skill == "stop"
+                assert robot.state is ClientState.CONNECTED and len(writers) == 2
+                assert sim.connections_total == 2
+            else:
+                with pytest.raises(ConnectionLost, match="nothing was sent"):
+                    await robot.stop()
+                assert robot.state is ClientState.LOST

@@ -41,6 +41,21 @@ def test_none_means_forever_only_for_acks():
     assert RobotClient(ack_timeout_s=None).ack_timeout_s is None
     with pytest.raises(ValueError, match="^connect_timeout_s"):
         RobotClient(connect_timeout_s=None)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="^stop_timeout_s"):
+        RobotClient(stop_timeout_s=None)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("bad", BAD_TIMEOUTS)
+def test_bad_stop_timeouts_are_value_errors_and_the_default_is_short(bad):
+    with pytest.raises(ValueError, match="^stop_timeout_s"):
+        RobotClient(stop_timeout_s=bad)
+    robot = RobotClient()
+    with pytest.raises(ValueError, match="^stop_timeout_s"):
+        robot.stop_timeout_s = bad
+    # a stop is acked at rest, a deceleration ramp away: its default limit is seconds, not ack_timeout_s's minute
+    assert robot.stop_timeout_s == 5.0 < robot.ack_timeout_s
+    robot.stop_timeout_s = 0.5
+    assert robot.stop_timeout_s == 0.5
 
 
 @pytest.mark.parametrize("bad", [0, -1, 2**32, 2**40, True, 1.5, "1"])

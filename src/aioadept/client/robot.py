@@ -93,6 +93,8 @@ Connector = Callable[[], Awaitable[tuple[asyncio.StreamReader, asyncio.StreamWri
 """An async callable that opens a (reader, writer) pair; the default opens TCP to ``host:port``."""
 
 _CLOSE_FLUSH_S = 1.0
+STOP_TIMEOUT_S = 5.0
+"""Default ``RobotClient.stop_timeout_s``: a stop is acked at rest, a deceleration ramp away (0.1-0.2 s in the sim)."""
 # Enum member lookups cost ~0.3 us each in 3.11; the hot paths compare against these module constants instead.
 _NEW, _CONNECTED, _LOST, _CLOSED = ClientState.NEW, ClientState.CONNECTED, ClientState.LOST, ClientState.CLOSED
 
@@ -106,6 +108,10 @@ class RobotClient:
     - ``connect_timeout_s``: limit of :meth:`connect` (→ :class:`ConnectError`).
     - ``ack_timeout_s``: default limit of every wait for acks (→ :class:`AckTimeout`); ``None`` waits forever.
       A break waits for the whole motion, so keep this above your longest motion.
+    - ``stop_timeout_s``: default limit of :meth:`stop`'s wait for its ack (default 5 s; never ``None``). A stop is
+      acked when the arm is at rest, which takes a deceleration ramp (the sim: 0.1 s from full speed, 0.2 s while
+      two motions blend), so a stop not acked within seconds means a half-dead server: fail fast, not after
+      ``ack_timeout_s``.
     - ``observers``: objects with ``on_send(SentMessage)`` / ``on_ack(MessageResult)``.
     - ``id_start``: first message ID as an int in 1..0xFFFFFFFF (IDs count up from a random start by default,
       skip the reserved ``00000000`` and any ID still pending or given up on this client).
@@ -127,7 +133,8 @@ class RobotClient:
     """
 
     def __init__(self, host: str = defaults.ROBOT_HOST, port: int = defaults.ROBOT_PORT, *,
-                 connect_timeout_s: float = 5.0, ack_timeout_s: float | None = 60.0, observers: Iterable[Observer] = (),
+                 connect_timeout_s: float = 5.0, ack_timeout_s: float | None = 60.0,
+                 stop_timeout_s: float = STOP_TIMEOUT_S, observers: Iterable[Observer] = (),
                  id_start: int | None = None, auto_reconnect: bool = False,
                  connector: Connector | None = None, max_line: int = MAX_ACK_LINE,
                  hello_timeout_s: float | None = None) -> None:
@@ -140,6 +147,7 @@ class RobotClient:
         self.port = port
         self.connect_timeout_s = connect_timeout_s  # validated by the properties
         self.ack_timeout_s = ack_timeout_s
+        self.stop_timeout_s = stop_timeout_s
         self.auto_reconnect = auto_reconnect
         self.hello_timeout_s = _check_timeout("hello_timeout_s", hello_timeout_s)
         self.server_hello: tuple[int | None, str] | None = None
@@ -202,6 +210,15 @@ class RobotClient:
     @ack_timeout_s.setter
     def ack_timeout_s(self, value: float | None) -> None:
         self._ack_timeout_s = _check_timeout("ack_timeout_s", value)
+
+    @property
+    def stop_timeout_s(self) -> float:
+        """Default limit of :meth:`stop`'s wait for its ack (seconds, finite, > 0; never ``None``)."""
+        return self._stop_timeout_s
+
+    @stop_timeout_s.setter
+    def stop_timeout_s(self, value: float) -> None:
+        self._stop_timeout_s = _check_timeout("stop_timeout_s", value, none_ok=False)
 
     # ------------------------------------------------------------------------------------------- lifecycle
     @property
@@ -392,6 +409,11 @@ class RobotClient:
             write(data)
         except (OSError, ConnectionError, RuntimeError) as exc:
             self._registry.unregister(sub)
+            # A transport that refuses a write is broken: the connection is lost (so the next call, and a stop's
+            # task, reconnect with auto_reconnect instead of writing into it again).
+            self._on_lost(exc)
+            if self._transport is not None:
+                self._transport.close()
             raise _lost(f"write to {self.host}:{self.port} failed: {exc}", unresolved=tuple(sub.ids)) from exc
         self._registry.stats.messages_sent += len(sub.ids)
         if self._observers:
@@ -656,7 +678,8 @@ class RobotClient:
           was lost before the ack (with ``auto_reconnect`` the stop is first sent once more on a new connection,
           since a repeated stop cannot move the robot; this is the only message the client ever re-sends).
         - :class:`ClientStateError`: never connected, or closed (also when closed during the reconnect).
-        - :class:`AckTimeout`: no ack within ``timeout_s`` (``None``: ``ack_timeout_s``); the robot may still move.
+        - :class:`AckTimeout`: no ack within ``timeout_s`` (``None``: ``stop_timeout_s``, 5 s by default, not the
+          longer ``ack_timeout_s``: a half-dead server fails the stop fast); the robot may still move.
         - :class:`CommandError`: an ``error`` ack, e.g. a server without the extension (the original V+
           AdeptServer halts instead and the stop runs into the timeout).
         - :class:`CommandAborted`: the stop itself was acked ``aborted`` (servers should not do that).
@@ -687,8 +710,8 @@ class RobotClient:
         task cancels the wait for the ack, never a write already made. Calls that began before this stop and
         had not yet written their command raise :class:`AbortedBeforeSend`. ValueError for a bad ``timeout_s``.
         """
-        if timeout_s is not None:
-            _check_timeout("timeout_s", timeout_s)
+        timeout_s = (self._stop_timeout_s if timeout_s is None
+                     else _check_timeout("timeout_s", timeout_s, none_ok=False))
         self._stops += 1
         sub: Submission | None = None
         if self._state is _CONNECTED:
