@@ -118,6 +118,11 @@ _FMT_CACHE: dict[str, tuple] = {}     # format text -> (kind, width, decimals): 
 
 def _render(items: tuple) -> tuple[str, bool]:
     """Output items (values and ("fmt", spec) constants) to text; True if /S suppressed the line end."""
+    for it in items:
+        if type(it) is not str:
+            break
+    else:
+        return "".join(items), False        # only strings (WRITE of built lines): nothing to format
     out: list[str] = []
     spec: tuple = ("D", None, None)
     no_eol = False
@@ -330,8 +335,13 @@ def namespace(rt: Runtime) -> dict[str, Any]:
     def err(T: Task, exc: BaseException, prog: str, line: int) -> Generator:
         return rt.on_error(T, exc, prog, line)
 
+    programs = rt.programs          # filled by compile_all after this namespace is built; never replaced
+
     def call(T: Task, name: str, args: tuple) -> Generator:
-        return rt.call(T, name, args)
+        f = programs.get(name)
+        if f is None:
+            return rt.call(T, name, args)     # the errors: not executable, undefined
+        return f(T, args)
 
     # -- robot (aioadept.vplus.robot.RobotDevice on the sim's Controller) ----------------------------------
     def no_robot() -> VPlusError:
