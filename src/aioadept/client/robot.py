@@ -45,6 +45,8 @@ import asyncio
 import logging
 import operator
 import secrets
+import socket
+import struct
 from collections import deque
 from collections.abc import Awaitable, Callable, Iterable, Sequence
 from itertools import chain
@@ -70,7 +72,7 @@ from aioadept.client.results import (
     SentMessage,
     _make_exec,
 )
-from aioadept.client.transport import AckProtocol, loop_fns, read_loop, set_nodelay
+from aioadept.client.transport import AckProtocol, loop_fns, read_loop, set_nodelay, unsent_bytes
 from aioadept.commands import Command
 from aioadept.errors import (
     AbortedBeforeSend,
@@ -123,6 +125,12 @@ class RobotClient:
     where documented); anything else raises ``ValueError`` at once, before anything is sent.
     - ``connector``: an async callable returning ``(reader, writer)``, to run over other streams (e.g.
       :func:`aioadept.testing.memory_connector`); ``host``/``port`` are then only used in messages.
+    - ``stop_side_path`` (opt-in, default ``False``): when :meth:`stop`'s bytes are behind unsent ones (a peer
+      that stopped reading), reset the connection (our unsent commands are dropped, never delivered) and send the
+      stop first on a new connection, which becomes the client's connection; if that connection cannot be opened
+      the stop waits on the old one as before. Caveat: what the server's kernel had already received on the old
+      connection is still read by it *after* that stop and may run (TCP delivers it before the reset); see
+      docs/protocol.md section 4.4. TCP only (not with ``connector``).
     - ``hello_timeout_s``: after each connect, send ``hello`` and wait this long for its ack; a peer that sends
       nothing parseable back in time (a ZeroMQ port, a silent server) or closes the connection is not a
       RobotServer: :meth:`connect` closes it and raises :class:`NotARobotServer`. An ``error`` ack (the
@@ -137,7 +145,7 @@ class RobotClient:
                  stop_timeout_s: float = STOP_TIMEOUT_S, observers: Iterable[Observer] = (),
                  id_start: int | None = None, auto_reconnect: bool = False,
                  connector: Connector | None = None, max_line: int = MAX_ACK_LINE,
-                 hello_timeout_s: float | None = None) -> None:
+                 hello_timeout_s: float | None = None, stop_side_path: bool = False) -> None:
         if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 0xFFFF:
             raise ValueError(f"port: {port!r} is not a TCP port number (0..65535)")
         if id_start is not None and (isinstance(id_start, bool) or not isinstance(id_start, int)
@@ -149,6 +157,7 @@ class RobotClient:
         self.ack_timeout_s = ack_timeout_s
         self.stop_timeout_s = stop_timeout_s
         self.auto_reconnect = auto_reconnect
+        self.stop_side_path = stop_side_path
         self.hello_timeout_s = _check_timeout("hello_timeout_s", hello_timeout_s)
         self.server_hello: tuple[int | None, str] | None = None
         """``(protocol_version, server_name)`` from the connect-time ``hello`` check; ``None`` without the check
@@ -261,6 +270,11 @@ class RobotClient:
 
     async def connect(self) -> None:
         """Open the connection and start reading. Raises ConnectError, or ClientStateError if connected."""
+        await self._connect()
+
+    async def _connect(self, sock: socket.socket | None = None) -> None:
+        """``sock``: an already connected socket to adopt (the stop's side connection): no ``hello`` check then,
+        so that the stop is the first line (the sim's reserved stop path serves nothing else)."""
         if self._state is _CONNECTED:
             raise ClientStateError(f"already connected to {self.host}:{self.port}")
         await self._teardown()  # a lost connection's reader task and transport, if any
@@ -276,7 +290,10 @@ class RobotClient:
                 else:
                     proto = AckProtocol(self._registry.receive, self._bind_loop(loop)[1], self._on_transport_lost,
                                         loop)
-                    transport, _ = await loop.create_connection(lambda: proto, self.host, self.port)
+                    if sock is None:
+                        transport, _ = await loop.create_connection(lambda: proto, self.host, self.port)
+                    else:
+                        transport, _ = await loop.create_connection(lambda: proto, sock=sock)
                     write = transport.write  # type: ignore[attr-defined]
                     closed = proto.closed
         except TimeoutError:
@@ -292,7 +309,7 @@ class RobotClient:
         self._state = _CONNECTED
         if reader is not None:
             self._reader_task = loop.create_task(self._read_loop(reader), name=f"RobotClient reader {self.host}")
-        if self.hello_timeout_s is not None:
+        if self.hello_timeout_s is not None and sock is None:
             await self._check_hello(self.hello_timeout_s)
 
     async def _check_hello(self, timeout_s: float) -> None:
@@ -714,20 +731,31 @@ class RobotClient:
                      else _check_timeout("timeout_s", timeout_s, none_ok=False))
         self._stops += 1
         sub: Submission | None = None
+        behind = False
         if self._state is _CONNECTED:
             try:
                 sub = self._send((_STOP,))  # written now, before any await
             except ConnectionLost:
                 pass  # the task reconnects (auto_reconnect) or fails with ConnectionLost, as stop() would
-        task = asyncio.get_running_loop().create_task(self._stop_flow(sub, timeout_s),
+            else:
+                # Bytes still unsent after the stop's write: the stop waits behind them (a peer not reading).
+                behind = (self.stop_side_path and self._connector is None and self._transport is not None
+                          and unsent_bytes(self._transport) > 0)
+        task = asyncio.get_running_loop().create_task(self._stop_flow(sub, timeout_s, behind),
                                                       name=f"RobotClient stop {self.host}:{self.port}")
         self._stop_tasks.add(task)
         task.add_done_callback(self._stop_tasks.discard)
         return task
 
-    async def _stop_flow(self, sub: Submission | None, timeout_s: float | None) -> MessageResult:
+    async def _stop_flow(self, sub: Submission | None, timeout_s: float | None,
+                         behind: bool = False) -> MessageResult:
         """Reconnect if needed, write the stop (unless already written: ``sub``) and await its ack; once more on
-        a new connection if the connection is lost before the ack and ``auto_reconnect`` is on."""
+        a new connection if the connection is lost before the ack and ``auto_reconnect`` is on. ``behind``: the
+        written stop sits behind unsent bytes: try the side path (:meth:`_stop_side`) first."""
+        if sub is not None and behind:
+            side = await self._stop_side(sub, timeout_s)
+            if side is not None:
+                sub = side
         if sub is None:
             await self._ensure_connected()
             sub = self._send((_STOP,))
@@ -740,6 +768,51 @@ class RobotClient:
                         "connection", self.host, self.port)
         await self._ensure_connected()
         return (await self._wait(self._send((_STOP,)), timeout_s))[0]
+
+    async def _stop_side(self, sub: Submission, timeout_s: float) -> Submission | None:
+        """The stop is behind unsent bytes on a peer that is not reading: open a fresh connection (the sim's
+        reserved stop path admits it even when the server is full); once it is open, reset the old one, so that its
+        unsent bytes (commands written before the stop) never reach the server, and write the stop first on the new
+        one, which becomes the client's connection. Returns the new stop's submission, or ``None`` when the side
+        connection cannot be opened (refused, or no answer in time): the stop already written on the old connection
+        then stands alone, untouched (a one-client server without the reserved path is not harmed)."""
+        loop = asyncio.get_running_loop()
+        transport = self._transport
+        try:
+            async with asyncio.timeout(min(self._connect_timeout_s, timeout_s)):
+                infos = await loop.getaddrinfo(self.host, self.port, type=socket.SOCK_STREAM)
+                family, type_, proto, _, addr = infos[0]
+                side = socket.socket(family, type_, proto)
+                try:
+                    side.setblocking(False)
+                    await loop.sock_connect(side, addr)
+                except BaseException:
+                    side.close()
+                    raise
+        except (OSError, TimeoutError) as exc:
+            log.warning("stop behind unsent bytes to %s:%s; side connection failed (%s): the stop waits on the "
+                        "old connection", self.host, self.port, exc)
+            return None
+        if self._transport is not transport or self._state is not _CONNECTED or sub.done():
+            side.close()  # the old connection ended (or the stop was acked) meanwhile: its outcome stands
+            return None
+        log.warning("stop behind unsent bytes to %s:%s: resetting the connection (unsent commands are dropped) "
+                    "and sending the stop on a new one", self.host, self.port)
+        old = transport.get_extra_info("socket") if transport is not None else None
+        if old is not None:
+            try:  # SO_LINGER 0: close sends RST and drops the kernel's unsent bytes too
+                old.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+            except OSError:
+                pass
+        self._on_lost(ConnectionResetError("reset by the client: a stop was behind unsent bytes"))
+        if transport is not None:
+            transport.abort()  # type: ignore[attr-defined]
+        try:
+            await self._connect(sock=side)
+        except BaseException:
+            side.close()
+            raise
+        return self._send((_STOP,))
 
     async def here(self, *, timeout_s: float | None = None) -> Pose:
         """The robot's current pose (``here`` extension skill), from the server's ack: never a remembered pose.

@@ -9,8 +9,13 @@ from __future__ import annotations
 
 import asyncio
 import functools
+try:
+    import fcntl
+except ImportError:  # not on Windows: unsent_bytes sees the transport's buffer only
+    fcntl = None  # type: ignore[assignment]
 import logging
 import socket
+import sys
 import time
 from collections.abc import Callable
 from typing import Any
@@ -32,6 +37,27 @@ def loop_fns(loop: asyncio.AbstractEventLoop) -> tuple[Any, Callable[[], float],
     if getattr(new_future, "__func__", None) is _BASE_CREATE_FUTURE:
         new_future = functools.partial(asyncio.Future, loop=loop)
     return loop, clock, new_future
+
+
+_SIOCOUTQNSD = 0x894B  # Linux: bytes in the socket's send queue not yet sent (tcp(7))
+
+
+def unsent_bytes(transport: asyncio.BaseTransport) -> int:
+    """Bytes written to ``transport`` not yet on the wire: its own buffer plus, on Linux, the kernel's unsent
+    queue (a peer whose receive window is closed). 0 where that cannot be known."""
+    try:
+        n = transport.get_write_buffer_size()  # type: ignore[attr-defined]
+    except (AttributeError, NotImplementedError):
+        n = 0
+    sock = transport.get_extra_info("socket")
+    if sock is not None and fcntl is not None:
+        try:
+            buf = bytearray(4)
+            fcntl.ioctl(sock.fileno(), _SIOCOUTQNSD, buf)
+            n += int.from_bytes(buf, sys.byteorder, signed=True)
+        except (OSError, ValueError):
+            pass
+    return n
 
 
 def set_nodelay(transport: asyncio.BaseTransport) -> None:
