@@ -195,6 +195,10 @@ def _run_shell_block(block: Block, cwd: Path, env: dict) -> None:
             assert "Traceback" not in proc.stderr, f"{where}:\n{proc.stderr}"
             for shown in cmd.shown:
                 assert _shown_matches(shown, proc.stdout + proc.stderr, text), f"{where}: page shows {shown!r}"
+            # where the outputs go: `--out DIR`, or the comment's `outputs go into DIR`
+            out = re.search(r"--out (\S+)", text) or re.search(r"outputs go into (\S+)", cmd.comment)
+            if out:
+                assert (cwd / out.group(1) / "summary.json").is_file(), f"{where}: no summary.json in {out.group(1)}"
     finally:
         for proc in background:
             proc.kill()
@@ -291,7 +295,14 @@ def _option_mentions() -> list[tuple[str, str, str]]:
                 line = text[:offset].count("\n") + 1
                 for opt in re.findall(r"(?<![\w-])--[a-z][a-z0-9-]*", rest):
                     mentions.append((f"{path.name}:{line}", sub, opt))
+        if path.name in PAGE_SUBCOMMAND:  # the guide's option table: `--opt` in a row's first column
+            for m in re.finditer(r"^\|\s*`(--[a-z][a-z0-9-]*)", text, re.M):
+                mentions.append((f"{path.name}:{text[:m.start()].count(chr(10)) + 1}", PAGE_SUBCOMMAND[path.name],
+                                 m.group(1)))
     return mentions
+
+
+PAGE_SUBCOMMAND = {"sim.md": "sim", "vision.md": "vision", "focus.md": "focus", "analysis.md": "analyze"}
 
 
 @pytest.mark.timeout(60)
