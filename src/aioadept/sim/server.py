@@ -524,6 +524,11 @@ class SimServer:
         except Exception:
             log.exception("controller step failed")
             out = []
+        if out and self._publisher is not None:
+            # A motion ended (or another event was acked): publish the state now, ahead of the acks, so a
+            # subscriber sees the robot at rest before any request that follows the ack, not up to one stream
+            # period later.
+            self._publish_state_now()
         self._dispatch(out)
         self._reschedule()
 
@@ -531,6 +536,15 @@ class SimServer:
     def robot_state(self):  # -> aioadept.bus.messages.RobotState
         """The state sample for now (what the stream publishes)."""
         return robot_state_sample(self.controller, self.now(), self._wall0)
+
+    def _publish_state_now(self) -> None:
+        from aioadept.bus.messages import ROBOT_STATE_TOPIC
+
+        assert self._publisher is not None
+        try:
+            self._publisher.publish_nowait(ROBOT_STATE_TOPIC, self.robot_state().to_bytes())
+        except Exception:
+            log.exception("state publish failed")
 
     async def _publish_state(self) -> None:
         assert self._publisher is not None

@@ -18,11 +18,12 @@ node has several cameras the others' results are added as ``sharpness.<camera>``
 ``error.<camera>`` (one frame set per request, as FxIS grabs several cameras together).
 
 Where the graph runs (``graph_thread``): ``"never"`` on the loop thread, ``"always"`` in the node's one worker
-thread, ``"auto"`` (default) on the loop while the measured cost of a run (graph plus frame saving, an exponentially
-weighted moving average) is at most ``inline_max_ms``, else in the worker. A run on the loop saves the two thread
+thread, ``"auto"`` (default) on the loop while the measured cost of a graph run (an exponentially weighted moving
+average) is at most ``inline_max_ms``, else in the worker. A run on the loop saves the two thread
 wake-ups of a hand-off (loop -> worker -> loop: 0.1-0.5 ms on a loaded 2-core machine, against ~10 us for the no-op
 graph and ~2 ms for the sharpness graph); the worker keeps the loop free (signals, cached answers to repeated ids)
-during runs long enough for that to matter. The Responder serves one request at a time either way.
+during runs long enough for that to matter. The Responder serves one request at a time either way. Saving the frame
+(``--save-frames``: a PNG, ~10 ms) happens after the answer, in a writer thread of its own.
 
 :class:`NodeResponder` is the Responder the ``aioadept vision`` command uses: a request the node can answer without
 waiting (policy ``nearest``, the graph on the loop, nothing else in progress) is answered right in the socket
@@ -34,6 +35,8 @@ from __future__ import annotations
 import asyncio
 import logging
 import math
+import queue
+import threading
 import time
 from collections.abc import Awaitable, Mapping
 from concurrent.futures import ThreadPoolExecutor
@@ -74,7 +77,7 @@ class VisionNode:
     """Turns a request's attributes into response attributes; see the module docstring.
 
     ``graph`` has free token ``image`` and output ``sharpness`` (default: :func:`sharpness_graph`). ``timeout_s``
-    bounds the wait for a frame under policy ``after``. ``recorder`` saves every frame the node serves.
+    bounds the wait for a frame under policy ``after``. ``recorder`` saves every frame the node serves, in a writer thread of its own (off the response path).
     ``graph_thread`` / ``inline_max_ms``: where :meth:`handle` runs the graph (module docstring); ``cost_ms`` is the
     moving average it decides on (None before the first run, which under ``auto`` goes to the worker), and
     ``inline_runs`` / ``thread_runs`` count the graph runs made on the loop / in the worker by the handlers. Owns
@@ -119,6 +122,8 @@ class VisionNode:
         self.failed = 0
         self._executor: ThreadPoolExecutor | None = None
         self._active = 0  # handle() calls in progress (awaiting a frame or the worker)
+        self._save_queue: queue.Queue[Frame | None] | None = None
+        self._save_thread: threading.Thread | None = None
 
     # ------------------------------------------------------------------------------------------ sync core
     def process(self, event_type: str, event_id: str | None, attributes: Mapping[str, Any]) -> dict[str, Any]:
@@ -257,10 +262,9 @@ class VisionNode:
         t0 = time.perf_counter()
         res = measure(frame.image, self.graph)
         if self.recorder is not None:
-            try:
-                self.recorder.write(frame)
-            except Exception:
-                log.exception("could not save frame %s/%d", frame.camera_id, frame.seq)
+            # Saving a frame (PNG encoding, ~10 ms for 1024x768) is not part of the answer: it goes to the writer
+            # thread and happens while the response travels and the robot makes its next move.
+            self._save(frame)
         cost_ms = (time.perf_counter() - t0) * 1e3
         # Written from the loop or the worker, never both at once (one request at a time); a lost update under
         # concurrent use would only skew a heuristic.
@@ -273,6 +277,27 @@ class VisionNode:
         else:
             attrs["error"] = res.error
         return attrs
+
+    SAVE_QUEUE = 16
+    """Frames waiting for the writer thread; when it falls this far behind, the node waits for it (back-pressure,
+    no frame is dropped and memory stays bounded: 16 frames of 1024x768 mono8 are 12 MB)."""
+
+    def _save(self, frame: Frame) -> None:
+        """Queue ``frame`` for the recorder's writer thread (started on first use, joined by :meth:`close`)."""
+        if self._save_queue is None:
+            self._save_queue = queue.Queue(self.SAVE_QUEUE)
+            self._save_thread = threading.Thread(target=self._save_loop, args=(self._save_queue,),
+                                                 name="vision-recorder")
+            self._save_thread.start()
+        self._save_queue.put(frame)
+
+    def _save_loop(self, frames: queue.Queue[Frame | None]) -> None:
+        assert self.recorder is not None
+        while (frame := frames.get()) is not None:
+            try:
+                self.recorder.write(frame)
+            except Exception:
+                log.exception("could not save frame %s/%d", frame.camera_id, frame.seq)
 
     # ------------------------------------------------------------------------------------------ Responder side
     # Both handlers log with loop.call_soon: the Responder publishes the answer in the same task step right after
@@ -313,10 +338,16 @@ class VisionNode:
         return out
 
     def close(self) -> None:
-        """Join the worker thread (a running graph finishes first; it takes milliseconds)."""
+        """Join the worker thread (a running graph finishes first; it takes milliseconds), then the recorder's
+        writer thread once every queued frame is saved."""
         if self._executor is not None:
             self._executor.shutdown(wait=True, cancel_futures=True)
             self._executor = None
+        if self._save_thread is not None:
+            assert self._save_queue is not None
+            self._save_queue.put(None)
+            self._save_thread.join()
+            self._save_thread = self._save_queue = None
 
 
 class NodeResponder(Responder):

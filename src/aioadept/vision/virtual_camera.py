@@ -7,8 +7,10 @@ paper geometry; a split would pass that state across modules for no reader's gai
 Where it sits: the sim publishes :class:`aioadept.bus.messages.RobotState` at 100 Hz; a
 :class:`RobotStateFollower` (one owned thread) keeps a short :class:`PoseHistory` of tool poses stamped on receipt;
 :class:`VirtualCamera` renders a frame at ``time.time()`` from the pose interpolated at that time (once a state sample
-at or after that time has arrived, so a frame taken just after the robot stopped never shows it mid-motion), and the
-acquisition service buffers the frames like those of a real camera.
+at or after that time has arrived, so a frame taken just after the robot stopped never shows it mid-motion; or at
+once from the newest sample when that one says the robot is at rest and is at most ``rest_hold_s`` old: opt-in,
+see :data:`DEFAULT_REST_HOLD_S`), and the acquisition service buffers
+the frames like those of a real camera.
 
 Model:
 
@@ -374,7 +376,8 @@ def paper_camera(pose_source: Callable[[float], Pose | None] | None = None, *, f
 class PoseHistory:
     """A short, thread-safe history of timestamped tool poses with interpolation at any time.
 
-    ``add(t_s, pose)`` appends (times must not decrease; an older sample is dropped). ``at(t_s)`` interpolates the
+    ``add(t_s, pose, in_motion)`` appends (times must not decrease; an older sample is dropped; ``in_motion``
+    defaults to True, the cautious guess). ``at(t_s)`` interpolates the
     position linearly and the rotation by spherical linear interpolation between the two samples around ``t_s``;
     before the first / after the last sample it returns the first / last pose (the robot is assumed still).
     Samples older than ``max_age_s`` behind the newest are discarded.
@@ -384,6 +387,7 @@ class PoseHistory:
         self.max_age_s = max_age_s
         self._t: deque[float] = deque(maxlen=max_len)
         self._m: deque[np.ndarray] = deque(maxlen=max_len)
+        self._newest_in_motion = True
         self._lock = threading.Condition()
 
     def __len__(self) -> int:
@@ -394,13 +398,19 @@ class PoseHistory:
         with self._lock:
             return self._t[-1] if self._t else None
 
-    def add(self, t_s: float, pose: Pose) -> None:
+    def newest_at_rest(self) -> float | None:
+        """Time stamp of the newest sample if that sample says the robot is at rest (not in motion), else None."""
+        with self._lock:
+            return self._t[-1] if self._t and not self._newest_in_motion else None
+
+    def add(self, t_s: float, pose: Pose, in_motion: bool = True) -> None:
         m = pose.to_matrix()
         with self._lock:
             if self._t and t_s < self._t[-1]:
                 return
             self._t.append(t_s)
             self._m.append(m)
+            self._newest_in_motion = bool(in_motion)
             while self._t and self._t[0] < t_s - self.max_age_s and len(self._t) > 2:
                 self._t.popleft()
                 self._m.popleft()
@@ -451,6 +461,14 @@ def _interpolate(m0: np.ndarray, m1: np.ndarray, a: float) -> np.ndarray:
     return out
 
 
+DEFAULT_REST_HOLD_S = 0.0
+"""How long after an at-rest state sample :meth:`RobotStateFollower.pose_at` holds its pose without waiting for
+the next sample. Off (0) by default: an at-rest sample from *before* a motion looks the same as one from its end,
+so a motion shorter than the hold (``--time-scale 10``: a 2 mm step takes less than one 100 Hz period) would be
+rendered at its start pose (measured: the sharpness of the previous step, test_vision_with_sim). Opt in (e.g.
+0.015) only where every motion lasts longer than the hold."""
+
+
 class RobotStateFollower:
     """Subscribes to the sim's robot state stream and fills a :class:`PoseHistory`, stamped on receipt.
 
@@ -461,13 +479,18 @@ class RobotStateFollower:
     """
 
     def __init__(self, endpoint: str, *, history: PoseHistory | None = None, topic: bytes = b"robot.state",
-                 max_wait_s: float = 0.05, clock: Callable[[], float] = time.time, curve: Any = None) -> None:
+                 max_wait_s: float = 0.05, clock: Callable[[], float] = time.time, curve: Any = None,
+                 rest_hold_s: float = DEFAULT_REST_HOLD_S) -> None:
+        if not 0 <= rest_hold_s < math.inf:
+            raise ValueError(f"rest_hold_s must be finite and >= 0, got {rest_hold_s!r}")
+        self.rest_hold_s = float(rest_hold_s)
         self.endpoint = endpoint
         self.curve = curve  # an aioadept.bus.security.CurveClient when the sim's state stream uses CURVE
         self.max_wait_s = max_wait_s
         self.topic = topic
         self.history = history if history is not None else PoseHistory()
         self.received = 0
+        self.rest_holds = 0  # poses held from an at-rest sample without waiting (pose_at)
         self.last_state = None
         self._clock = clock
         self._stop = threading.Event()
@@ -519,13 +542,22 @@ class RobotStateFollower:
                 except Exception as exc:  # a bad sample must not kill the camera
                     log.warning("robot state: undecodable message (%s)", exc)
                     continue
-                self.history.add(t_s, state.pose)
+                self.history.add(t_s, state.pose, state.in_motion)
                 self.last_state = state
                 self.received += 1
 
     def pose_at(self, t_s: float) -> Pose | None:
         """The tool pose at epoch ``t_s``: waits (up to ``max_wait_s``) for a state sample received at or after
-        ``t_s``, then interpolates; without any sample yet, None at once; if the stream stalls, the last pose."""
+        ``t_s``, then interpolates; without any sample yet, None at once; if the stream stalls, the last pose.
+
+        With ``rest_hold_s > 0`` (opt-in, :data:`DEFAULT_REST_HOLD_S` says why it is off): no wait when the newest
+        sample says the robot is **at rest** and was received at most ``rest_hold_s`` before ``t_s``; the pose is
+        held from it. A sample in motion, or an older one (a stream that stalls), still waits; the node's
+        stale-state check (``max_state_age_s``) is unchanged."""
+        rest_t = self.history.newest_at_rest()
+        if rest_t is not None and self.rest_hold_s > 0 and rest_t <= t_s <= rest_t + self.rest_hold_s:
+            self.rest_holds += 1
+            return self.history.at(t_s)
         if len(self.history):
             self.history.wait_covering(t_s, self.max_wait_s)
         return self.history.at(t_s)

@@ -359,3 +359,32 @@ def test_virtual_camera_frames_carry_the_age_of_the_robot_state():
     follower.history.add(99.0, APPROACH)
     assert cam.grab().pose_age_s == pytest.approx(1.0) and follower.state_age_s(98.0) == 0.0
     assert paper_camera(None).grab().pose_age_s is None  # no follower: nothing to check
+
+
+class _SlowRecorder:
+    """A recorder whose write blocks until released: shows whether the answer waits for the frame to be saved."""
+
+    def __init__(self) -> None:
+        self.release = threading.Event()
+        self.written: list[int] = []
+
+    def write(self, frame: Frame) -> None:
+        assert self.release.wait(10.0)
+        self.written.append(frame.seq)
+
+
+@pytest.mark.timeout(20)
+def test_node_answers_before_the_frame_is_saved_and_close_saves_every_frame():
+    img = np.full((48, 64), 18, np.uint8)
+    recorder = _SlowRecorder()
+    with Acquisition([Replay("a", [(10.0, img), (11.0, img)])], fps=None) as acq:
+        _loaded(acq, {"a": 11.0})
+        node = VisionNode(acq, noop_graph(), policy="nearest", recorder=recorder)  # type: ignore[arg-type]
+        try:
+            assert node.process("VisionRequest", "1", {"t_request": 10.0})["frame_seq"] == 0
+            assert node.process("VisionRequest", "2", {"t_request": 11.0})["frame_seq"] == 1
+            assert recorder.written == []  # answered while the writer thread is still blocked
+            recorder.release.set()
+        finally:
+            node.close()
+    assert recorder.written == [0, 1]
