@@ -218,6 +218,21 @@ def _documented_ports(block: Block) -> set[int]:
     return ports
 
 
+def _run_pytest_block(block: Block, cwd: Path, env: dict) -> None:
+    """A block that is a test file (first line `# tests/test_X.py`) is written there and run with pytest: the
+    repository's vplus/ is linked in, and a V+ file of yours it loads (`my_skills.V2`) is an empty program."""
+    rel = re.match(r"# (\S+)", block.code).group(1)
+    (cwd / rel).parent.mkdir(parents=True, exist_ok=True)
+    (cwd / rel).write_text(block.code)
+    (cwd / "vplus").symlink_to(ROOT / "vplus")
+    for name in set(re.findall(r'"([\w/]+\.V2)"', block.code)):
+        if not (cwd / name).exists():
+            (cwd / name).write_text(".PROGRAM my.noop()\n.END\n")
+    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", rel], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=50)
+    assert proc.returncode == 0 and " passed" in proc.stdout, f"{block.name}:\n{proc.stdout}\n{proc.stderr}"
+
+
 @pytest.mark.timeout(30)
 def test_the_docs_have_runnable_blocks():
     runnable = [b for p in PAGES for b in _page_blocks(p) if b.not_run is None]
@@ -240,7 +255,9 @@ def test_each_page_runs_as_printed(page, tmp_path):
                 for m in re.findall(r"\bruns/[\w.-]+", b.code)}, tmp_path)
     env = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "MPLBACKEND": "Agg"}
     for block in runnable:
-        if block.lang == "python":
+        if block.lang == "python" and re.match(r"# (tests/test_\w+\.py)\n", block.code):
+            _run_pytest_block(block, tmp_path, env)
+        elif block.lang == "python":
             proc = subprocess.run([sys.executable, "-c", RUNNER, block.name], input=block.code, cwd=tmp_path,
                                   env=env, capture_output=True, text=True, timeout=50)
             assert proc.returncode == 0, f"{block.name}:\n{proc.stderr}"
