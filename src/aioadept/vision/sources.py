@@ -204,8 +204,12 @@ class FrameRecorder:
     def write(self, frame: Frame) -> Path:
         name = f"{frame.camera_id.replace(':', '_').replace('/', '_')}_{frame.seq:06d}.png"
         path = self.folder / name
-        if not cv2.imwrite(str(path), frame.image):
+        # Written under a temporary name and renamed: a reader following the folder (the run recorder) never sees
+        # half a PNG. The temporary name keeps the .png suffix, which tells OpenCV the format.
+        tmp = self.folder / f".{name[:-4]}.tmp.png"
+        if not cv2.imwrite(str(tmp), frame.image):
             raise VisionError(f"cannot write {path}")
+        os.replace(tmp, path)
         self._writer.writerow([name, f"{frame.t_s:.6f}", frame.camera_id, frame.seq])
         self._fh.flush()
         return path
