@@ -533,7 +533,8 @@ def namespace(rt: Runtime) -> dict[str, Any]:
 
     from aioadept.vplus import iodev
 
-    return {
+    ns = {"_fn_" + k.replace("$", "s").replace("#", "h").replace(".", "_"): f for k, f in fn.items()}
+    ns.update({
         "_G": G, "_FB": _FB, "_static": static, "_arg": arg, "_argarr": argarr, "_arr": _arr, "_ix": _ix,
         "_str": _str, "_pp": pp_check, "_loc": loc_check, "_dbl": _dbl, "_real": _real, "_f32": f32,
         "_byval": _byval, "_MISSING": (_MISSING_C, "?"), "_call": call, "_progname": progname, "_tick": tick, "_ctick": cond_tick,
@@ -545,7 +546,8 @@ def namespace(rt: Runtime) -> dict[str, Any]:
         "_fn": fn, "_compose": compose, "_fmod": math.fmod, "_err": err, "_Goto": _Goto, "_GOTO": _GOTO,
         "_io_attach": iodev.attach(rt), "_io_detach": iodev.detach(rt), "_io_fclose": iodev.fclose(rt),
         "_io_fopen": iodev.fopen(rt), "_io_read": iodev.read(rt), "_io_write": iodev.write(rt),
-    }
+    })
+    return ns
 
 
 _MISSING_C = _Missing()

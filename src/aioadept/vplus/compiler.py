@@ -109,8 +109,11 @@ def _nest(steps: list[tuple[int, Any]]) -> list:
 
 
 class _Gen:
-    def __init__(self, prog: Program, doubles: set[str]) -> None:
+    def __init__(self, prog: Program, doubles: set[str], boxed: frozenset[str] = frozenset()) -> None:
         self.prog = prog
+        self.keep_boxed = boxed             # AUTOs that stay in L (passed on by reference: known from a former pass)
+        self.fast: set[str] = set()         # AUTO scalars that are Python locals of the generated function
+        self.boxed: set[str] = set()        # AUTOs found passed on by reference in this pass
         self.doubles = set(doubles)
         self.autos: dict[str, str] = {}
         self.statics: dict[str, str] = {}
@@ -136,7 +139,10 @@ class _Gen:
 
     # -- names ----------------------------------------------------------------------------------------------
     def scope(self, name: str) -> tuple[str, str]:
-        """(container code, key code) of a scalar variable."""
+        """(container code, key code) of a scalar variable that is passed on by reference (an argument of CALL,
+        the string of $DECODE, an I/O handle, DEFINED): an AUTO used so stays in ``L`` (see :func:`compile_program`)."""
+        if name in self.fast:
+            self.boxed.add(name)
         if name in self.params:
             i, is_arr = self.params[name]
             if is_arr:
@@ -147,6 +153,18 @@ class _Gen:
         if name in self.statics:
             return "S", repr(name)
         return "G", repr(name)
+
+    def lv(self, name: str) -> str:
+        """Code of a scalar variable as a Python expression and assignment target."""
+        if name in self.fast:
+            return _local(name)
+        if name in self.params:
+            i, is_arr = self.params[name]
+            if is_arr:
+                raise CompileError(0, f"{name} is an array parameter", name)
+            return f"P{i}c[P{i}k]"
+        c, key = self.scope(name)
+        return f"{c}[{key}]"
 
     def arr(self, name: str, write: bool) -> str:
         """Code of the dict of an array (created on first write)."""
@@ -183,8 +201,7 @@ class _Gen:
         if k == "str":
             return repr(e[1]), "str"
         if k == "var":
-            c, key = self.scope(e[1])
-            return f"{c}[{key}]", self.vtype(e[1])
+            return self.lv(e[1]), self.vtype(e[1])
         if k == "idx":
             return f"{self.arr(e[1], False)}[{self.index(e[2])}]", self.vtype(e[1])
         if k == "arr":
@@ -203,7 +220,7 @@ class _Gen:
             return self.call(e)
         if k == "shift":
             d = [self.val(x)[0] for x in e[2]]
-            return f"_fn['SHIFT']({self.val(e[1])[0]}, {', '.join(d)})", "loc"
+            return f"{_fname('SHIFT')}({self.val(e[1])[0]}, {', '.join(d)})", "loc"
         raise CompileError(0, f"cannot compile {k}", str(k))  # pragma: no cover
 
     def vtype(self, name: str) -> str:
@@ -282,7 +299,7 @@ class _Gen:
             vals = "T" + (", " + vals if vals else "")
         typ = "loc" if name in _LOC_FUNCS else ("pp" if name in _PP_FUNCS else
                                                 ("str" if name in _STR_FUNCS else "num"))
-        return f"_fn[{name!r}]({vals})", typ
+        return f"{_fname(name)}({vals})", typ
 
     def items(self, args: list) -> str:
         """Output items (formats and values) as a tuple body for _encode/_type/_write."""
@@ -306,19 +323,27 @@ class _Gen:
 
     def store(self, target, code: str, typ: str, force_loc: bool = False) -> str:
         """A Python statement storing ``code`` into the V+ variable ``target``."""
-        c, key = self.ref(target)
+        t = self.target(target)
         name = target[1]
         if name.startswith("$"):
-            return f"{c}[{key}] = _str({code})"
+            return f"{t} = _str({code})"
         if name.startswith("#"):
-            return f"{c}[{key}] = _pp({code})"
+            return f"{t} = _pp({code})"
         if force_loc or typ == "loc":
-            return f"{c}[{key}] = _loc({code})"
+            return f"{t} = _loc({code})"
         if self.is_double(name):
-            return f"{c}[{key}] = _dbl({code})"
+            return f"{t} = _dbl({code})"
         if typ == "num":
-            return f"_F[0] = {code}; {c}[{key}] = _F[0]"
-        return f"{c}[{key}] = _real({code})"
+            return f"_F[0] = {code}; {t} = _F[0]"
+        return f"{t} = _real({code})"
+
+    def target(self, e) -> str:
+        """Code of an assignable variable or array element (assigned in the generated code itself)."""
+        if e[0] == "var":
+            return self.lv(e[1])
+        if e[0] == "idx":
+            return f"{self.arr(e[1], True)}[{self.index(e[2])}]"
+        raise CompileError(0, "expected a variable", str(e[1]))
 
     # -- statements -----------------------------------------------------------------------------------------
     def declare(self, steps) -> None:
@@ -339,6 +364,7 @@ class _Gen:
         p = self.prog
         tree = _nest(p.steps)
         self.declare(p.steps)
+        self.fast = {n for n in self.autos if n not in self.keep_boxed}
         self.ind = 0
         self.emit("def _prog(T, A):")
         self.ind = 1
@@ -489,7 +515,7 @@ class _Gen:
     def for_loop(self, b: _Block) -> None:
         _, var, start, end, step = b.head
         try:
-            c, key = self.ref(var)
+            v = self.target(var)
             scode = self.val(start)[0]
             ecode = self.val(end)[0]
             stcode = "1.0" if step is None else self.val(step)[0]
@@ -498,13 +524,13 @@ class _Gen:
         e, s = self.tmp("_e"), self.tmp("_s")
         dbl = self.is_double(var[1])
         conv = "_dbl" if dbl else "_f32"
-        self.guarded(b.line, [f"{e} = float({ecode}); {s} = float({stcode})", f"{c}[{key}] = {conv}({scode})"])
+        self.guarded(b.line, [f"{e} = float({ecode}); {s} = float({stcode})", f"{v} = {conv}({scode})"])
         const_pos = step is None or (step[0] == "num" and step[1] > 0)
-        test = f"{c}[{key}] <= {e}" if const_pos else f"({c}[{key}] <= {e} if {s} > 0 else {c}[{key}] >= {e})"
+        test = f"{v} <= {e}" if const_pos else f"({v} <= {e} if {s} > 0 else {v} >= {e})"
         if dbl:
-            inc = f"{c}[{key}] = {c}[{key}] + {s}"
+            inc = f"{v} = {v} + {s}"
         else:
-            inc = f"_F[0] = {c}[{key}] + {s}; {c}[{key}] = _F[0]"
+            inc = f"_F[0] = {v} + {s}; {v} = _F[0]"
         self.loops.append("FOR")
         if _direct_next(b.body):
             f = self.tmp("_first")
@@ -650,7 +676,7 @@ class _Gen:
             self.guarded(line, [f"_tool(T, {self.val(st[1])[0]})"])
         elif k == "HERE":
             tgt = st[1]
-            fn = "_fn['#HERE'](T)" if tgt[1].startswith("#") else "_fn['HERE'](T)"
+            fn = f"{_fname('#HERE')}(T)" if tgt[1].startswith("#") else f"{_fname('HERE')}(T)"
             self.guarded(line, [self.store(tgt, fn, "pp" if tgt[1].startswith("#") else "loc")])
         elif k == "DECOMPOSE":
             tgt = st[1]
@@ -709,12 +735,49 @@ def _direct_next(body: list) -> bool:
     return False
 
 
+def _fname(name: str) -> str:
+    """Code calling the built-in function ``name``: a global of the generated code bound to it (``_fn_ASC``,
+    ``_fn_sMID``; see builtins.namespace), which saves the ``_fn[...]`` look-up of each call. A name that is not a
+    Python identifier once mangled goes through the table."""
+    py = "_fn_" + name.replace("$", "s").replace("#", "h").replace(".", "_")
+    return py if py.isidentifier() else f"_fn[{name!r}]"
+
+
+def _local(name: str) -> str:
+    """The Python local of an AUTO scalar: ``$id`` -> ``V_sid``, ``rs.x`` -> ``V_rs_dx`` (one-to-one)."""
+    return "V_" + name.replace("_", "_u").replace(".", "_d").replace("$", "_s").replace("#", "_h")
+
+
+def vplus_name(local: str) -> str:
+    """The V+ name of a Python local made by :func:`_local` (for the *Undefined value* message)."""
+    out, i, s = [], 0, local[2:]
+    while i < len(s):
+        if s[i] == "_" and i + 1 < len(s):
+            out.append({"u": "_", "d": ".", "s": "$", "h": "#"}.get(s[i + 1], s[i + 1]))
+            i += 2
+        else:
+            out.append(s[i])
+            i += 1
+    return "".join(out)
+
+
 def compile_program(prog: Program, doubles: set[str]) -> tuple[str | None, list[Any], list[LoadProblem]]:
-    """Python source of one program (defines ``_prog``) and its constants, or the problems that prevent it."""
-    gen = _Gen(prog, doubles)
-    try:
-        src = gen.program()
-    except CompileError as exc:
-        word = exc.word
-        return None, [], [LoadProblem(prog.file, exc.line or prog.line, exc.message, word, prog.name)]
-    return src, gen.consts, []
+    """Python source of one program (defines ``_prog``) and its constants, or the problems that prevent it.
+
+    AUTO scalars become Python locals (a local is a few times cheaper than ``L['name']``), except those the
+    program passes on by reference (a CALL argument, the string of ``$DECODE``, a READ target or I/O handle,
+    ``DEFINED``): the callee or the built-in writes through a ``(container, key)`` pair, so those stay in ``L``.
+    Which they are is known after generating the code once; a second pass keeps them in ``L``.
+    """
+    boxed: frozenset[str] = frozenset()
+    for _ in range(3):
+        gen = _Gen(prog, doubles, boxed)
+        try:
+            src = gen.program()
+        except CompileError as exc:
+            word = exc.word
+            return None, [], [LoadProblem(prog.file, exc.line or prog.line, exc.message, word, prog.name)]
+        if gen.boxed <= boxed:
+            return src, gen.consts, []
+        boxed = boxed | gen.boxed
+    raise AssertionError("AUTOs passed by reference did not settle")  # pragma: no cover - boxed only grows

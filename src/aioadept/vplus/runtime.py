@@ -48,6 +48,8 @@ class _Goto(BaseException):
 
 _GOTO = [_Goto(i) for i in range(4096)]
 
+_UNBOUND_RE = re.compile(r"variable '(V_\w+)'")
+
 _COMPILED: dict[tuple, tuple] = {}
 """Code objects of compiled programs by their source text (and the DOUBLE names, which change the code): an
 emulator built again from the same files (one per test) only runs the code in a fresh namespace. The code and
@@ -456,6 +458,13 @@ class Runtime:
             key = exc.args[0] if exc.args else "?"
             what = key if isinstance(key, str) else f"array element [{key}]"
             return VPlusError(E.UNDEFINED_VALUE, f"*Undefined value* {what}")
+        if isinstance(exc, NameError):
+            # an AUTO held as a Python local (compiler._local) read before any assignment
+            m = _UNBOUND_RE.search(str(exc))
+            if m:
+                from aioadept.vplus.compiler import vplus_name
+
+                return VPlusError(E.UNDEFINED_VALUE, f"*Undefined value* {vplus_name(m.group(1))}")
         if isinstance(exc, ZeroDivisionError):
             return VPlusError(E.DIVISION_BY_ZERO)
         if isinstance(exc, (TypeError, AttributeError)):
