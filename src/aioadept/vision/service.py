@@ -29,9 +29,9 @@ def _state_curve(opts: argparse.Namespace) -> Any:
     return CurveClient(load_keypair(secret), load_keypair(server).public)
 
 
-def make_sources(opts: argparse.Namespace, pose_at: Any, state_age: Any = None) -> list[Any]:
-    """Camera objects for the ``--source`` specs (unique camera ids). ``pose_at`` / ``state_age``: the robot state
-    follower's, for virtual cameras."""
+def make_sources(opts: argparse.Namespace, pose_at: Any, state_age: Any = None, pose_guess: Any = None) -> list[Any]:
+    """Camera objects for the ``--source`` specs (unique camera ids). ``pose_at`` / ``state_age`` / ``pose_guess``:
+    the robot state follower's (``pose_if_at_rest``), for virtual cameras."""
     from aioadept.vision.sources import ImageFolderSource, OpenCVSource
     from aioadept.vision.virtual_camera import LensOptics, paper_camera
 
@@ -52,7 +52,8 @@ def make_sources(opts: argparse.Namespace, pose_at: Any, state_age: Any = None) 
                                         working_distance_mm=opts.working_distance_mm,
                                         optics=LensOptics(f_number=opts.f_number), noise_sigma=opts.noise_sigma,
                                         seed=opts.seed, camera_id=unique("virtual"), state_age=state_age,
-                                        exposure_ms=opts.exposure_ms, readout_ms=opts.readout_ms))
+                                        exposure_ms=opts.exposure_ms, readout_ms=opts.readout_ms,
+                                        pose_guess=pose_guess))
         elif kind == "folder" and arg:
             csv_path = Path(arg) / "frames.csv"
             # A recorded folder (--save-frames) replays with its times; any other folder loops, stamped live.
@@ -90,7 +91,8 @@ async def serve(opts: argparse.Namespace) -> int:
     acq = node = responder = None
     try:
         sources = make_sources(opts, follower.pose_at if follower else None,
-                               follower.state_age_s if follower else None)
+                               follower.state_age_s if follower else None,
+                               follower.pose_if_at_rest if follower else None)
         acq = Acquisition(sources, buffer_size=opts.buffer_size, fps=opts.fps, trigger=opts.trigger).start()
         # Serve only once every camera has a frame: the first render/read pays one-off costs (imports, caches).
         if not await asyncio.to_thread(acq.wait_ready, 10.0):

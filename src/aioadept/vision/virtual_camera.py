@@ -214,6 +214,10 @@ class VirtualCamera(Camera):
     ``state_age(t_s)``, if given, is asked after the pose for the age of the robot state behind it
     (:meth:`RobotStateFollower.state_age_s`) and stamped on the frame as ``pose_age_s``: the node refuses to
     answer from a frame whose pose is older than its limit (a silent state stream means a frozen, maybe wrong pose).
+    ``pose_guess(t_s)``, if given, is a pose that needs no wait (:meth:`RobotStateFollower.pose_if_at_rest`): the
+    frame is rendered from it at once, while ``pose_source`` waits for the sample covering the exposure; the frame
+    is kept only if that pose is the same (:func:`same_pose`), else rendered again. So the wait overlaps rendering
+    and the modelled readout, and the frame is exactly the one ``pose_source`` alone would give.
     """
 
     def __init__(self, pose_source: Callable[[float], Pose | None] | None = None, *, camera_pose: Pose,
@@ -223,7 +227,8 @@ class VirtualCamera(Camera):
                  max_blur_px: float = 48.0, camera_id: str = "virtual",
                  clock: Callable[[], float] = time.time,
                  state_age: Callable[[float], float] | None = None, exposure_ms: float = DEFAULT_EXPOSURE_MS,
-                 readout_ms: float | None = None, sleep: Callable[[float], None] | None = time.sleep) -> None:
+                 readout_ms: float | None = None, sleep: Callable[[float], None] | None = time.sleep,
+                 pose_guess: Callable[[float], Pose | None] | None = None) -> None:
         if not (0 <= exposure_ms < math.inf) or (readout_ms is not None and not (0 <= readout_ms < math.inf)):
             raise ValueError(f"exposure_ms and readout_ms must be finite and >= 0, got {exposure_ms!r}, "
                              f"{readout_ms!r}")
@@ -242,6 +247,9 @@ class VirtualCamera(Camera):
         self.noise_sigma = float(noise_sigma)
         self.background = int(background)
         self._pose_source = pose_source
+        self._pose_guess = pose_guess
+        self.guesses = 0  # frames rendered ahead from pose_guess (kept or re-rendered)
+        self.rerenders = 0  # of those, rendered again because the covering pose differed
         self._clock = clock
         self._seq = 0
         self._world_to_cam = inverse_transform(camera_pose.to_matrix())
@@ -345,10 +353,19 @@ class VirtualCamera(Camera):
         t_s = self._clock()
         exposure_s, readout_s = self.exposure_ms / 1e3, self.readout_ms / 1e3
         t_mid = t_s + exposure_s / 2.0
+        guess = self._pose_guess(t_mid) if self._pose_guess is not None else None
+        image = None
+        if guess is not None:
+            # Render now from the at-rest pose; the covering sample decides below whether this frame stands.
+            self.guesses += 1
+            image = self.render(guess)
         pose = self._pose_source(t_mid) if self._pose_source is not None else None
         # Asked after pose_source, which may have waited for a sample covering t_mid.
         age = self._state_age(t_mid) if self._state_age is not None else None
-        image = self.render(pose)
+        if image is None or not same_pose(pose, guess):
+            if image is not None:
+                self.rerenders += 1  # the robot moved after the at-rest sample: never keep that frame
+            image = self.render(pose)
         if self._sleep is not None:
             left = t_s + exposure_s + readout_s - self._clock()
             if left > 0:
@@ -356,6 +373,20 @@ class VirtualCamera(Camera):
         frame = Frame(image, t_s, self.camera_id, self._seq, age, exposure_s, readout_s)
         self._seq += 1
         return frame
+
+
+SAME_POSE_MM = 1e-6
+"""Largest position difference (mm), and rotation-matrix entry difference, at which two poses render the same
+frame in :meth:`VirtualCamera.grab` (interpolating between two equal at-rest samples changes the last bits only)."""
+
+
+def same_pose(a: Pose | None, b: Pose | None) -> bool:
+    """Whether ``a`` and ``b`` are the same pose up to rounding (:data:`SAME_POSE_MM`); two Nones are the same."""
+    if a is None or b is None:
+        return a is b
+    ma, mb = a.to_matrix(), b.to_matrix()
+    return bool(np.all(np.abs(ma[:3, 3] - mb[:3, 3]) <= SAME_POSE_MM)
+                and np.all(np.abs(ma[:3, :3] - mb[:3, :3]) <= SAME_POSE_MM * 1e-3))
 
 
 def paper_camera(pose_source: Callable[[float], Pose | None] | None = None, *, focus_offset_mm: float = 20.0,
@@ -560,6 +591,15 @@ class RobotStateFollower:
             return self.history.at(t_s)
         if len(self.history):
             self.history.wait_covering(t_s, self.max_wait_s)
+        return self.history.at(t_s)
+
+    def pose_if_at_rest(self, t_s: float) -> Pose | None:
+        """The newest sample's pose, at once, if that sample says the robot is at rest and was received at or
+        before ``t_s``; else None. A guess only (:class:`VirtualCamera` ``pose_guess``): a motion may have started
+        since, so the camera checks it against :meth:`pose_at` before keeping the frame."""
+        rest_t = self.history.newest_at_rest()
+        if rest_t is None or rest_t > t_s:
+            return None
         return self.history.at(t_s)
 
     def state_age_s(self, t_s: float | None = None) -> float:
