@@ -69,6 +69,16 @@ def _ix(v: float) -> int:
     return i
 
 
+class _IxTable(dict):
+    """Array index of a value: a dict look-up for 0.0 .. 4095.0 (what indices almost always are), _ix otherwise."""
+
+    def __missing__(self, v: Any) -> int:
+        return _ix(v)
+
+
+_IX = _IxTable({float(i): i for i in range(4096)})
+
+
 def _decode(c: dict, k: Any, breaks: str, mode: float) -> str:
     s = c[k]
     if type(s) is not str or type(breaks) is not str:
@@ -155,6 +165,15 @@ def _render(items: tuple) -> tuple[str, bool]:
         else:
             out.append(repr(it))
     return "".join(out), no_eol
+
+
+def _encv(v: Any, spec: tuple) -> str:
+    """One value of a compiled $ENCODE with its format (as _render does it)."""
+    if type(v) is str:
+        return v
+    if isinstance(v, (int, float)):
+        return _fmt_number(float(v), spec)
+    return repr(v)
 
 
 def _encode(items: tuple) -> str:
@@ -535,7 +554,8 @@ def namespace(rt: Runtime) -> dict[str, Any]:
 
     ns = {"_fn_" + k.replace("$", "s").replace("#", "h").replace(".", "_"): f for k, f in fn.items()}
     ns.update({
-        "_G": G, "_FB": _FB, "_static": static, "_arg": arg, "_argarr": argarr, "_arr": _arr, "_ix": _ix,
+        "_G": G, "_FB": _FB, "_static": static, "_arg": arg, "_argarr": argarr, "_arr": _arr, "_ix": _ix, "_IX": _IX,
+        "_encv": _encv, "_MC": _MISSING_C,
         "_str": _str, "_pp": pp_check, "_loc": loc_check, "_dbl": _dbl, "_real": _real, "_f32": f32,
         "_byval": _byval, "_MISSING": (_MISSING_C, "?"), "_call": call, "_progname": progname, "_tick": tick, "_ctick": cond_tick,
         "_halt": halt, "_stop": stop, "_pause": pause, "_type": type_, "_prompt": prompt, "_signal": signal,

@@ -25,6 +25,7 @@ is passed by reference and an expression by value. Arrays are dicts ``index -> v
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -37,6 +38,7 @@ _LOC_FUNCS = {"TRANS", "INVERSE", "HERE", "RX", "RY", "RZ", "NULL"}
 _PP_FUNCS = {"#PPOINT", "#HERE"}
 _STR_FUNCS = {"$DECODE", "$ENCODE", "$MID", "$CHR", "$ERROR", "$TRUNCATE", "$LEFT", "$RIGHT", "$TOUPPER",
               "$TOLOWER", "$TIME", "$DEFAULT"}
+_FMT_RE = re.compile(r"([A-Z])(\d+)?(?:\.(\d+))?\Z")       # as builtins._FMT_RE
 _BLOCK_OPEN = {"IF", "WHILE", "DO", "FOR", "CASE"}
 
 
@@ -127,7 +129,8 @@ class _Gen:
 
     # -- output ---------------------------------------------------------------------------------------------
     def emit(self, s: str) -> None:
-        self.lines.append("    " * self.ind + s)
+        for ln in s.split("\n"):
+            self.lines.append("    " * self.ind + ln)
 
     def tmp(self, p: str = "_t") -> str:
         self.n += 1
@@ -175,7 +178,7 @@ class _Gen:
             return f"A{i}"
         c = "L" if name in self.autos else ("S" if name in self.statics else "G")
         key = repr(name + "[]")
-        return f"_arr({c}, {key})" if write else f"{c}[{key}]"
+        return f"({c}.get({key}) or _arr({c}, {key}))" if write else f"{c}[{key}]"
 
     def index(self, idx: list) -> str:
         parts = []
@@ -183,7 +186,7 @@ class _Gen:
             if e[0] == "num":
                 parts.append(repr(int(e[1])))
             else:
-                parts.append(f"_ix({self.val(e)[0]})")
+                parts.append(f"_IX[{self.val(e)[0]}]")     # a dict of 0.0..4095.0; _ix() for the rest
         return parts[0] if len(parts) == 1 else "(" + ", ".join(parts) + ")"
 
     def is_double(self, name: str) -> bool:
@@ -275,7 +278,7 @@ class _Gen:
             c, key = self.ref(args[0])
             return f"_decode({c}, {key}, {self.val(args[1])[0]}, {self.val(args[2])[0]})", "str"
         if name == "$ENCODE":
-            return f"_encode(({self.items(args)}))", "str"
+            return self.encode(args), "str"
         if name == "DEFINED":
             if len(args) != 1 or args[0] is None:
                 raise CompileError(0, "DEFINED needs one variable", name)
@@ -300,6 +303,45 @@ class _Gen:
         typ = "loc" if name in _LOC_FUNCS else ("pp" if name in _PP_FUNCS else
                                                 ("str" if name in _STR_FUNCS else "num"))
         return f"{_fname(name)}({vals})", typ
+
+    def encode(self, args: list) -> str:
+        """$ENCODE with its formats applied at compile time (they are constants): each number goes through
+        ``_encv`` with its format, strings are joined as they are. A format the emulator does not know takes
+        the general path (``_encode``), which reports it when the line runs."""
+        parts: list[str] = []
+        spec: tuple = ("D", None, None)
+        for a in args:
+            if a is None:
+                continue
+            if a[0] == "fmt":
+                f = a[1]
+                m = _FMT_RE.match(f)
+                kind = m.group(1) if m else f[:1]
+                num = int(m.group(2)) if m and m.group(2) else None
+                prec = int(m.group(3)) if m and m.group(3) else None
+                if kind == "X":
+                    parts.append(repr(" " * (num if num is not None else 1)))
+                elif kind == "C":
+                    parts.append(repr("\r\n" * (num if num is not None else 1)))
+                elif kind in ("S", "N", "B", "U"):
+                    pass
+                elif kind in ("F", "E", "G", "I", "H", "O", "D"):
+                    spec = (kind, num, prec)
+                else:
+                    return f"_encode(({self.items(args)}))"
+                continue
+            code, typ = self.val(a)
+            if typ == "str":
+                parts.append(code)
+            elif spec[0] == "F" and not spec[1]:
+                # /F0.3 (no width): "%.3f" at once for a REAL, the general _encv for anything else
+                pat = "%.{}f".format(spec[2] if spec[2] is not None else 2)
+                parts.append(f"({pat!r} % _v if type(_v := {code}) is float else _encv(_v, {self.const(spec)}))")
+            else:
+                parts.append(f"_encv({code}, {self.const(spec)})")
+        if not parts:
+            return "''"
+        return f"_str({' + '.join(parts)})" if len(parts) > 1 else f"_str({parts[0]})"
 
     def items(self, args: list) -> str:
         """Output items (formats and values) as a tuple body for _encode/_type/_write."""
@@ -326,7 +368,8 @@ class _Gen:
         t = self.target(target)
         name = target[1]
         if name.startswith("$"):
-            return f"{t} = _str({code})"
+            # _str's checks inline: most stores are short strings
+            return f"{t} = _t if type(_t := {code}) is str and len(_t) <= 128 else _str(_t)"
         if name.startswith("#"):
             return f"{t} = _pp({code})"
         if force_loc or typ == "loc":
@@ -335,7 +378,7 @@ class _Gen:
             return f"{t} = _dbl({code})"
         if typ == "num":
             return f"_F[0] = {code}; {t} = _F[0]"
-        return f"{t} = _real({code})"
+        return f"_t = {code}\nif type(_t) is float: _F[0] = _t; {t} = _F[0]\nelse: {t} = _real(_t)"
 
     def target(self, e) -> str:
         """Code of an assignable variable or array element (assigned in the generated code itself)."""
@@ -372,11 +415,15 @@ class _Gen:
         self.emit("L = {}")
         if self.statics:
             self.emit(f"S = _static(T, {p.name!r})")
+        if self.params:
+            self.emit("_nA = len(A)")
         for name, (i, is_arr) in self.params.items():
             if is_arr:
                 self.emit(f"A{i} = _argarr(A, {i}, {name!r})")
             else:
-                self.emit(f"P{i}c, P{i}k = _arg(A, {i}, {name!r})")
+                # _arg's checks inline for the usual case (a (container, key) pair, not omitted)
+                self.emit(f"P{i}c, P{i}k = _a if (_nA > {i} and type(_a := A[{i}]) is tuple and _a[0] is not _MC) "
+                          f"else _arg(A, {i}, {name!r})")
         for name, typ in self.autos.items():
             pass
         self.emit(f"_b = {BUDGET}")
@@ -439,7 +486,7 @@ class _Gen:
     def guarded(self, line: int, code_lines: list[str]) -> None:
         self.emit("try:")
         for c in code_lines:
-            self.emit("    " + c)
+            self.emit("\n".join("    " + ln for ln in c.split("\n")))
         self.emit("except Exception as _e:")
         self.emit(f"    yield from _err(T, _e, {self.prog.name!r}, {line})")
 
