@@ -48,7 +48,7 @@ class _Goto(BaseException):
 
 _GOTO = [_Goto(i) for i in range(4096)]
 
-_UNBOUND_RE = re.compile(r"variable '(V_\w+)'")
+_UNBOUND_RE = re.compile(r"(?:variable|name) '(V_\w+)'")   # unbound local, or a local never assigned
 
 _COMPILED: dict[tuple, tuple] = {}
 """Code objects of compiled programs by their source text (and the DOUBLE names, which change the code): an
