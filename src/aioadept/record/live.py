@@ -20,6 +20,7 @@ import contextlib
 import logging
 import os
 import queue
+import sys
 import threading
 import time
 import uuid
@@ -28,7 +29,7 @@ from typing import Any
 
 from aioadept.record.rrd import APP_ID, CellLogger, frame_file
 
-__all__ = ["STATE_RATE_HZ", "RunRecording"]
+__all__ = ["STATE_RATE_HZ", "SWITCH_INTERVAL_S", "RunRecording"]
 
 log = logging.getLogger(__name__)
 
@@ -36,6 +37,40 @@ STATE_RATE_HZ = 25.0
 """Robot-state samples drawn per second: smooth motion in the viewer for a fraction of the sim's 100 Hz."""
 
 _STOP = object()
+
+FRAME_WAIT_S = 2.0
+"""How long the worker waits for a served frame's file to appear in ``frames_dir`` (the node writes it after
+answering; a 1024x768 PNG takes ~10 ms, more under load) before counting it in ``frames_missing``."""
+
+SWITCH_INTERVAL_S = 0.0005
+"""The interpreter's GIL switch interval while a recording runs (Python's default is 5 ms). The worker thread holds
+the GIL in bursts (conversion, kinematics, Rerun's logging calls); with 5 ms, a response arriving during a burst
+waits up to 5 ms before the event loop may even read it, more when the worker is niced and preempted. Measured
+with ``aioadept demo --fast`` (issue 12 H.5): the response's way back (sent by the node -> received by the MCN)
+reached 7-15 ms per run with the default, 0.8-3 ms with 0.5 ms."""
+
+_switch_lock = threading.Lock()
+_switch_users = 0
+_switch_saved: float | None = None
+
+
+def _shorten_switch_interval() -> None:
+    global _switch_users, _switch_saved
+    with _switch_lock:
+        if _switch_users == 0:
+            _switch_saved = sys.getswitchinterval()
+            if _switch_saved > SWITCH_INTERVAL_S:
+                sys.setswitchinterval(SWITCH_INTERVAL_S)
+        _switch_users += 1
+
+
+def _restore_switch_interval() -> None:
+    global _switch_users, _switch_saved
+    with _switch_lock:
+        _switch_users -= 1
+        if _switch_users == 0 and _switch_saved is not None:
+            sys.setswitchinterval(_switch_saved)
+            _switch_saved = None
 
 
 def _loop_clock() -> float:
@@ -86,6 +121,7 @@ class RunRecording:
         self._state_task: asyncio.Task[None] | None = None
         self._errors = 0
         self.frames_missing = 0
+        self._frame_wait_s = FRAME_WAIT_S  # 0 after a frame never came: a node not saving costs one wait only
         self.closed = False
         self.error: str | None = None
         """Why the recording could not be written completely (set by :meth:`close`), else None."""
@@ -113,6 +149,7 @@ class RunRecording:
     # -- life cycle
     def start(self) -> RunRecording:
         if self._thread is None:
+            _shorten_switch_interval()  # restored by close(): see SWITCH_INTERVAL_S
             self._thread = threading.Thread(target=self._work, name="rerun-recording", daemon=True)
             self._thread.start()
             if self.state_endpoint:
@@ -141,6 +178,7 @@ class RunRecording:
         if self._thread is not None:
             self._q.put((_STOP, None))
             self._thread.join(timeout_s)
+            _restore_switch_interval()
         else:
             self._drain()
         # A recording never fails a run: a full disk (or any sink error) is said once, the run's result stands.
@@ -222,8 +260,15 @@ class RunRecording:
         path = frame_file(self.frames_dir, str(attrs.get("camera", "")), int(attrs["frame_seq"]))
         import cv2
 
+        # The node saves a frame after it has answered (vision.node: off the response path), so the file usually
+        # appears a few ms after the response; it is renamed into place whole (FrameRecorder), so once it exists
+        # it is complete. Wait for it here, in the worker thread, never on the loop.
+        deadline = time.monotonic() + self._frame_wait_s
+        while not path.is_file() and time.monotonic() < deadline:
+            time.sleep(0.005)
         img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED) if path.is_file() else None
         if img is None:
+            self._frame_wait_s = 0.0
             self.frames_missing += 1
             return
         self.logger.frame(img, float(attrs.get("frame_t", time.time())), step=step,

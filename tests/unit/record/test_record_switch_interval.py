@@ -1,0 +1,29 @@
+"""A running RunRecording shortens the GIL switch interval (its worker must not hold the MCN's event loop off for
+Python's default 5 ms per burst, issue 12 H.5) and gives the old value back when the last one closes."""
+
+from __future__ import annotations
+
+import sys
+
+import pytest
+
+pytest.importorskip("rerun")
+
+from aioadept.record.live import SWITCH_INTERVAL_S, RunRecording  # noqa: E402
+
+
+def test_switch_interval_short_while_recording_and_restored_after(tmp_path):
+    before = sys.getswitchinterval()
+    assert before > SWITCH_INTERVAL_S  # Python's default, 5 ms
+    a = RunRecording(tmp_path / "a.rrd").start()
+    b = RunRecording(tmp_path / "b.rrd").start()
+    try:
+        assert sys.getswitchinterval() == pytest.approx(SWITCH_INTERVAL_S)
+        a.close()
+        assert sys.getswitchinterval() == pytest.approx(SWITCH_INTERVAL_S)  # b still records
+    finally:
+        a.close()
+        b.close()
+    assert sys.getswitchinterval() == before
+    b.close()  # idempotent: no second restore
+    assert sys.getswitchinterval() == before
