@@ -5,7 +5,8 @@
 application's marks, like :class:`aioadept.capture.Recorder`. Its hooks run inside the protocol path, so they only
 put the record object on a queue (``SimpleQueue.put``, well under a microsecond); one worker thread does the rest:
 converting, forward kinematics, reading and downsampling the frame files, and Rerun's logging calls. A frame is
-therefore never read or encoded on the event loop.
+therefore never read or encoded on the event loop; without a viewer (a file only) the frames are read and logged
+by :meth:`RunRecording.close`, after the run, so their ~10 ms of CPU each does not compete with the focus loop.
 
 Where the data comes from besides the hooks: the sim's robot-state stream (``state_endpoint``; a SUB socket on the
 loop that keeps at most :data:`STATE_RATE_HZ` samples a second) gives the joints; without it the arm is drawn from
@@ -121,6 +122,7 @@ class RunRecording:
         self._state_task: asyncio.Task[None] | None = None
         self._errors = 0
         self.frames_missing = 0
+        self._deferred_frames: list[tuple[dict[str, Any], int]] = []  # file only: logged by close()
         self._frame_wait_s = FRAME_WAIT_S  # 0 after a frame never came: a node not saving costs one wait only
         self.closed = False
         self.error: str | None = None
@@ -211,6 +213,7 @@ class RunRecording:
         while True:
             kind, obj = self._q.get()
             if kind is _STOP:
+                self._log_deferred_frames()
                 return
             self._handle(kind, obj)
 
@@ -219,9 +222,20 @@ class RunRecording:
             try:
                 kind, obj = self._q.get_nowait()
             except queue.Empty:
+                self._log_deferred_frames()
                 return
             if kind is not _STOP:
                 self._handle(kind, obj)
+
+    def _log_deferred_frames(self) -> None:
+        frames, self._deferred_frames = self._deferred_frames, []
+        for attrs, step in frames:
+            try:
+                self._frame(attrs, step)
+            except Exception:  # as _handle: never take the run down
+                self._errors += 1
+                if self._errors == 1:
+                    log.exception("recording: could not log a frame (further errors are counted only)")
 
     def _handle(self, kind: str, obj: Any) -> None:
         lg = self.logger
@@ -241,7 +255,12 @@ class RunRecording:
                 attrs = dict(obj.attributes or {})
                 step = lg._step  # the sharpness of this response gets this step index
                 lg.response(obj.id, obj.event_type, attrs, obj.t_recv_s, t_send_loop_s=obj.t_send_s)
-                self._frame(attrs, step)
+                if self.viewer_url is None:
+                    # Only a file: the frame (PNG decode, downsampling, encoding: ~10 ms of CPU) can wait for
+                    # close(), so it does not compete with the focus loop for the cores (issue 12 H.5).
+                    self._deferred_frames.append((attrs, step))
+                else:
+                    self._frame(attrs, step)
             elif kind == "mark":
                 t, name, value = obj
                 lg.mark(name, value, t)
