@@ -33,8 +33,10 @@ callback, like a plain handler; any other goes through the Responder's worker ta
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import math
+import os
 import queue
 import threading
 import time
@@ -62,6 +64,10 @@ an error. 1.5 frame periods at 15 fps: the nearest frame of a healthy free-runni
 DEFAULT_MAX_STATE_AGE_S = 0.5
 """Oldest robot pose (s behind the frame) the node answers from: 50 periods of the sim's 100 Hz stream, far above
 its jitter on a loaded machine, short against the time a focus step takes to move."""
+
+
+SAVE_NICE = 10
+"""Nice value of the node's frame-writer thread (``--save-frames``): it yields the cores to serving."""
 
 
 class BadRequest(ValueError):
@@ -293,6 +299,11 @@ class VisionNode:
 
     def _save_loop(self, frames: queue.Queue[Frame | None]) -> None:
         assert self.recorder is not None
+        # Saving is background work: on a small machine it shares the cores with the camera, the node's loop and
+        # the other nodes of the cell, whose latency counts (issue 12 H.5). PNG encoding runs without the GIL, so a
+        # low priority here cannot hold the loop off.
+        with contextlib.suppress(OSError, AttributeError):
+            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), SAVE_NICE)
         while (frame := frames.get()) is not None:
             try:
                 self.recorder.write(frame)
