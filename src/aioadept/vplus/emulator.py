@@ -244,12 +244,15 @@ class Emulator:
                     # Rounds back to back while tasks are ready (a reader handing a line to the executor and the
                     # executor's ack back to the reader take three), then let asyncio serve the sockets: writes
                     # leave at once (transport.write), reads and new connections wait for this yield.
+                    # Each round's writes leave right after it (an ack written by the reader does not wait for
+                    # the executor's re-test of its WAIT in the next round): latency, not CPU.
+                    devices = rt.devices
                     for _ in range(32):
                         rt.run_round()
+                        if devices is not None and devices.pending:
+                            devices.flush()
                         if not rt.any_ready():
                             break
-                    if rt.devices is not None:
-                        rt.devices.flush()
                     await asyncio.sleep(0)
                     continue
                 if rt.devices is not None:

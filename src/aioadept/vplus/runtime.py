@@ -307,9 +307,21 @@ class Runtime:
         """
         preempted = 0
         progress = False
-        for T in self.ready_tasks():
+        now = self.now
+        # A task woken by an earlier one in this round (SET.EVENT, a queued ack) runs in its turn of the same
+        # round rather than one round later: the order stays by task number, and a woken reader's ack does not
+        # wait for every other task's next turn. Every task still runs at most once per round.
+        stale = False                     # a task ran since ``now`` was read: it may have woken a later one
+        for T in self._order:
             if T.state != "running" or T.gen is None:
                 continue
+            if T.wake > now:
+                if not stale:
+                    continue
+                now, stale = self.now, False
+                if T.wake > now:
+                    continue
+            stale = True
             T.io_wait = False
             retest = T.cond_wait
             T.cond_wait = T.event_wait = T.motion_wait = False
