@@ -10,6 +10,7 @@ poses (no state stream was kept), and frames appear only when the folder has the
 
 from __future__ import annotations
 
+import contextlib
 import os
 import uuid
 from pathlib import Path
@@ -18,6 +19,7 @@ from typing import Any
 from aioadept.capture import load_run
 from aioadept.geometry import Pose
 from aioadept.record.rrd import APP_ID, CellLogger, frame_file
+from aioadept.record.sinks import close_bounded
 
 __all__ = ["rrd_from_run"]
 
@@ -91,9 +93,12 @@ def rrd_from_run(run_dir: str | os.PathLike[str], out: str | os.PathLike[str] | 
         if not plane_done and isinstance(result, dict) and result.get("inspection_pose") and events:
             lg._at(events[-1][0] + offset)
             lg.focus_plane(Pose(**result["inspection_pose"]), offset_mm=_float(result.get("peak_offset_mm")))
-        rec.flush()
     finally:
-        rec.disconnect()
+        errors = close_bounded(rec, 10.0)
+    if errors:  # never publish a cut-short recording under the real name
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise OSError(f"{path}: not written: {'; '.join(errors)}")
     os.replace(tmp, path)
     return path
 

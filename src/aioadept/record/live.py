@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from aioadept.record.rrd import APP_ID, CellLogger, frame_file
+from aioadept.record.sinks import close_bounded
 
 __all__ = ["STATE_RATE_HZ", "SWITCH_INTERVAL_S", "RunRecording"]
 
@@ -184,30 +185,8 @@ class RunRecording:
         else:
             self._drain()
         # A recording never fails a run, nor holds it up: a full disk (or any sink error) is said once and the run's
-        # result stands. Rerun's flush and disconnect wait without bound once its file writer has died (EFBIG,
-        # ENOSPC), so they run in a daemon thread that is given up on after timeout_s.
-        done = threading.Event()
-        errors: list[str] = []
-
-        def finish() -> None:
-            try:
-                self.rec.flush(timeout_sec=timeout_s)
-            except Exception as exc:  # noqa: BLE001
-                errors.append(f"{type(exc).__name__}: {exc}")
-            try:
-                self.rec.disconnect()
-            except Exception as exc:  # noqa: BLE001
-                errors.append(f"{type(exc).__name__}: {exc}")
-            done.set()
-
-        threading.Thread(target=finish, name="run.rrd close", daemon=True).start()
-        if not done.wait(timeout_s + 1.0):
-            errors.append(f"the recording's writer did not finish within {timeout_s:g} s")
-            # Rerun's exit hook would wait on the same dead writer: the run must still exit.
-            with contextlib.suppress(Exception):
-                import rerun as rr
-
-                rr.unregister_shutdown()
+        # result stands.
+        errors = close_bounded(self.rec, timeout_s)
         if errors:
             self.error = "; ".join(errors)
             log.warning("run.rrd not fully written (%s): %s", self.rrd_path, self.error)
