@@ -37,8 +37,13 @@ async def _focus(sim, vision, out: Path, *, preexec_fn=None) -> tuple[int, str, 
         "--response-endpoint", vision.ready["response"], "--out", str(out), "--no-analyze", "--delta-z", "2.5",
         stdin=asyncio.subprocess.DEVNULL, stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
         preexec_fn=preexec_fn)
-    async with asyncio.timeout(60):
-        out_b, err_b = await proc.communicate()
+    try:
+        async with asyncio.timeout(60):
+            out_b, err_b = await proc.communicate()
+    finally:
+        if proc.returncode is None:  # a hung run must not outlive the test
+            proc.kill()
+            await proc.wait()
     assert proc.returncode is not None
     return proc.returncode, out_b.decode(errors="replace"), err_b.decode(errors="replace")
 

@@ -29,6 +29,24 @@ class NodeError(AdeptError):
 _LIVE_GROUPS: set[int] = set()
 
 
+def _die_with_parent(parent_pid: int):
+    """For the child, between fork and exec: on Linux, have the kernel send it SIGTERM when the process that started
+    it dies, even by SIGKILL, so a killed demo or experiment never leaves a robot sim or a camera node running
+    (prctl PR_SET_PDEATHSIG). Elsewhere a no-op."""
+
+    def apply() -> None:
+        if not sys.platform.startswith("linux"):
+            return
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGTERM)  # 1 = PR_SET_PDEATHSIG
+        if os.getppid() != parent_pid:  # the parent died before the call: nobody would send the signal
+            os._exit(1)
+
+    return apply
+
+
 def kill_all_now() -> int:
     """SIGKILL the process group of every node still running; returns how many. Does not wait (exiting now)."""
     n = 0
@@ -92,7 +110,7 @@ class NodeProcess:
             self._log.write(f"$ {self.command_line}\n")
         self.proc = await asyncio.create_subprocess_exec(
             *self.argv, stdin=asyncio.subprocess.DEVNULL, stdout=asyncio.subprocess.PIPE,
-            stderr=asyncio.subprocess.PIPE, env=env, start_new_session=True)
+            stderr=asyncio.subprocess.PIPE, env=env, start_new_session=True, preexec_fn=_die_with_parent(os.getpid()))
         _LIVE_GROUPS.add(self.proc.pid)  # its own session: the pid is the group id
         assert self.proc.stdout is not None and self.proc.stderr is not None
         self._pumps.append(asyncio.create_task(self._pump(self.proc.stderr, "err")))
