@@ -44,9 +44,14 @@ pytestmark = [
 
 
 def _stream_a_run(grpc_url: str) -> None:
-    """A short focus run, as the recorder logs it, streamed to the viewer."""
+    """A short focus run, as the recorder logs it, streamed to the viewer (``AIOADEPT_VIEWER_RRD=run.rrd``: a real
+    run's recording instead, which is how the README's picture is made, with ``AIOADEPT_UPDATE_FIGURES=1``)."""
     rec = rr.RecordingStream("aioadept")
     rec.set_sinks(rr.GrpcSink(grpc_url))
+    if os.environ.get("AIOADEPT_VIEWER_RRD"):
+        rec.log_file_from_path(os.environ["AIOADEPT_VIEWER_RRD"])
+        rec.flush(timeout_sec=30)
+        return
     t0 = time.time() - 10.0
     lg = CellLogger(rec, loop_to_epoch_s=t0)
     joints = list(kin.HOME_JOINTS_DEG)
