@@ -69,25 +69,10 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return 2
     log.info("run folder %s", run_dir)
-    from aioadept.record import ViewerUnavailable, rerun_available
+    from aioadept.record.hook import keep_frames, run_with_viewer
 
-    if (cfg.run.record and rerun_available()) or args.view:  # the frames the node served, for run.rrd and the view
-        cfg.vision.vision_args = [*cfg.vision.vision_args, "--save-frames", str(run_dir / "frames")]
-    from aioadept.record.hook import start_viewer, wait_for_viewer
-
-    try:
-        viewer = start_viewer(args, "aioadept demo", log_path=run_dir / "logs" / "viewer.log")
-    except ViewerUnavailable as exc:
-        print(f"aioadept demo: --view: {exc}", file=sys.stderr)
-        return 2
-    if viewer is not None:
-        cfg.run.view_url = viewer.grpc_url
-    try:
-        return _run(cfg, run_dir)
-    finally:
-        if viewer is not None:
-            wait_for_viewer(viewer, "aioadept demo")
-            viewer.close()
+    keep_frames(cfg, args, run_dir / "frames")  # the frames the node served, for run.rrd and the view
+    return run_with_viewer(args, "aioadept demo", cfg, run_dir / "logs" / "viewer.log", lambda: _run(cfg, run_dir))
 
 
 def _run(cfg: CellConfig, run_dir: Path) -> int:

@@ -60,25 +60,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"aioadept experiment: cannot create {str(out)!r}: {exc}; nothing was started", file=sys.stderr)
         return 2
     grid = [(int(s), dz) for s in _floats(args.speeds) for dz in _floats(args.delta_z)]
-    from aioadept.record import ViewerUnavailable, rerun_available
-    from aioadept.record.hook import start_viewer, wait_for_viewer
+    from aioadept.record.hook import keep_frames, run_with_viewer
 
     cfg.run.record = not args.no_record
-    if (cfg.run.record and rerun_available()) or args.view:  # frames for each run's run.rrd and the live view
-        cfg.vision.vision_args = [*cfg.vision.vision_args, "--save-frames", str(out / "frames")]
-    try:
-        viewer = start_viewer(args, "aioadept experiment", log_path=out / "logs" / "viewer.log")
-    except ViewerUnavailable as exc:
-        print(f"aioadept experiment: --view: {exc}", file=sys.stderr)
-        return 2
-    if viewer is not None:
-        cfg.run.view_url = viewer.grpc_url
-    try:
-        return _run(cfg, grid, args.runs, out)
-    finally:
-        if viewer is not None:
-            wait_for_viewer(viewer, "aioadept experiment")
-            viewer.close()
+    keep_frames(cfg, args, out / "frames")  # frames for each run's run.rrd and the live view
+    return run_with_viewer(args, "aioadept experiment", cfg, out / "logs" / "viewer.log",
+                           lambda: _run(cfg, grid, args.runs, out))
 
 
 def _run(cfg: CellConfig, grid: list[tuple[int, float]], runs: int, out: Path) -> int:

@@ -70,22 +70,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"aioadept focus: cannot create a run folder in {cfg.run.out_dir!r}: {exc}; nothing was started",
               file=sys.stderr)
         return 2
-    from aioadept.record import ViewerUnavailable
-    from aioadept.record.hook import start_viewer, wait_for_viewer
+    from aioadept.record.hook import run_with_viewer
 
-    try:
-        viewer = start_viewer(args, "aioadept focus", log_path=run_dir / "viewer.log")
-    except ViewerUnavailable as exc:
-        print(f"aioadept focus: --view: {exc}", file=sys.stderr)
-        return 2
-    if viewer is not None:
-        cfg.run.view_url = viewer.grpc_url
-    try:
-        return _run(cfg, run_dir)
-    finally:
-        if viewer is not None:
-            wait_for_viewer(viewer, "aioadept focus")
-            viewer.close()
+    return run_with_viewer(args, "aioadept focus", cfg, run_dir / "viewer.log", lambda: _run(cfg, run_dir))
 
 
 def _run(cfg: CellConfig, run_dir: Path) -> int:

@@ -12,11 +12,13 @@ import argparse
 import logging
 import sys
 from pathlib import Path
+from collections.abc import Callable
 from typing import Any
 
 from aioadept.record import VIEWER_INSTALL_HINT, ViewerUnavailable, rerun_available
 
-__all__ = ["add_view_options", "frames_dir_of", "open_run_recording", "start_viewer", "wait_for_viewer"]
+__all__ = ["add_view_options", "frames_dir_of", "keep_frames", "open_run_recording", "run_with_viewer", "start_viewer",
+           "wait_for_viewer"]
 
 log = logging.getLogger(__name__)
 
@@ -59,14 +61,43 @@ def wait_for_viewer(viewer: Any, prog: str) -> None:
         pass
 
 
-def frames_dir_of(vision_args: list[str]) -> Path | None:
-    """The folder given to the vision node with ``--save-frames`` in ``vision_args`` (None if absent)."""
-    for i, a in enumerate(vision_args):
-        if a == "--save-frames" and i + 1 < len(vision_args):
-            return Path(vision_args[i + 1])
+def keep_frames(cfg: Any, args: argparse.Namespace, folder: Path) -> None:
+    """Have the vision node started for ``cfg`` (a CellConfig) save the frames it serves into ``folder`` when they
+    will be recorded (``run.rrd``) or shown (``--view``)."""
+    if (cfg.run.record and rerun_available()) or getattr(args, "view", False):
+        cfg.vision.save_frames = str(folder)
+
+
+def frames_dir_of(cfg: Any) -> Path | None:
+    """The folder the vision node of ``cfg`` saves its frames into: the cell's ``save_frames``, else a
+    ``--save-frames`` among its ``vision_args`` (None if neither)."""
+    if getattr(cfg.vision, "save_frames", None):
+        return Path(cfg.vision.save_frames)
+    args = list(cfg.vision.vision_args)
+    for i, a in enumerate(args):
+        if a == "--save-frames" and i + 1 < len(args):
+            return Path(args[i + 1])
         if a.startswith("--save-frames="):
             return Path(a.split("=", 1)[1])
     return None
+
+
+def run_with_viewer(args: argparse.Namespace, prog: str, cfg: Any, log_path: Path, run: Callable[[], int]) -> int:
+    """``run()`` with the viewer ``--view`` asks for (its URL in ``cfg.run.view_url``), kept up afterwards while a
+    person is at the terminal, then closed. Exit 2 with one line when the viewer cannot start."""
+    try:
+        viewer = start_viewer(args, prog, log_path=log_path)
+    except ViewerUnavailable as exc:
+        print(f"{prog}: --view: {exc}", file=sys.stderr)
+        return 2
+    if viewer is not None:
+        cfg.run.view_url = viewer.grpc_url
+    try:
+        return run()
+    finally:
+        if viewer is not None:
+            wait_for_viewer(viewer, prog)
+            viewer.close()
 
 
 def open_run_recording(cfg: Any, run_dir: Path, recorder: Any) -> Any:
@@ -86,7 +117,7 @@ def open_run_recording(cfg: Any, run_dir: Path, recorder: Any) -> Any:
     try:
         rec = RunRecording(run_dir / "run.rrd" if getattr(cfg.run, "record", True) else None,
                            viewer_url=view_url, state_endpoint=cfg.robot.state_endpoint or None,
-                           frames_dir=frames_dir_of(list(cfg.vision.vision_args)), clock_ref=recorder,
+                           frames_dir=frames_dir_of(cfg), clock_ref=recorder,
                            name=run_dir.name)
     except Exception as exc:  # noqa: BLE001 - see the docstring: never fail a run for its recording
         log.warning("no run.rrd for this run: %s", exc)
