@@ -8,6 +8,7 @@ installs it with its Debian build packages when it can); without it every test h
 
 from __future__ import annotations
 
+import asyncio
 import os
 import select
 import signal
@@ -145,8 +146,14 @@ async def test_a_node_served_by_the_gige_camera_answers_with_a_frame_and_a_sharp
             seqs = [a["frame_seq"] for _, a in answers]
             assert seqs == sorted(seqs) and len(set(seqs)) == 3  # one new exposure per request
             # The frames served, as saved by the node: the camera's full 512 x 512 mono8 region.
+            # Saving runs on the node's low-priority writer thread after the answer has left (off the latency
+            # path), so a file may land a little after its response: wait for it, bounded.
             for seq in seqs:
-                saved = cv2.imread(str(tmp_path / "frames" / f"gige_127.0.0.1_{seq:06d}.png"), cv2.IMREAD_UNCHANGED)
+                path = tmp_path / "frames" / f"gige_127.0.0.1_{seq:06d}.png"
+                deadline = time.monotonic() + 15
+                while not path.exists() and time.monotonic() < deadline:
+                    await asyncio.sleep(0.05)
+                saved = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
                 assert saved is not None and saved.shape == (512, 512) and saved.dtype.name == "uint8"
             # The camera vanishes: the next request is answered with the camera's error, the node stays up.
             fake_camera.stop(signal.SIGKILL)
