@@ -40,9 +40,11 @@ STATE_RATE_HZ = 25.0
 
 _STOP = object()
 
-FRAME_WAIT_S = 2.0
-"""How long the worker waits for a served frame's file to appear in ``frames_dir`` (the node writes it after
-answering; a 1024x768 PNG takes ~10 ms, more under load) before counting it in ``frames_missing``."""
+FRAME_WAIT_S = 5.0
+"""How long :meth:`RunRecording.close` waits for a served frame's file to appear in ``frames_dir`` before counting it
+in ``frames_missing``. The node writes a frame after answering, on a low-priority thread (a 1024x768 PNG takes
+~10 ms of CPU), so on a loaded machine a file may land well after its response; a node that saves nothing costs one
+such wait (the rest are not waited for)."""
 
 SWITCH_INTERVAL_S = 0.0005
 """The interpreter's GIL switch interval while a recording runs (Python's default is 5 ms). The worker thread holds
@@ -182,6 +184,15 @@ class RunRecording:
             self._q.put((_STOP, None))
             self._thread.join(timeout_s)
             _restore_switch_interval()
+            if self._thread.is_alive():  # still busy: its list of deferred frames is not ours to take
+                self.frames_missing += len(self._deferred_frames)
+                log.warning("run.rrd: the recording worker did not finish within %.0f s; frames not logged",
+                            timeout_s)
+            else:
+                # The run is over: the frames are logged here, in the closing thread at normal priority, not by
+                # the worker, which runs at nice 19 so as never to compete with a running focus loop (on a loaded
+                # machine that share of a core made a dozen frames outlast the join and get lost).
+                self._log_deferred_frames()
         else:
             self._drain()
         # A recording never fails a run, nor holds it up: a full disk (or any sink error) is said once and the run's
@@ -211,8 +222,7 @@ class RunRecording:
         while True:
             kind, obj = self._q.get()
             if kind is _STOP:
-                self._log_deferred_frames()
-                return
+                return  # deferred frames: close() logs them
             self._handle(kind, obj)
 
     def _drain(self) -> None:
