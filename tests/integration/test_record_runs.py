@@ -14,7 +14,7 @@ import pytest
 
 pytest.importorskip("rerun")
 
-from aioadept.record.read import read_rrd  # noqa: E402
+from aioadept.record.read import blueprint_views, read_rrd  # noqa: E402
 
 AIOADEPT = str(Path(sys.executable).parent / "aioadept")
 
@@ -62,6 +62,17 @@ def test_a_demo_run_records_robot_messages_frames_sharpness_and_the_focus_plane(
         assert len(again[entity]) == len(rows[entity]), entity
     assert [r["time"] for r in again["/focus/sharpness"]] == pytest.approx(
         [r["time"] for r in rows["/focus/sharpness"]], abs=1e-6)
+    # both open in the same layout: the cell in 3D, the camera, the sharpness, the message log, each view's
+    # origin an entity the run actually logged
+    for rrd, content in ((run_dir / "run.rrd", rows), (tmp_path / "from_csv.rrd", again)):
+        views = {v["name"]: v for v in blueprint_views(rrd)}
+        assert (views["Cell (base frame, mm)"]["kind"], views["Cell (base frame, mm)"]["origin"]) == ("3D", "world")
+        assert (views["Camera"]["kind"], views["Camera"]["origin"]) == ("2D", "camera/image")
+        assert (views["Sharpness"]["kind"], views["Sharpness"]["origin"]) == ("TimeSeries", "focus/sharpness")
+        assert views["Messages"]["kind"] == "TextLog"
+        for v in views.values():
+            if v["origin"] != "/":
+                assert any(e == "/" + v["origin"] or e.startswith(f"/{v['origin']}/") for e in content), v
 
 
 @pytest.mark.timeout(60)

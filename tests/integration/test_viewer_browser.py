@@ -28,7 +28,7 @@ websockets = pytest.importorskip("websockets")
 import rerun as rr  # noqa: E402
 
 from aioadept.geometry import Pose  # noqa: E402
-from aioadept.record.rrd import CellLogger  # noqa: E402
+from aioadept.record.rrd import CellLogger, default_blueprint  # noqa: E402
 from aioadept.record.viewer import ViewerServer  # noqa: E402
 from aioadept.sim import kinematics as kin  # noqa: E402
 
@@ -47,7 +47,7 @@ def _stream_a_run(grpc_url: str) -> None:
     """A short focus run, as the recorder logs it, streamed to the viewer (``AIOADEPT_VIEWER_RRD=run.rrd``: a real
     run's recording instead, which is how the README's picture is made, with ``AIOADEPT_UPDATE_FIGURES=1``)."""
     rec = rr.RecordingStream("aioadept")
-    rec.set_sinks(rr.GrpcSink(grpc_url))
+    rec.set_sinks(rr.GrpcSink(grpc_url), default_blueprint=default_blueprint())  # as RunRecording streams it
     if os.environ.get("AIOADEPT_VIEWER_RRD"):
         rec.log_file_from_path(os.environ["AIOADEPT_VIEWER_RRD"])
         rec.flush(timeout_sec=30)

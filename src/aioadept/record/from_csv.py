@@ -18,7 +18,7 @@ from typing import Any
 
 from aioadept.capture import load_run
 from aioadept.geometry import Pose
-from aioadept.record.rrd import APP_ID, CellLogger, frame_file
+from aioadept.record.rrd import APP_ID, CellLogger, default_blueprint, frame_file
 from aioadept.record.sinks import close_bounded
 
 __all__ = ["rrd_from_run"]
@@ -52,7 +52,7 @@ def rrd_from_run(run_dir: str | os.PathLike[str], out: str | os.PathLike[str] | 
 
     rec = rr.RecordingStream(APP_ID, recording_id=str(uuid.uuid4()))
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    rec.set_sinks(rr.FileSink(str(tmp)))
+    rec.set_sinks(rr.FileSink(str(tmp)), default_blueprint=default_blueprint())
     try:
         rec.send_recording_name(Path(run_dir).resolve().name)
         lg = CellLogger(rec, loop_to_epoch_s=offset)

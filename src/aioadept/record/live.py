@@ -28,7 +28,7 @@ import uuid
 from pathlib import Path
 from typing import Any
 
-from aioadept.record.rrd import APP_ID, CellLogger, frame_file
+from aioadept.record.rrd import APP_ID, CellLogger, default_blueprint, frame_file
 from aioadept.record.sinks import close_bounded
 
 __all__ = ["STATE_RATE_HZ", "SWITCH_INTERVAL_S", "RunRecording"]
@@ -116,7 +116,7 @@ class RunRecording:
             sinks.append(rr.FileSink(str(self.rrd_path)))
         if viewer_url is not None:
             sinks.append(rr.GrpcSink(viewer_url))
-        self.rec.set_sinks(*sinks)
+        self.rec.set_sinks(*sinks, default_blueprint=default_blueprint())
         if name:
             self.rec.send_recording_name(name)
         self.logger = CellLogger(self.rec, loop_to_epoch_s=self.loop_to_epoch_s)

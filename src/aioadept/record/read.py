@@ -12,7 +12,7 @@ import os
 from collections import defaultdict
 from typing import Any
 
-__all__ = ["entity_paths", "read_rrd"]
+__all__ = ["blueprint_views", "entity_paths", "read_rrd"]
 
 
 def _column(col: Any) -> list[Any]:
@@ -44,3 +44,25 @@ def read_rrd(path: str | os.PathLike[str]) -> dict[str, list[dict[str, Any]]]:
 def entity_paths(path: str | os.PathLike[str]) -> set[str]:
     """The entity paths that have at least one row."""
     return set(read_rrd(path))
+
+
+def blueprint_views(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
+    """The views of the file's default blueprint (the viewer's layout), each as ``{"kind", "origin", "name"}``
+    (``kind`` is Rerun's view class: ``3D``, ``2D``, ``TextLog``, ``TimeSeries``); ``[]`` when it has none."""
+    import rerun as rr
+
+    reader = rr.chunk.RrdReader(os.fspath(path))
+    views = []
+    for store in reader.blueprints():
+        for chunk in reader.stream(store=store):
+            if chunk.entity_path.count("/") != 2 or not chunk.entity_path.startswith("/view/"):
+                continue  # /view/<id> holds the view itself; /view/<id>/ViewContents its query
+            batch = chunk.to_record_batch()
+            cols = {n.split(":")[-1]: batch.column(n).to_pylist() for n in batch.schema.names if ":" in n}
+            for i in range(batch.num_rows):
+                def first(name: str, i: int = i) -> Any:
+                    v = cols.get(name, [None] * batch.num_rows)[i]
+                    return v[0] if isinstance(v, list) and v else v
+                views.append({"kind": first("class_identifier"), "origin": first("space_origin"),
+                              "name": first("display_name")})
+    return views

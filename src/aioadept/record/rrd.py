@@ -47,7 +47,7 @@ from aioadept.geometry import Pose, rel_tool
 from aioadept.record.model import LINK_NAMES, chain_points_mm, joints_from_pose
 from aioadept.robots import viper_s850 as kin
 
-__all__ = ["APP_ID", "IMAGE_MAX_WIDTH", "CellLogger", "FrameRef", "frame_file"]
+__all__ = ["APP_ID", "IMAGE_MAX_WIDTH", "CellLogger", "FrameRef", "default_blueprint", "frame_file"]
 
 APP_ID = "aioadept"
 IMAGE_MAX_WIDTH = 320
@@ -67,6 +67,50 @@ class FrameRef:
     camera: str
     seq: int
     step: int | None = None
+
+
+def default_blueprint() -> Any:
+    """The viewer's layout for a run (sent with every ``run.rrd`` and live stream; the user may rearrange it).
+
+    Left, large: the cell in 3D (arm, tool, targets, focus plane) above the message log (robot and vision traffic
+    and the app's marks). Right: what the camera saw, the sharpness after each step, the Gantt chart's rows as
+    commands and requests in flight, the latencies, and the joint angles. Without it Rerun picks an automatic grid
+    in which the 3D view and the camera get a small tile each.
+    """
+    import rerun.blueprint as rrb
+
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Vertical(
+                # Looking at the arm and the work area in front of it (the demo's focus plane is ~600 mm out, low)
+                # from the front right, instead of from far enough to see the whole scene's bounding box.
+                rrb.Spatial3DView(name="Cell (base frame, mm)", origin="world",
+                                  eye_controls=rrb.EyeControls3D(position=(650.0, -1050.0, 650.0),
+                                                                 look_target=(-150.0, -300.0, 300.0),
+                                                                 eye_up=(0.0, 0.0, 1.0))),
+                rrb.TextLogView(name="Messages", origin="messages"),
+                row_shares=[3, 2],
+            ),
+            rrb.Vertical(
+                rrb.Spatial2DView(name="Camera", origin="camera/image"),
+                rrb.TimeSeriesView(name="Sharpness", origin="focus/sharpness"),
+                rrb.TimeSeriesView(name="In flight (Fig. 10 rows)", origin="timeline",
+                                   contents=["$origin/robot_in_flight", "$origin/vision_in_flight"],
+                                   plot_legend=rrb.PlotLegend(rrb.Corner2D.LeftTop)),
+                rrb.TimeSeriesView(name="Latency (ms)", origin="/",
+                                   contents=["timeline/robot_ack_ms", "timeline/vision_response_ms",
+                                             "camera/frame_age_ms"],
+                                   plot_legend=rrb.PlotLegend(rrb.Corner2D.LeftTop)),
+                rrb.TimeSeriesView(name="Joints (deg)", origin="robot/joints_deg",
+                                   plot_legend=rrb.PlotLegend(visible=False)),
+                row_shares=[3, 2, 1, 1, 1],
+            ),
+            column_shares=[3, 2],
+        ),
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(state="collapsed"),
+    )
 
 
 def frame_file(frames_dir: Path, camera: str, seq: int) -> Path:
