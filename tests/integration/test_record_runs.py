@@ -95,14 +95,18 @@ def test_the_viewer_binds_loopback_only_unless_told(tmp_path):
 
 
 @pytest.mark.timeout(60)
-def test_view_without_the_extra_says_how_to_install_it_in_one_line(tmp_path):
+@pytest.mark.parametrize("command", ["demo", "focus", "experiment"])
+def test_view_without_the_extra_says_how_to_install_it_in_one_line(tmp_path, command):
     # rerun made unimportable in the child: what a machine without the [viewer] extra sees
+    out = tmp_path / "out"
     code = ("import sys; sys.modules['rerun'] = None; sys.modules['rerun_cli'] = None\n"
             "from aioadept.cli import main\n"
-            f"sys.exit(main(['demo', '--view', '--out', {str(tmp_path)!r}]))")
+            f"sys.exit(main([{command!r}, '--view', '--out', {str(out)!r}]))")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=50,
                           stdin=subprocess.DEVNULL)
-    assert proc.returncode == 2
+    assert proc.returncode == 2, proc.stderr
     lines = [ln for ln in proc.stderr.splitlines() if "--view" in ln]
     assert len(lines) == 1 and "pip install 'aioadept[viewer]'" in lines[0], proc.stderr
+    assert lines[0].startswith(f"aioadept {command}: --view: ")
     assert "Traceback" not in proc.stderr
+    assert not out.exists() or not any(out.iterdir()), "the mistake left a run folder behind"

@@ -62,6 +62,10 @@ def main(argv: list[str] | None = None) -> int:
         cfg = demo_config(args)
     except (OSError, ValueError) as exc:
         return report("aioadept demo", exc, verbose=args.verbose)
+    from aioadept.record.hook import refuse_view_without_rerun
+
+    if refuse_view_without_rerun(args, "aioadept demo"):
+        return 2
     try:
         run_dir = new_run_dir(cfg)
     except OSError as exc:

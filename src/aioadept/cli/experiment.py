@@ -51,6 +51,10 @@ def main(argv: list[str] | None = None) -> int:
         cfg.robot.state_endpoint = cfg.vision.request_endpoint = cfg.vision.response_endpoint = "tcp://127.0.0.1:0"
     if args.time_scale is not None:
         cfg.robot.time_scale = args.time_scale
+    from aioadept.record.hook import refuse_view_without_rerun
+
+    if refuse_view_without_rerun(args, "aioadept experiment"):
+        return 2
     import datetime as _dt
 
     out = Path(args.out or Path(cfg.run.out_dir) / f"experiment-{_dt.datetime.now():%Y%m%d-%H%M%S}")

@@ -64,6 +64,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"aioadept focus: {exc}", file=sys.stderr)
         return 2
     cfg = apply_overrides(cfg, args)
+    from aioadept.record.hook import refuse_view_without_rerun
+
+    if refuse_view_without_rerun(args, "aioadept focus"):
+        return 2
     try:
         run_dir = new_run_dir(cfg)
     except OSError as exc:  # before any connection: the robot is not moved for a run that could not be kept

@@ -33,6 +33,15 @@ def add_view_options(p: argparse.ArgumentParser) -> None:
                    help="do not write run.rrd into the run folder")
 
 
+def refuse_view_without_rerun(args: argparse.Namespace, prog: str) -> bool:
+    """True (after one line on stderr) when ``--view`` was asked for and the ``[viewer]`` extra is missing. Checked
+    before a run folder is made or anything is started, so the mistake leaves nothing behind."""
+    if getattr(args, "view", False) and not rerun_available():
+        print(f"{prog}: --view: {VIEWER_INSTALL_HINT}", file=sys.stderr)
+        return True
+    return False
+
+
 def start_viewer(args: argparse.Namespace, prog: str, *, log_path: Path | None = None) -> Any:
     """The :class:`~aioadept.record.ViewerServer` asked for by ``--view`` (None without it), URL printed.
 
