@@ -98,7 +98,7 @@ async def one_run(sim, frames: Path, steps: int, record: bool, out: Path, speed:
         observers: list = [recorder]
         if record:
             rrd = RunRecording(out / "run.rrd", state_endpoint=sim.state_endpoint, frames_dir=frames,
-                               clock_ref=recorder).start()
+                               clock_ref=recorder, short_switch_interval=True).start()  # as the CLIs record
             timed = Timed(rrd)
             observers.append(timed)
         rc = await stack.enter_async_context(RobotClient(sim.host, sim.port, observers=observers))

@@ -127,7 +127,7 @@ def open_run_recording(cfg: Any, run_dir: Path, recorder: Any) -> Any:
         rec = RunRecording(run_dir / "run.rrd" if getattr(cfg.run, "record", True) else None,
                            viewer_url=view_url, state_endpoint=cfg.robot.state_endpoint or None,
                            frames_dir=frames_dir_of(cfg), clock_ref=recorder,
-                           name=run_dir.name)
+                           name=run_dir.name, short_switch_interval=True)
     except Exception as exc:  # noqa: BLE001 - see the docstring: never fail a run for its recording
         log.warning("no run.rrd for this run: %s", exc)
         return None

@@ -90,11 +90,14 @@ class RunRecording:
     Use as an (async) context manager, or call :meth:`start`/:meth:`close`. ``clock_ref``: an object with
     ``start_wall_epoch_s``/``start_loop_s`` (the run's :class:`aioadept.capture.Recorder`) so both logs share the
     same mapping from loop time to wall time. ``name`` becomes the recording's name in the viewer.
+    ``short_switch_interval``: while it runs, set the interpreter's GIL switch interval to
+    :data:`SWITCH_INTERVAL_S` (restored when the last such recording closes). The CLIs turn it on; it is off by
+    default because it is process-wide, a choice for the application, not for a library object.
     """
 
     def __init__(self, rrd_path: str | os.PathLike[str] | None, *, viewer_url: str | None = None,
                  state_endpoint: str | None = None, frames_dir: str | os.PathLike[str] | None = None,
-                 clock_ref: Any = None, name: str | None = None) -> None:
+                 clock_ref: Any = None, name: str | None = None, short_switch_interval: bool = False) -> None:
         if rrd_path is None and viewer_url is None:
             raise ValueError("RunRecording: give a file (rrd_path), a viewer (viewer_url), or both")
         import rerun as rr
@@ -127,6 +130,7 @@ class RunRecording:
         self.frames_missing = 0
         self._deferred_frames: list[tuple[dict[str, Any], int]] = []  # file only: logged by close()
         self._frame_wait_s = FRAME_WAIT_S  # 0 after a frame never came: a node not saving costs one wait only
+        self.short_switch_interval = short_switch_interval
         self.closed = False
         self.error: str | None = None
         """Why the recording could not be written completely (set by :meth:`close`), else None."""
@@ -154,7 +158,8 @@ class RunRecording:
     # -- life cycle
     def start(self) -> RunRecording:
         if self._thread is None:
-            _shorten_switch_interval()  # restored by close(): see SWITCH_INTERVAL_S
+            if self.short_switch_interval:
+                _shorten_switch_interval()  # restored by close(): see SWITCH_INTERVAL_S
             self._thread = threading.Thread(target=self._work, name="rerun-recording", daemon=True)
             self._thread.start()
             if self.state_endpoint:
@@ -183,7 +188,8 @@ class RunRecording:
         if self._thread is not None:
             self._q.put((_STOP, None))
             self._thread.join(timeout_s)
-            _restore_switch_interval()
+            if self.short_switch_interval:
+                _restore_switch_interval()
             if self._thread.is_alive():  # still busy: its list of deferred frames is not ours to take
                 self.frames_missing += len(self._deferred_frames)
                 log.warning("run.rrd: the recording worker did not finish within %.0f s; frames not logged",
