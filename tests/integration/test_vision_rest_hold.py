@@ -33,17 +33,17 @@ def _first_sample(pub: SyncPublisher, follower: RobotStateFollower, payload: byt
 def test_at_rest_sample_is_held_without_waiting_and_a_moving_or_old_one_still_waits():
     rest, moving = Pose(x=1.0, z=100.0), Pose(x=5.0, z=100.0)
     with SyncPublisher("tcp://127.0.0.1:0") as pub:
-        with RobotStateFollower(pub.actual_endpoint, max_wait_s=0.3, rest_hold_s=0.5) as follower:
+        with RobotStateFollower(pub.actual_endpoint, max_wait_s=1.0, rest_hold_s=0.5) as follower:
             _first_sample(pub, follower, _state(rest, in_motion=False))
             t_frame = time.time() + 0.01  # after the newest sample, within rest_hold_s
             t0 = time.monotonic()
             assert follower.pose_at(t_frame) == rest
-            assert time.monotonic() - t0 < 0.25 and follower.rest_holds == 1  # no max_wait_s wait
+            assert time.monotonic() - t0 < 0.8 and follower.rest_holds == 1  # no max_wait_s wait
             # Older than rest_hold_s: the stream may have stalled, so wait for a covering sample as before.
             t0 = time.monotonic()
             assert follower.pose_at(time.time() + 1.0) == rest
-            assert time.monotonic() - t0 >= 0.29 and follower.rest_holds == 1
-        with RobotStateFollower(pub.actual_endpoint, max_wait_s=0.3, rest_hold_s=0.5) as follower:
+            assert time.monotonic() - t0 >= 0.99 and follower.rest_holds == 1
+        with RobotStateFollower(pub.actual_endpoint, max_wait_s=1.0, rest_hold_s=0.5) as follower:
             _first_sample(pub, follower, _state(moving, in_motion=True))
             t0 = time.monotonic()
             assert follower.pose_at(time.time() + 0.01) == moving

@@ -160,23 +160,23 @@ async def test_cmdexec_needs_a_command_and_rejects_non_commands():
 async def test_default_timeouts_share_one_watchdog_and_custom_ones_do_not_wait_for_it():
     server = ScriptedServer(silent_after=1)
     try:
-        async with RobotClient(connector=server.connector(), ack_timeout_s=0.3) as robot:
+        async with RobotClient(connector=server.connector(), ack_timeout_s=1.0) as robot:
             loop = asyncio.get_running_loop()
             t0 = loop.time()
             slow = [asyncio.create_task(robot.submit(Break()).wait()) for _ in range(3)]
-            # a shorter per-call timeout and a lowered default are not held up behind the 0.3 s deadlines
+            # a shorter per-call timeout and a lowered default are not held up behind the 1 s deadlines
             with pytest.raises(AckTimeout):
                 await robot.submit(Break()).wait(timeout_s=0.05)
-            assert loop.time() - t0 < 0.25
+            assert loop.time() - t0 < 0.8
             robot.ack_timeout_s = 0.05
             t1 = loop.time()
             with pytest.raises(AckTimeout):
                 await robot.cmdexec(Break())
-            assert loop.time() - t1 < 0.25
+            assert loop.time() - t1 < 0.8
             for task in slow:
                 with pytest.raises(AckTimeout):
                     await task
-            assert 0.29 <= loop.time() - t0 < 1.0
+            assert 0.99 <= loop.time() - t0 < 3.0
             assert robot.pending_ids == ()
     finally:
         await server.close()
