@@ -47,7 +47,7 @@ def test_at_rest_sample_is_held_without_waiting_and_a_moving_or_old_one_still_wa
             _first_sample(pub, follower, _state(moving, in_motion=True))
             t0 = time.monotonic()
             assert follower.pose_at(time.time() + 0.01) == moving
-            assert time.monotonic() - t0 >= 0.29 and follower.rest_holds == 0  # in motion: waited
+            assert time.monotonic() - t0 >= 0.99 and follower.rest_holds == 0  # in motion: waited
 
 
 def test_rest_hold_must_be_finite():
