@@ -102,6 +102,19 @@ async def test_a_duplicate_pending_id_answers_an_error_at_once_and_nothing_hangs
     await c.close()
 
 
+@pytest.mark.timeout(90)
+async def test_a_stop_is_never_refused_for_a_duplicate_id(server):
+    c = await server.connect()
+    await c.send("kkkk0001:set_speed:10", "kkkk0002:move_joints:150,-90,180,0,90,0")
+    assert all(a.ok for a in await c.acks(2))
+    # kkkk0003 is pending (the break waits for the motion); a stop with the same ID is still served.
+    await c.send("kkkk0003:break", "kkkk0003:stop")
+    brk, stop = await c.acks(2, timeout=30)
+    assert [(a.id, a.status) for a in (brk, stop)] == [("kkkk0003", Status.ABORTED), ("kkkk0003", Status.DONE)]
+    assert stop.t_done_s - brk.t_start_s < 4.0, "the stop did not wait for the motion to complete"
+    await c.close()
+
+
 # -- item 4: a stop never aborts a stop -------------------------------------------------------------------------
 
 @pytest.mark.timeout(90)
