@@ -152,3 +152,61 @@ async def test_random_streams_get_one_ack_per_line(tmp_path):
             assert all(a.status.value in ("error", "done") for a in acks)
             c.close()
     await with_server(tmp_path, body)
+
+
+MAXQ = 64  # rs.maxq in vplus/rserver.V2: commands one client may have pending
+
+
+async def _acks_by_id(c: Conn, n: int, timeout: float = 30.0) -> dict[str, object]:
+    got: dict = {}
+    for _ in range(n):
+        ack = await c.ack(timeout)
+        assert ack.id not in got, f"two acks for {ack.id}"
+        got[ack.id] = ack
+    return got
+
+
+@pytest.mark.timeout(120)
+async def test_one_client_cannot_take_the_whole_queue_and_the_reader_never_stops_reading(tmp_path):
+    # The V+ server reads every client through one READ: it must never leave data in TCP (a stop would wait
+    # behind it). A client with rs.maxq commands pending gets -530 at once for each further line; another
+    # client is still admitted, and its stop is served at once.
+    async def body(port: int) -> None:
+        a, b = await connect(port), await connect(port)
+        lines = [b"a0000000:set_speed:5", b"a0000001:move_joints:60,-90,180,0,90,0", b"a0000002:break"]
+        lines += [b"q%07d:set_speed:5" % i for i in range(100)]
+        a.w.write(b"".join(ln + b"\r\n" for ln in lines))
+        collector = asyncio.create_task(_acks_by_id(a, len(lines), timeout=60.0))
+        await asyncio.sleep(1.0)  # A's lines are read; its break waits for the 60 deg move at 5 %
+        ack = await b.ask(b"b0000001:hello")  # B has nothing pending: answered at once, not refused
+        assert (ack.id, ack.status.value) == ("b0000001", "done")
+        b.w.write(b"b0000002:set_speed:20\r\nb0000003:stop\r\n")
+        got_b = await _acks_by_id(b, 2)
+        assert got_b["b0000003"].status.value == "done"
+        assert got_b["b0000002"].status.value in ("aborted", "done"), got_b  # queued, not refused
+        got = await collector  # every line of A: exactly one ack
+        order = [ln[:8].decode() for ln in lines]
+        busy = [i for i, cid in enumerate(order) if got[cid].status.value == "error"]
+        assert len(busy) >= len(lines) - MAXQ - 2, "more than rs.maxq of A's commands were admitted"
+        assert busy == list(range(busy[0], len(lines))), "the refused ones are the last lines, none before"
+        assert all(got[order[i]].error_code == -530 and "too many queued" in got[order[i]].error_message
+                   for i in busy)
+        assert all(got[cid].status.value in ("done", "aborted") for cid in order[:busy[0]])
+        a.close()
+        b.close()
+    await with_server(tmp_path, body)
+
+
+@pytest.mark.timeout(120)
+async def test_a_flood_of_stops_gets_one_done_each_and_nothing_hangs(tmp_path):
+    async def body(port: int) -> None:
+        c = await connect(port)
+        await c.ask(b"f0000000:set_speed:5")
+        c.w.write(b"f0000001:move_joints:60,-90,180,0,90,0\r\nf0000002:break\r\n")
+        stops = [b"s%07d:stop" % i for i in range(300)]  # beyond the whole command ring
+        c.w.write(b"".join(ln + b"\r\n" for ln in stops))
+        got = await _acks_by_id(c, 2 + len(stops), timeout=60.0)
+        assert all(got[ln[:8].decode()].status.value == "done" for ln in stops)
+        assert got["f0000002"].status.value == "aborted"
+        c.close()
+    await with_server(tmp_path, body)
