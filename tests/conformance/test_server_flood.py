@@ -15,6 +15,7 @@ from aioadept.geometry import poses_close
 from aioadept.protocol import ErrorCode, Status
 
 PAIRS = 100  # 201 lines: far beyond the V+ server's command ring
+MAX_QUEUED = 64  # per connection: aioadept sim --max-queued (default), rs.maxq in vplus/rserver.V2
 
 
 @pytest.mark.timeout(150)
@@ -57,6 +58,13 @@ async def test_a_stop_is_read_at_once_while_another_client_has_a_long_queue(serv
         assert x.status in (Status.DONE, Status.ABORTED, Status.ERROR), x
         if x.status is Status.ERROR:
             assert x.error_code == ErrorCode.SERVER_BUSY, x
+    # Both servers admit at most 64 queued commands per connection (the sim: --max-queued, as the V+ server's
+    # rs.maxq), so what a client can pipeline is the same against the sim and the controller; the refused lines
+    # are the last ones.
+    order = [ln[:8] for ln in lines]
+    busy = [i for i, cid in enumerate(order) if got[cid].status is Status.ERROR]
+    assert len(busy) >= len(lines) - MAX_QUEUED - 3, len(busy)
+    assert busy == list(range(busy[0], len(lines)))
     await b.send("kz000002:here")
     at_rest = (await b.ack()).pose
     await asyncio.sleep(1.0)

@@ -54,6 +54,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "x mm + PER_DEG x degrees of the move, e.g. a wrist flip from a 2 mm step; 'off' disables")
     p.add_argument("--max-clients", type=int, default=16, dest="max_clients",
                    help="connections served at once; more are refused with a SERVER_BUSY error ack")
+    p.add_argument("--max-queued", type=int, default=64, dest="max_queued", metavar="N",
+                   help="commands one connection may have queued; more are refused with a SERVER_BUSY error ack "
+                        "at once (64: the shipped V+ server's limit)")
     p.add_argument("--allow", action="append", default=[], metavar="ADDR",
                    help="accept clients only from this IP address (repeatable; default: any)")
     p.add_argument("--line-timeout", type=float, default=10.0, dest="line_timeout",
@@ -112,7 +115,7 @@ def options_from_args(args: argparse.Namespace) -> SimOptions:
     return SimOptions(host=args.host, port=args.port, time_scale=args.time_scale, instant=args.instant,
                       monitor_speed_pct=args.monitor_speed, max_speed_pct=args.max_speed,
                       jump_limit=args.jump_limit,
-                      max_clients=args.max_clients, allow=tuple(args.allow),
+                      max_clients=args.max_clients, max_queued=args.max_queued, allow=tuple(args.allow),
                       line_timeout_s=args.line_timeout or None, stop_window_s=args.stop_window,
                       state_endpoint=state, state_rate_hz=args.state_rate_hz, faults=Faults.parse(args.fault),
                       state_curve=_state_curve(args),

@@ -102,6 +102,10 @@ class SimOptions:
     jump_limit: kin.JumpLimit | None = kin.DEFAULT_JUMP_LIMIT
     """IK refuses a Cartesian target whose joint motion is out of proportion to its size (wrist flips); None: off."""
     max_clients: int = 16
+    max_queued: int = 64
+    """Commands one connection may have queued; each further one is refused with SERVER_BUSY (``too many queued
+    commands``) at once. 64 is the shipped V+ server's limit (``rs.maxq``), so what works against the sim works
+    against the controller."""
     allow: tuple[str, ...] = ()
     line_timeout_s: float | None = 10.0
     """A connection in the middle of a line that receives nothing for this long is closed (a peer stuck mid-line);
@@ -133,6 +137,8 @@ class SimOptions:
             raise ValueError("max_speed_pct: must be in (0, 100]")
         if self.max_clients < 1:
             raise ValueError("max_clients: must be >= 1")
+        if self.max_queued < 1:
+            raise ValueError("max_queued: must be >= 1")
         if self.line_timeout_s is not None and not self.line_timeout_s > 0:
             raise ValueError("line_timeout_s: must be > 0 or None")
         if not self.stop_window_s > 0:
@@ -148,7 +154,7 @@ class SimOptions:
         """The one robot model these options describe (both sim backends build it here)."""
         return Controller(joints_deg=self.joints_deg, tool=self.tool, monitor_speed_pct=self.monitor_speed_pct,
                           time_scale=self.time_scale, instant=self.instant, max_speed_pct=self.max_speed_pct,
-                          jump_limit=self.jump_limit)
+                          jump_limit=self.jump_limit, max_queued_per_conn=self.max_queued)
 
 
 class _NotAStop(Exception):
