@@ -147,7 +147,7 @@ async def measure(port_ack: int, port_echo: int, quick: bool) -> dict:
     loop = asyncio.get_running_loop()
     bare_ack = Bare(*await asyncio.open_connection("127.0.0.1", port_ack))
     bare_echo = Bare(*await asyncio.open_connection("127.0.0.1", port_echo))
-    robot = RobotClient("127.0.0.1", port_ack, ack_timeout_s=10.0)
+    robot = RobotClient("127.0.0.1", port_ack, ack_timeout_s=10.0, max_pending=None)  # its own ack server: no queue
     await robot.connect()
     cmd = Skill("noop")
     line = b"noop\r\n"
@@ -257,7 +257,7 @@ async def breakdown(n: int = 100, batches: int = 300) -> dict:
 
     loop = asyncio.get_running_loop()
     tail = encode_ack(Ack("XXXXXXXX", Status.DONE, 1.0, 1.0, Pose(480.014, -0.038, 709.975, 0.0, 179.995, 0.004)))[8:]
-    robot = RobotClient()
+    robot = RobotClient(max_pending=None)
     robot._loop, robot._write, robot._state = loop, (lambda data: None), ClientState.CONNECTED
     calls = Skill("noop").calls() * n
     per_msg = 1e6 / (n * batches)

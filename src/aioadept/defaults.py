@@ -9,6 +9,9 @@ from __future__ import annotations
 ROBOT_HOST = "127.0.0.1"
 ROBOT_PORT = 1234
 """The robot server's TCP port (the V+ AdeptServer's, as in pyadept)."""
+MAX_QUEUED = 64
+"""Commands one connection may have queued on a robot server: ``aioadept sim --max-queued`` and the shipped V+
+server's ``rs.maxq`` admit this many and refuse more with -530; ``RobotClient(max_pending=...)`` keeps below it."""
 STATE_ENDPOINT = "tcp://127.0.0.1:5560"
 """Where the sim publishes the robot state stream (the virtual camera subscribes)."""
 REQUEST_ENDPOINT = "tcp://127.0.0.1:5555"

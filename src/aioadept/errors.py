@@ -15,6 +15,7 @@ catches our types only::
     ├─ ConnectionLost              the connection dropped; says which messages are known done and which are unknown
     ├─ AckTimeout (TimeoutError)   no ack in time
     ├─ ClientStateError            not connected / closed / reentered
+    │   └─ TooManyPending          a write would leave more commands pending than the server admits (nothing sent)
     ├─ BusError                    ZeroMQ/Protobuf failures at the bus edge
     │   ├─ RequestTimeout (TimeoutError)   no response to a bus request in time
     │   └─ BusEncodeError (ValueError)     a value the bus schema cannot carry
@@ -40,7 +41,7 @@ __all__ = [
     "AbortedBeforeSend", "AckTimeout", "AdeptError", "BusEncodeError", "BusError", "ClientStateError",
     "CommandAborted", "CommandError", "ConnectError", "ConnectionLost", "GraphError", "LocalProtocolError",
     "NotARobotServer", "ObjectNotFound", "ProtocolError", "RemoteProtocolError", "RequestTimeout", "RobotError",
-    "VisionError",
+    "TooManyPending", "VisionError",
 ]
 
 
@@ -111,6 +112,18 @@ class AckTimeout(AdeptError, TimeoutError):
 
 class ClientStateError(AdeptError):
     """The client is used in a state that does not allow it (not connected, closed, reentered)."""
+
+
+class TooManyPending(ClientStateError):
+    """Writing these messages would leave more than ``limit`` commands pending on the connection, more than the
+    server admits (it would refuse the excess with ``-530``, perhaps in the middle of a sequence of motions while
+    the rest runs). Nothing was written. Wait for acks, or send fewer at once."""
+
+    def __init__(self, message: str, *, pending: int, wanted: int, limit: int) -> None:
+        super().__init__(message)
+        self.pending = pending
+        self.wanted = wanted
+        self.limit = limit
 
 
 class BusError(AdeptError):

@@ -439,7 +439,8 @@ async def test_a_stop_behind_unsent_bytes_takes_a_side_connection_and_the_unsent
     server = await asyncio.start_server(handler, "127.0.0.1", 0)
     port = server.sockets[0].getsockname()[1]
     try:
-        async with RobotClient("127.0.0.1", port, connect_timeout_s=2.0, stop_side_path=True) as robot:
+        async with RobotClient("127.0.0.1", port, connect_timeout_s=2.0, stop_side_path=True,
+                               max_pending=None) as robot:  # a server that reads nothing: no queue limit
             subs = await _flood(robot)
             loop = asyncio.get_running_loop()
             t0 = loop.time()
@@ -490,7 +491,8 @@ async def test_a_stop_behind_unsent_bytes_to_a_one_client_server_still_arrives_o
     server = await asyncio.start_server(handler, "127.0.0.1", 0)
     listening.append(server)
     port = server.sockets[0].getsockname()[1]
-    async with RobotClient("127.0.0.1", port, connect_timeout_s=2.0, stop_side_path=True) as robot:
+    async with RobotClient("127.0.0.1", port, connect_timeout_s=2.0, stop_side_path=True,
+                           max_pending=None) as robot:  # a flood on purpose: no queue limit
         subs = await _flood(robot)
         result = await robot.stop(timeout_s=20.0)
         assert result.ok

@@ -303,7 +303,7 @@ async def test_1000_messages_in_one_write_and_1000_acks_in_one_write():
         await writer.drain()
 
     async with raw_server(coalescing) as port:
-        async with RobotClient("127.0.0.1", port) as robot:
+        async with RobotClient("127.0.0.1", port, max_pending=None) as robot:  # this server has no queue limit
             res = await robot.cmdexec_joined(*[Skill("noop", i) for i in range(1000)])
     assert len(res) == 1000
     assert [m.args for m in res] == [(i,) for i in range(1000)]

@@ -54,7 +54,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "x mm + PER_DEG x degrees of the move, e.g. a wrist flip from a 2 mm step; 'off' disables")
     p.add_argument("--max-clients", type=int, default=16, dest="max_clients",
                    help="connections served at once; more are refused with a SERVER_BUSY error ack")
-    p.add_argument("--max-queued", type=int, default=64, dest="max_queued", metavar="N",
+    p.add_argument("--max-queued", type=int, default=defaults.MAX_QUEUED, dest="max_queued", metavar="N",
                    help="commands one connection may have queued; more are refused with a SERVER_BUSY error ack "
                         "at once (64: the shipped V+ server's limit)")
     p.add_argument("--allow", action="append", default=[], metavar="ADDR",

@@ -83,6 +83,7 @@ from aioadept.errors import (
     ConnectError,
     ConnectionLost,
     NotARobotServer,
+    TooManyPending,
 )
 from aioadept.geometry import Pose
 from aioadept.protocol import HELLO_SKILL, HERE_SKILL, MAX_ACK_LINE, STOP_SKILL, SkillCall, Status
@@ -138,6 +139,12 @@ class RobotClient:
       ``None`` (the default): no check. Keep it ``None`` for the original V+ AdeptServer, whose task halts on
       any unknown skill (docs/protocol.md section 6). The answer is in :attr:`server_hello`; the exchange is
       not shown to observers.
+    - ``max_pending`` (default 64, :data:`aioadept.defaults.MAX_QUEUED`): at most this many messages waiting for
+      their acks on the connection. Both servers admit 64 queued commands per connection and refuse each further
+      line with ``-530`` when it is read, so a long pipelined sequence could lose commands in its middle while
+      the rest runs. The client refuses such a write whole, before anything is sent
+      (:class:`~aioadept.errors.TooManyPending`). A ``stop`` is never refused. ``None``: no limit (a server
+      started with a larger ``--max-queued``).
     """
 
     def __init__(self, host: str = defaults.ROBOT_HOST, port: int = defaults.ROBOT_PORT, *,
@@ -145,12 +152,17 @@ class RobotClient:
                  stop_timeout_s: float = STOP_TIMEOUT_S, observers: Iterable[Observer] = (),
                  id_start: int | None = None, auto_reconnect: bool = False,
                  connector: Connector | None = None, max_line: int = MAX_ACK_LINE,
-                 hello_timeout_s: float | None = None, stop_side_path: bool = False) -> None:
+                 hello_timeout_s: float | None = None, stop_side_path: bool = False,
+                 max_pending: int | None = defaults.MAX_QUEUED) -> None:
         if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 0xFFFF:
             raise ValueError(f"port: {port!r} is not a TCP port number (0..65535)")
         if id_start is not None and (isinstance(id_start, bool) or not isinstance(id_start, int)
                                      or not 0 < id_start <= 0xFFFFFFFF):
             raise ValueError(f"id_start: {id_start!r} is not an int in 1..0xFFFFFFFF (00000000 is reserved)")
+        if max_pending is not None and (isinstance(max_pending, bool) or not isinstance(max_pending, int)
+                                        or max_pending < 1):
+            raise ValueError(f"max_pending: {max_pending!r} is not an int >= 1 (or None: no limit)")
+        self.max_pending = max_pending
         self.host = host
         self.port = port
         self.connect_timeout_s = connect_timeout_s  # validated by the properties
@@ -412,6 +424,12 @@ class RobotClient:
         """The one write path: the registry allocates IDs and registers the messages, then one write."""
         if self._state is not _CONNECTED:
             self._raise_not_connected()
+        limit = self.max_pending
+        if limit is not None and len(self._registry) + len(calls) > limit and calls[0] is not _STOP:
+            n = len(self._registry)
+            raise TooManyPending(f"{len(calls)} more message(s) would leave {n + len(calls)} pending on "
+                                 f"{self.host}:{self.port}; the server admits {limit} per connection "
+                                 "(max_pending): nothing was sent", pending=n, wanted=len(calls), limit=limit)
         loop = self._loop
         write = self._write
         assert loop is not None and write is not None

@@ -42,6 +42,7 @@ from aioadept.sim.controller import Controller, Outgoing
 log = logging.getLogger(__name__)
 
 # The defaults of a cell are written once, in aioadept.defaults.
+from aioadept.defaults import MAX_QUEUED as DEFAULT_MAX_QUEUED  # noqa: E402
 from aioadept.defaults import ROBOT_PORT as DEFAULT_PORT, STATE_ENDPOINT as DEFAULT_STATE_ENDPOINT  # noqa: E402
 
 READ_SIZE = 4096
@@ -102,7 +103,7 @@ class SimOptions:
     jump_limit: kin.JumpLimit | None = kin.DEFAULT_JUMP_LIMIT
     """IK refuses a Cartesian target whose joint motion is out of proportion to its size (wrist flips); None: off."""
     max_clients: int = 16
-    max_queued: int = 64
+    max_queued: int = DEFAULT_MAX_QUEUED
     """Commands one connection may have queued; each further one is refused with SERVER_BUSY (``too many queued
     commands``) at once. 64 is the shipped V+ server's limit (``rs.maxq``), so what works against the sim works
     against the controller."""

@@ -22,7 +22,7 @@ def parse_call(text: str) -> SkillCall:
 
 
 async def main(host: str, port: int, wait_acks: int, calls: list[SkillCall]) -> None:
-    async with RobotClient(host, port, ack_timeout_s=None) as robot:
+    async with RobotClient(host, port, ack_timeout_s=None, max_pending=None) as robot:  # floods on purpose
         sub = robot.submit(*calls)
         print("SENT " + ",".join(sub.ids), flush=True)
         assert sub.futures is not None
