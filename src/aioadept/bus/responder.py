@@ -43,6 +43,14 @@ DEFAULT_MAX_REQUEST_BYTES = 1 << 20
 Handler = Callable[[str, "str | None", dict], "Mapping[str, Any] | None | Awaitable[Mapping[str, Any] | None]"]
 
 
+RESPONSE_HWM = 10_000
+"""ZeroMQ's send high-water mark of the response PUB. Every request is answered once, a dropped one with an error;
+under a flood those answers are published as fast as requests are read, and with ZeroMQ's default of 1000 the PUB
+dropped answers silently whenever the requester's reading lagged: the likely cause of 500 consecutive of 5000
+unanswered in one full-suite run on a loaded machine (tests/integration/test_vision_limits.py; not reproduced in
+isolation). 10 000 answers of a few hundred bytes are a few MB at most."""
+
+
 class Responder:
     """The node side: receive request events, call ``handler(type, id, attributes)``, publish the answer.
 
@@ -125,7 +133,8 @@ class Responder:
             options={} if max_request_bytes is None else {zmq.MAXMSGSIZE: max_request_bytes})
         try:
             self._pub, self._actual_resp = open_socket(zmq.PUB, response_endpoint, bind=bind is not False,
-                                                       context=context, curve=curve)  # None: publishers bind
+                                                       context=context, curve=curve,  # None: publishers bind
+                                                       hwm=RESPONSE_HWM)
         except BaseException:
             close_socket(self._sub)
             raise
