@@ -138,6 +138,17 @@ async def run(options: SimOptions) -> int:
     return 0
 
 
+_PYTHON_SERVER_ONLY = (
+    ("max_clients", "--max-clients", "set rs.maxcli in its rsconfig.V2 (FOPEN /CLIENTS)"),
+    ("max_queued", "--max-queued", "set rs.maxq in its rsconfig.V2"),
+    ("allow", "--allow", "the program cannot see a peer's address; use the controller's network settings"),
+    ("line_timeout", "--line-timeout", "the shipped V+ server has none (docs/vplus.md)"),
+    ("stop_window", "--stop-window", "the V+ server has no reserved stop path (docs/vplus.md)"),
+)
+"""Options of the Python sim's TCP server that the V+ emulator's server (the V+ program) does not read: given with
+--vplus they would be silently ignored, so they are refused, each with where its V+ counterpart lives."""
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -146,6 +157,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.vplus is not None:
         if not args.run:
             parser.error("--vplus needs --run PROGRAM")
+        for dest, flag, instead in _PYTHON_SERVER_ONLY:
+            if getattr(args, dest) != parser.get_default(dest):
+                parser.error(f"{flag} is an option of the Python sim's server; with --vplus the V+ program "
+                             f"serves the connections: {instead}")
         from aioadept.vplus import cli as vplus_cli
 
         try:
