@@ -52,7 +52,8 @@ def rrd_from_run(run_dir: str | os.PathLike[str], out: str | os.PathLike[str] | 
 
     rec = rr.RecordingStream(APP_ID, recording_id=str(uuid.uuid4()))
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    rec.set_sinks(rr.FileSink(str(tmp)), default_blueprint=default_blueprint())
+    rec.set_sinks(rr.FileSink(str(tmp)))
+    rec.send_blueprint(default_blueprint())  # not set_sinks(default_blueprint=...): see record.live
     try:
         rec.send_recording_name(Path(run_dir).resolve().name)
         lg = CellLogger(rec, loop_to_epoch_s=offset)

@@ -119,7 +119,11 @@ class RunRecording:
             sinks.append(rr.FileSink(str(self.rrd_path)))
         if viewer_url is not None:
             sinks.append(rr.GrpcSink(viewer_url))
-        self.rec.set_sinks(*sinks, default_blueprint=default_blueprint())
+        self.rec.set_sinks(*sinks)
+        # Sent as a message, not as set_sinks(default_blueprint=...): that writes the blueprint synchronously and
+        # blocked for ever when the file could not be written (a full disk hung `aioadept focus` before its first
+        # move; tests/integration/test_results_kept.py).
+        self.rec.send_blueprint(default_blueprint())
         if name:
             self.rec.send_recording_name(name)
         self.logger = CellLogger(self.rec, loop_to_epoch_s=self.loop_to_epoch_s)
