@@ -14,11 +14,10 @@ import logging
 import sys
 from pathlib import Path
 
-from aioadept.apps.cell import CellConfig, RunOutcome, new_run_dir
+from aioadept.apps.cell import CellConfig, new_run_dir
 from aioadept.apps.demo import run_demo
-from aioadept.apps.interrupt import Interrupter, run_interruptible
 from aioadept.cli.options import add_cell_options, apply_overrides, configure_logging, description, report
-from aioadept.cli.report import print_result, report_saving
+from aioadept.cli.report import run_once
 
 log = logging.getLogger("aioadept.demo")
 
@@ -80,23 +79,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(cfg: CellConfig, run_dir: Path) -> int:
-    outcomes: list[RunOutcome] = []
-
-    async def app(intr: Interrupter) -> int:
-        outcomes.append(await run_demo(cfg, run_dir, interrupter=intr))
-        return 0
-
-    try:
-        code = run_interruptible(app, prog="aioadept demo")
-    except Exception as exc:  # one clear line for the user; details are in the run folder's logs
-        log.error("demo failed: %s: %s", type(exc).__name__, exc)
-        return 1
-    if code or not outcomes:
-        return code or 1
-    outcome = outcomes[0]
-    assert outcome.result is not None
-    print_result(outcome.result, run_dir)
-    code = report_saving(outcome, analyze=cfg.run.analyze, prog="aioadept demo")
+    code = run_once(lambda intr: run_demo(cfg, run_dir, interrupter=intr), run_dir, analyze=cfg.run.analyze,
+                    prog="aioadept demo")
     if code == 0 and cfg.run.analyze:
         log.info("plots and summary.json written to %s", run_dir)
         _print_cycle(run_dir)

@@ -10,12 +10,11 @@ import logging
 import sys
 from pathlib import Path
 
-from aioadept.apps.cell import CellConfig, RunOutcome, new_run_dir, run_focus_once
+from aioadept.apps.cell import CellConfig, new_run_dir, run_focus_once
 from aioadept import defaults
-from aioadept.apps.interrupt import Interrupter, run_interruptible
 from aioadept.cli.options import (add_cell_options, add_robot_option, apply_overrides, configure_logging, description,
                                   parse_robot_address, report, with_default)
-from aioadept.cli.report import print_result, report_saving
+from aioadept.cli.report import run_once
 
 log = logging.getLogger("aioadept.focus")
 
@@ -80,23 +79,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(cfg: CellConfig, run_dir: Path) -> int:
-    outcomes: list[RunOutcome] = []
-
-    async def app(intr: Interrupter) -> int:
-        outcomes.append(await run_focus_once(cfg, run_dir, interrupter=intr))
-        return 0
-
-    try:
-        code = run_interruptible(app, prog="aioadept focus")
-    except Exception as exc:
-        log.error("focus failed: %s: %s (log in %s)", type(exc).__name__, exc, run_dir)
-        return 1
-    if code or not outcomes:
-        return code or 1
-    outcome = outcomes[0]
-    assert outcome.result is not None
-    print_result(outcome.result, run_dir)
-    return report_saving(outcome, analyze=cfg.run.analyze, prog="aioadept focus")
+    return run_once(lambda intr: run_focus_once(cfg, run_dir, interrupter=intr), run_dir,
+                    analyze=cfg.run.analyze, prog="aioadept focus")
 
 
 if __name__ == "__main__":  # pragma: no cover

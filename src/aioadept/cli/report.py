@@ -3,12 +3,17 @@ saved."""
 
 from __future__ import annotations
 
+import logging
 import sys
+from collections.abc import Awaitable, Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from aioadept.apps.focus import FocusResult
+    from aioadept.apps.interrupt import Interrupter
+
+log = logging.getLogger(__name__)
 
 
 def print_result(result: FocusResult, run_dir: Path) -> None:
@@ -57,3 +62,27 @@ def report_saving(outcome: Any, *, analyze: bool, prog: str) -> int:
                   file=sys.stderr)
             return EXIT_NOT_SAVED
     return 0
+
+
+def run_once(app: Callable[[Interrupter], Awaitable[Any]], run_dir: Path, *, analyze: bool, prog: str) -> int:
+    """Run one focus run (``app(interrupter)`` returns its :class:`~aioadept.apps.cell.RunOutcome`) with the
+    Ctrl-C policy, print its result, then :func:`report_saving`. Returns the exit code (``focus``/``demo``'s)."""
+    from aioadept.apps.interrupt import run_interruptible
+
+    outcomes: list[Any] = []
+
+    async def main(intr: Interrupter) -> int:
+        outcomes.append(await app(intr))
+        return 0
+
+    try:
+        code = run_interruptible(main, prog=prog)
+    except Exception as exc:  # one clear line for the user; details are in the run folder's logs
+        log.error("%s failed: %s: %s (log in %s)", prog, type(exc).__name__, exc, run_dir)
+        return 1
+    if code or not outcomes:
+        return code or 1
+    outcome = outcomes[0]
+    assert outcome.result is not None
+    print_result(outcome.result, run_dir)
+    return report_saving(outcome, analyze=analyze, prog=prog)
