@@ -9,6 +9,11 @@ Issue 10 items 2 and 9, measured against their baselines in the same run (docs/s
   their acks). The promise is p95 <= 100 ms under the flood.
 - **here**: 50 clients each send ``here`` once, at rest (baseline) and while another client's arm moves with a
   ``break`` pending; p50/p95 round trip.
+- **stuck peers** (issue 18), on both servers (the Python sim and the shipped V+ server on the emulator): the stop
+  latency above with one client that pipelines ``here`` lines and never reads its acks (it reconnects whenever the
+  server drops it, so the attack lasts the whole run), and with every client slot held by idle peers while the
+  stop comes through the stop port (a fresh connection per stop). Baseline: the same server, a stop from an
+  admitted client with nobody misbehaving. The promise is p95 <= 100 ms.
 
 The sim and the flooders are child processes on 127.0.0.1 (port 0, ``READY`` line). Prints one JSON object.
 
@@ -52,6 +57,34 @@ asyncio.run(main())
 """
 
 
+NOREAD = r"""
+import asyncio, socket, sys
+port = int(sys.argv[1])
+async def main():
+    loop = asyncio.get_running_loop()
+    n = 0
+    print("READY", flush=True)
+    while True:
+        sock = socket.socket()
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+        sock.setblocking(False)
+        try:
+            await loop.sock_connect(sock, ("127.0.0.1", port))
+        except OSError:
+            await asyncio.sleep(0.05)
+            continue
+        _, writer = await asyncio.open_connection(sock=sock)
+        # never reads: pipelines until its own sends back up (the server has stopped reading it, or dropped it),
+        # then holds the connection; when the server drops it, it comes back and does it again
+        while not writer.is_closing():
+            if writer.transport.get_write_buffer_size() == 0:
+                writer.write(b"".join(b"%08x:here\r\n" % (0x10000000 + (n + i) % 0x70000000) for i in range(200)))
+                n += 200
+            await asyncio.sleep(0.01)
+asyncio.run(main())
+"""
+
+
 def pct(values: list[float], q: float) -> float:
     s = sorted(values)
     return s[min(len(s) - 1, int(round(q * (len(s) - 1))))]
@@ -81,16 +114,26 @@ async def start(argv: list[str]) -> tuple[asyncio.subprocess.Process, str]:
     proc = await asyncio.create_subprocess_exec(*argv, stdout=asyncio.subprocess.PIPE,
                                                 stderr=asyncio.subprocess.DEVNULL)
     assert proc.stdout is not None
-    line = (await asyncio.wait_for(proc.stdout.readline(), 30)).decode()
-    if not line.startswith("READY"):
-        proc.kill()
-        raise RuntimeError(f"child did not start: {line!r}")
+    line = ""
+    async with asyncio.timeout(30):
+        while not line.startswith("READY"):  # the V+ server prints its console first
+            line = (await proc.stdout.readline()).decode()
+            if not line:
+                proc.kill()
+                raise RuntimeError("child did not start")
+    asyncio.get_running_loop().create_task(_drain(proc.stdout))  # its later console lines must not block it
     return proc, line
 
 
-async def stop_trials(port: int, trials: int) -> tuple[list[float], list[float]]:
+async def _drain(stream: asyncio.StreamReader) -> None:
+    while await stream.readline():
+        pass
+
+
+async def stop_trials(port: int, trials: int, stop_port: int | None = None) -> tuple[list[float], list[float]]:
+    """``stop_port``: each stop on a fresh connection to that port (the stop port) instead of an admitted client."""
     loop = asyncio.get_running_loop()
-    mover, stopper = await Conn.open(port), await Conn.open(port)
+    mover, stopper = await Conn.open(port), None if stop_port else await Conn.open(port)
     acted, done, late = [], [], []
     for i in range(trials):
         target = 150 if i % 2 == 0 else -150
@@ -99,11 +142,14 @@ async def stop_trials(port: int, trials: int) -> tuple[list[float], list[float]]
         await mover.until(m)
         await asyncio.sleep(0.05)  # the arm is moving, the break waits
         t0 = loop.time()
-        stopper.writer.write(s + b":stop\r\n")
+        via = stopper if stop_port is None else await Conn.open(stop_port)
+        via.writer.write(s + b":stop\r\n")
         line = await asyncio.wait_for(mover.until(b), 30)
         t_break = loop.time()
-        await asyncio.wait_for(stopper.until(s), 30)
+        await asyncio.wait_for(via.until(s), 30)
         t_done = loop.time()
+        if via is not stopper:
+            via.writer.close()
         # A break that completed instead of being aborted: the stop came too late to act on the motion; count
         # it at the time the stop was answered (an underestimate of how late it really was).
         acted.append(((t_break if b":aborted:" in line else t_done) - t0) * 1e3)
@@ -111,7 +157,8 @@ async def stop_trials(port: int, trials: int) -> tuple[list[float], list[float]]
             late.append(i)
         done.append((t_done - t0) * 1e3)
     for c in (mover, stopper):
-        c.writer.close()
+        if c is not None:
+            c.writer.close()
     if late:
         print(f"{len(late)} of {trials} stops arrived after the motion had completed", file=sys.stderr)
     return acted, done
@@ -143,10 +190,55 @@ async def here_trial(port: int, moving: bool, clients: int = 50) -> list[float]:
     return out
 
 
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+async def stuck_peers(aioadept: str, backend: str, trials: int) -> dict:
+    """Stop latency on one backend: baseline, one non-reading client, every slot held (stop via the stop port)."""
+    root = Path(__file__).resolve().parents[1] / "vplus"
+    port, sport = _free_port(), _free_port()
+    if backend == "python":
+        argv = [aioadept, "sim", "--port", str(port), "--stop-port", str(sport), "--max-clients", "4"]
+        slots = 4
+    else:
+        argv = [aioadept, "sim", "--vplus", *(str(root / f) for f in ("rserver.V2", "rsskills.V2", "rsconfig.V2")),
+                "--run", "rs.main", "--map-port", f"1234={port}", "--map-port", f"1235={sport}"]
+        slots = 10  # rs.maxcli
+    proc, _ = await start([*argv, "--state-endpoint", "none"])
+    out: dict = {}
+    try:
+        await asyncio.sleep(0.5)  # the V+ server opens its stop port just after READY
+        out["baseline"], _ = await stop_trials(port, trials)
+        flood, _ = await start([sys.executable, "-c", NOREAD, str(port)])
+        try:
+            await asyncio.sleep(1.0)  # its acks have backed up
+            out["one_not_reading"], _ = await stop_trials(port, trials)
+        finally:
+            flood.kill()
+            await flood.wait()
+        await asyncio.sleep(0.5)
+        held = [await Conn.open(port) for _ in range(slots - 1)]  # the mover takes the last slot
+        try:
+            out["every_slot_held"], _ = await stop_trials(port, trials, stop_port=sport)
+        finally:
+            for c in held:
+                c.writer.close()
+    finally:
+        proc.terminate()
+        await proc.wait()
+    return out
+
+
 async def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--trials", type=int, default=30)
     ap.add_argument("--flooders", type=int, default=3)
+    ap.add_argument("--stuck-trials", type=int, default=20, dest="stuck_trials")
     args = ap.parse_args()
     aioadept = str(Path(sys.executable).with_name("aioadept"))
     proc, ready = await start([aioadept, "sim", "--port", "0", "--state-endpoint", "none", "--max-clients", "64"])
@@ -178,12 +270,20 @@ async def main() -> None:
     result["here_50_at_rest"] = summary(here_rest)
     result["here_50_while_moving"] = summary(here_moving)
     result["here_ratio_p50"] = round(statistics.median(here_moving) / statistics.median(here_rest), 2)
+    stuck = {b: await stuck_peers(aioadept, b, args.stuck_trials) for b in ("python", "vplus")}
+    result["stuck_peers"] = {b: {k: summary(v) for k, v in d.items()} for b, d in stuck.items()}
     result["verdicts"] = [
         verdict("stop acted p95, 3-client flood vs no flood", pct(flood_acted, 0.95), pct(base_acted, 0.95),
                 unit="ms", goal="figure <= 100 ms", passed=pct(flood_acted, 0.95) <= 100.0),
         verdict("here p50, 50 clients, arm moving vs at rest", statistics.median(here_moving),
                 statistics.median(here_rest), unit="ms"),
     ]
+    for b, d in stuck.items():
+        for case, label in (("one_not_reading", "one client not reading"), ("every_slot_held", "every slot held")):
+            p95 = pct(d[case], 0.95)
+            result["verdicts"].append(verdict(f"{b}: stop acted p95, {label} vs nobody", p95,
+                                              pct(d["baseline"], 0.95), unit="ms", goal="figure <= 100 ms",
+                                              passed=p95 <= 100.0))
     print(json.dumps(result, indent=2))
 
 

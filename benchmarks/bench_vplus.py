@@ -168,7 +168,7 @@ async def bench_servers(args: argparse.Namespace) -> dict:
     argvs = {
         "python_sim": [aioadept, "sim", "--port", "0", "--instant", "--state-endpoint", "none"],
         "vplus": [aioadept, "sim", "--vplus", *VPLUS_FILES, "--run", "rs.main", "--map-port", "1234=0",
-                  "--instant", "--state-endpoint", "none"],
+                  "--map-port", "1235=0", "--instant", "--state-endpoint", "none"],
     }
     procs: dict[str, asyncio.subprocess.Process] = {}
     conns: dict[str, Conn] = {}

@@ -21,7 +21,7 @@ FILES = [str(VPLUS / f) for f in ("rserver.V2", "rsskills.V2", "rsconfig.V2")]
 
 
 def vplus_args(*extra: str) -> tuple[str, ...]:
-    return ("--vplus", *FILES, "--run", "rs.main", "--map-port", "1234=0", *extra)
+    return ("--vplus", *FILES, "--run", "rs.main", "--map-port", "1234=0", "--map-port", "1235=0", *extra)
 
 
 async def next_state(sub: Subscriber) -> RobotState:

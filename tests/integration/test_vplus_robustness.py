@@ -18,7 +18,8 @@ from aioadept.testing.nodes import running_node
 
 VPLUS = Path(__file__).resolve().parents[2] / "vplus"
 FILES = [str(VPLUS / f) for f in ("rserver.V2", "rsskills.V2", "rsconfig.V2")]
-ARGS = ("--vplus", *FILES, "--run", "rs.main", "--map-port", "1234=0", "--state-endpoint", "none",
+ARGS = ("--vplus", *FILES, "--run", "rs.main", "--map-port", "1234=0", "--map-port", "1235=0",
+        "--state-endpoint", "none",
         "--time-scale", "20")
 
 

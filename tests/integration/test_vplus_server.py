@@ -16,7 +16,8 @@ FILES = [str(VPLUS / f) for f in ("rserver.V2", "rsskills.V2", "rsconfig.V2")]
 
 
 def sim_args(*extra: str) -> tuple[str, ...]:
-    return ("--vplus", *FILES, "--run", "rs.main", "--map-port", "1234=0", "--state-endpoint", "none", *extra)
+    return ("--vplus", *FILES, "--run", "rs.main", "--map-port", "1234=0", "--map-port", "1235=0",
+            "--state-endpoint", "none", *extra)
 
 
 @pytest.mark.timeout(60)

@@ -15,7 +15,8 @@ VPLUS = ["--vplus", "vplus/rserver.V2", "vplus/rsskills.V2", "vplus/rsconfig.V2"
     (["--max-queued", "10"], "rs.maxq"),
     (["--allow", "127.0.0.1"], "address"),
     (["--line-timeout", "3"], "has none"),
-    (["--stop-window", "2"], "no reserved stop path"),
+    (["--stop-window", "2"], "rs.stmo"),
+    (["--stop-port", "2000"], "rs.sport"),
 ])
 def test_a_python_server_option_with_vplus_is_one_line_and_exit_2(capsys, option, where):
     with pytest.raises(SystemExit) as info:

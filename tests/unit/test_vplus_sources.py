@@ -477,7 +477,7 @@ def feed(m, data: bytes, chunks: list[int], handle: float = 7.0) -> list[tuple]:
     while pos < len(data):
         piece = data[pos:pos + min(next(sizes, 128), 128)]
         pos += len(piece)
-        m.call("rs.onchunk", piece.decode("ascii"), handle)
+        m.call("rs.onchunk", piece.decode("ascii"), handle, 0.0)
         got += drain(m)
     return got
 
@@ -572,9 +572,9 @@ def test_disconnect_discards_queued_commands(machine):
     m.globals["rs.qhead"] = 0          # keep the entry queued, as if task 1 were busy
     slot = int(m.globals["rs.qs"][0])
     assert m.globals["rs.qg"][0] == m.globals["rs.cgen"][slot]
-    m.call("rs.ondisc", 3.0)
+    m.call("rs.ondisc", 3.0, 0.0)
     assert m.globals["rs.qg"][0] != m.globals["rs.cgen"][slot], "task 1 would still run it"
-    m.call("rs.onconn", 3.0)           # a new client with the same handle gets a new generation too
+    m.call("rs.onconn", 3.0, 0.0)           # a new client with the same handle gets a new generation too
     assert m.globals["rs.qg"][0] != m.globals["rs.cgen"][slot]
 
 
@@ -595,7 +595,7 @@ def test_clean_makes_an_ack_field(machine, text):
 def queue(m, data: bytes, handle: float = 7.0) -> None:
     """Task 2 reads data (READs of up to 128 characters) and queues entries; nothing is drained."""
     for pos in range(0, len(data), 128):
-        m.call("rs.onchunk", data[pos:pos + 128].decode("ascii"), handle)
+        m.call("rs.onchunk", data[pos:pos + 128].decode("ascii"), handle, 0.0)
 
 
 def run_queue(m) -> list:
@@ -680,7 +680,7 @@ def test_gone_client_commands_never_run(machine):
     m = machine
     queue(m, b"0b000001:enable_air\r\n", handle=3.0)
     queue(m, b"0b000002:here\r\n", handle=4.0)
-    m.call("rs.ondisc", 3.0)
+    m.call("rs.ondisc", 3.0, 0.0)
     acks = run_queue(m)
     assert [a.id for a in acks] == ["0b000002"]
     assert not m.emu.signals.get(8)

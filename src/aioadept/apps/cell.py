@@ -18,7 +18,7 @@ from typing import Any
 
 from aioadept.apps.focus import FocusParams, FocusResult, ufloop
 from aioadept.apps.processes import NodeProcess, watch
-from aioadept.defaults import ROBOT_HOST, ROBOT_PORT, STATE_ENDPOINT
+from aioadept.defaults import ROBOT_HOST, ROBOT_PORT, STATE_ENDPOINT, STOP_PORT_OFFSET
 from aioadept.vision.options import VisionOptions
 
 log = logging.getLogger(__name__)
@@ -29,6 +29,10 @@ class RobotSection:
     host: str = ROBOT_HOST
     port: int = ROBOT_PORT
     """0 with ``start_sim``: pick a free port."""
+    stop_port: int = 0
+    """The server's stop port (serves only stop/here/hello: docs/protocol.md 4.2.1), which the client uses by itself
+    when its connection cannot deliver a stop. 0: ``port`` + 1 (1235 beside 1234), or a free one with ``start_sim``
+    and ``port = 0``."""
     start_sim: bool = True
     """Start ``aioadept sim`` on this machine (else connect to a running server, e.g. a real controller)."""
     time_scale: float = 1.0
@@ -136,6 +140,8 @@ def resolve_ports(cfg: CellConfig) -> CellConfig:
     if cfg.robot.start_sim:
         if cfg.robot.port == 0:
             cfg.robot.port = free_port(cfg.robot.host)
+            if cfg.robot.stop_port == 0:
+                cfg.robot.stop_port = free_port(cfg.robot.host)
         cfg.robot.state_endpoint = _with_free_port(cfg.robot.state_endpoint)
     if cfg.vision.start:
         cfg.vision.request_endpoint = _with_free_port(cfg.vision.request_endpoint)
@@ -143,9 +149,15 @@ def resolve_ports(cfg: CellConfig) -> CellConfig:
     return cfg
 
 
+def stop_port_of(cfg: CellConfig) -> int:
+    """The robot server's stop port: the cell file's ``stop_port``, else the robot port + 1."""
+    return cfg.robot.stop_port or cfg.robot.port + STOP_PORT_OFFSET
+
+
 def sim_argv(cfg: CellConfig) -> list[str]:
     r = cfg.robot
-    return ["sim", "--host", r.host, "--port", str(r.port), "--time-scale", str(r.time_scale),
+    return ["sim", "--host", r.host, "--port", str(r.port), "--stop-port", str(stop_port_of(cfg)),
+            "--time-scale", str(r.time_scale),
             "--monitor-speed", str(r.monitor_speed), "--state-endpoint", r.state_endpoint, *r.sim_args]
 
 
@@ -221,7 +233,8 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
     try:
         async with RobotClient(cfg.robot.host, cfg.robot.port, connect_timeout_s=cfg.robot.connect_timeout_s,
                                ack_timeout_s=cfg.robot.ack_timeout_s, observers=observers,
-                               hello_timeout_s=cfg.robot.hello_timeout_s or None) as rc, \
+                               hello_timeout_s=cfg.robot.hello_timeout_s or None,
+                               stop_port=stop_port_of(cfg)) as rc, \
                 Communicator(opposite(cfg.vision.request_endpoint), opposite(cfg.vision.response_endpoint),
                              timeout_s=params.vision_timeout_s, observers=observers) as comm, \
                 _guarded(interrupter, rc):

@@ -26,6 +26,7 @@ from aioadept.client import ExecResult, MessageResult, RobotClient
 from aioadept.commands import Skill
 from aioadept.errors import AckTimeout, CommandAborted, CommandError, ConnectError, ConnectionLost
 from aioadept.cli.options import description
+from aioadept.protocol import STOP_SKILL
 
 
 def parse_skill(text: str) -> Skill:
@@ -68,7 +69,8 @@ def _print(results: Sequence[MessageResult], as_json: bool) -> None:
 async def _run(args: argparse.Namespace, commands: list[Skill], intr: Interrupter | None = None) -> int:
     try:
         robot = RobotClient(args.host, args.port, connect_timeout_s=args.connect_timeout,
-                            ack_timeout_s=args.timeout, hello_timeout_s=None if args.no_hello else 2.0)
+                            ack_timeout_s=args.timeout, hello_timeout_s=None if args.no_hello else 2.0,
+                            stop_port=_stop_port(args.stop_port))
     except ValueError as exc:  # a timeout that is not finite and > 0, a port out of range
         print(f"aioadept send: {exc}", file=sys.stderr)
         return 2
@@ -86,8 +88,24 @@ async def _run(args: argparse.Namespace, commands: list[Skill], intr: Interrupte
             _print(res.messages, args.json)
             return 0
     except (ConnectError, ConnectionLost, AckTimeout) as exc:
+        if [k.skill for c in commands for k in c.calls()] == [STOP_SKILL] and robot.stop_port is not None:
+            # `send stop` that cannot get in (every client slot taken, a dead link): the stop port
+            try:
+                _print([await robot.stop_on_stop_port(timeout_s=args.timeout)], args.json)
+                return 0
+            except (ConnectError, AckTimeout, CommandError, CommandAborted) as side:
+                exc = ConnectError(f"{exc}; on the stop port: {side}")
         print(f"aioadept send: {exc}", file=sys.stderr)
         return 3
+
+
+def _stop_port(text: str) -> int | str | None:
+    if text.lower() in ("auto", "none"):
+        return text.lower() if text.lower() == "auto" else None
+    try:
+        return int(text)
+    except ValueError:
+        raise ValueError(f"--stop-port: {text!r} is not a port number, 'auto' or 'none'") from None
 
 
 @contextlib.asynccontextmanager
@@ -127,6 +145,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help=f"robot server port (default {defaults.ROBOT_PORT})")
     ap.add_argument("--joined", action="store_true", help="write all messages at once (cmdexec_joined)")
     ap.add_argument("--timeout", type=float, default=60.0, help="ack timeout per wait, seconds (default 60)")
+    ap.add_argument("--stop-port", default="auto", dest="stop_port", metavar="PORT",
+                    help="the server's stop port, used for 'send stop' when the connection cannot be made "
+                         "('auto': --port + 1; 'none')")
     ap.add_argument("--connect-timeout", type=float, default=5.0, help="connect timeout, seconds (default 5)")
     ap.add_argument("--json", action="store_true", help="print one JSON object per ack")
     ap.add_argument("--no-hello", action="store_true", dest="no_hello",

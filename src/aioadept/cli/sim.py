@@ -62,6 +62,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--line-timeout", type=float, default=10.0, dest="line_timeout",
                    help="close a connection that is in the middle of a line and receives nothing for this many "
                         "seconds, or whose line is still incomplete 6 times as long after its first byte (0: never)")
+    p.add_argument("--stop-port", default="auto", dest="stop_port", metavar="PORT",
+                   help="the stop port: serves only stop, here and hello, so a stop gets in with every client slot "
+                        "taken ('auto': --port + 1, or a free port with --port 0; 'none': no stop port)")
     p.add_argument("--stop-window", type=float, default=1.0, dest="stop_window",
                    help="over --max-clients, a new connection may still send stop for this many seconds (the "
                         "reserved stop path); anything else is refused")
@@ -106,13 +109,29 @@ def _state_curve(args: argparse.Namespace):  # -> CurveServer | None
     return CurveServer(keys, allowed_clients=allowed)
 
 
+def stop_port_of(value: str, port: int) -> int | None:
+    """``--stop-port``: 'auto' (port + 1; 0 with --port 0), 'none', or a port number. Raises ``ValueError``."""
+    if value.lower() == "none":
+        return None
+    if value.lower() == "auto":
+        return port + defaults.STOP_PORT_OFFSET if port else 0
+    try:
+        n = int(value)
+    except ValueError:
+        raise ValueError(f"--stop-port: {value!r} is not a port number, 'auto' or 'none'") from None
+    if not 0 <= n <= 0xFFFF:
+        raise ValueError(f"--stop-port: {n} is not a TCP port number (0..65535)")
+    return n
+
+
 def options_from_args(args: argparse.Namespace) -> SimOptions:
     """Raises ``ValueError`` for inconsistent values."""
     state = None if args.state_endpoint.lower() == "none" else args.state_endpoint
     extra = {}
     if args.joints is not None:
         extra["joints_deg"] = args.joints
-    return SimOptions(host=args.host, port=args.port, time_scale=args.time_scale, instant=args.instant,
+    return SimOptions(host=args.host, port=args.port, stop_port=stop_port_of(args.stop_port, args.port),
+                      time_scale=args.time_scale, instant=args.instant,
                       monitor_speed_pct=args.monitor_speed, max_speed_pct=args.max_speed,
                       jump_limit=args.jump_limit,
                       max_clients=args.max_clients, max_queued=args.max_queued, allow=tuple(args.allow),
@@ -130,7 +149,8 @@ async def run(options: SimOptions) -> int:
     try:
         async with SimServer(options) as sim:
             state = sim.state_endpoint or "none"
-            print(f"READY host={sim.host} port={sim.port} state={state}", flush=True)
+            stop_port = sim.stop_port if sim.stop_port is not None else "none"
+            print(f"READY host={sim.host} port={sim.port} state={state} stop_port={stop_port}", flush=True)
             await stop.wait()
     finally:
         for sig in (signal.SIGINT, signal.SIGTERM):
@@ -143,7 +163,8 @@ _PYTHON_SERVER_ONLY = (
     ("max_queued", "--max-queued", "set rs.maxq in its rsconfig.V2"),
     ("allow", "--allow", "the program cannot see a peer's address; use the controller's network settings"),
     ("line_timeout", "--line-timeout", "the shipped V+ server has none (docs/vplus.md)"),
-    ("stop_window", "--stop-window", "the V+ server has no reserved stop path (docs/vplus.md)"),
+    ("stop_window", "--stop-window", "set rs.stmo in its rsconfig.V2 (the stop port's idle time)"),
+    ("stop_port", "--stop-port", "set rs.sport in its rsconfig.V2 and map it with --map-port 1235=N"),
 )
 """Options of the Python sim's TCP server that the V+ emulator's server (the V+ program) does not read: given with
 --vplus they would be silently ignored, so they are refused, each with where its V+ counterpart lives."""

@@ -86,7 +86,7 @@ from aioadept.errors import (
     TooManyPending,
 )
 from aioadept.geometry import Pose
-from aioadept.protocol import HELLO_SKILL, HERE_SKILL, MAX_ACK_LINE, STOP_SKILL, SkillCall, Status
+from aioadept.protocol import HELLO_SKILL, HERE_SKILL, MAX_ACK_LINE, STOP_SKILL, SkillCall, Status, parse_ack
 
 __all__ = ["Connector", "RobotClient"]
 
@@ -96,6 +96,9 @@ Connector = Callable[[], Awaitable[tuple[asyncio.StreamReader, asyncio.StreamWri
 """An async callable that opens a (reader, writer) pair; the default opens TCP to ``host:port``."""
 
 _CLOSE_FLUSH_S = 1.0
+STOP_PORT_AFTER_S = 0.5
+""":meth:`RobotClient.stop` also sends the stop on the stop port when the main connection has not answered it this
+long after its write: longer than any deceleration ramp (0.1-0.2 s in the sim), far shorter than the stop timeout."""
 STOP_TIMEOUT_S = 5.0
 """Default ``RobotClient.stop_timeout_s``: a stop is acked at rest, a deceleration ramp away (0.1-0.2 s in the sim)."""
 # Enum member lookups cost ~0.3 us each in 3.11; the hot paths compare against these module constants instead.
@@ -139,6 +142,11 @@ class RobotClient:
       ``None`` (the default): no check. Keep it ``None`` for the original V+ AdeptServer, whose task halts on
       any unknown skill (docs/protocol.md section 6). The answer is in :attr:`server_hello`; the exchange is
       not shown to observers.
+    - ``stop_port`` (default ``"auto"``: ``port`` + 1, e.g. 1235): the server's stop port, a second TCP port that
+      serves only ``stop``, ``here`` and ``hello`` (docs/protocol.md 4.2.1). :meth:`stop` uses it by itself when the
+      main connection cannot deliver the stop: lost (and not reconnected), its bytes stuck behind unsent ones, or
+      no answer within ``STOP_PORT_AFTER_S``; a second stop cannot move the robot. ``None``: never (a server
+      without one, e.g. the original AdeptServer). Not with ``connector``.
     - ``max_pending`` (default 64, :data:`aioadept.defaults.MAX_QUEUED`): at most this many messages waiting for
       their acks on the connection. Both servers admit 64 queued commands per connection and refuse each further
       line with ``-530`` when it is read, so a long pipelined sequence could lose commands in its middle while
@@ -153,7 +161,7 @@ class RobotClient:
                  id_start: int | None = None, auto_reconnect: bool = False,
                  connector: Connector | None = None, max_line: int = MAX_ACK_LINE,
                  hello_timeout_s: float | None = None, stop_side_path: bool = False,
-                 max_pending: int | None = defaults.MAX_QUEUED) -> None:
+                 max_pending: int | None = defaults.MAX_QUEUED, stop_port: int | str | None = "auto") -> None:
         if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 0xFFFF:
             raise ValueError(f"port: {port!r} is not a TCP port number (0..65535)")
         if id_start is not None and (isinstance(id_start, bool) or not isinstance(id_start, int)
@@ -162,6 +170,10 @@ class RobotClient:
         if max_pending is not None and (isinstance(max_pending, bool) or not isinstance(max_pending, int)
                                         or max_pending < 1):
             raise ValueError(f"max_pending: {max_pending!r} is not an int >= 1 (or None: no limit)")
+        if stop_port is not None and stop_port != "auto" and (
+                isinstance(stop_port, bool) or not isinstance(stop_port, int) or not 0 < stop_port <= 0xFFFF):
+            raise ValueError(f"stop_port: {stop_port!r} is not a TCP port number (1..65535), 'auto' or None")
+        self.stop_port = stop_port
         self.max_pending = max_pending
         self.host = host
         self.port = port
@@ -769,23 +781,139 @@ class RobotClient:
                          behind: bool = False) -> MessageResult:
         """Reconnect if needed, write the stop (unless already written: ``sub``) and await its ack; once more on
         a new connection if the connection is lost before the ack and ``auto_reconnect`` is on. ``behind``: the
-        written stop sits behind unsent bytes: try the side path (:meth:`_stop_side`) first."""
+        written stop sits behind unsent bytes: try the side path (:meth:`_stop_side`) first. Wherever the main
+        connection cannot deliver the stop, the stop port does (:meth:`_stop_port_race`)."""
         if sub is not None and behind:
-            side = await self._stop_side(sub, timeout_s)
-            if side is not None:
-                sub = side
+            if self.stop_side_path:
+                side = await self._stop_side(sub, timeout_s)
+                if side is not None:
+                    sub = side
+            elif self._stop_port_number() is not None:
+                # the peer does not read this connection: the stop port now, not after STOP_PORT_AFTER_S
+                return await self._stop_port_race(sub, timeout_s, 0.0)
         if sub is None:
-            await self._ensure_connected()
-            sub = self._send((_STOP,))
+            try:
+                await self._ensure_connected()
+                sub = self._send((_STOP,))
+            except (ConnectError, ConnectionLost) as exc:
+                return await self._stop_port_instead(exc, timeout_s)
         try:
-            return (await self._wait(sub, timeout_s))[0]
-        except ConnectionLost:
-            if not self.auto_reconnect or self._state is _CLOSED or self._state is _NEW:
+            return await self._stop_port_race(sub, timeout_s, STOP_PORT_AFTER_S)
+        except ConnectionLost as exc:
+            if self._state is _CLOSED or self._state is _NEW:
                 raise
+            if not self.auto_reconnect:
+                return await self._stop_port_instead(exc, timeout_s)
             log.warning("connection to %s:%s lost before the stop's ack: sending the stop again on a new "
                         "connection", self.host, self.port)
-        await self._ensure_connected()
+        try:
+            await self._ensure_connected()
+        except ConnectError as exc:
+            return await self._stop_port_instead(exc, timeout_s)
         return (await self._wait(self._send((_STOP,)), timeout_s))[0]
+
+    def _stop_port_number(self) -> int | None:
+        if self.stop_port is None or self._connector is not None:
+            return None
+        if self.stop_port == "auto":
+            return self.port + defaults.STOP_PORT_OFFSET if 0 < self.port < 0xFFFF else None
+        return int(self.stop_port)
+
+    async def _stop_port_instead(self, exc: BaseException, timeout_s: float) -> MessageResult:
+        """The main connection cannot carry the stop (``exc``): send it on the stop port; if that fails too, the
+        main connection's error is what the caller gets (with the stop port's in the log)."""
+        if self._stop_port_number() is None:
+            raise exc
+        log.warning("stop: %s; sending it on the stop port %s:%s", exc, self.host, self._stop_port_number())
+        try:
+            return await self.stop_on_stop_port(timeout_s=timeout_s)
+        except (ConnectError, AckTimeout, CommandError, CommandAborted) as side:
+            log.error("stop on the stop port %s:%s failed too: %s", self.host, self._stop_port_number(), side)
+            raise exc from side
+
+    async def _stop_port_race(self, sub: Submission, timeout_s: float, after_s: float) -> MessageResult:
+        """Await the stop written on the main connection; if no ack has come ``after_s`` after its write, send it
+        on the stop port as well. The first ``done`` wins; a failure counts only when both have failed."""
+        main = asyncio.ensure_future(self._wait(sub, timeout_s))
+        if self._stop_port_number() is None:
+            return (await main)[0]
+        done, _ = await asyncio.wait({main}, timeout=after_s)
+        if done:
+            return main.result()[0]
+        log.warning("stop: no ack from %s:%s after %.2f s; sending it on the stop port too", self.host, self.port,
+                    after_s)
+        side = asyncio.ensure_future(self.stop_on_stop_port(timeout_s=timeout_s))
+        errors: list[BaseException] = []
+        try:
+            for fut in asyncio.as_completed((main, side)):
+                try:
+                    r = await fut
+                except (ConnectionLost, ConnectError, AckTimeout, CommandError, CommandAborted) as exc:
+                    errors.append(exc)
+                    continue
+                return r[0] if isinstance(r, tuple) else r
+        finally:
+            for fut in (main, side):
+                if not fut.done():
+                    fut.cancel()
+        main_exc = main.exception() if main.done() and not main.cancelled() else errors[0]
+        raise main_exc if main_exc is not None else errors[0]
+
+    async def stop_on_stop_port(self, *, timeout_s: float | None = None) -> MessageResult:
+        """Send ``stop`` on the server's stop port (a connection of its own, closed after the ack) and return its
+        result on the ``done`` ack. For when the main connection cannot carry it, e.g. every client slot of the
+        server is taken: :meth:`stop` calls it by itself; ``aioadept send stop`` too when it cannot connect.
+        Works on a client that was never connected (only ``host`` and the stop port are used).
+
+        Raises :class:`ClientStateError` without a stop port (``stop_port=None``, or a ``connector``),
+        :class:`ConnectError` if the port cannot be reached or closes without answering, :class:`AckTimeout`
+        (``timeout_s``; default ``stop_timeout_s``), :class:`CommandError` / :class:`CommandAborted` for an error
+        or aborted ack. Observers see the stop and its ack like any other message.
+        """
+        port = self._stop_port_number()
+        if port is None:
+            raise ClientStateError(f"no stop port for {self.host}:{self.port} (stop_port=None or a connector)")
+        timeout_s = (self._stop_timeout_s if timeout_s is None
+                     else _check_timeout("timeout_s", timeout_s, none_ok=False))
+        mid = f"{secrets.randbits(32) or 1:08x}"
+        loop = asyncio.get_running_loop()
+        t_send = loop.time()
+        writer = None
+        try:
+            async with asyncio.timeout(timeout_s):
+                reader, writer = await asyncio.open_connection(self.host, port)
+                set_nodelay(writer)
+                t_send = loop.time()
+                writer.write(f"{mid}:{STOP_SKILL}\r\n".encode())
+                msg = SentMessage(mid, STOP_SKILL, (), 0, t_send)
+                for obs in self._observers:
+                    try:
+                        obs.on_send(msg)
+                    except Exception:
+                        log.exception("observer %r failed in on_send", obs)
+                while True:
+                    line = await reader.readuntil(b"\n")
+                    try:
+                        ack = parse_ack(line.rstrip(b"\r\n"))
+                    except Exception:
+                        continue
+                    if ack.id == mid:
+                        break
+        except TimeoutError:
+            raise AckTimeout(f"stop on the stop port {self.host}:{port}: no ack within {timeout_s} s",
+                             pending=(mid,)) from None
+        except (OSError, asyncio.IncompleteReadError, asyncio.LimitOverrunError) as exc:
+            raise ConnectError(f"stop port {self.host}:{port}: {exc or type(exc).__name__}") from exc
+        finally:
+            if writer is not None:
+                writer.close()
+        result = MessageResult(mid, STOP_SKILL, (), 0, t_send, loop.time(), ack)
+        self._notify_ack(result)
+        if ack.status is Status.ERROR:
+            raise CommandError(ack, STOP_SKILL)
+        if ack.status is not Status.DONE:
+            raise CommandAborted(ack, STOP_SKILL)
+        return result
 
     async def _stop_side(self, sub: Submission, timeout_s: float) -> Submission | None:
         """The stop is behind unsent bytes on a peer that is not reading: open a fresh connection (the sim's

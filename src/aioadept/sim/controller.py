@@ -238,7 +238,9 @@ class Controller:
                        (ErrorCode.MALFORMED_MESSAGE, f"message ID {entry.id} is still pending on this connection"))
         elif entry.error is None and spec is not None and (spec.immediate or (spec.readonly and not inflight)):
             self._run_immediate(entry, now)
-        elif self._queued_by_conn.get(conn, 0) >= self.max_queued_per_conn:
+        elif self.pending(conn) >= self.max_queued_per_conn:
+            # counted as the V+ server and RobotClient(max_pending) count: sent and not yet answered, the running
+            # command included (a stop is never counted: it is never refused)
             self._emit(entry, Status.ERROR, now, now, (ErrorCode.SERVER_BUSY, "too many queued commands"))
         else:
             self._enqueue(entry)

@@ -104,9 +104,13 @@ class SimOptions:
     """IK refuses a Cartesian target whose joint motion is out of proportion to its size (wrist flips); None: off."""
     max_clients: int = 16
     max_queued: int = DEFAULT_MAX_QUEUED
-    """Commands one connection may have queued; each further one is refused with SERVER_BUSY (``too many queued
-    commands``) at once. 64 is the shipped V+ server's limit (``rs.maxq``), so what works against the sim works
-    against the controller."""
+    """Commands one connection may have pending (sent and not yet answered, the running one included); each further
+    one is refused with SERVER_BUSY (``too many queued commands``) at once. 64, counted the same way, is the shipped
+    V+ server's limit (``rs.maxq``), so what works against the sim works against the controller."""
+    stop_port: int | None = None
+    """The stop port: a second TCP port that serves only ``stop``, ``here`` and ``hello`` (0: a free one; None: no
+    stop port). Each connection there is closed once it has had nothing pending for ``stop_window_s``; at most
+    ``max_stop_probes`` at once, the oldest without a stop evicted for a newcomer (docs/protocol.md 4.2.1)."""
     allow: tuple[str, ...] = ()
     line_timeout_s: float | None = 10.0
     """A connection in the middle of a line that receives nothing for this long is closed (a peer stuck mid-line);
@@ -140,6 +144,8 @@ class SimOptions:
             raise ValueError("max_clients: must be >= 1")
         if self.max_queued < 1:
             raise ValueError("max_queued: must be >= 1")
+        if self.stop_port is not None and not 0 <= self.stop_port <= 0xFFFF:
+            raise ValueError("stop_port: must be a TCP port number (0..65535) or None")
         if self.line_timeout_s is not None and not self.line_timeout_s > 0:
             raise ValueError("line_timeout_s: must be > 0 or None")
         if not self.stop_window_s > 0:
@@ -179,11 +185,12 @@ def _set_keepalive(writer: asyncio.StreamWriter) -> None:
 class _Conn:
     """One client connection and its delayed-ack outbox.
 
-    ``limited``: admitted over ``max_clients`` on the reserved stop path (only ``stop`` is served).
+    ``limited``: admitted over ``max_clients`` on the reserved stop path (only ``stop`` is served), or a
+    connection to the stop port (``stop``, ``here`` and ``hello``).
     ``idle``: set when the controller has nothing pending for it (waited on before closing a stop probe).
     """
 
-    __slots__ = ("id", "peer", "writer", "outbox", "timer", "messages", "limited", "idle", "stopped")
+    __slots__ = ("id", "peer", "writer", "outbox", "timer", "messages", "limited", "idle", "stopped", "stop_ids")
 
     def __init__(self, id: int, peer: str, writer: asyncio.StreamWriter, limited: bool = False) -> None:
         self.id = id
@@ -195,6 +202,7 @@ class _Conn:
         self.limited = limited
         self.idle: asyncio.Event | None = None
         self.stopped = False  # a stop probe that has sent its stop (never evicted)
+        self.stop_ids: set[str] = set()  # its stops not yet answered (the controller does not count them all)
 
 
 class SimServer:
@@ -208,10 +216,12 @@ class SimServer:
         self.controller = controller or options.make_controller()
         self.host = options.host
         self.port = options.port
+        self.stop_port: int | None = options.stop_port
         self.state_endpoint: str | None = None
         self.connections_total = 0
         self.rejected_total = 0
         self._server: asyncio.base_events.Server | None = None
+        self._stop_server: asyncio.base_events.Server | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._t0 = 0.0
         self._wall0 = 0.0
@@ -238,12 +248,19 @@ class SimServer:
         try:
             self._server = await asyncio.start_server(self._serve, self.options.host, self.options.port,
                                                       limit=MAX_LINE * 64)
+            if self.options.stop_port is not None:
+                self._stop_server = await asyncio.start_server(self._serve_stop_port, self.options.host,
+                                                               self.options.stop_port, limit=MAX_LINE * 64)
         except BaseException:
+            if self._server is not None:
+                self._server.close()
             if self._publisher is not None:
                 self._publisher.close()
             raise
         sock = self._server.sockets[0].getsockname()
         self.host, self.port = sock[0], sock[1]
+        if self._stop_server is not None:
+            self.stop_port = self._stop_server.sockets[0].getsockname()[1]
         if self._publisher is not None:
             self._state_task = asyncio.create_task(self._publish_state(), name="sim-state")
 
@@ -254,6 +271,8 @@ class SimServer:
         self._closed = True
         if self._server is not None:
             self._server.close()
+        if self._stop_server is not None:
+            self._stop_server.close()
         if self._timer is not None:
             self._timer.cancel()
         if self._state_task is not None:
@@ -270,9 +289,10 @@ class SimServer:
             for t in stuck:
                 t.cancel()
             await asyncio.gather(*stuck, return_exceptions=True)
-        if self._server is not None:
-            with contextlib.suppress(Exception):
-                await self._server.wait_closed()
+        for server in (self._server, self._stop_server):
+            if server is not None:
+                with contextlib.suppress(Exception):
+                    await server.wait_closed()
         if self._publisher is not None:
             self._publisher.close()
 
@@ -320,12 +340,18 @@ class SimServer:
                 c.writer.transport.abort()
                 return
 
-    async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+    async def _serve_stop_port(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        await self._serve(reader, writer, stop_port=True)
+
+    async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter, *,
+                     stop_port: bool = False) -> None:
         task = asyncio.current_task()
         assert task is not None
         self._handlers.add(task)
         peer = writer.get_extra_info("peername") or ("?", 0)
         refusal = self._admit(str(peer[0]))
+        if stop_port and refusal == "too many clients":
+            refusal = None  # the stop port has its own limit (max_stop_probes) and never refuses a newcomer
         if (refusal is not None and refusal != "too many clients") or self._closed:
             # Not on the allow list (or shutting down): refused at once; nothing it sends is read.
             self.rejected_total += 1
@@ -336,10 +362,11 @@ class SimServer:
             self._handlers.discard(task)
             log.info("refused %s: %s", peer, refusal)
             return
-        limited = refusal is not None
+        limited = refusal is not None or stop_port
         if limited:
             # The reserved stop path: a stop must never be refused for "too many clients".
-            self.rejected_total += 1
+            if not stop_port:
+                self.rejected_total += 1
             self._make_probe_room()
         conn = _Conn(next(self._ids), f"{peer[0]}:{peer[1]}", writer, limited)
         self._conns[conn.id] = conn
@@ -349,7 +376,9 @@ class SimServer:
         if self.options.keepalive:
             _set_keepalive(writer)
         try:
-            if limited:
+            if stop_port:
+                await self._serve_stop_port_lines(conn, reader, writer)
+            elif limited:
                 await self._serve_stop_probe(conn, reader, writer)
             else:
                 await self._serve_lines(conn, reader, writer)
@@ -466,6 +495,50 @@ class SimServer:
                 writer.write(self._refusal("too many clients; only stop is served"))
                 await writer.drain()
 
+    async def _serve_stop_port_lines(self, conn: _Conn, reader: asyncio.StreamReader,
+                                     writer: asyncio.StreamWriter) -> None:
+        """A connection to the stop port: ``stop``, ``here`` and ``hello`` go to the controller (a stop acts the
+        moment it is read); any other line answers UNKNOWN_SKILL and nothing runs. The connection is closed once
+        it has had nothing pending for ``stop_window_s`` (from its connect or its last line), so idle or trickling
+        peers cannot keep the port from the next stop; the vplus server does the same (rs.stmo)."""
+        framer = LineFramer(MAX_LINE)
+        loop = asyncio.get_running_loop()
+        window = self.options.stop_window_s
+        last = loop.time()
+        while True:
+            try:
+                async with asyncio.timeout_at(last + window):
+                    data = await reader.read(READ_SIZE)
+            except TimeoutError:
+                if self._settled(conn):
+                    return
+                conn.idle = asyncio.Event()  # a stop is still coming to rest: close after its ack
+                with contextlib.suppress(TimeoutError):
+                    async with asyncio.timeout(30.0):
+                        await conn.idle.wait()
+                return
+            if not data:
+                return
+            now = self.now()
+            for item in framer.feed(data):
+                msg = None
+                if isinstance(item, bytes):
+                    with contextlib.suppress(RemoteProtocolError):
+                        msg = parse_command(item)
+                if msg is not None and msg.skill not in (STOP_SKILL, "here", "hello"):
+                    ack = Ack.error(msg.id, ErrorCode.UNKNOWN_SKILL,
+                                    "the stop port serves stop, here and hello only", now, now, self.controller.here)
+                    writer.write(encode_ack(ack))
+                    continue
+                if msg is not None and msg.skill == STOP_SKILL:
+                    conn.stopped = True
+                    conn.stop_ids.add(msg.id)
+                conn.messages += 1
+                self._handle(item if msg is None else msg, conn, now)
+            self._reschedule()
+            await writer.drain()
+            last = loop.time()
+
     def _refuse_stalled(self, conn: _Conn, writer: asyncio.StreamWriter, timeout_s: float) -> None:
         now = self.now()
         ack = Ack.error(NO_ID, ErrorCode.MALFORMED_MESSAGE, f"line not completed, nothing received for {timeout_s:g} s",
@@ -482,8 +555,9 @@ class SimServer:
             conn = self._conns.get(o.conn)  # type: ignore[arg-type]
             if conn is None or conn.writer.is_closing():
                 continue
+            conn.stop_ids.discard(o.ack.id)
             if silent:
-                if conn.idle is not None and not self.controller.pending(conn.id):
+                if conn.idle is not None and self._settled(conn):
                     conn.idle.set()
                 continue
             data = encode_ack(o.ack)
@@ -492,8 +566,12 @@ class SimServer:
             else:
                 conn.outbox.append((self.now() + delay, data))
                 self._arm_outbox(conn)
-            if conn.idle is not None and not self.controller.pending(conn.id):
+            if conn.idle is not None and self._settled(conn):
                 conn.idle.set()
+
+    def _settled(self, conn: _Conn) -> bool:
+        """Nothing of ``conn`` is waiting for its ack (its stops included)."""
+        return not conn.stop_ids and not self.controller.pending(conn.id)
 
     def _arm_outbox(self, conn: _Conn) -> None:
         if conn.timer is None and conn.outbox:

@@ -444,6 +444,11 @@ def namespace(rt: Runtime) -> dict[str, Any]:
         return rt.now - rt.timers.get(k, rt.t0)
 
     def iostat(T: Task, lun: float, mode: float = 0.0) -> float:
+        if int(mode) == 3:
+            # completion of the last no-wait WRITE on the LUN (V+ Language User's Guide, "Output Wait Modes")
+            dev = T.luns.get(int(lun))
+            state = getattr(dev, "nowait_state", None)
+            return float(state()) if state is not None else 1.0
         return float(T.iostat.get(int(lun), 0))
 
     def error_fn(T: Task, src: float = -1.0, sel: float = 0.0) -> float:

@@ -246,12 +246,16 @@ class Emulator:
                     # leave at once (transport.write), reads and new connections wait for this yield.
                     # Each round's writes leave right after it (an ack written by the reader does not wait for
                     # the executor's re-test of its WAIT in the next round): latency, not CPU.
+                    # At most BURST_S of rounds before the sockets are served: a task kept busy by one client's
+                    # flood must not hold another client's stop in the kernel (32 rounds of a busy reader took
+                    # 300 ms; a stop behind them waited that long).
                     devices = rt.devices
+                    until = loop.time() + BURST_S
                     for _ in range(32):
                         rt.run_round()
                         if devices is not None and devices.pending:
                             devices.flush()
-                        if not rt.any_ready():
+                        if not rt.any_ready() or loop.time() >= until:
                             break
                     await asyncio.sleep(0)
                     continue
@@ -269,6 +273,10 @@ class Emulator:
         finally:
             rt.on_wake = None
             stopper.cancel()
+
+
+BURST_S = 0.002
+"""Longest run of scheduler rounds in :meth:`Emulator.serve` before asyncio serves the sockets."""
 
 
 def make_robot(controller: Any = None) -> Any:

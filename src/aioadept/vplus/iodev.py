@@ -9,8 +9,21 @@ TCP follows the V+ TCP/IP usage of the original AdeptServer (FACTS.md):
 - ``READ (lun, handle, mode) $s`` returns the next event: IOSTAT 100 (a client connected, ``handle`` set), 1 (data:
   what has arrived from that client, at most 128 characters; the rest stays for the next READ), 101 (the client
   closed). Mode 0 waits for an event; any other mode returns at once with IOSTAT -526 (*No data received*) if there
-  is none.
-- ``WRITE (lun, handle) items`` sends the items and CR LF unless the last format is ``/S``.
+  is none. A connection's unread input is held up to ``/BUFFER_SIZE`` bytes (2048 by default); beyond that it is
+  not read from the socket (TCP holds the rest), as a controller's buffer would, so one client's backlog ahead of
+  another client's stop is at most one buffer.
+- ``WRITE (lun, handle) items`` sends the items and CR LF unless the last format is ``/S``. It waits until the
+  record is out, as V+ output does (V+ Language User's Guide, "Output Wait Modes", p. 213): here, until the
+  connection's output buffer (64 KiB) has room, i.e. while the peer does not read. A connection that is lost
+  meanwhile (the peer reset or closed) ends the wait with an error IOSTAT, never a task blocked for ever.
+- ``/N`` (no wait) in a WRITE returns at once; ``IOSTAT(lun, 3)`` is then 0 while that output is not complete,
+  1 once it is, negative if it failed. A second WRITE on the same LUN before the first no-wait one completed
+  waits for it first, and is cancelled if the first failed (its IOSTAT is then the first's), as the same page
+  says "for a particular LUN". UNCONFIRMED whether a controller's TCP server LUN serialises per LUN or per
+  client handle: the emulator takes the manual's words, the stricter reading.
+- ``FCLOSE (lun, handle)`` on a server LUN closes that one client's connection (reset; the program gets no 101
+  for it) and abandons an unfinished no-wait write to it. UNCONFIRMED: no manual page we have shows a handle
+  argument to FCLOSE; ``vplus/rsconfig.V2``'s ``rs.closeh`` turns its use off (docs/vplus.md).
 
 Sockets are real asyncio sockets bound on the emulator's host (127.0.0.1 by default); ``/LOCAL_PORT n`` binds the
 host port that the port map gives for ``n`` (0 = an ephemeral port), and ``Network.on_listen`` reports it.
@@ -22,6 +35,7 @@ from __future__ import annotations
 import asyncio
 import re
 from collections import deque
+from itertools import islice
 from collections.abc import Callable, Generator
 from dataclasses import dataclass, field
 from typing import Any
@@ -32,6 +46,7 @@ from aioadept.vplus.errors import VPlusError
 _OPT_RE = re.compile(r"/([A-Za-z_]+)\s*([^/\s]*)")
 _READ_MAX = 128
 _PAUSE_BYTES = 65536
+_DEFAULT_BUFFER = 2048
 
 
 @dataclass
@@ -44,6 +59,7 @@ class Network:
     # WRITEs of the current burst of scheduler rounds, per connection, sent together by flush(): one send for
     # several acks instead of one each (the system call, not the interpreter, dominated pipelined acks)
     pending: dict[asyncio.Transport, list[bytes]] = field(default_factory=dict)
+    pending_bytes: dict[asyncio.Transport, int] = field(default_factory=dict)   # their sizes, per connection
     # fault injection of ``aioadept sim --fault`` (aioadept.sim.server.Faults), on what server connections are
     # written: silent (nothing), ack-delay (each WRITE that much later, order kept), drop-after=N (the connection is
     # closed right after its Nth WRITE is sent: the program then reads IOSTAT 101)
@@ -57,6 +73,7 @@ class Network:
         if not self.pending:
             return
         pending, self.pending = self.pending, {}
+        self.pending_bytes.clear()
         for tr, parts in pending.items():
             if not tr.is_closing():
                 self._send(tr, parts)
@@ -122,8 +139,71 @@ class TcpLun:
         self.max_clients = 16
         self.buffered = 0
         self.paused: set[int] = set()
+        # unread input per connection: at most /BUFFER_SIZE (the controller's buffer); beyond it the connection is
+        # not read (TCP holds the rest), so one client's backlog ahead of another's stop is one buffer, not 64 KiB
+        self.inbuf: dict[int, int] = {}
+        self.buffer_size = _DEFAULT_BUFFER
+        # what the socket delivered beyond that (one read can bring 256 KiB): fed to the program a buffer at a
+        # time, each behind the other connections' events, so READ serves the connections in turn
+        self.held: dict[int, str] = {}
+        self.held_close: set[int] = set()      # a 101 that must wait until that connection's held input is read
         self.open = False
         self.is_server = False
+        # the last no-wait WRITE (/N) on this LUN: its connection until its output is complete; its error
+        self.nowait: asyncio.Transport | None = None
+        self.nowait_err = 0
+
+    def out_bytes(self, tr: asyncio.Transport) -> int:
+        """Bytes written to ``tr`` and not yet taken by the OS: the connection's output buffer."""
+        net = self.rt.devices
+        queued = net.pending_bytes.get(tr, 0) if net is not None else 0
+        return tr.get_write_buffer_size() + queued
+
+    def nowait_state(self) -> int:
+        """IOSTAT(lun, 3): 1 the last no-wait output is complete (or there was none), 0 not yet, < 0 it failed."""
+        tr = self.nowait
+        if tr is None:
+            return 1 if self.nowait_err == 0 else self.nowait_err
+        if tr.is_closing() or tr not in self.conns.values():
+            self.nowait, self.nowait_err = None, E.DEVICE_ERROR   # lost before its output was out
+            return self.nowait_err
+        if self.out_bytes(tr) > _PAUSE_BYTES:
+            return 0
+        self.nowait = None
+        return 1
+
+    def close_handle(self, h: int) -> bool:
+        """FCLOSE (lun, handle): reset one client's connection; False if there is none with that handle."""
+        tr = self.conns.get(h)
+        if tr is None:
+            return False
+        # A peer that reads gets what was written to it, then the end of the connection; one that does not (its
+        # output buffer full) is reset: nothing of it is kept for a peer that will not take it.
+        reads = self.out_bytes(tr) <= _PAUSE_BYTES
+        net = self.rt.devices
+        if net is not None:
+            parts = net.pending.pop(tr, None)
+            net.pending_bytes.pop(tr, None)
+            if parts and reads and not tr.is_closing():
+                tr.write(b"".join(parts))
+            net.server_transports.discard(tr)
+        del self.conns[h]
+        # what it sent and the program has not read goes with it, as its connection does
+        kept = [ev for ev in self.events if ev[1] != h]
+        self.buffered -= sum(len(ev[2]) for ev in self.events if ev[1] == h and ev[0] == 1)
+        self.events = deque(kept)
+        self.inbuf.pop(h, None)
+        self.held.pop(h, None)
+        self.held_close.discard(h)
+        if self.nowait is tr:
+            self.nowait = None                  # abandoned with the connection, not an error of the LUN
+        self.paused.discard(h)
+        self.reserved.discard(h)
+        if reads:
+            tr.close()
+        else:
+            tr.abort()
+        return True
 
     def new_handle(self) -> int | None:
         if len(self.conns) >= self.max_clients:
@@ -134,16 +214,55 @@ class TcpLun:
         return h
 
     def push(self, kind: int, handle: int, data: str = "") -> None:
+        if kind == 1:
+            n = self.inbuf.get(handle, 0)
+            room = 0 if handle in self.held else max(self.buffer_size - n, 0)
+            if len(data) > room:
+                self.held[handle] = self.held.get(handle, "") + data[room:]
+                data = data[:room]
+                tr = self.conns.get(handle)
+                if tr is not None and handle not in self.paused:
+                    tr.pause_reading()
+                    self.paused.add(handle)
+                if not data:
+                    return
+            self.inbuf[handle] = n + len(data)
+            self.buffered += len(data)
+        elif kind == 101 and handle in self.held:
+            self.held_close.add(handle)
+            return
+        self._append(kind, handle, data)
+        self.rt.io_event(self.task)
+
+    def _append(self, kind: int, handle: int, data: str) -> None:
         if kind == 1 and self.events and self.events[-1][0] == 1 and self.events[-1][1] == handle:
             self.events[-1][2] += data
         else:
             self.events.append([kind, handle, data])
-        if kind == 1:
-            self.buffered += len(data)
-            if self.buffered > _PAUSE_BYTES and handle in self.conns:
-                self.conns[handle].pause_reading()
-                self.paused.add(handle)
-        self.rt.io_event(self.task)
+
+    def _release(self, h: int) -> None:
+        """Feed connection ``h``'s held input to the program, up to its buffer, behind the others' events."""
+        rest = self.held.get(h)
+        if rest is None:
+            return
+        room = self.buffer_size - self.inbuf.get(h, 0)
+        take, rest = rest[:room], rest[room:]
+        if take:
+            self.inbuf[h] = self.inbuf.get(h, 0) + len(take)
+            self.buffered += len(take)
+            self.events.append([1, h, take])
+        if rest:
+            self.held[h] = rest
+            return
+        del self.held[h]
+        if h in self.held_close:
+            self.held_close.discard(h)
+            self.events.append([101, h, ""])
+        elif h in self.paused:
+            self.paused.discard(h)
+            tr = self.conns.get(h)
+            if tr is not None:
+                tr.resume_reading()
 
     def pop(self) -> list | None:
         if not self.events:
@@ -152,18 +271,27 @@ class TcpLun:
         if ev[0] == 1 and len(ev[2]) > _READ_MAX:
             out = [1, ev[1], ev[2][:_READ_MAX]]
             ev[2] = ev[2][_READ_MAX:]
+            if len(self.events) > 1 and all(e[1] != ev[1] for e in islice(self.events, 1, None)):
+                # the connections are served in turn, a READ each: the rest of this one's input waits behind
+                # the others' events (an emulator choice: the manuals do not say; docs/vplus.md)
+                self.events.rotate(-1)
         else:
             out = self.events.popleft()
         if out[0] == 1:
+            h = out[1]
             self.buffered -= len(out[2])
-            if self.buffered < _PAUSE_BYTES // 2 and self.paused:
-                for h in list(self.paused):
+            n = self.inbuf[h] = self.inbuf.get(h, 0) - len(out[2])
+            if n <= self.buffer_size // 2:
+                if h in self.held:
+                    self._release(h)
+                elif h in self.paused:
+                    self.paused.discard(h)
                     tr = self.conns.get(h)
                     if tr is not None:
                         tr.resume_reading()
-                self.paused.clear()
         elif out[0] == 101:
             self.reserved.discard(out[1])
+            self.inbuf.pop(out[1], None)
         return out
 
     def close(self) -> None:
@@ -281,6 +409,7 @@ def fopen(rt: Any):
             if "LOCAL_PORT" in opts:
                 vport = int(float(opts["LOCAL_PORT"]))
                 dev.max_clients = int(float(opts.get("CLIENTS") or 16))
+                dev.buffer_size = max(int(float(opts.get("BUFFER_SIZE") or _DEFAULT_BUFFER)), _READ_MAX)
                 dev.is_server = True
                 port = net.port_map.get(vport, vport)
                 dev.open = True
@@ -323,6 +452,10 @@ def fclose(rt: Any):
         dev = _lun_of(T, lun)
         if dev is None:
             T.iostat[lun] = E.NOT_ATTACHED
+            return
+        if len(refs) > 1 and refs[1] is not None:
+            # FCLOSE (lun, handle): one client of a server (UNCONFIRMED form; module docstring)
+            T.iostat[lun] = 1 if dev.close_handle(int(refs[1][1])) else E.DEVICE_ERROR
             return
         dev.close()
         T.iostat[lun] = 1
@@ -376,6 +509,11 @@ def read(rt: Any):
     return io_read
 
 
+def _no_wait(items: tuple) -> bool:
+    return any(type(it) is tuple and len(it) == 2 and it[0] == "fmt" and str(it[1])[:1].upper() == "N"
+               for it in items)
+
+
 def write(rt: Any):
     def io_write(T: Any, lun: Any, handle: Any, items: tuple) -> Generator:
         from aioadept.vplus.builtins import _render
@@ -385,6 +523,20 @@ def write(rt: Any):
         if dev is None:
             T.iostat[n] = E.NOT_ATTACHED
             return
+        net = rt.devices
+        # A no-wait output still under way on this LUN is waited for first; if it failed, this one is cancelled
+        # and IOSTAT reports the first's error (V+ Language User's Guide, "Output Wait Modes").
+        if dev.nowait is not None:
+            if net is not None:
+                net.flush()
+            while (st := dev.nowait_state()) == 0:
+                T.io_wait = True
+                yield rt.next_tick()
+            if st < 0:
+                dev.nowait_err = 0
+                T.iostat[n] = st
+                return
+        dev.nowait_err = 0
         text, no_eol = _render(items)
         if not no_eol:
             text += "\r\n"
@@ -393,17 +545,26 @@ def write(rt: Any):
         if tr is None or tr.is_closing():
             T.iostat[n] = E.DEVICE_ERROR
             return
-        net = rt.devices
         if net is not None:
-            net.pending.setdefault(tr, []).append(text.encode("latin-1"))
+            data = text.encode("latin-1")
+            net.pending.setdefault(tr, []).append(data)
+            net.pending_bytes[tr] = net.pending_bytes.get(tr, 0) + len(data)
         else:
             tr.write(text.encode("latin-1"))
         T.iostat[n] = 1
-        # V+ WRITE waits until the record is out: wait while the peer does not read.
-        if tr.get_write_buffer_size() > _PAUSE_BYTES:
+        if _no_wait(items):
+            dev.nowait = tr
+            return
+        # V+ WRITE waits until the record is out: here while the peer does not read. A connection lost meanwhile
+        # (reset, closed) fails the WRITE: it never waits for ever on a dead peer.
+        if dev.out_bytes(tr) > _PAUSE_BYTES:
             if net is not None:
                 net.flush()
-            while tr.get_write_buffer_size() > _PAUSE_BYTES and not tr.is_closing():
+            while dev.out_bytes(tr) > _PAUSE_BYTES:
+                if tr.is_closing() or dev.conns.get(h) is not tr:
+                    T.iostat[n] = E.DEVICE_ERROR
+                    return
+                T.io_wait = True
                 yield rt.next_tick()
 
     return io_write
