@@ -130,11 +130,11 @@ def _set_speed(ctl: Any, args: tuple[float, ...]) -> None:
 
 
 def _enable_air(ctl: Any, args: tuple[float, ...]) -> None:
-    ctl.signals[AIR_SIGNAL] = True
+    ctl.io.signal((AIR_SIGNAL,), ctl.now_s)
 
 
 def _disable_air(ctl: Any, args: tuple[float, ...]) -> None:
-    ctl.signals[AIR_SIGNAL] = False
+    ctl.io.signal((-AIR_SIGNAL,), ctl.now_s)
 
 
 def _here(ctl: Any, args: tuple[float, ...]) -> SkillResult:
@@ -159,7 +159,10 @@ _STOP_RUN = SkillSpec(STOP_SKILL, _stop_wait, (0,))
 
 
 def default_skills() -> list[SkillSpec]:
-    """The AdeptServer skills plus our extensions (stop, here, hello)."""
+    """The AdeptServer skills plus our extensions (stop, here, hello; the I/O and hand skills of
+    :mod:`aioadept.sim.io_skills`)."""
+    from aioadept.sim.io_skills import io_skills  # it imports this module's types
+
     six = (6,)
     return [
         SkillSpec("move_to", _move_to, six),
@@ -174,4 +177,5 @@ def default_skills() -> list[SkillSpec]:
         SkillSpec("here", _here, (0,), readonly=True),
         SkillSpec("hello", _hello, (0,), readonly=True),
         SkillSpec("stop", _stop_placeholder, (0,), immediate=True),
+        *io_skills(),
     ]
