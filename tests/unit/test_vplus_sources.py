@@ -149,6 +149,8 @@ def expected_nargs() -> dict[str, set[int]]:
     out: dict[str, set[int]] = {}
     for spec in default_skills():
         counts = getattr(spec, "nargs", None) or getattr(spec, "arg_counts", None)
+        if counts is None and hasattr(spec, "nargs"):
+            counts = (-1,)  # any count (signal, sig): rs.addskill's -1
         if counts is None:
             counts = next((v for v in vars(spec).values() if isinstance(v, tuple)
                            and all(isinstance(x, int) for x in v)), None)
