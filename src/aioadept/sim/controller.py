@@ -2,7 +2,7 @@
 
 Pure: no sockets, no clock. The TCP adapter (:mod:`aioadept.sim.server`) feeds it lines with the time they were
 read and calls :meth:`Controller.step` when :meth:`Controller.next_wake_s` says something is due; tests do the
-same with a fake clock. Each call returns the acks to write, each addressed to the connection that sent the
+same with a fake clock. (Over 500 lines because it is the one robot model: executor, stop and motion together.) Each call returns the acks to write, each addressed to the connection that sent the
 command::
 
     ctl = Controller()
@@ -69,7 +69,7 @@ from aioadept.protocol import (
     recover_id,
 )
 from aioadept.robots import viper_s850 as kin
-from aioadept.sim.io import HAND_TIME_S, DigitalIO, HandConfig, SignalChange, SignalKind
+from aioadept.sim.io import DigitalIO, IoSnapshot
 from aioadept.sim.motion import MotionLimits, Trajectory
 
 # The table's names, re-exported: their old import path.
@@ -117,12 +117,7 @@ class ControllerState:
     in_motion: bool
     speed_pct: float
     air: bool
-    outputs_on: tuple[int, ...] = ()
-    """Digital outputs that are on (1..512); inputs and soft signals likewise (docs/sim.md, "Digital I/O")."""
-    inputs_on: tuple[int, ...] = ()
-    soft_on: tuple[int, ...] = ()
-    hand: str = "relaxed"
-    """The gripper: open, opening, closed, closing or relaxed (:class:`aioadept.sim.io.HandState`)."""
+    io: IoSnapshot | None = None  # the signals that are on and the hand (aioadept.sim.io)
 
 
 class Controller:
@@ -134,8 +129,7 @@ class Controller:
                  max_queued_per_conn: int = 10_000, skills: Iterable[SkillSpec] | None = None,
                  version: str | None = None, max_speed_pct: float = 100.0,
                  min_speed_pct: float = MIN_SPEED_PCT,
-                 jump_limit: kin.JumpLimit | None = kin.DEFAULT_JUMP_LIMIT,
-                 hand: HandConfig = HandConfig(), hand_time_s: float = HAND_TIME_S) -> None:
+                 jump_limit: kin.JumpLimit | None = kin.DEFAULT_JUMP_LIMIT, io: DigitalIO | None = None) -> None:
         if not 0 < monitor_speed_pct <= 100:
             raise ValueError(f"monitor_speed_pct: {monitor_speed_pct} outside (0, 100]")
         if not 0 < max_speed_pct <= 100:
@@ -158,8 +152,8 @@ class Controller:
         self.always_speed_pct = 100.0
         self.pending_speed_pct: float | None = None
         self.accel_pct = 100.0
-        self.io = DigitalIO(hand, hand_time_s=hand_time_s, time_scale=time_scale, instant=instant)
-        """Digital I/O and the hand (:mod:`aioadept.sim.io`): the one model both backends drive."""
+        self.io = (io or DigitalIO()).scaled(time_scale, instant)  # digital I/O and the hand: the one model
+        self.signals = self.io.values  # signal states by number: read them; change them through self.io
         self.now_s = 0.0
         """The time of the event being processed (a skill reads it as 'now')."""
         if version is None:
@@ -385,8 +379,7 @@ class Controller:
         self._queued_by_conn.clear()
         for e in stops:
             self._queued_by_conn[e.conn] = self._queued_by_conn.get(e.conn, 0) + 1
-        self.pending_speed_pct = None
-        self.io.pending_hand = None  # a deferred hand action does not act on the first motion after a stop
+        self.pending_speed_pct = self.io.pending_hand = None  # nor does a deferred OPEN/CLOSE act after a stop
         self.trajectory.stop(now)
         stop_entry = _Entry(entry.conn, entry.id, now, _STOP_RUN)
         if self._running is None and not stops:
@@ -454,27 +447,14 @@ class Controller:
     def air(self) -> bool:
         return self.signals.get(AIR_SIGNAL, False)
 
-    @property
-    def signals(self) -> dict[int, bool]:
-        """The signal states by number (read them; change them through :attr:`io`, which logs each change)."""
-        return self.io.values
-
     def state(self, t_s: float) -> ControllerState:
         """Snapshot for the state stream at ``t_s`` (may be later than the last processed event)."""
         joints = self.trajectory.position(t_s)
         speed = self.trajectory.current_speed_pct(t_s)
         if speed is None:
             speed = (self.pending_speed_pct or self.always_speed_pct) * self.monitor_speed_pct / 100.0
-        io = self.io
-        io.advance(t_s)
         return ControllerState(t_s, joints, self._forward(joints), self.trajectory.in_motion(t_s),
-                               float(speed), self.air, io.on_signals(SignalKind.OUTPUT),
-                               io.on_signals(SignalKind.INPUT), io.on_signals(SignalKind.SOFT),
-                               io.hand_state(t_s).value)
-
-    def io_changes(self, since_seq: int) -> tuple[list[SignalChange], int]:
-        """Signal changes after ``since_seq`` (each timestamped) and the number to ask from next time."""
-        return self.io.changes_since(since_seq)
+                               float(speed), self.air, self.io.snapshot(t_s))
 
     def take_speed_pct(self) -> float:
         """The effective speed (program x monitor, at most ``max_speed_pct``) for the next motion; consumes a
@@ -510,19 +490,6 @@ class Controller:
             self.take_speed_pct()  # the failed motion instruction still consumes SPEED
             raise
         return (yield from self.move_joints(target))
-
-    def hand_immediate(self, action: str) -> SkillGen:
-        """Generator for skills: V+ ``OPENI``/``CLOSEI``/``RELAXI`` (``action`` open, close, relax). Waits for
-        the arm to be at rest (a BREAK: the gripper never acts on a moving arm), switches the hand valves, then
-        holds the program for ``HAND.TIME``."""
-        yield from self.wait_rest()
-        self.io.hand_now(action, self.now_s)
-        hold = self.io.hand_hold_s()
-        if hold > 0:
-            end = self.now_s + hold
-            while self.now_s < end:
-                yield end
-        return None
 
     def wait_rest(self) -> SkillGen:
         """Generator for skills: V+ ``BREAK``, until every planned motion is done."""

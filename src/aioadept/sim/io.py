@@ -1,7 +1,7 @@
 """Digital I/O and the hand of the simulated controller: the one model both backends drive.
 
 Pure, like :mod:`aioadept.sim.controller` (time is passed in, nothing sleeps). The controller owns one
-:class:`DigitalIO` (``ctl.io``); the Python sim's skills (:mod:`aioadept.sim.io_skills`) and the V+ emulator's
+:class:`DigitalIO` (``ctl.io``); the Python sim's skills (:mod:`aioadept.sim.skills`) and the V+ emulator's
 ``SIGNAL``, ``SIG()``, ``BITS``, ``OPEN``/``OPENI``, ``CLOSE``/``CLOSEI``, ``RELAX``/``RELAXI`` and
 ``PARAMETER HAND.TIME`` (:mod:`aioadept.vplus.builtins`) all call it, so the two backends cannot disagree.
 
@@ -189,6 +189,16 @@ class Hand:
         return self.state(t_s) is HandState.CLOSED and self.position(t_s) < 1.0
 
 
+@dataclass(frozen=True, slots=True)
+class IoSnapshot:
+    """The I/O part of a state sample: the signals that are on, by kind, and the hand's state."""
+
+    outputs_on: tuple[int, ...] = ()
+    inputs_on: tuple[int, ...] = ()
+    soft_on: tuple[int, ...] = ()
+    hand: str = HandState.RELAXED.value
+
+
 _HAND_ACTIONS = ("open", "close", "relax")
 
 
@@ -206,6 +216,7 @@ class DigitalIO:
             raise ValueError(f"time_scale: {time_scale} must be > 0")
         self.time_scale = float(time_scale)
         self.instant = instant
+        self.hand_config = hand
         self.values: dict[int, bool] = {}
         self.changes: deque[SignalChange] = deque(maxlen=MAX_CHANGES)
         self._seq = 0
@@ -218,6 +229,20 @@ class DigitalIO:
         self._now = 0.0
 
     # -- reading -------------------------------------------------------------------------------------------
+    def scaled(self, time_scale: float, instant: bool) -> DigitalIO:
+        """Take the controller's time scale (hand travel and HAND.TIME shrink with it, as motion does); self."""
+        if not time_scale > 0:
+            raise ValueError(f"time_scale: {time_scale} must be > 0")
+        self.time_scale, self.instant = float(time_scale), instant
+        self.hand.travel_s = 0.0 if instant else self.hand_config.close_time_s / self.time_scale
+        return self
+
+    def snapshot(self, t_s: float) -> IoSnapshot:
+        """The signals that are on and the hand at ``t_s``, for the state stream."""
+        self.advance(t_s)
+        return IoSnapshot(self.on_signals(SignalKind.OUTPUT), self.on_signals(SignalKind.INPUT),
+                          self.on_signals(SignalKind.SOFT), self.hand.state(t_s).value)
+
     def state(self, n: int) -> bool:
         """The state of signal ``abs(n)`` now (as of the last :meth:`advance`)."""
         return self.values.get(abs(n), False)
@@ -380,6 +405,7 @@ def check_nums(values: Sequence[float], what: str = "signal") -> list[int]:
 
 
 __all__ = [
-    "HAND_TIME_S", "INPUTS", "OUTPUTS", "SOFT", "DigitalIO", "Hand", "HandConfig", "HandState", "SignalChange",
+    "HAND_TIME_S", "INPUTS", "OUTPUTS", "SOFT", "DigitalIO", "Hand", "HandConfig", "HandState", "IoSnapshot",
+    "SignalChange",
     "SignalKind", "check_nums", "signal_kind", "signal_number",
 ]
