@@ -215,6 +215,7 @@ class SimServer:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._t0 = 0.0
         self._wall0 = 0.0
+        self._io_cursor = [0]  # the state stream sends each signal change once (robot_state_sample)
         self._conns: dict[int, _Conn] = {}
         self._handlers: set[asyncio.Task[None]] = set()
         self._timer: asyncio.TimerHandle | None = None
@@ -542,7 +543,7 @@ class SimServer:
     # -- state stream -------------------------------------------------------------------------------------
     def robot_state(self):  # -> aioadept.bus.messages.RobotState
         """The state sample for now (what the stream publishes)."""
-        return robot_state_sample(self.controller, self.now(), self._wall0)
+        return robot_state_sample(self.controller, self.now(), self._wall0, self._io_cursor)
 
     def _publish_state_now(self) -> None:
         from aioadept.bus.messages import ROBOT_STATE_TOPIC
@@ -558,15 +559,27 @@ class SimServer:
         await publish_robot_states(self._publisher, self.robot_state, self.options.state_rate_hz)
 
 
-def robot_state_sample(controller: Controller, now: float, wall0: float):  # -> aioadept.bus.messages.RobotState
+def robot_state_sample(controller: Controller, now: float, wall0: float,
+                       io_cursor: list[int] | None = None):  # -> aioadept.bus.messages.RobotState
     """The state-stream sample of ``controller`` at server time ``now`` (``wall0``: wall time at server time 0).
-    Shared by :class:`SimServer` and the V+ emulator backend (``aioadept sim --vplus``)."""
-    from aioadept.bus.messages import RobotState
+    Shared by :class:`SimServer` and the V+ emulator backend (``aioadept sim --vplus``).
+
+    ``io_cursor`` (a one-element list, the publisher's own): the sample carries every signal change after
+    ``io_cursor[0]``, which moves on, so that each change goes out once, with its own time."""
+    from aioadept.bus.messages import RobotState, SignalEvent
 
     st = controller.state(now)
     program_speed = st.speed_pct * 100.0 / controller.monitor_speed_pct
+    io = st.io
+    changes: tuple = ()
+    if io_cursor is not None:
+        new, io_cursor[0] = controller.io.changes_since(io_cursor[0])
+        changes = tuple(SignalEvent(c.t_s, c.signal, c.on) for c in new)
+    extra = {} if io is None else dict(outputs_on=io.outputs_on, inputs_on=io.inputs_on, soft_on=io.soft_on,
+                                       hand=io.hand)
     return RobotState(t_s=now, wall_time_s=wall0 + now, joints_deg=st.joints_deg, pose=st.pose,
-                      in_motion=st.in_motion, speed_pct=int(round(program_speed)), air=st.air)
+                      in_motion=st.in_motion, speed_pct=int(round(program_speed)), air=st.air,
+                      changes=changes, **extra)
 
 
 async def publish_robot_states(publisher: Any, sample: Callable[[], Any], rate_hz: float) -> None:
