@@ -114,3 +114,18 @@ async def test_stop_aborts_a_waiting_wait_sig(server):
     assert (stop.id, stop.status) == ("60000003", Status.DONE)
     await c.close()
     await s.close()
+
+
+@pytest.mark.timeout(90)
+async def test_hand_wiring_is_the_controllers_configuration(backend, tmp_path):
+    """``aioadept sim --hand OPEN,CLOSE,SWITCH``: the hand skills drive those signals on both backends (the V+
+    server through OPENI/CLOSEI, which use the controller's configuration, as on a real controller)."""
+    from conftest import start
+
+    async with start(backend, tmp_path, "--hand", "5,6,1010,0.1") as srv:
+        c = await srv.connect()
+        await c.send("70000001:close_hand", "70000002:wait_sig:1010,5", "70000003:sig:6,-5,-1,-2,-1001")
+        acks = await c.acks(3, timeout=30)
+        assert [a.status for a in acks] == [Status.DONE] * 3, acks
+        assert acks[2].extra == ("-1,-1,-1,-1,-1",)
+        await c.close()

@@ -38,6 +38,7 @@ from aioadept.protocol import (
 )
 from aioadept.robots import viper_s850 as kin
 from aioadept.sim.controller import Controller, Outgoing
+from aioadept.sim.io import HAND_TIME_S, DigitalIO, HandConfig
 
 log = logging.getLogger(__name__)
 
@@ -128,6 +129,10 @@ class SimOptions:
     faults: Faults = field(default_factory=Faults)
     tool: Pose = NULL
     joints_deg: tuple[float, ...] = kin.HOME_JOINTS_DEG
+    hand: HandConfig = HandConfig()
+    """Where the hand is wired (valve outputs, closed-fully switch) and its travel time (aioadept.sim.io)."""
+    hand_time_s: float = HAND_TIME_S
+    """HAND.TIME at start (a V+ program's PARAMETER HAND.TIME changes it)."""
 
     def __post_init__(self) -> None:
         if not self.time_scale > 0:
@@ -155,7 +160,8 @@ class SimOptions:
         """The one robot model these options describe (both sim backends build it here)."""
         return Controller(joints_deg=self.joints_deg, tool=self.tool, monitor_speed_pct=self.monitor_speed_pct,
                           time_scale=self.time_scale, instant=self.instant, max_speed_pct=self.max_speed_pct,
-                          jump_limit=self.jump_limit, max_queued_per_conn=self.max_queued)
+                          jump_limit=self.jump_limit, max_queued_per_conn=self.max_queued,
+                          io=DigitalIO(self.hand, hand_time_s=self.hand_time_s))
 
 
 class _NotAStop(Exception):
