@@ -95,7 +95,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="initial joint angles in degrees (default: home 0,-90,180,0,90,0)")
     p.add_argument("--hand", type=_hand, default=None, metavar="OPEN,CLOSE,SWITCH[,CLOSE_TIME_S]",
                    help="the hand's open and close valve outputs and closed-fully switch input (0: none), and its "
-                        "travel time; default 1,2,1001,0.3")
+                        "travel time; default 1,2,1001,0.04")
     p.add_argument("--hand-time", type=float, default=None, dest="hand_time", metavar="SECONDS",
                    help="V+ HAND.TIME: how long open_hand/close_hand/relax_hand hold (a V+ program's PARAMETER "
                         "HAND.TIME overrides it); default 0.05")

@@ -97,12 +97,14 @@ class HandConfig:
 
     ``open_signal``/``close_signal``: the valve outputs (UNCONFIRMED defaults: the first two outputs);
     ``closed_switch``: the input of the closed-fully switch (None: the gripper has none);
-    ``close_time_s``: full travel, open to closed or back (divided by the controller's time scale)."""
+    ``close_time_s``: full travel, open to closed or back (divided by the controller's time scale). The default
+    is shorter than the default HAND.TIME, as a site sets HAND.TIME to cover its gripper's travel: when
+    ``close_hand`` acks, the closed-fully switch already tells a miss from a grip."""
 
     open_signal: int = 1
     close_signal: int = 2
     closed_switch: int | None = 1001
-    close_time_s: float = 0.3
+    close_time_s: float = 0.04
 
     def __post_init__(self) -> None:
         for name in ("open_signal", "close_signal"):

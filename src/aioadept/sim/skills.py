@@ -212,10 +212,10 @@ def _wait_sig(ctl: Any, args: tuple[float, ...]) -> SkillGen:
     (n,) = check_nums((n_arg,))
     if signal_kind(n) is SignalKind.OUTPUT:
         # Only the program itself changes an output, and it is waiting here: such a wait could only time out.
-        raise RobotError(ErrorCode.ILLEGAL_SIGNAL, f"wait_sig: signal {abs(n)} is an output (wait for an input "
+        raise RobotError(ErrorCode.ILLEGAL_SIGNAL, f"signal {abs(n)} is an output (wait for an input "
                                                    f"1001-1512 or a soft signal 2001-2512)")
     if not (math.isfinite(timeout) and 0 < timeout <= MAX_WAIT_S):
-        raise RobotError(ErrorCode.ILLEGAL_VALUE, f"wait_sig: timeout {timeout:.6g} s outside (0, {MAX_WAIT_S:g}]")
+        raise RobotError(ErrorCode.ILLEGAL_VALUE, f"timeout {timeout:.6g} s outside (0, {MAX_WAIT_S:g}]")
     io = ctl.io
     end = ctl.now_s + timeout  # server seconds, not scaled: a timeout is the client's wall-clock budget
     while True:
@@ -224,7 +224,7 @@ def _wait_sig(ctl: Any, args: tuple[float, ...]) -> SkillGen:
             return None
         if ctl.now_s >= end:
             raise RobotError(ErrorCode.SIGNAL_TIMEOUT,
-                             f"wait_sig: signal {abs(n)} not {'on' if n > 0 else 'off'} after {timeout:g} s")
+                             f"signal {abs(n)} not {'on' if n > 0 else 'off'} after {timeout:g} s")
         wake = min(end, ctl.now_s + WAIT_POLL_S)
         event = io.next_event_s()
         yield wake if event is None or event <= ctl.now_s else min(wake, event)

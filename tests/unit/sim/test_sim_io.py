@@ -77,7 +77,7 @@ def test_closing_on_a_part_stops_short_and_the_switch_stays_off():
     assert io.hand_state(5.0) is HandState.CLOSED and io.hand.holding(5.0)
     assert not io.sig([1001], 5.0)
     io.set_part_in_hand(False, 6.0)          # the part is taken away while the hand still closes on it
-    assert io.sig([1001], 6.0 + 0.3), "the fingers close the rest of the way"
+    assert io.sig([1001], 6.0 + 0.04), "the fingers close the rest of the way"
 
 
 def test_hand_time_bounds():
@@ -137,7 +137,7 @@ def test_bad_numbers_are_error_acks_and_the_next_command_runs(line, code):
 
 
 def test_wait_sig_wakes_at_the_switch_and_times_out():
-    r = Rig()
+    r = Rig(io=DigitalIO(HandConfig(close_time_s=0.3)))
     r.send("close_hand", 0.0)
     r.send("wait_sig:1001,5", 0.0)
     acks = r.run()

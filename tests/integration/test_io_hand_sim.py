@@ -79,3 +79,16 @@ async def test_state_stream_carries_io_and_every_change_once():
             assert seen == [(7, True), (2002, True), (2, True), (1001, True), (7, False)], "each change once, in order"
             assert times == sorted(times)
             assert 7 not in st.outputs_on and 2 in st.outputs_on and st.inputs_on == (1001,) and st.soft_on == (2002,)
+
+
+@pytest.mark.timeout(30)
+async def test_pick_with_io_example_runs():
+    from pathlib import Path
+
+    example = Path(__file__).resolve().parents[2] / "examples" / "pick_with_io.py"
+    proc = await asyncio.create_subprocess_exec(sys.executable, str(example), stdout=asyncio.subprocess.PIPE,
+                                                stderr=asyncio.subprocess.PIPE)
+    out, err = await proc.communicate()
+    assert proc.returncode == 0, err.decode()
+    assert out.decode().splitlines() == ["picked and placed", "done output, closed-fully switch: (True, False)",
+                                         "missed the part"]
