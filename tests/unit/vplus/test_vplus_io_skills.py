@@ -165,3 +165,14 @@ def test_emulator_io_errors(line, code):
 def test_parameter_other_than_hand_time_is_refused_at_load():
     e = Emulator.from_source(".PROGRAM t()\n\tPARAMETER NOT.A.PARAM = 1\n.END\n")
     assert e.problems and "PARAMETER NOT.A.PARAM" in str(e.problems[0])
+
+
+def test_argument_count_from_rs_xn_when_the_executor_gives_it(emu):
+    """rs.nargs prefers rs.xn (a count rs.step may set one day) to reading the command ring."""
+    emu.call("rs.onchunk", "00000001:sig:3,4\r\n", 7.0)
+    emu.globals["rs.xn"] = 1
+    emu.call("rs.step", task=1, attach=True)
+    g = emu.globals
+    i = g["rs.ohead"]
+    ack = parse_ack((g["$rs.oa"][i] + g["$rs.ob"][i]).encode("ascii"))
+    assert ack.extra == ("0",), "rs.xn = 1: one signal read"
