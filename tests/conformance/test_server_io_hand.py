@@ -129,3 +129,38 @@ async def test_hand_wiring_is_the_controllers_configuration(backend, tmp_path):
         assert [a.status for a in acks] == [Status.DONE] * 3, acks
         assert acks[2].extra == ("-1,-1,-1,-1,-1",)
         await c.close()
+
+
+@pytest.mark.timeout(90)
+async def test_state_stream_sends_each_signal_change_once_with_its_time(backend, tmp_path):
+    """Both backends publish the one I/O model's changes on ``robot.state`` (the V+ server's SIGNAL and CLOSEI
+    included), each once, in order, with the server time it happened."""
+    import asyncio
+
+    from conftest import start
+
+    from aioadept.bus.messages import ROBOT_STATE_TOPIC, RobotState
+    from aioadept.bus.pubsub import Subscriber
+
+    async with start(backend, tmp_path, "--state-endpoint", "tcp://127.0.0.1:0", "--state-rate-hz", "100") as srv:
+        log = srv.log.read_text()
+        endpoint = next(f.split("=", 1)[1] for ln in log.splitlines() if ln.startswith("READY")
+                        for f in ln.split() if f.startswith("state="))
+        async with Subscriber(endpoint, topics=[ROBOT_STATE_TOPIC]) as sub:
+            await asyncio.wait_for(sub.recv(), 10)          # subscribed
+            c = await srv.connect()
+            await c.send("80000001:signal:7,2003", "80000002:close_hand", "80000003:wait_sig:1001,5",
+                         "80000004:signal:-7")
+            acks = await c.acks(4, timeout=30)
+            assert [a.status for a in acks] == [Status.DONE] * 4
+            seen, times = [], []
+            while (7, False) not in seen:
+                st = RobotState.from_bytes((await asyncio.wait_for(sub.recv(), 10))[1])
+                seen += [(e.signal, e.on) for e in st.changes]
+                times += [e.t_s for e in st.changes]
+            assert seen == [(7, True), (2003, True), (2, True), (1001, True), (7, False)]
+            assert times == sorted(times) and times[0] >= acks[0].t_start_s - 0.002
+            while st.hand != "closed" or 7 in st.outputs_on:
+                st = RobotState.from_bytes((await asyncio.wait_for(sub.recv(), 10))[1])
+            assert (st.outputs_on, st.inputs_on, st.soft_on) == ((2,), (1001,), (2003,))
+            await c.close()
