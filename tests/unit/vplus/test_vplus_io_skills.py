@@ -176,3 +176,40 @@ def test_argument_count_from_rs_xn_when_the_executor_gives_it(emu):
     i = g["rs.ohead"]
     ack = parse_ack((g["$rs.oa"][i] + g["$rs.ob"][i]).encode("ascii"))
     assert ack.extra == ("0",), "rs.xn = 1: one signal read"
+
+
+def test_wait_sig_in_v_plus_wakes_on_the_hands_switch():
+    src = """
+.PROGRAM t()
+	PARAMETER HAND.TIME = 0
+	t0 = TIMER(-3)
+	CLOSEI
+	WAIT SIG(1001)
+	t1 = TIMER(-3)
+.END
+"""
+    e = Emulator.from_source(src, strict=True)
+    e.call("t")
+    travel = e.controller.io.hand.travel_s
+    assert travel <= e.globals["t1"] - e.globals["t0"] <= travel + 0.017, "woken within one cycle of the switch"
+
+
+def test_deferred_open_acts_as_the_following_motion_starts():
+    """MOVE a; OPEN; MOVE b: with forward processing a has started already, so OPEN acts as b starts."""
+    src = """
+.PROGRAM t()
+	MOVE #PPOINT(20,-90,180,0,90,0)
+	OPEN
+	x = SIG(1)
+	MOVE #PPOINT(0,-90,180,0,90,0)
+	t1 = TIMER(-3)
+	BREAK
+.END
+"""
+    e = Emulator.from_source(src, strict=True)
+    e.call("t")
+    assert e.globals["x"] == 0.0, "OPEN acted before the next motion"
+    opened = next(c.t_s for c in e.controller.io.changes_since(0)[0] if c.signal == 1 and c.on)
+    # the second MOVE returns as its motion starts (forward processing): that is when OPEN acted
+    assert opened > 0.0 and opened == pytest.approx(e.globals["t1"], abs=2e-3)
+    assert e.controller.io.hand_state(e.time_s).value == "open"
