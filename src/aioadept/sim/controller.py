@@ -2,8 +2,8 @@
 
 Pure: no sockets, no clock. The TCP adapter (:mod:`aioadept.sim.server`) feeds it lines with the time they were
 read and calls :meth:`Controller.step` when :meth:`Controller.next_wake_s` says something is due; tests do the
-same with a fake clock. (Over 500 lines because it is the one robot model: executor, stop and motion together.) Each call returns the acks to write, each addressed to the connection that sent the
-command::
+same with a fake clock. (Over 500 lines because it is the one robot model: executor, stop and motion together.)
+Each call returns the acks to write, each addressed to the connection that sent the command::
 
     ctl = Controller()
     ctl.connect("a")

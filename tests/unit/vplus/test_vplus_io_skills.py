@@ -152,9 +152,9 @@ def test_emulator_instructions_on_the_shared_model():
     assert e.controller.io.hand_time_s == pytest.approx(0.2)
 
 
-@pytest.mark.parametrize("line, code", [("SIGNAL 1001", ErrorCode.ILLEGAL_SIGNAL), ("SIGNAL 3000", ErrorCode.ILLEGAL_SIGNAL),
-                                        ("x = SIG(600)", ErrorCode.ILLEGAL_SIGNAL),
-                                        ("PARAMETER HAND.TIME = -1", ErrorCode.ILLEGAL_VALUE)])
+@pytest.mark.parametrize("line, code", [
+    ("SIGNAL 1001", ErrorCode.ILLEGAL_SIGNAL), ("SIGNAL 3000", ErrorCode.ILLEGAL_SIGNAL),
+    ("x = SIG(600)", ErrorCode.ILLEGAL_SIGNAL), ("PARAMETER HAND.TIME = -1", ErrorCode.ILLEGAL_VALUE)])
 def test_emulator_io_errors(line, code):
     e = Emulator.from_source(f".PROGRAM t()\n\t{line}\n.END\n", strict=True)
     with pytest.raises(VPlusError) as info:
