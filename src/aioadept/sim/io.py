@@ -143,7 +143,8 @@ class Hand:
         self._pos0 = 0.0                            # position at _t0
         self._t0 = 0.0
 
-    def _goal(self) -> float | None:
+    def goal(self) -> float | None:
+        """Where the valves drive the fingers (0 open .. 1 closed; short of 1 on a part), None when relaxed."""
         if self.drive is HandState.OPEN:
             return 0.0
         if self.drive is HandState.CLOSED:
@@ -151,7 +152,7 @@ class Hand:
         return None
 
     def position(self, t_s: float) -> float:
-        goal = self._goal()
+        goal = self.goal()
         if goal is None:
             return self._pos0
         if self.travel_s <= 0:
@@ -163,7 +164,7 @@ class Hand:
 
     def arrival_s(self) -> float | None:
         """When the fingers reach their goal (None: relaxed, no goal)."""
-        goal = self._goal()
+        goal = self.goal()
         if goal is None:
             return None
         return self._t0 + abs(goal - self._pos0) * self.travel_s
@@ -373,7 +374,7 @@ class DigitalIO:
         self._switch_at = None
         if not fully and self.hand.drive is HandState.CLOSED:
             arrival = self.hand.arrival_s()
-            if arrival is not None and self.hand._goal() == 1.0:
+            if arrival is not None and self.hand.goal() == 1.0:
                 self._switch_at = arrival
 
     # -- time ----------------------------------------------------------------------------------------------
