@@ -5,11 +5,13 @@ from __future__ import annotations
 import math
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as hst
 
 from aioadept.errors import RobotError
 from aioadept.protocol import ErrorCode, Status
 from aioadept.sim.controller import Controller
-from aioadept.sim.io import DigitalIO, HandConfig, HandState, signal_kind
+from aioadept.sim.io import DigitalIO, HandConfig, HandState, SignalKind, signal_kind
 
 HOME = (0.0, -90.0, 180.0, 0.0, 90.0, 0.0)
 
@@ -194,3 +196,46 @@ def test_state_snapshot_carries_io_and_hand():
     st = r.ctl.state(1.0)
     assert st.air and st.io is not None
     assert (st.io.outputs_on, st.io.inputs_on, st.io.soft_on, st.io.hand) == ((2, 8), (1001,), (2001,), "closed")
+
+
+# -- a property: the model agrees with a plain dict, and its log replays to its state -------------------------
+
+_nums = hst.one_of(hst.integers(-2600, 2600), hst.sampled_from([1, -1, 2, -2, 8, -8, 1001, -1001, 2001, -2512]))
+_ops = hst.lists(hst.tuples(hst.sampled_from(["signal", "input", "hand"]), hst.lists(_nums, min_size=1, max_size=4),
+                            hst.sampled_from(["open", "close", "relax"])), max_size=30)
+
+
+@settings(max_examples=200, deadline=None)
+@given(ops=_ops)
+def test_signal_log_replays_to_the_state_and_refusals_change_nothing(ops):
+    io = DigitalIO(HandConfig(closed_switch=None))   # no switch: inputs change only through set_input here
+    ref: dict[int, bool] = {}
+    t = 0.0
+    for kind, nums, action in ops:
+        t += 0.01
+        if kind == "signal":
+            ok = all(n != 0 and signal_kind(n) in (SignalKind.OUTPUT, SignalKind.SOFT) for n in nums)
+            try:
+                io.signal(nums, t)
+                assert ok, nums
+                ref.update({abs(n): n > 0 for n in nums})
+            except RobotError:
+                assert not ok, nums
+        elif kind == "input":
+            n = nums[0]
+            ok = n > 0 and signal_kind(n) is SignalKind.INPUT
+            try:
+                io.set_input(n, True, t)
+                assert ok, n
+                ref[n] = True
+            except RobotError:
+                assert not ok, n
+        else:
+            io.hand_now(action, t)
+            ref.update({1: action == "open", 2: action == "close"})
+        assert {n for n, on in io.values.items() if on} == {n for n, on in ref.items() if on}
+    replay: dict[int, bool] = {}
+    for c in io.changes_since(0)[0]:
+        assert replay.get(c.signal, False) != c.on, "a logged change that changed nothing"
+        replay[c.signal] = c.on
+    assert {n for n, on in replay.items() if on} == {n for n, on in ref.items() if on}
