@@ -20,6 +20,7 @@ from aioadept.commands import (
     SetSpeed,
     Skill,
 )
+from aioadept.commands import CloseHand, OpenHand, RelaxHand, Sig, Signal, WaitSig  # digital I/O and the hand
 from aioadept.geometry import Pose
 
 __version__ = "0.1.0"
@@ -27,4 +28,5 @@ __version__ = "0.1.0"
 __all__ = [
     "Break", "Command", "DisableAir", "EnableAir", "Here", "Joined", "MoveJoints", "MoveRelJoints", "MoveRelTool",
     "MoveRelWorld", "MoveTo", "MoveToolZ", "Pose", "SetSpeed", "Skill", "__version__",
+    "CloseHand", "OpenHand", "RelaxHand", "Sig", "Signal", "WaitSig",
 ]

@@ -234,6 +234,132 @@ class Here(_NoArgs):
     skill = "here"
 
 
+# -- digital I/O and the hand (docs/protocol.md; the servers' model: aioadept.sim.io) -----------------------------
+
+SIGNAL_RANGES = {"output": range(1, 513), "input": range(1001, 1513), "soft": range(2001, 2513)}
+"""V+ signal numbers: digital outputs, digital inputs, internal soft signals (a server answers any other number,
+or one of the wrong kind, with ILLEGAL_SIGNAL)."""
+MAX_SIGNALS = 16
+"""Most signal numbers in one ``signal``/``sig`` (the V+ server's argument limit)."""
+MAX_WAIT_S = 3600.0
+"""Longest ``wait_sig`` timeout a server accepts (s)."""
+
+
+def _signal_kind(n: int) -> str | None:
+    return next((kind for kind, rng in SIGNAL_RANGES.items() if abs(n) in rng), None)
+
+
+def _signals(name: str, nums: Sequence[int], kinds: tuple[str, ...]) -> tuple[int, ...]:
+    if not 1 <= len(nums) <= MAX_SIGNALS:
+        raise ValueError(f"{name}: 1 to {MAX_SIGNALS} signal numbers, got {len(nums)}")
+    out = []
+    for i, n in enumerate(nums):
+        if isinstance(n, bool) or not isinstance(n, numbers.Real) or not math.isfinite(n) or n != int(n):
+            raise ValueError(f"{name}[{i}]: {n!r} is not an integer signal number")
+        n = int(n)
+        kind = _signal_kind(n)
+        if kind is None:
+            raise ValueError(f"{name}[{i}]: no signal {abs(n)} (outputs 1-512, inputs 1001-1512, soft 2001-2512)")
+        if kind not in kinds:
+            raise ValueError(f"{name}[{i}]: signal {abs(n)} is an {kind}; {name} takes {' or '.join(kinds)} signals")
+        out.append(n)
+    return tuple(out)
+
+
+class Signal(Command):
+    """Switch outputs (1-512) and soft signals (2001-2512): n on, -n off, as V+ ``SIGNAL``. Skill ``signal``.
+
+    ``Signal(8, -3)`` turns output 8 on and 3 off. An input (1001-1512) or a number that is no signal raises
+    ``ValueError`` here, before anything is sent."""
+
+    __slots__ = ()
+
+    def __init__(self, *signals: int) -> None:
+        self._init((SkillCall("signal", _signals("signals", signals, ("output", "soft"))),))
+
+    @property
+    def signals(self) -> tuple[int, ...]:
+        return self._calls[0].args  # type: ignore[return-value]
+
+    def __repr__(self) -> str:
+        return f"Signal({', '.join(map(str, self.signals))})"
+
+
+class Sig(Command):
+    """Read signals, as V+ ``SIG()`` of each: the ack carries one state per number after the pose (-1 if the
+    signal is on, or off for -n; else 0). :meth:`states` reads them from the ack. Skill ``sig``."""
+
+    __slots__ = ()
+
+    def __init__(self, *signals: int) -> None:
+        self._init((SkillCall("sig", _signals("signals", signals, tuple(SIGNAL_RANGES))),))
+
+    @property
+    def signals(self) -> tuple[int, ...]:
+        return self._calls[0].args  # type: ignore[return-value]
+
+    @staticmethod
+    def states(ack: object) -> tuple[bool, ...]:
+        """The states a ``sig`` ack carries (True where SIG(n) is TRUE); ValueError if it carries none."""
+        extra = getattr(ack, "extra", ())
+        if not extra or not extra[0]:
+            raise ValueError("the ack carries no signal states")
+        return tuple(v.strip() == "-1" for v in extra[0].split(","))
+
+    def __repr__(self) -> str:
+        return f"Sig({', '.join(map(str, self.signals))})"
+
+
+class WaitSig(Command):
+    """Wait until an input (1001-1512) or soft signal (2001-2512) is on (off for a negative number), at most
+    ``timeout_s`` seconds; the server answers an error ack (SIGNAL_TIMEOUT) on timeout. Skill ``wait_sig``."""
+
+    __slots__ = ()
+
+    def __init__(self, signal: int, timeout_s: float) -> None:
+        (n,) = _signals("signal", (signal,), ("input", "soft"))
+        if isinstance(timeout_s, bool) or not isinstance(timeout_s, numbers.Real):
+            raise ValueError(f"timeout_s: {timeout_s!r} is not a number")
+        t = float(timeout_s)
+        if not (math.isfinite(t) and 0 < t <= MAX_WAIT_S):
+            raise ValueError(f"timeout_s: {timeout_s!r} is outside (0, {MAX_WAIT_S:g}] s")
+        self._init((SkillCall("wait_sig", (n, t)),))
+
+    @property
+    def signal(self) -> int:
+        return int(self._calls[0].args[0])
+
+    @property
+    def timeout_s(self) -> float:
+        return float(self._calls[0].args[1])
+
+    def __repr__(self) -> str:
+        return f"WaitSig({self.signal}, {self.timeout_s:g})"
+
+
+class OpenHand(_NoArgs):
+    """Open the hand now (V+ ``OPENI``): the server waits for the arm to be at rest, switches the hand and acks
+    after ``HAND.TIME``. Skill ``open_hand``."""
+
+    __slots__ = ()
+    skill = "open_hand"
+
+
+class CloseHand(_NoArgs):
+    """Close the hand now (V+ ``CLOSEI``; see :class:`OpenHand`). Whether it closed on a part shows on the
+    gripper's closed-fully switch (an input): ``WaitSig(-1001, t)`` or ``Sig(1001)``. Skill ``close_hand``."""
+
+    __slots__ = ()
+    skill = "close_hand"
+
+
+class RelaxHand(_NoArgs):
+    """Relax the hand now: both valves off (V+ ``RELAXI``; see :class:`OpenHand`). Skill ``relax_hand``."""
+
+    __slots__ = ()
+    skill = "relax_hand"
+
+
 class Skill(Command):
     """Any user-defined skill: a V+ program name (≤ 15 chars) and numeric arguments.
 

@@ -149,6 +149,8 @@ def expected_nargs() -> dict[str, set[int]]:
     out: dict[str, set[int]] = {}
     for spec in default_skills():
         counts = getattr(spec, "nargs", None) or getattr(spec, "arg_counts", None)
+        if counts is None and hasattr(spec, "nargs"):
+            counts = (-1,)  # any count (signal, sig): rs.addskill's -1
         if counts is None:
             counts = next((v for v in vars(spec).values() if isinstance(v, tuple)
                            and all(isinstance(x, int) for x in v)), None)
@@ -455,7 +457,7 @@ def expected_entry(line: bytes, table: dict[str, set[int]]) -> tuple:
         return ("stop", msg.id) if not msg.args else ("error", msg.id, int(ErrorCode.WRONG_ARGUMENT_COUNT))
     if msg.skill not in table:
         return ("error", msg.id, int(ErrorCode.UNKNOWN_SKILL))
-    if len(msg.args) not in table[msg.skill]:
+    if -1 not in table[msg.skill] and len(msg.args) not in table[msg.skill]:  # -1: any count (signal, sig)
         return ("error", msg.id, int(ErrorCode.WRONG_ARGUMENT_COUNT))
     return ("cmd", msg.id, msg.skill, tuple(float(a) for a in msg.args))
 
@@ -513,6 +515,9 @@ BAD_LINES = [
     b"eae86869:set_speed:.", b"eae86869:a:b:c", b"eae86869:stop:1", b":break", b"eae8686!:break",
     b"eae86869:move_to:" + b",".join([b"1"] * 20), b"eae86869:move_to:" + b",".join([b"1"] * 17) + b",x",
     b"eae86869:abcdefghijklmnop", b"eae86869:abcdefghijklmno", b"EAE86869:here", b"eae86869:here ",
+    # the I/O skills: any count for signal/sig (-1 in the table), two for wait_sig, none for the hand
+    b"eae86869:signal", b"eae86869:signal:1,-2,2001", b"eae86869:sig:" + b",".join([b"1"] * 17),
+    b"eae86869:wait_sig:1001", b"eae86869:wait_sig:1001,2", b"eae86869:close_hand:1",
 ]
 
 

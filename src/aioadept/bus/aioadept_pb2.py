@@ -24,7 +24,7 @@ _sym_db = _symbol_database.Default()
 
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x0e\x61ioadept.proto\x12\x08\x61ioadept\"\xc4\x01\n\nRobotState\x12\x0b\n\x03t_s\x18\x01 \x02(\x01\x12\x13\n\x0bwall_time_s\x18\x02 \x02(\x01\x12\x16\n\njoints_deg\x18\x03 \x03(\x01\x42\x02\x10\x01\x12\t\n\x01x\x18\x04 \x02(\x01\x12\t\n\x01y\x18\x05 \x02(\x01\x12\t\n\x01z\x18\x06 \x02(\x01\x12\x0b\n\x03yaw\x18\x07 \x02(\x01\x12\r\n\x05pitch\x18\x08 \x02(\x01\x12\x0c\n\x04roll\x18\t \x02(\x01\x12\x11\n\tin_motion\x18\n \x01(\x08\x12\x11\n\tspeed_pct\x18\x0b \x01(\x05\x12\x0b\n\x03\x61ir\x18\x0c \x01(\x08')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x0e\x61ioadept.proto\x12\x08\x61ioadept\"\xbf\x02\n\nRobotState\x12\x0b\n\x03t_s\x18\x01 \x02(\x01\x12\x13\n\x0bwall_time_s\x18\x02 \x02(\x01\x12\x16\n\njoints_deg\x18\x03 \x03(\x01\x42\x02\x10\x01\x12\t\n\x01x\x18\x04 \x02(\x01\x12\t\n\x01y\x18\x05 \x02(\x01\x12\t\n\x01z\x18\x06 \x02(\x01\x12\x0b\n\x03yaw\x18\x07 \x02(\x01\x12\r\n\x05pitch\x18\x08 \x02(\x01\x12\x0c\n\x04roll\x18\t \x02(\x01\x12\x11\n\tin_motion\x18\n \x01(\x08\x12\x11\n\tspeed_pct\x18\x0b \x01(\x05\x12\x0b\n\x03\x61ir\x18\x0c \x01(\x08\x12\x16\n\noutputs_on\x18\r \x03(\x05\x42\x02\x10\x01\x12\x15\n\tinputs_on\x18\x0e \x03(\x05\x42\x02\x10\x01\x12\x13\n\x07soft_on\x18\x0f \x03(\x05\x42\x02\x10\x01\x12\x0c\n\x04hand\x18\x10 \x01(\t\x12\'\n\x07\x63hanges\x18\x11 \x03(\x0b\x32\x16.aioadept.SignalChange\"7\n\x0cSignalChange\x12\x0b\n\x03t_s\x18\x01 \x02(\x01\x12\x0e\n\x06signal\x18\x02 \x02(\x05\x12\n\n\x02on\x18\x03 \x02(\x08')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
@@ -33,6 +33,14 @@ if not _descriptor._USE_C_DESCRIPTORS:
   DESCRIPTOR._loaded_options = None
   _globals['_ROBOTSTATE'].fields_by_name['joints_deg']._loaded_options = None
   _globals['_ROBOTSTATE'].fields_by_name['joints_deg']._serialized_options = b'\020\001'
+  _globals['_ROBOTSTATE'].fields_by_name['outputs_on']._loaded_options = None
+  _globals['_ROBOTSTATE'].fields_by_name['outputs_on']._serialized_options = b'\020\001'
+  _globals['_ROBOTSTATE'].fields_by_name['inputs_on']._loaded_options = None
+  _globals['_ROBOTSTATE'].fields_by_name['inputs_on']._serialized_options = b'\020\001'
+  _globals['_ROBOTSTATE'].fields_by_name['soft_on']._loaded_options = None
+  _globals['_ROBOTSTATE'].fields_by_name['soft_on']._serialized_options = b'\020\001'
   _globals['_ROBOTSTATE']._serialized_start=29
-  _globals['_ROBOTSTATE']._serialized_end=225
+  _globals['_ROBOTSTATE']._serialized_end=348
+  _globals['_SIGNALCHANGE']._serialized_start=350
+  _globals['_SIGNALCHANGE']._serialized_end=405
 # @@protoc_insertion_point(module_scope)

@@ -32,6 +32,7 @@ __all__ = [
     "EventMessage",
     "ImageMessage",
     "RobotState",
+    "SignalEvent",
     "ROBOT_STATE_TOPIC",
     "INT32_MIN",
     "INT32_MAX",
@@ -294,6 +295,15 @@ ROBOT_STATE_TOPIC = b"robot.state"
 
 
 @dataclass(frozen=True, slots=True)
+class SignalEvent:
+    """One change of one digital signal in a :class:`RobotState`: at server time ``t_s``, ``signal`` became ``on``."""
+
+    t_s: float
+    signal: int
+    on: bool
+
+
+@dataclass(frozen=True, slots=True)
 class RobotState:
     """One sample of the robot's state, as the sim publishes it on ``robot.state`` (docs/interfaces.md).
 
@@ -309,10 +319,20 @@ class RobotState:
     in_motion: bool = False
     speed_pct: int = 100
     air: bool = False
+    outputs_on: tuple[int, ...] = ()
+    """Digital I/O and the hand: the signal numbers that are on, by kind, the gripper's state ("" if unknown),
+    and each signal change since the previous sample (docs/sim.md)."""
+    inputs_on: tuple[int, ...] = ()
+    soft_on: tuple[int, ...] = ()
+    hand: str = ""
+    changes: tuple[SignalEvent, ...] = ()
 
     def __post_init__(self) -> None:
         # Normalise so that a state equals its own round trip (ints in, floats back).
         object.__setattr__(self, "joints_deg", tuple(float(j) for j in self.joints_deg))
+        for name in ("outputs_on", "inputs_on", "soft_on"):
+            object.__setattr__(self, name, tuple(int(n) for n in getattr(self, name)))
+        object.__setattr__(self, "changes", tuple(self.changes))
 
     def to_bytes(self) -> bytes:
         """Serialise as ``aioadept.RobotState``; non-finite times or a speed outside int32 raise BusEncodeError."""
@@ -327,7 +347,12 @@ class RobotState:
             joints_deg=[float(j) for j in self.joints_deg],
             x=p.x, y=p.y, z=p.z, yaw=p.yaw, pitch=p.pitch, roll=p.roll,
             in_motion=bool(self.in_motion), speed_pct=speed, air=bool(self.air),
+            outputs_on=self.outputs_on, inputs_on=self.inputs_on, soft_on=self.soft_on,
+            changes=[aioadept_pb2.SignalChange(t_s=float(c.t_s), signal=int(c.signal), on=bool(c.on))
+                     for c in self.changes],
         )
+        if self.hand:
+            pb.hand = self.hand
         return pb.SerializeToString()
 
     @classmethod
@@ -343,4 +368,6 @@ class RobotState:
             t_s=pb.t_s, wall_time_s=pb.wall_time_s, joints_deg=tuple(pb.joints_deg),
             pose=Pose(pb.x, pb.y, pb.z, pb.yaw, pb.pitch, pb.roll),
             in_motion=pb.in_motion, speed_pct=pb.speed_pct, air=pb.air,
+            outputs_on=tuple(pb.outputs_on), inputs_on=tuple(pb.inputs_on), soft_on=tuple(pb.soft_on),
+            hand=pb.hand, changes=tuple(SignalEvent(c.t_s, c.signal, c.on) for c in pb.changes),
         )

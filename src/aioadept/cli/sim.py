@@ -36,6 +36,19 @@ def _jump_limit(text: str) -> kin.JumpLimit | None:
         raise argparse.ArgumentTypeError(f"expected FLOOR,PER_MM,PER_DEG (three numbers >= 0) or 'off', got {text!r}") from exc
 
 
+def _hand(text: str):  # -> aioadept.sim.io.HandConfig
+    from aioadept.sim.io import HandConfig
+
+    try:
+        vals = [float(v) for v in text.split(",")]
+        if len(vals) not in (3, 4) or any(v != int(v) for v in vals[:3]):
+            raise ValueError("expected OPEN,CLOSE,SWITCH[,CLOSE_TIME_S] (signal numbers; SWITCH 0 = none)")
+        return HandConfig(int(vals[0]), int(vals[1]), int(vals[2]) or None,
+                          *(vals[3:] if len(vals) == 4 else ()))
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"--hand {text!r}: {exc}") from None
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="aioadept sim", description=description(__doc__),
                                 formatter_class=DefaultsHelpFormatter)
@@ -83,6 +96,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="TOOL transform (mm, degrees); default NULL")
     p.add_argument("--joints", type=_six, default=None, metavar="J1,...,J6",
                    help="initial joint angles in degrees (default: home 0,-90,180,0,90,0)")
+    p.add_argument("--hand", type=_hand, default=None, metavar="OPEN,CLOSE,SWITCH[,CLOSE_TIME_S]",
+                   help="the hand's open and close valve outputs and closed-fully switch input (0: none), and its "
+                        "travel time; default 1,2,1001,0.04")
+    p.add_argument("--hand-time", type=float, default=None, dest="hand_time", metavar="SECONDS",
+                   help="V+ HAND.TIME: how long open_hand/close_hand/relax_hand hold (a V+ program's PARAMETER "
+                        "HAND.TIME overrides it); default 0.05")
     p.add_argument("--log-level", default="WARNING", dest="log_level", help="logging level on stderr")
     v = p.add_argument_group("V+ emulator (instead of the Python skill table; docs/vplus.md)")
     v.add_argument("--vplus", nargs="+", metavar="FILE", default=None,
@@ -130,6 +149,14 @@ def options_from_args(args: argparse.Namespace) -> SimOptions:
     extra = {}
     if args.joints is not None:
         extra["joints_deg"] = args.joints
+    if args.hand is not None:
+        extra["hand"] = args.hand
+    if args.hand_time is not None:
+        from aioadept.sim.io import MAX_HAND_TIME_S
+
+        if not 0 <= args.hand_time <= MAX_HAND_TIME_S:
+            raise ValueError(f"--hand-time {args.hand_time:g}: outside 0..{MAX_HAND_TIME_S:g} s")
+        extra["hand_time_s"] = args.hand_time
     return SimOptions(host=args.host, port=args.port, stop_port=stop_port_of(args.stop_port, args.port),
                       time_scale=args.time_scale, instant=args.instant,
                       monitor_speed_pct=args.monitor_speed, max_speed_pct=args.max_speed,

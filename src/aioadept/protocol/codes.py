@@ -25,6 +25,11 @@ class ErrorCode(IntEnum):
     """The skill takes another number of arguments."""
     ILLEGAL_VALUE = -410
     """An argument is not a finite decimal number, or is out of its range (e.g. speed outside 0..100)."""
+    ILLEGAL_SIGNAL = -411
+    """A signal number that is no signal of the controller (outputs 1-512, inputs 1001-1512, soft 2001-2512), or
+    of the wrong kind (an input given to ``signal``). A sim code; V+'s own number was not confirmed."""
+    SIGNAL_TIMEOUT = -1110
+    """``wait_sig``: the signal did not reach the state asked for within the timeout. A sim code."""
     OUT_OF_REACH = -610
     """The target location is outside the robot's workspace ("location out of range")."""
     JOINT_LIMIT = -1003
@@ -45,6 +50,8 @@ DEFAULT_TEXT: dict[ErrorCode, str] = {
     ErrorCode.UNKNOWN_SKILL: "undefined skill",
     ErrorCode.WRONG_ARGUMENT_COUNT: "wrong number of arguments",
     ErrorCode.ILLEGAL_VALUE: "illegal value",
+    ErrorCode.ILLEGAL_SIGNAL: "illegal digital signal",
+    ErrorCode.SIGNAL_TIMEOUT: "signal wait timed out",
     ErrorCode.OUT_OF_REACH: "location out of range",
     ErrorCode.JOINT_LIMIT: "joint limit",
     ErrorCode.JOINT_JUMP: "joint jump",

@@ -2,8 +2,8 @@
 
 Pure: no sockets, no clock. The TCP adapter (:mod:`aioadept.sim.server`) feeds it lines with the time they were
 read and calls :meth:`Controller.step` when :meth:`Controller.next_wake_s` says something is due; tests do the
-same with a fake clock. Each call returns the acks to write, each addressed to the connection that sent the
-command::
+same with a fake clock. (Over 500 lines because it is the one robot model: executor, stop and motion together.)
+Each call returns the acks to write, each addressed to the connection that sent the command::
 
     ctl = Controller()
     ctl.connect("a")
@@ -69,6 +69,7 @@ from aioadept.protocol import (
     recover_id,
 )
 from aioadept.robots import viper_s850 as kin
+from aioadept.sim.io import DigitalIO, IoSnapshot
 from aioadept.sim.motion import MotionLimits, Trajectory
 
 # The table's names, re-exported: their old import path.
@@ -116,6 +117,7 @@ class ControllerState:
     in_motion: bool
     speed_pct: float
     air: bool
+    io: IoSnapshot | None = None  # the signals that are on and the hand (aioadept.sim.io)
 
 
 class Controller:
@@ -127,7 +129,7 @@ class Controller:
                  max_queued_per_conn: int = 10_000, skills: Iterable[SkillSpec] | None = None,
                  version: str | None = None, max_speed_pct: float = 100.0,
                  min_speed_pct: float = MIN_SPEED_PCT,
-                 jump_limit: kin.JumpLimit | None = kin.DEFAULT_JUMP_LIMIT) -> None:
+                 jump_limit: kin.JumpLimit | None = kin.DEFAULT_JUMP_LIMIT, io: DigitalIO | None = None) -> None:
         if not 0 < monitor_speed_pct <= 100:
             raise ValueError(f"monitor_speed_pct: {monitor_speed_pct} outside (0, 100]")
         if not 0 < max_speed_pct <= 100:
@@ -150,7 +152,8 @@ class Controller:
         self.always_speed_pct = 100.0
         self.pending_speed_pct: float | None = None
         self.accel_pct = 100.0
-        self.signals: dict[int, bool] = {}
+        self.io = (io or DigitalIO()).scaled(time_scale, instant)  # digital I/O and the hand: the one model
+        self.signals = self.io.values  # signal states by number: read them; change them through self.io
         self.now_s = 0.0
         """The time of the event being processed (a skill reads it as 'now')."""
         if version is None:
@@ -378,7 +381,7 @@ class Controller:
         self._queued_by_conn.clear()
         for e in stops:
             self._queued_by_conn[e.conn] = self._queued_by_conn.get(e.conn, 0) + 1
-        self.pending_speed_pct = None
+        self.pending_speed_pct = self.io.pending_hand = None  # nor does a deferred OPEN/CLOSE act after a stop
         self.trajectory.stop(now)
         stop_entry = _Entry(entry.conn, entry.id, now, _STOP_RUN)
         if self._running is None and not stops:
@@ -453,7 +456,7 @@ class Controller:
         if speed is None:
             speed = (self.pending_speed_pct or self.always_speed_pct) * self.monitor_speed_pct / 100.0
         return ControllerState(t_s, joints, self._forward(joints), self.trajectory.in_motion(t_s),
-                               float(speed), self.air)
+                               float(speed), self.air, self.io.snapshot(t_s))
 
     def take_speed_pct(self) -> float:
         """The effective speed (program x monitor, at most ``max_speed_pct``) for the next motion; consumes a
@@ -477,6 +480,7 @@ class Controller:
                 break
             yield ready
         self.trajectory.add(target, self.now_s, speed_pct=speed, accel_pct=self.accel_pct)
+        self.io.motion_started(self.now_s)  # a deferred OPEN/CLOSE/RELAX acts as the motion starts
         return None
 
     def move_pose(self, pose: Pose) -> SkillGen:

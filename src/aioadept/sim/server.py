@@ -38,6 +38,7 @@ from aioadept.protocol import (
 )
 from aioadept.robots import viper_s850 as kin
 from aioadept.sim.controller import Controller, Outgoing
+from aioadept.sim.io import HAND_TIME_S, DigitalIO, HandConfig
 
 log = logging.getLogger(__name__)
 
@@ -132,6 +133,10 @@ class SimOptions:
     faults: Faults = field(default_factory=Faults)
     tool: Pose = NULL
     joints_deg: tuple[float, ...] = kin.HOME_JOINTS_DEG
+    hand: HandConfig = HandConfig()
+    """Where the hand is wired (valve outputs, closed-fully switch) and its travel time (aioadept.sim.io)."""
+    hand_time_s: float = HAND_TIME_S
+    """HAND.TIME at start (a V+ program's PARAMETER HAND.TIME changes it)."""
 
     def __post_init__(self) -> None:
         if not self.time_scale > 0:
@@ -161,7 +166,8 @@ class SimOptions:
         """The one robot model these options describe (both sim backends build it here)."""
         return Controller(joints_deg=self.joints_deg, tool=self.tool, monitor_speed_pct=self.monitor_speed_pct,
                           time_scale=self.time_scale, instant=self.instant, max_speed_pct=self.max_speed_pct,
-                          jump_limit=self.jump_limit, max_queued_per_conn=self.max_queued)
+                          jump_limit=self.jump_limit, max_queued_per_conn=self.max_queued,
+                          io=DigitalIO(self.hand, hand_time_s=self.hand_time_s))
 
 
 class _NotAStop(Exception):
@@ -225,6 +231,7 @@ class SimServer:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._t0 = 0.0
         self._wall0 = 0.0
+        self._io_cursor = [0]  # the state stream sends each signal change once (robot_state_sample)
         self._conns: dict[int, _Conn] = {}
         self._handlers: set[asyncio.Task[None]] = set()
         self._timer: asyncio.TimerHandle | None = None
@@ -620,7 +627,7 @@ class SimServer:
     # -- state stream -------------------------------------------------------------------------------------
     def robot_state(self):  # -> aioadept.bus.messages.RobotState
         """The state sample for now (what the stream publishes)."""
-        return robot_state_sample(self.controller, self.now(), self._wall0)
+        return robot_state_sample(self.controller, self.now(), self._wall0, self._io_cursor)
 
     def _publish_state_now(self) -> None:
         from aioadept.bus.messages import ROBOT_STATE_TOPIC
@@ -636,15 +643,27 @@ class SimServer:
         await publish_robot_states(self._publisher, self.robot_state, self.options.state_rate_hz)
 
 
-def robot_state_sample(controller: Controller, now: float, wall0: float):  # -> aioadept.bus.messages.RobotState
+def robot_state_sample(controller: Controller, now: float, wall0: float,
+                       io_cursor: list[int] | None = None):  # -> aioadept.bus.messages.RobotState
     """The state-stream sample of ``controller`` at server time ``now`` (``wall0``: wall time at server time 0).
-    Shared by :class:`SimServer` and the V+ emulator backend (``aioadept sim --vplus``)."""
-    from aioadept.bus.messages import RobotState
+    Shared by :class:`SimServer` and the V+ emulator backend (``aioadept sim --vplus``).
+
+    ``io_cursor`` (a one-element list, the publisher's own): the sample carries every signal change after
+    ``io_cursor[0]``, which moves on, so that each change goes out once, with its own time."""
+    from aioadept.bus.messages import RobotState, SignalEvent
 
     st = controller.state(now)
     program_speed = st.speed_pct * 100.0 / controller.monitor_speed_pct
+    io = st.io
+    changes: tuple = ()
+    if io_cursor is not None:
+        new, io_cursor[0] = controller.io.changes_since(io_cursor[0])
+        changes = tuple(SignalEvent(c.t_s, c.signal, c.on) for c in new)
+    extra = {} if io is None else dict(outputs_on=io.outputs_on, inputs_on=io.inputs_on, soft_on=io.soft_on,
+                                       hand=io.hand)
     return RobotState(t_s=now, wall_time_s=wall0 + now, joints_deg=st.joints_deg, pose=st.pose,
-                      in_motion=st.in_motion, speed_pct=int(round(program_speed)), air=st.air)
+                      in_motion=st.in_motion, speed_pct=int(round(program_speed)), air=st.air,
+                      changes=changes, **extra)
 
 
 async def publish_robot_states(publisher: Any, sample: Callable[[], Any], rate_hz: float) -> None:

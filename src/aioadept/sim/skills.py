@@ -1,6 +1,6 @@
 """The simulated controller's skill table: the AdeptServer skills (``move_to``, ``break``, ``set_speed``, ...) and
-our extensions (``stop``, ``here``, ``hello``), the value checks they make before anything moves, and the types of
-a table entry (:class:`SkillSpec`, :class:`SkillResult`).
+our extensions (``stop``, ``here``, ``hello``; the digital I/O and hand skills, in their own block), the value
+checks they make before anything moves, and the types of a table entry (:class:`SkillSpec`, :class:`SkillResult`).
 
 A skill is ``skill(ctl, args)`` with ``ctl`` the :class:`aioadept.sim.controller.Controller` (not imported here:
 the controller reads this table, never the other way round). :func:`default_skills` is the table a new controller
@@ -17,6 +17,7 @@ from typing import Any, Union
 from aioadept.errors import RobotError
 from aioadept.geometry import Pose, rel_tool, rel_world
 from aioadept.protocol import PROTOCOL_VERSION, STOP_SKILL, ErrorCode
+from aioadept.sim.io import SignalKind, check_nums, signal_kind
 
 SERVER_NAME = "aioadept-sim"
 MIN_SPEED_PCT = 1.0
@@ -130,11 +131,11 @@ def _set_speed(ctl: Any, args: tuple[float, ...]) -> None:
 
 
 def _enable_air(ctl: Any, args: tuple[float, ...]) -> None:
-    ctl.signals[AIR_SIGNAL] = True
+    ctl.io.signal((AIR_SIGNAL,), ctl.now_s)
 
 
 def _disable_air(ctl: Any, args: tuple[float, ...]) -> None:
-    ctl.signals[AIR_SIGNAL] = False
+    ctl.io.signal((-AIR_SIGNAL,), ctl.now_s)
 
 
 def _here(ctl: Any, args: tuple[float, ...]) -> SkillResult:
@@ -159,7 +160,8 @@ _STOP_RUN = SkillSpec(STOP_SKILL, _stop_wait, (0,))
 
 
 def default_skills() -> list[SkillSpec]:
-    """The AdeptServer skills plus our extensions (stop, here, hello)."""
+    """The AdeptServer skills plus our extensions (stop, here, hello; the I/O and hand skills of
+    the block below)."""
     six = (6,)
     return [
         SkillSpec("move_to", _move_to, six),
@@ -174,4 +176,82 @@ def default_skills() -> list[SkillSpec]:
         SkillSpec("here", _here, (0,), readonly=True),
         SkillSpec("hello", _hello, (0,), readonly=True),
         SkillSpec("stop", _stop_placeholder, (0,), immediate=True),
+        *io_skills(),
     ]
+
+
+# -- digital I/O and the hand ----------------------------------------------------------------------------------
+# signal, sig, wait_sig, open_hand, close_hand, relax_hand (docs/protocol.md): a thin wire layer over the
+# controller's aioadept.sim.io.DigitalIO, the model the V+ emulator's instructions drive too (vplus/rsskills.V2 has
+# the same skills for a controller). Values are checked before anything changes: a number that is no signal, or an
+# input given to signal, is ILLEGAL_SIGNAL; a timeout that is not a finite number in (0, MAX_WAIT_S] is
+# ILLEGAL_VALUE; a wait that times out is SIGNAL_TIMEOUT. The hand skills are V+'s immediate forms (OPENI, CLOSEI,
+# RELAXI): they wait for the arm to be at rest, switch the valves and ack after HAND.TIME.
+MAX_WAIT_S = 3600.0
+"""Longest ``wait_sig`` timeout accepted (s): a longer one is a client's mistake that would hold the executor."""
+WAIT_POLL_S = 0.016
+"""How often a waiting ``wait_sig`` looks at its signal again (one V+ trajectory cycle). An input the test API or
+the world drives changes between controller events; the hand's own switch wakes it at the exact time."""
+
+
+def _signal(ctl: Any, args: tuple[float, ...]) -> None:
+    nums = check_nums(args)
+    ctl.io.signal(nums, ctl.now_s)
+
+
+def _sig(ctl: Any, args: tuple[float, ...]) -> SkillResult:
+    nums = check_nums(args)
+    io = ctl.io
+    io.advance(ctl.now_s)
+    # One field after the pose: each SIG(n), -1 (TRUE) or 0, in the order asked, comma-separated.
+    return SkillResult((",".join("-1" if io.state(n) == (n > 0) else "0" for n in nums),))
+
+
+def _wait_sig(ctl: Any, args: tuple[float, ...]) -> SkillGen:
+    n_arg, timeout = args
+    (n,) = check_nums((n_arg,))
+    if signal_kind(n) is SignalKind.OUTPUT:
+        # Only the program itself changes an output, and it is waiting here: such a wait could only time out.
+        raise RobotError(ErrorCode.ILLEGAL_SIGNAL, f"signal {abs(n)} is an output (wait for an input "
+                                                   f"1001-1512 or a soft signal 2001-2512)")
+    if not (math.isfinite(timeout) and 0 < timeout <= MAX_WAIT_S):
+        raise RobotError(ErrorCode.ILLEGAL_VALUE, f"timeout {timeout:.6g} s outside (0, {MAX_WAIT_S:g}]")
+    io = ctl.io
+    end = ctl.now_s + timeout  # server seconds, not scaled: a timeout is the client's wall-clock budget
+    while True:
+        io.advance(ctl.now_s)
+        if io.state(n) == (n > 0):
+            return None
+        if ctl.now_s >= end:
+            raise RobotError(ErrorCode.SIGNAL_TIMEOUT,
+                             f"signal {abs(n)} not {'on' if n > 0 else 'off'} after {timeout:g} s")
+        wake = min(end, ctl.now_s + WAIT_POLL_S)
+        event = io.next_event_s()
+        yield wake if event is None or event <= ctl.now_s else min(wake, event)
+
+
+def _hand(action: str):
+    def skill(ctl: Any, args: tuple[float, ...]) -> SkillGen:
+        # V+ OPENI/CLOSEI/RELAXI: wait for the arm to be at rest (the gripper never acts on a moving arm),
+        # switch the valves, hold for HAND.TIME.
+        yield from ctl.wait_rest()
+        ctl.io.hand_now(action, ctl.now_s)
+        end = ctl.now_s + ctl.io.hand_hold_s()
+        while ctl.now_s < end:
+            yield end
+        return None
+    skill.__name__ = f"_{action}_hand"
+    return skill
+
+
+def io_skills() -> list[SkillSpec]:
+    """The I/O and hand skills of the default table."""
+    return [
+        SkillSpec("signal", _signal, None),
+        SkillSpec("sig", _sig, None),
+        SkillSpec("wait_sig", _wait_sig, (2,)),
+        SkillSpec("open_hand", _hand("open"), (0,)),
+        SkillSpec("close_hand", _hand("close"), (0,)),
+        SkillSpec("relax_hand", _hand("relax"), (0,)),
+    ]
+

@@ -16,6 +16,8 @@ import re
 from collections.abc import Generator
 from typing import Any
 
+from aioadept.errors import RobotError
+from aioadept.protocol import ErrorCode
 from aioadept.vplus import errors as E
 from aioadept.vplus.errors import VPlusError, VPlusHalt
 from aioadept.vplus.runtime import _FB, _GOTO, MAX_STRING, Runtime, Task, _Goto, _Missing, f32
@@ -208,15 +210,30 @@ def _chr(n: float) -> str:
     return chr(k)
 
 
+def _io_error(exc: RobotError) -> VPlusError:
+    """A signal or hand error of the I/O model as the V+ error of the instruction."""
+    if exc.code == ErrorCode.ILLEGAL_SIGNAL:
+        return VPlusError(E.ILLEGAL_SIGNAL, f"{E.text(E.ILLEGAL_SIGNAL)} ({exc.message})")
+    return VPlusError(E.ILLEGAL_VALUE, f"*Illegal value* ({exc.message})")
+
+
 def _sig(rt: Runtime):
     def sig(*nums: float) -> float:
-        for n in nums:
-            k = int(n)
-            on = rt.signals.get(abs(k), False)
-            if (k > 0 and not on) or (k < 0 and on):
-                return 0.0
-        return -1.0
+        # SIG(n, ...): TRUE if every signal is in the state asked for (n < 0: off). Zero is ignored, as before.
+        try:
+            return -1.0 if rt.io.sig([n for n in nums if int(n) != 0], rt.now) else 0.0
+        except RobotError as exc:
+            raise _io_error(exc) from None
     return sig
+
+
+def _bits(rt: Runtime):
+    def bits(first: float, count: float = 1.0) -> float:
+        try:
+            return float(rt.io.bits(first, count, rt.now))
+        except RobotError as exc:
+            raise _io_error(exc) from None
+    return bits
 
 
 def _deg(f):
@@ -294,13 +311,25 @@ def namespace(rt: Runtime) -> dict[str, Any]:
         return s if is_str else _val(s)
 
     def signal(T: Task, nums: tuple) -> None:
-        for n in nums:
-            k = int(n)
-            if 1001 <= abs(k) <= 1512:
-                raise VPlusError(E.ILLEGAL_VALUE, f"*Illegal value* (signal {k} is an input)")
-            if k == 0:
-                continue
-            rt.signals[abs(k)] = k > 0
+        # SIGNAL n, ...: outputs and soft signals (aioadept.sim.io: numbering, the hand's valves, the change
+        # log); an input or a number that is no signal is an error and changes nothing. Zero is ignored.
+        try:
+            rt.io.signal([int(n) for n in nums if int(n) != 0], rt.now)
+        except RobotError as exc:
+            raise _io_error(exc) from None
+
+    def bits_set(T: Task, first: float, count: float, value: float) -> None:
+        try:
+            rt.io.bits_set(first, count, value, rt.now)
+        except RobotError as exc:
+            raise _io_error(exc) from None
+
+    def parameter(T: Task, name: str, value: float) -> None:
+        # PARAMETER HAND.TIME = s (the compiler refuses every other parameter)
+        try:
+            rt.io.set_hand_time(float(value))
+        except RobotError as exc:
+            raise _io_error(exc) from None
 
     def wait_event(T: Task, args: tuple) -> Generator:
         # WAIT.EVENT mask, timeout: wait for SET.EVENT of this task (mask 1) or until the timeout (seconds).
@@ -397,6 +426,11 @@ def namespace(rt: Runtime) -> dict[str, Any]:
         if kind == "DELAY":
             return drive(T, r.delay(n, float(args[0])))
         return drive(T, r.break_())
+
+    def hand(T: Task, kind: str) -> Generator:
+        r = robot_of(T)
+        action = kind.rstrip("I").lower()
+        return drive(T, r.hand(T.num, action, immediate=kind.endswith("I")))
 
     def brake(T: Task) -> None:
         if rt.robot is not None:
@@ -551,7 +585,7 @@ def namespace(rt: Runtime) -> dict[str, Any]:
         "SIGN": lambda x: float((x > 0) - (x < 0)), "FRACT": lambda x: x - int(x), "RANDOM": lambda: random.random(),
         "$TRUNCATE": lambda s: s, "$LEFT": lambda s, n: s[:int(n)], "$RIGHT": lambda s, n: s[-int(n):] if n else "",
         "$TOUPPER": str.upper, "$TOLOWER": str.lower, "SPEED": speed_fn,
-        "SWITCH": lambda *a: -1.0 if rt.switches.get("DRY.RUN") else 0.0, "BITS": lambda *a: 0.0,
+        "SWITCH": lambda *a: -1.0 if rt.switches.get("DRY.RUN") else 0.0, "BITS": _bits(rt),
         "$TIME": lambda *a: "", "NORM": lambda t: t, "$DEFAULT": lambda *a: "",
     }
 
@@ -564,6 +598,7 @@ def namespace(rt: Runtime) -> dict[str, Any]:
         "_str": _str, "_pp": pp_check, "_loc": loc_check, "_dbl": _dbl, "_real": _real, "_f32": f32,
         "_byval": _byval, "_MISSING": (_MISSING_C, "?"), "_call": call, "_progname": progname, "_tick": tick, "_ctick": cond_tick,
         "_halt": halt, "_stop": stop, "_pause": pause, "_type": type_, "_prompt": prompt, "_signal": signal,
+        "_bits_set": bits_set, "_parameter": parameter, "_hand": hand,
         "_wait_event": wait_event, "_set_event": set_event, "_execute": execute, "_abort": abort, "_kill": kill,
         "_cycle_end": cycle_end, "_reacte": reacte, "_robot": robot, "_brake": brake, "_speed": speed,
         "_accel": accel, "_tool": tool, "_decompose": decompose, "_switch": switch, "_timer_set": timer_set,

@@ -74,8 +74,9 @@ async def run(args: argparse.Namespace, options: Any) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, stop.set)
     # the emulator's clock is the controller's time: the stream samples the arm at that time
-    states = None if publisher is None else asyncio.ensure_future(
-        publish_robot_states(publisher, lambda: robot_state_sample(ctl, clock.now, wall0), options.state_rate_hz))
+    io_cursor = [0]  # each signal change goes out once, in the sample after it
+    states = None if publisher is None else asyncio.ensure_future(publish_robot_states(
+        publisher, lambda: robot_state_sample(ctl, clock.now, wall0, io_cursor), options.state_rate_hz))
     try:
         emu.execute(0, args.run)
         await emu.serve(stop)

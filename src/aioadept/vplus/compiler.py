@@ -739,6 +739,16 @@ class _Gen:
             self.guarded(line, [f"_switch(T, {st[1]!r}, {k == 'ENABLE'!r})"])
         elif k == "TIMERSET":
             self.guarded(line, [f"_timer_set({self.val(st[1])[0]}, {self.val(st[2])[0]})"])
+        elif k == "HAND":
+            # OPEN/CLOSE/RELAX act as the next motion starts; the I forms wait for rest and hold for HAND.TIME
+            self.guarded(line, [f"yield from _hand(T, {st[1]!r})"])
+        elif k == "PARAMETER":
+            if st[1] != "HAND.TIME":
+                raise CompileError(line, f"PARAMETER {st[1]} is not implemented by the emulator", "PARAMETER")
+            self.guarded(line, [f"_parameter(T, {st[1]!r}, {self.val(st[2])[0]})"])
+        elif k == "BITS":
+            count = "1.0" if st[2] is None else self.val(st[2])[0]
+            self.guarded(line, [f"_bits_set(T, {self.val(st[1])[0]}, {count}, {self.val(st[3])[0]})"])
         elif k == "NULL":
             pass
         else:

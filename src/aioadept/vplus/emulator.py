@@ -101,7 +101,10 @@ class Emulator:
         self.rt = Runtime(module, clock=self.clock, cycle_s=cycle_s, console=console, robot=robot or None)
         ctl = getattr(self.rt.robot, "controller", None)
         if ctl is not None:
-            self.rt.signals = ctl.signals      # SIGNAL 8 is the sim's air valve, seen by its state stream
+            # SIGNAL, SIG(), BITS and the hand act on the sim's I/O model: SIGNAL 8 is its air valve, CLOSEI its
+            # gripper, and its state stream sees every change
+            self.rt.io = ctl.io
+            self.rt.signals = ctl.io.values
 
     # -- construction ---------------------------------------------------------------------------------------
     @classmethod

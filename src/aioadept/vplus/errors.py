@@ -18,6 +18,7 @@ UNDEFINED_PROGRAM = -406
 NOT_EXECUTABLE = -408           # UNCONFIRMED number
 ILLEGAL_ARRAY_INDEX = -409      # UNCONFIRMED number
 DIVISION_BY_ZERO = -412         # UNCONFIRMED number
+ILLEGAL_SIGNAL = int(ErrorCode.ILLEGAL_SIGNAL)  # UNCONFIRMED number: SIGNAL/SIG/BITS of no signal, SIGNAL of an input
 NO_DATA = -526                  # "*No data received*" (V+ Language User's Guide, Serial Line I/O)
 NOT_ATTACHED = -516             # UNCONFIRMED number
 DEVICE_ERROR = -500             # UNCONFIRMED number
@@ -33,6 +34,7 @@ TEXT: dict[int, str] = {
     NOT_EXECUTABLE: "*Program not executable*",
     ILLEGAL_ARRAY_INDEX: "*Illegal array index*",
     DIVISION_BY_ZERO: "*Division by 0*",
+    ILLEGAL_SIGNAL: "*Illegal digital signal*",
     NO_DATA: "*No data received*",
     NOT_ATTACHED: "*Device not attached*",
     DEVICE_ERROR: "*Device error*",

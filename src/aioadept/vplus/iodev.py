@@ -1,5 +1,9 @@
 """V+ I/O instructions on logical units: ATTACH, DETACH, FOPEN, FCLOSE, READ, WRITE, and the TCP device.
 
+(Over 500 lines because the TCP device is one model: what a READ hands over and in which order, the output
+buffers, no-wait writes and closing one client all share its connection table. Seam for a split: ``Network``'s
+fault injection.)
+
 TCP follows the V+ TCP/IP usage of the original AdeptServer (FACTS.md):
 
 - ``ATTACH (lun, 4) "TCP"`` attaches the TCP device; mode 4 picks a free logical unit and returns it in ``lun``.

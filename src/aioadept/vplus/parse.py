@@ -98,6 +98,7 @@ class Parser:
         self.t = toks
         self.i = 0
         self.no_colon = False      # in VALUE lists ':' ends the list instead of composing
+        self.eq_ends = False       # in BITS first, count = value: '=' ends the expression
 
     # -- helpers ------------------------------------------------------------------------------------------
     def peek(self, k: int = 0) -> Tok | None:
@@ -166,7 +167,7 @@ class Parser:
         if t is not None and t.kind == "op" and t.text in _REL:
             self.take()
             a = ("bin", _REL[t.text], a, self._bor())
-        elif t is not None and t.kind == "op" and t.text == "=":
+        elif t is not None and t.kind == "op" and t.text == "=" and not self.eq_ends:
             raise VSyntaxError("'=' in an expression (comparison is '==')", "=")
         return a
 
@@ -339,7 +340,10 @@ INSTRUCTIONS = {
     "PROMPT", "SIGNAL", "ATTACH", "DETACH", "FOPEN", "FCLOSE", "READ", "WRITE", "EXECUTE", "ABORT", "KILL",
     "CYCLE.END", "REACTE", "MOVE", "MOVES", "APPRO", "APPROS", "DEPART", "DEPARTS", "BREAK", "BRAKE", "SPEED",
     "HERE", "DECOMPOSE", "TOOL", "SET", "DELAY", "ENABLE", "DISABLE", "TIMER", "SET.EVENT", "ACCEL", "NULL",
+    # digital I/O and the hand (aioadept.sim.io)
+    "OPEN", "OPENI", "CLOSE", "CLOSEI", "RELAX", "RELAXI", "PARAMETER", "BITS",
 }
+HAND_INSTRUCTIONS = ("OPEN", "OPENI", "CLOSE", "CLOSEI", "RELAX", "RELAXI")
 
 
 def parse_statement(text: str):
@@ -599,6 +603,25 @@ def _statement(p: Parser):
             if p.at_op(","):
                 p.take()
         return (w, names)
+    if w in HAND_INSTRUCTIONS:
+        # An optional hand number (or a servo hand's opening): accepted, the model has one pneumatic hand.
+        return ("HAND", w, None if p.done() else p.expr())
+    if w == "PARAMETER":
+        name = p.take()
+        if name.kind != "name":
+            raise VSyntaxError("expected a parameter name", name.text)
+        p.expect_op("=")
+        return ("PARAMETER", name.text.upper(), p.expr())
+    if w == "BITS":
+        p.eq_ends = True
+        first = p.expr()
+        count = None
+        if p.at_op(","):
+            p.take()
+            count = p.expr()
+        p.expect_op("=")
+        p.eq_ends = False
+        return ("BITS", first, count, p.expr())
     if w == "TIMER":
         n = p.expr()
         p.expect_op("=")

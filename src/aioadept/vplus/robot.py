@@ -333,6 +333,7 @@ class RobotDevice:
         if now_s is not None:
             self.now_s = now_s
         self._brakes += 1
+        self.controller.io.pending_hand = None  # a deferred OPEN/CLOSE does not act on the motion after a stop
         return self.controller.trajectory.stop(self.now_s)
 
     def delay(self, task: TaskId, seconds: float) -> MotionGen:
@@ -343,6 +344,23 @@ class RobotDevice:
         yield from self.break_()
         traj = self.controller.trajectory
         hold = 0.0 if traj.instant else seconds / traj.time_scale
+        if hold > 0:
+            yield self.now_s + hold
+
+    def hand(self, task: TaskId, action: str, *, immediate: bool) -> MotionGen:
+        """V+ ``OPEN``/``CLOSE``/``RELAX`` (``action`` open, close, relax) and, with ``immediate``, ``OPENI``/
+        ``CLOSEI``/``RELAXI``, on the controller's hand (:mod:`aioadept.sim.io`).
+
+        The deferred forms return at once and act as the next motion starts. The immediate forms wait until the
+        arm is at rest (as BREAK does), switch the valves, and hold the program for ``HAND.TIME``."""
+        self._check_owner(task)
+        io = self.controller.io
+        if not immediate:
+            io.defer_hand(action)
+            return
+        yield from self.break_()
+        io.hand_now(action, self.now_s)
+        hold = io.hand_hold_s()
         if hold > 0:
             yield self.now_s + hold
 

@@ -131,7 +131,11 @@ class Runtime:
         self.not_executable: dict[str, list[LoadProblem]] = {}
         self.tasks: dict[int, Task] = {}
         self._order: list[Task] = []       # self.tasks by task number (the round-robin order), kept by _set_task
-        self.signals: dict[int, bool] = {}
+        from aioadept.sim.io import DigitalIO
+
+        self.io = DigitalIO()
+        """Digital I/O and the hand; the emulator gives it the robot's (``controller.io``), the one model."""
+        self.signals: dict[int, bool] = self.io.values
         self.timers: dict[int, float] = {}
         self.t0 = self.clock.now
         self.console_lines: list[tuple[int, str]] = []

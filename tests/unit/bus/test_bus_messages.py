@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 import epypes_reference as ref
 from aioadept.bus import aioadept_pb2, epypes_pb2
 from aioadept.bus.messages import (
+    SignalEvent,
     INT32_MAX,
     INT32_MIN,
     EventMessage,
@@ -157,7 +158,22 @@ def test_robot_state_field_numbers_are_stable():
                        .to_bytes())
     assert (pb.t_s, pb.wall_time_s, list(pb.joints_deg), pb.roll, pb.speed_pct, pb.in_motion, pb.air) == (
         1.5, 2.5, [0, -90, 180, 0, 90, 0], 6.0, 40, True, True)
-    assert [f.number for f in pb.DESCRIPTOR.fields] == list(range(1, 13))
+    assert [f.number for f in pb.DESCRIPTOR.fields] == list(range(1, 18))
+
+
+def test_robot_state_io_round_trip_and_field_numbers():
+    s = RobotState(1.0, 2.0, (0,) * 6, Pose(), outputs_on=(1, 8), inputs_on=(1001,), soft_on=(2001, 2512),
+                   hand="closing", changes=(SignalEvent(0.5, 8, True), SignalEvent(0.75, 1001, False)))
+    assert RobotState.from_bytes(s.to_bytes()) == s
+    pb = aioadept_pb2.RobotState()
+    pb.ParseFromString(s.to_bytes())
+    assert (list(pb.outputs_on), list(pb.inputs_on), list(pb.soft_on), pb.hand) == ([1, 8], [1001], [2001, 2512],
+                                                                                   "closing")
+    assert [(c.t_s, c.signal, c.on) for c in pb.changes] == [(0.5, 8, True), (0.75, 1001, False)]
+    assert [f.number for f in aioadept_pb2.SignalChange.DESCRIPTOR.fields] == [1, 2, 3]
+    # a sample without I/O (an older publisher) reads as empty, not as an error
+    old = RobotState(1.0, 2.0, (0,) * 6, Pose())
+    assert RobotState.from_bytes(old.to_bytes()).hand == "" and RobotState.from_bytes(old.to_bytes()).changes == ()
 
 
 def test_robot_state_errors():

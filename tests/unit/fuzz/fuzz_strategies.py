@@ -9,7 +9,8 @@ from __future__ import annotations
 from hypothesis import strategies as st
 
 SKILLS = ("move_to", "move_joints", "move_rel_world", "move_rel_tool", "move_rel_joints", "break", "set_speed",
-          "enable_air", "disable_air", "here", "hello", "stop")
+          "enable_air", "disable_air", "here", "hello", "stop", "signal", "sig", "wait_sig", "open_hand",
+          "close_hand", "relax_hand")
 
 ids = st.one_of(
     st.text("0123456789abcdef", min_size=8, max_size=8),
