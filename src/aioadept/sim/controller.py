@@ -55,8 +55,10 @@ from collections.abc import Generator, Hashable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from aioadept.errors import RemoteProtocolError, RobotError
-from aioadept.geometry import NULL, Pose
+from aioadept.geometry import NULL, Pose, decompose
 from aioadept.protocol import (
     NO_ID,
     STOP_SKILL,
@@ -69,7 +71,7 @@ from aioadept.protocol import (
     recover_id,
 )
 from aioadept.robots import viper_s850 as kin
-from aioadept.sim.motion import MotionLimits, Trajectory
+from aioadept.sim.motion import CartesianLimits, LinePath, MotionLimits, Trajectory, plan_line
 
 # The table's names, re-exported: their old import path.
 from aioadept.sim.skills import (_STOP_RUN, AIR_SIGNAL, MAX_JOINT_DEG, MAX_POSITION_MM, MAX_ROTATION_DEG,  # noqa: F401
@@ -127,7 +129,8 @@ class Controller:
                  max_queued_per_conn: int = 10_000, skills: Iterable[SkillSpec] | None = None,
                  version: str | None = None, max_speed_pct: float = 100.0,
                  min_speed_pct: float = MIN_SPEED_PCT,
-                 jump_limit: kin.JumpLimit | None = kin.DEFAULT_JUMP_LIMIT) -> None:
+                 jump_limit: kin.JumpLimit | None = kin.DEFAULT_JUMP_LIMIT,
+                 cartesian_limits: CartesianLimits | None = None) -> None:
         if not 0 < monitor_speed_pct <= 100:
             raise ValueError(f"monitor_speed_pct: {monitor_speed_pct} outside (0, 100]")
         if not 0 < max_speed_pct <= 100:
@@ -145,7 +148,8 @@ class Controller:
         self.max_speed_pct = float(max_speed_pct)
         """Cap on the effective speed, whatever the program and monitor speeds ask for."""
         self.joint_limits = joint_limits
-        self.trajectory = Trajectory(joints_deg, limits=motion_limits, time_scale=time_scale, instant=instant)
+        self.trajectory = Trajectory(joints_deg, limits=motion_limits, time_scale=time_scale, instant=instant,
+                                     cartesian=cartesian_limits)
         self.max_queued_per_conn = max_queued_per_conn
         self.always_speed_pct = 100.0
         self.pending_speed_pct: float | None = None
@@ -486,6 +490,63 @@ class Controller:
             self.take_speed_pct()  # the failed motion instruction still consumes SPEED
             raise
         return (yield from self.move_joints(target))
+
+    # -- straight-line motion (V+ MOVES, APPROS, DEPARTS; issue 19) ---------------------------------------------
+    def planned_end_pose(self) -> Pose:
+        """The tool pose where the planned motions end: where the next motion starts (V+ APPRO/DEPART use it)."""
+        return self._forward(self.trajectory.end_deg)
+
+    def plan_line(self, pose: Pose) -> LinePath:
+        """The straight line from where the planned motions end to ``pose``, every sample solved; raises
+        ``RobotError`` (``OUT_OF_REACH``, ``JOINT_LIMIT``, ``JOINT_JUMP``: a configuration change or a swing
+        through a singularity) naming where along the line, before anything moves.
+
+        The jump limit always applies to a line's samples (the default one when ``jump_limit`` is None): with
+        samples 1 mm apart it is what tells a singularity from an ordinary turn of the joints.
+        """
+        start = self.trajectory.end_deg
+        start_m = kin.flange_matrix(start)
+        if self.tool != NULL:
+            start_m = start_m @ self.tool.to_matrix()
+        target_m = pose.to_matrix()
+        if not np.isfinite(target_m).all():
+            raise RobotError(ErrorCode.ILLEGAL_VALUE, "location is not finite")
+        jump = self.jump_limit if self.jump_limit is not None else kin.DEFAULT_JUMP_LIMIT
+        tool, limits = self.tool, self.joint_limits
+
+        def solve(m: np.ndarray, seed: tuple[float, ...]) -> tuple[float, ...]:
+            pose = decompose(m)
+            try:
+                return kin.inverse(pose, seed, tool, limits=limits, jump=jump)
+            except RobotError as exc:
+                if exc.code != ErrorCode.JOINT_JUMP:
+                    raise
+                # Between two samples 1 mm apart a joint jumps: either it would have to pass its limit (the
+                # nearer way round is past it) or the line crosses a singularity. Say which.
+                q = kin.inverse(pose, seed, tool, limits=limits, jump=None)
+                worst = max(range(6), key=lambda i: abs(q[i] - seed[i]))
+                near = q[worst] + 360.0 * round((seed[worst] - q[worst]) / 360.0)
+                if abs(near - seed[worst]) < abs(q[worst] - seed[worst]) - 1e-6 and limits.violations(
+                        [*seed[:worst], near, *seed[worst + 1:]]):
+                    raise RobotError(ErrorCode.JOINT_LIMIT, f"J{worst + 1} {near:.1f} past its limit") from exc
+                why = exc.message.rpartition("; ")[2] if "; " in exc.message else "singularity"
+                raise RobotError(ErrorCode.JOINT_JUMP, f"J{worst + 1} jumps {abs(q[worst] - seed[worst]):.1f} deg "
+                                                       f"in a step: {why}") from exc
+
+        return plan_line(start, target_m, solve=solve, line_start_m=start_m)
+
+    def move_line(self, pose: Pose) -> SkillGen:
+        """Generator for skills: V+ ``MOVES``. Consume the one-shot speed, check the whole line (refused before
+        anything moves), wait for a motion slot as :meth:`move_joints`, start the line."""
+        speed = self.take_speed_pct()  # a refused motion instruction consumes SPEED too
+        path = self.plan_line(pose)
+        while True:
+            ready = self.trajectory.ready_s()
+            if ready is None or ready <= self.now_s:
+                break
+            yield ready
+        self.trajectory.add_line(path, self.now_s, speed_pct=speed, accel_pct=self.accel_pct)
+        return None
 
     def wait_rest(self) -> SkillGen:
         """Generator for skills: V+ ``BREAK``, until every planned motion is done."""
