@@ -1,5 +1,9 @@
 """The simulated SmartController running AdeptServer: skills, one serial executor, V+ motion semantics.
 
+(Over 500 lines because it is the one robot model both backends drive: the executor, forward processing, stop
+and the motion generators (joint and straight-line) share its state; the skill table, the timing and the line
+planning already live in skills.py, motion.py and line.py.)
+
 Pure: no sockets, no clock. The TCP adapter (:mod:`aioadept.sim.server`) feeds it lines with the time they were
 read and calls :meth:`Controller.step` when :meth:`Controller.next_wake_s` says something is due; tests do the
 same with a fake clock. Each call returns the acks to write, each addressed to the connection that sent the
@@ -55,10 +59,8 @@ from collections.abc import Generator, Hashable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
 from aioadept.errors import RemoteProtocolError, RobotError
-from aioadept.geometry import NULL, Pose, decompose
+from aioadept.geometry import NULL, Pose
 from aioadept.protocol import (
     NO_ID,
     STOP_SKILL,
@@ -71,7 +73,8 @@ from aioadept.protocol import (
     recover_id,
 )
 from aioadept.robots import viper_s850 as kin
-from aioadept.sim.motion import CartesianLimits, LinePath, MotionLimits, Trajectory, plan_line
+from aioadept.sim.line import CartesianLimits, LinePath, plan_tool_line
+from aioadept.sim.motion import MotionLimits, Trajectory
 
 # The table's names, re-exported: their old import path.
 from aioadept.sim.skills import (_STOP_RUN, AIR_SIGNAL, MAX_JOINT_DEG, MAX_POSITION_MM, MAX_ROTATION_DEG,  # noqa: F401
@@ -497,43 +500,10 @@ class Controller:
         return self._forward(self.trajectory.end_deg)
 
     def plan_line(self, pose: Pose) -> LinePath:
-        """The straight line from where the planned motions end to ``pose``, every sample solved; raises
-        ``RobotError`` (``OUT_OF_REACH``, ``JOINT_LIMIT``, ``JOINT_JUMP``: a configuration change or a swing
-        through a singularity) naming where along the line, before anything moves.
-
-        The jump limit always applies to a line's samples (the default one when ``jump_limit`` is None): with
-        samples 1 mm apart it is what tells a singularity from an ordinary turn of the joints.
-        """
-        start = self.trajectory.end_deg
-        start_m = kin.flange_matrix(start)
-        if self.tool != NULL:
-            start_m = start_m @ self.tool.to_matrix()
-        target_m = pose.to_matrix()
-        if not np.isfinite(target_m).all():
-            raise RobotError(ErrorCode.ILLEGAL_VALUE, "location is not finite")
-        jump = self.jump_limit if self.jump_limit is not None else kin.DEFAULT_JUMP_LIMIT
-        tool, limits = self.tool, self.joint_limits
-
-        def solve(m: np.ndarray, seed: tuple[float, ...]) -> tuple[float, ...]:
-            pose = decompose(m)
-            try:
-                return kin.inverse(pose, seed, tool, limits=limits, jump=jump)
-            except RobotError as exc:
-                if exc.code != ErrorCode.JOINT_JUMP:
-                    raise
-                # Between two samples 1 mm apart a joint jumps: either it would have to pass its limit (the
-                # nearer way round is past it) or the line crosses a singularity. Say which.
-                q = kin.inverse(pose, seed, tool, limits=limits, jump=None)
-                worst = max(range(6), key=lambda i: abs(q[i] - seed[i]))
-                near = q[worst] + 360.0 * round((seed[worst] - q[worst]) / 360.0)
-                if abs(near - seed[worst]) < abs(q[worst] - seed[worst]) - 1e-6 and limits.violations(
-                        [*seed[:worst], near, *seed[worst + 1:]]):
-                    raise RobotError(ErrorCode.JOINT_LIMIT, f"J{worst + 1} {near:.1f} past its limit") from exc
-                why = exc.message.rpartition("; ")[2] if "; " in exc.message else "singularity"
-                raise RobotError(ErrorCode.JOINT_JUMP, f"J{worst + 1} jumps {abs(q[worst] - seed[worst]):.1f} deg "
-                                                       f"in a step: {why}") from exc
-
-        return plan_line(start, target_m, solve=solve, line_start_m=start_m)
+        """The straight line from where the planned motions end to ``pose``, checked along its whole length
+        (:func:`aioadept.sim.line.plan_tool_line`); raises ``RobotError`` before anything moves."""
+        return plan_tool_line(self.trajectory.end_deg, pose, self.tool, joint_limits=self.joint_limits,
+                              jump=self.jump_limit)
 
     def move_line(self, pose: Pose) -> SkillGen:
         """Generator for skills: V+ ``MOVES``. Consume the one-shot speed, check the whole line (refused before

@@ -9,7 +9,7 @@ Model:
 - **Joint interpolation.** A joint move is a straight segment in joint space (V+ ``MOVE``). All joints share one
   normalised trapezoidal profile, so they start and arrive together; the duration is that of the slowest joint.
 - **Straight lines.** ``MOVES`` (and ``APPROS``, ``DEPARTS``) moves the tool on a straight line in Cartesian space,
-  position linear and orientation on the shortest rotation (:func:`plan_line`, :class:`LineSegment`): the same
+  position linear and orientation on the shortest rotation (:mod:`aioadept.sim.line`, :class:`LineSegment`): the same
   trapezoid, on the path parameter; 100 % speed is :class:`CartesianLimits` (tool mm/s and deg/s), slowed down
   as a whole where a joint would exceed its own limit. A stop during a line decelerates along the line.
 - **Speed.** The joint speed limits are ``MAX_JOINT_SPEED_DEG_S`` times the speed fraction
@@ -31,8 +31,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aioadept.errors import RobotError
 from aioadept.robots.viper_s850 import MAX_JOINT_SPEED_DEG_S
+from aioadept.sim.line import CartesianLimits, LinePath, line_duration
 
 
 @dataclass(frozen=True, slots=True)
@@ -288,7 +288,8 @@ class Trajectory:
         self._fold(t_s)
         if not np.allclose(path.start_deg, self.end_deg, atol=1e-6):
             raise ValueError("add_line: the path does not start where the planned motions end")
-        duration, ramp = line_duration(path, speed_pct / 100.0, limits=self.limits, cartesian=self.cartesian,
+        duration, ramp = line_duration(path, speed_pct / 100.0, max_joint_speed_deg_s=self.limits.max_speed_deg_s,
+                                       ramp_s=self.limits.ramp_s, cartesian=self.cartesian,
                                        accel_fraction=accel_pct / 100.0)
         if self.instant:
             duration, ramp = 0.0, 0.0
@@ -358,182 +359,7 @@ class Trajectory:
         return t_s + duration
 
 
-# -- straight-line motion (V+ MOVES, APPROS, DEPARTS) ------------------------------------------------------------
-#
-# A straight line is planned once, when its instruction runs: the tool's path (position linear, orientation turning
-# on the shortest rotation about one fixed axis, slerp) is sampled every LINE_STEP_MM / LINE_STEP_DEG and each
-# sample is solved with the inverse kinematics, continuing from the previous one. Any sample out of reach, past a
-# joint limit, or whose joints jump (a configuration change or a swing through a singularity) refuses the whole
-# line before anything moves. The joints between two samples are interpolated linearly: the samples are so close
-# that the tool stays within micrometres of the line (tests/unit/sim/test_straight_line.py measures it).
-# Timing is the same trapezoid as a joint move, on the path parameter s in [0, 1].
-
-LINE_STEP_MM = 1.0
-"""Largest distance between two samples of a straight line (mm)."""
-LINE_STEP_DEG = 0.5
-"""Largest rotation of the tool between two samples of a straight line (deg)."""
-LINE_MAX_SAMPLES = 10_000
-"""A line longer than this many steps is sampled more coarsely (10 m at 1 mm; beyond the Viper's workspace)."""
-
-
-@dataclass(frozen=True, slots=True)
-class CartesianLimits:
-    """What 100 % speed means for a straight-line motion (V+ ``SPEED``: "motion speed has different meanings for
-    joint-interpolated motions and straight-line motions").
-
-    ``max_speed_mm_s``: the tool tip's linear speed at 100 % (FACTS.md: about 2000 mm/s for this arm class);
-    ``max_rot_speed_deg_s``: the tool's rotational speed at 100 % (V+'s ``r_speed_factor`` scales it; the value
-    for the Viper is UNCONFIRMED, docs/vplus.md). The joints' own speed limits apply too: where the line needs a
-    joint faster than its limit, the whole line is slowed down, so the path never changes.
-    """
-
-    max_speed_mm_s: float = 2000.0
-    max_rot_speed_deg_s: float = 360.0
-
-    def __post_init__(self) -> None:
-        if not (math.isfinite(self.max_speed_mm_s) and self.max_speed_mm_s > 0):
-            raise ValueError("max_speed_mm_s: must be a finite number > 0")
-        if not (math.isfinite(self.max_rot_speed_deg_s) and self.max_rot_speed_deg_s > 0):
-            raise ValueError("max_rot_speed_deg_s: must be a finite number > 0")
-
-
-def _rot_log(r: np.ndarray) -> np.ndarray:
-    """Rotation vector (axis x angle, radians) of a rotation matrix; the angle is in [0, pi]."""
-    cos_a = max(-1.0, min(1.0, (float(np.trace(r)) - 1.0) / 2.0))
-    w = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
-    sin_a = 0.5 * float(np.linalg.norm(w))
-    angle = math.atan2(sin_a, cos_a)
-    if angle < 1e-12:
-        return np.zeros(3)
-    if sin_a > 1e-6:
-        return w / (2.0 * sin_a) * angle
-    # Half a turn: the axis is the column of (R + I)/2 with the largest norm (either sign is the shortest rotation).
-    b = (r + np.eye(3)) / 2.0
-    k = int(np.argmax(np.diag(b)))
-    axis = b[:, k] / math.sqrt(max(b[k, k], 1e-300))
-    return axis / np.linalg.norm(axis) * angle
-
-
-def _rot_exp(v: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a rotation vector (Rodrigues)."""
-    angle = float(np.linalg.norm(v))
-    if angle < 1e-15:
-        return np.eye(3)
-    k = v / angle
-    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + math.sin(angle) * kx + (1.0 - math.cos(angle)) * (kx @ kx)
-
-
-def line_pose_matrix(m0: np.ndarray, m1: np.ndarray, s: float) -> np.ndarray:
-    """The tool's 4x4 pose at ``s`` (0..1) along the straight line from ``m0`` to ``m1``: position linear,
-    orientation on the shortest rotation from one to the other (slerp)."""
-    if s <= 0.0:
-        return m0.copy()
-    if s >= 1.0:
-        return m1.copy()
-    m = np.eye(4)
-    m[:3, 3] = m0[:3, 3] + s * (m1[:3, 3] - m0[:3, 3])
-    m[:3, :3] = m0[:3, :3] @ _rot_exp(s * _rot_log(m0[:3, :3].T @ m1[:3, :3]))
-    return m
-
-
-@dataclass(frozen=True, slots=True, eq=False)
-class LinePath:
-    """A planned straight line: joint samples ``joints_deg[k]`` at path parameters ``s[k]`` (0 .. 1).
-
-    ``length_mm`` and ``rotation_deg`` are the tool's travel and turn; ``start_m``/``end_m`` its 4x4 poses.
-    """
-
-    s: np.ndarray
-    joints_deg: np.ndarray
-    length_mm: float
-    rotation_deg: float
-    start_m: np.ndarray
-    end_m: np.ndarray
-
-    @property
-    def start_deg(self) -> tuple[float, ...]:
-        return tuple(float(v) for v in self.joints_deg[0])
-
-    @property
-    def end_deg(self) -> tuple[float, ...]:
-        return tuple(float(v) for v in self.joints_deg[-1])
-
-    def _bracket(self, s: float) -> tuple[int, float]:
-        n = len(self.s) - 1
-        if s <= 0.0:
-            return 0, 0.0
-        if s >= 1.0:
-            return n - 1, 1.0
-        k = min(int(np.searchsorted(self.s, s, side="right")) - 1, n - 1)
-        return k, (s - self.s[k]) / (self.s[k + 1] - self.s[k])
-
-    def joints_at(self, s: float) -> np.ndarray:
-        """Joint angles (deg) at path parameter ``s`` (clamped to 0..1)."""
-        k, f = self._bracket(s)
-        return self.joints_deg[k] + f * (self.joints_deg[k + 1] - self.joints_deg[k])
-
-    def slope(self, s: float) -> np.ndarray:
-        """d(joints)/ds (deg per unit of s) at ``s``."""
-        k, _ = self._bracket(s)
-        return (self.joints_deg[k + 1] - self.joints_deg[k]) / (self.s[k + 1] - self.s[k])
-
-    @property
-    def max_slope(self) -> np.ndarray:
-        """The largest |d(joint)/ds| of each joint along the line."""
-        d = np.abs(np.diff(self.joints_deg, axis=0)) / np.diff(self.s)[:, None]
-        return d.max(axis=0)
-
-
-def plan_line(start_deg: Sequence[float], target_m: np.ndarray, *, solve, line_start_m: np.ndarray,
-              step_mm: float = LINE_STEP_MM, step_deg: float = LINE_STEP_DEG) -> LinePath:
-    """Sample the straight line from ``line_start_m`` (the tool pose at ``start_deg``) to ``target_m`` and solve
-    every sample with ``solve(m, seed_deg) -> joints_deg`` (the inverse kinematics, continuing from ``seed_deg``;
-    it raises for a sample that cannot be reached). Pure: the kinematics come in as ``solve``.
-
-    Raises :class:`aioadept.errors.RobotError` with the code ``solve`` raised for the first sample that fails
-    (``OUT_OF_REACH``, ``JOINT_LIMIT``, ``JOINT_JUMP``) and where along the line it is.
-    """
-    length = float(np.linalg.norm(target_m[:3, 3] - line_start_m[:3, 3]))
-    rotation = math.degrees(float(np.linalg.norm(_rot_log(line_start_m[:3, :3].T @ target_m[:3, :3]))))
-    n = max(1, math.ceil(length / step_mm), math.ceil(rotation / step_deg))
-    n = min(n, LINE_MAX_SAMPLES)
-    s = np.linspace(0.0, 1.0, n + 1)
-    joints = np.empty((n + 1, 6))
-    joints[0] = start_deg
-    seed = tuple(float(v) for v in start_deg)
-    for k in range(1, n + 1):
-        m = line_pose_matrix(line_start_m, target_m, float(s[k]))
-        try:
-            seed = tuple(solve(m, seed))
-        except RobotError as exc:
-            # Same code, and where along the line it failed (the ack's text holds 80 characters: keep it short).
-            raise RobotError(exc.code, f"line {float(s[k]) * length:.0f}/{length:.0f} mm: {exc.message}") from exc
-        joints[k] = seed
-    return LinePath(s, joints, length, rotation, line_start_m.copy(), target_m.copy())
-
-
-def line_duration(path: LinePath, speed_fraction: float, *, limits: MotionLimits = MotionLimits(),
-                  cartesian: CartesianLimits = CartesianLimits(), accel_fraction: float = 1.0) -> tuple[float, float]:
-    """(duration_s, ramp_s) of a straight line at ``speed_fraction`` (0..1]: a trapezoid on the path parameter
-    whose cruise rate keeps the tool within the Cartesian speed, its turn within the rotational speed, and every
-    joint within its own speed limit. Robot time, before any time scale."""
-    if not 0.0 < speed_fraction <= 1.0 + 1e-9:
-        raise ValueError(f"speed_fraction: {speed_fraction} outside (0, 1]")
-    if not 0.0 < accel_fraction <= 1.0 + 1e-9:
-        raise ValueError(f"accel_fraction: {accel_fraction} outside (0, 1]")
-    ramp = limits.ramp_s / accel_fraction
-    # The time each limit needs at constant speed, for the whole path (s from 0 to 1).
-    needs = [path.length_mm / (cartesian.max_speed_mm_s * speed_fraction),
-             path.rotation_deg / (cartesian.max_rot_speed_deg_s * speed_fraction)]
-    needs += list(path.max_slope / (np.asarray(limits.max_speed_deg_s) * speed_fraction))
-    cruise = max(needs)
-    if cruise <= 0.0:
-        return 0.0, 0.0
-    # As plan_duration: cruise + ramp when the ramps fit, else a triangle with the same acceleration.
-    duration = cruise + ramp if cruise >= ramp else 2.0 * math.sqrt(cruise * ramp)
-    return duration, min(ramp, duration / 2.0)
-
+# -- straight-line segments (the line itself is planned in aioadept.sim.line) ------------------------------------
 
 @dataclass(frozen=True, slots=True)
 class LineSegment(Segment):
