@@ -13,13 +13,14 @@ from __future__ import annotations
 import asyncio
 import math
 import re
+import sys
 
 import numpy as np
 import pytest
 
 from aioadept.geometry import Pose, poses_close, zyz_to_rotation
 from aioadept.protocol import Ack, ErrorCode, Status
-from aioadept.sim.motion import line_pose_matrix
+from aioadept.sim.line import line_pose_matrix
 
 # A 300 mm line in front of the arm, tool pointing down, turning 30 deg about its axis on the way.
 A = Pose(400.0, -150.0, 400.0, 0.0, 180.0, 0.0)
@@ -208,3 +209,27 @@ async def test_bad_arguments_get_one_error_ack_and_the_connection_stays_usable(s
     move, brk = await c.acks(2)
     assert move.ok and brk.ok, "the connection still serves motions"
     await c.close()
+
+
+async def _send_cli(port: int, *argv: str) -> tuple[int, str, str]:
+    proc = await asyncio.create_subprocess_exec(
+        sys.executable, "-m", "aioadept.cli", "send", "--port", str(port), *argv,
+        stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE)
+    out, err = await proc.communicate()
+    return proc.returncode, out.decode(), err.decode()
+
+
+@pytest.mark.timeout(120)
+async def test_aioadept_send_drives_each_line_skill(server):
+    code, out, err = await _send_cli(server.port, f"move_to:{wire(A)}", "break", f"move_to_s:{wire(B)}", "break",
+                                     "move_rel_tool_s:0,0,-20,0,0,0", "break", f"appro:{wire(A, 30)}", "break",
+                                     f"appros:{wire(A, 10)}", "break", "depart:20", "break", "departs:-5", "break")
+    assert code == 0, err
+    rows = [line.split()[1:3] for line in out.splitlines()]
+    assert [s for s, _ in rows] == ["move_to", "break", "move_to_s", "break", "move_rel_tool_s", "break", "appro",
+                                    "break", "appros", "break", "depart", "break", "departs", "break"]
+    assert all(status == "done" for _, status in rows), out
+    assert "pose=400.000,-150.000,425.000," in out.splitlines()[-1], "A, 10 + 20 - 5 mm up its tool axis"
+    # A bad number is refused by the client before it is sent: one line naming it, no traceback.
+    code, out, err = await _send_cli(server.port, "departs:1e9")
+    assert code != 0 and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
