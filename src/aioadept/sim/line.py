@@ -40,7 +40,7 @@ class CartesianLimits:
     """What 100 % speed means for a straight-line motion (V+ ``SPEED``: "motion speed has different meanings for
     joint-interpolated motions and straight-line motions").
 
-    ``max_speed_mm_s``: the tool tip's linear speed at 100 % (FACTS.md: about 2000 mm/s for this arm class);
+    ``max_speed_mm_s``: the tool tip's linear speed at 100 % (about 2000 mm/s, a value usual for this arm class; UNCONFIRMED for the Viper);
     ``max_rot_speed_deg_s``: the tool's rotational speed at 100 % (V+'s ``r_speed_factor`` scales it; the value
     for the Viper is UNCONFIRMED, docs/vplus.md). The joints' own speed limits apply too: where the line needs a
     joint faster than its limit, the whole line is slowed down, so the path never changes.

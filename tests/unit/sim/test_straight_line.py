@@ -165,3 +165,20 @@ def test_appro_and_depart_use_the_tool_z_axis_with_v_plus_signs():
         ctl.handle(b"0000000f:break", "c", ctl.now_s)
         (brk,) = ctl.step(ctl.next_wake_s())
         assert poses_close(brk.ack.pose, Pose(400.0, 0.0, z, 0.0, 180.0, 0.0), tol_mm=1e-6, tol_deg=1e-6), line
+
+
+def test_forward_processing_of_lines_is_one_motion_deep():
+    # MOVES a; MOVES b; BREAK: a acks at once, b when a begins to decelerate, the break when b is done.
+    ctl = at(Controller(), A)
+    ctl.connect("c")
+    t = ctl.now_s
+    (first,) = ctl.handle(b"00000001:move_to_s:400,150,400,0,180,30", "c", t)
+    assert first.ack.t_done_s == t
+    assert ctl.handle(b"00000002:move_to_s:400,150,500,0,180,30", "c", t) == []
+    line_a = ctl.trajectory._segments[-1]
+    (second,) = ctl.step(ctl.next_wake_s())
+    assert second.ack.t_done_s == pytest.approx(line_a.t_end_s - line_a.ramp_s)
+    ctl.handle(b"00000003:break", "c", ctl.now_s)
+    (brk,) = ctl.step(ctl.next_wake_s())
+    assert brk.ack.t_done_s == pytest.approx(ctl.trajectory.t_rest_s)
+    assert poses_close(brk.ack.pose, Pose(400.0, 150.0, 500.0, 0.0, 180.0, 30.0), tol_mm=1e-6, tol_deg=1e-6)
