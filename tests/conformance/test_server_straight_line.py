@@ -159,7 +159,7 @@ async def test_move_rel_tool_s_appro_appros_depart_departs(server):
 
 
 @pytest.mark.timeout(120)
-async def test_lines_through_a_singularity_or_past_a_joint_limit_are_refused_before_moving(server):
+async def test_lines_through_a_singularity_past_a_joint_limit_or_out_of_reach_are_refused_before_moving(server):
     c = await server.connect()
     # Tool horizontal along +x, wrist centre just below the forearm's axis: crossing y = 0 the wrist passes next
     # to its singularity (J5 = 0) and J4 would have to spin half a turn.
@@ -185,6 +185,16 @@ async def test_lines_through_a_singularity_or_past_a_joint_limit_are_refused_bef
     await c.send(f"de000001:move_to:{wire(end)}", "de000002:break")
     move, brk = await c.acks(2, timeout=30)
     assert move.ok and brk.ok and poses_close(brk.pose, end, tol_mm=0.01, tol_deg=0.01)
+
+    # Near full reach, turning the tool over: the wrist centre bulges out of the workspace part-way (27 of 175 mm).
+    start = Pose(776.5, 68.4, 508.0, -109.4, 167.5, 21.5)
+    end = Pose(754.8, 80.5, 681.7, -165.9, 31.6, -153.0)
+    await go(c, start, "df00")
+    await c.send(f"dg000001:move_to_s:{wire(end)}", "dg000002:here", f"dg000003:move_to:{wire(end)}", "dg000004:break")
+    ack, here, move, brk = await c.acks(4, timeout=30)
+    assert (ack.status, v_code(ack)) == (Status.ERROR, ErrorCode.OUT_OF_REACH), ack
+    assert poses_close(here.pose, start, tol_mm=0.01, tol_deg=0.01), "nothing moved"
+    assert move.ok and brk.ok and poses_close(brk.pose, end, tol_mm=0.01, tol_deg=0.01), "the end is reachable"
     await c.close()
 
 

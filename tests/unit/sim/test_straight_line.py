@@ -116,6 +116,17 @@ def test_a_line_past_a_joint_limit_part_way_is_refused_though_both_ends_are_reac
     kin.inverse(end, ctl.trajectory.end_deg, jump=None)  # the end itself is reachable
 
 
+def test_a_line_leaving_the_workspace_part_way_is_refused_though_the_end_is_reachable():
+    # Near full reach, turning the tool over: the wrist centre bulges out of the workspace part-way.
+    start = Pose(776.5, 68.4, 508.0, -109.4, 167.5, 21.5)
+    end = Pose(754.8, 80.5, 681.7, -165.9, 31.6, -153.0)
+    ctl = at(Controller(), start)
+    with pytest.raises(RobotError) as err:
+        ctl.plan_line(end)
+    assert err.value.code == ErrorCode.OUT_OF_REACH and err.value.message.startswith("line 27/175 mm")
+    kin.inverse(end, ctl.trajectory.end_deg)  # the end itself is reachable
+
+
 def test_a_refused_line_consumes_the_one_shot_speed():
     ctl = at(Controller(), A)
     ctl.pending_speed_pct = 10.0
