@@ -90,9 +90,14 @@ def line_pose_matrix(m0: np.ndarray, m1: np.ndarray, s: float) -> np.ndarray:
         return m0.copy()
     if s >= 1.0:
         return m1.copy()
+    return _line_pose(m0, m1, _rot_log(m0[:3, :3].T @ m1[:3, :3]), s)
+
+
+def _line_pose(m0: np.ndarray, m1: np.ndarray, turn: np.ndarray, s: float) -> np.ndarray:
+    """:func:`line_pose_matrix` with the turn (rotation vector from m0 to m1, in m0's frame) computed once."""
     m = np.eye(4)
     m[:3, 3] = m0[:3, 3] + s * (m1[:3, 3] - m0[:3, 3])
-    m[:3, :3] = m0[:3, :3] @ _rot_exp(s * _rot_log(m0[:3, :3].T @ m1[:3, :3]))
+    m[:3, :3] = m0[:3, :3] @ _rot_exp(s * turn)
     return m
 
 
@@ -155,7 +160,8 @@ def plan_line(start_deg: Sequence[float], target_m: np.ndarray, *,
     (``OUT_OF_REACH``, ``JOINT_LIMIT``, ``JOINT_JUMP``) and where along the line it is.
     """
     length = float(np.linalg.norm(target_m[:3, 3] - line_start_m[:3, 3]))
-    rotation = math.degrees(float(np.linalg.norm(_rot_log(line_start_m[:3, :3].T @ target_m[:3, :3]))))
+    turn = _rot_log(line_start_m[:3, :3].T @ target_m[:3, :3])
+    rotation = math.degrees(float(np.linalg.norm(turn)))
     n = max(1, math.ceil(length / step_mm), math.ceil(rotation / step_deg))
     n = min(n, LINE_MAX_SAMPLES)
     s = np.linspace(0.0, 1.0, n + 1)
@@ -163,7 +169,7 @@ def plan_line(start_deg: Sequence[float], target_m: np.ndarray, *,
     joints[0] = start_deg
     seed = tuple(float(v) for v in start_deg)
     for k in range(1, n + 1):
-        m = line_pose_matrix(line_start_m, target_m, float(s[k]))
+        m = target_m if k == n else _line_pose(line_start_m, target_m, turn, float(s[k]))
         try:
             seed = tuple(solve(m, seed))
         except RobotError as exc:
