@@ -377,7 +377,8 @@ class LineSegment(Segment):
 @dataclass(frozen=True, slots=True)
 class LineStopSegment:
     """Deceleration to rest along a straight line: the path rate ``r0`` (1/s) at ``s0`` falls linearly to zero in
-    ``duration_s``, so the tool stops on the line (V+: a stop during ``MOVES`` does not leave the path)."""
+    ``duration_s``, so the tool comes to rest on the line it was given (a stop must not take the arm off its path;
+    how far a real V+ controller strays while braking is UNCONFIRMED, docs/vplus.md)."""
 
     path: LinePath
     s0: float
