@@ -38,6 +38,7 @@ from aioadept.protocol import (
 )
 from aioadept.robots import viper_s850 as kin
 from aioadept.sim.controller import Controller, Outgoing
+from aioadept.sim.line import CartesianLimits
 
 log = logging.getLogger(__name__)
 
@@ -128,6 +129,8 @@ class SimOptions:
     faults: Faults = field(default_factory=Faults)
     tool: Pose = NULL
     joints_deg: tuple[float, ...] = kin.HOME_JOINTS_DEG
+    cartesian_limits: CartesianLimits = field(default_factory=CartesianLimits)
+    """What 100 % speed means for a straight line (tool mm/s and deg/s; docs/sim.md)."""
 
     def __post_init__(self) -> None:
         if not self.time_scale > 0:
@@ -155,7 +158,8 @@ class SimOptions:
         """The one robot model these options describe (both sim backends build it here)."""
         return Controller(joints_deg=self.joints_deg, tool=self.tool, monitor_speed_pct=self.monitor_speed_pct,
                           time_scale=self.time_scale, instant=self.instant, max_speed_pct=self.max_speed_pct,
-                          jump_limit=self.jump_limit, max_queued_per_conn=self.max_queued)
+                          jump_limit=self.jump_limit, max_queued_per_conn=self.max_queued,
+                          cartesian_limits=self.cartesian_limits)
 
 
 class _NotAStop(Exception):

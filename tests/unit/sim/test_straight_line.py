@@ -226,3 +226,14 @@ def test_every_accepted_line_stays_on_the_line_and_its_joints_never_jump(tool):
             prev = q
         assert poses_close(kin.forward(seg.end_deg, tool), b, tol_mm=1e-6, tol_deg=1e-6)
     assert accepted >= 10, "the test must see lines that run"
+
+
+def test_the_cartesian_speed_option_reaches_the_one_robot_model():
+    from aioadept.cli.sim import build_parser, options_from_args
+
+    args = build_parser().parse_args(["--cartesian-speed", "500,90"])
+    ctl = options_from_args(args).make_controller()  # both backends build their controller here
+    assert ctl.trajectory.cartesian == CartesianLimits(500.0, 90.0)
+    assert build_parser().parse_args([]).cartesian_speed == CartesianLimits()
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(["--cartesian-speed", "-1"])
