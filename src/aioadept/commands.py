@@ -401,3 +401,89 @@ class Joined(Command):
 
 
 _MOTION_UNITS = {cls.skill: cls.units for cls in (MoveTo, MoveJoints, MoveRelWorld, MoveRelTool, MoveRelJoints)}
+
+
+# -- straight-line and approach motions (issue 19; V+ MOVES, APPRO, APPROS, DEPART, DEPARTS) ----------------------
+
+class MoveToS(_Motion):
+    """Move the tool to a pose on a straight line (V+ ``MOVES``): the straight-line form of :class:`MoveTo`.
+    Skill ``move_to_s``; a line through a singularity or past a joint limit is refused before the arm moves."""
+
+    __slots__ = ()
+    skill = "move_to_s"
+
+
+class MoveRelToolS(_Motion):
+    """Move relative to the current tool frame on a straight line: the straight-line form of
+    :class:`MoveRelTool`. Skill ``move_rel_tool_s``."""
+
+    __slots__ = ()
+    skill = "move_rel_tool_s"
+    field_name = "delta"
+
+
+class Appro(Command):
+    """Move to ``distance_mm`` from ``pose`` back along its tool Z axis (V+ ``APPRO pose, distance``: the location
+    ``pose:TRANS(0, 0, -distance)``; positive is away from the part for a tool whose Z points into it),
+    joint-interpolated. Skill ``appro:x,y,z,yaw,pitch,roll,dist``; ``break`` follows unless ``break_move=False``."""
+
+    __slots__ = ()
+    skill: str = "appro"
+
+    def __init__(self, pose: Sequence[float] | Pose, distance_mm: float, *, break_move: bool = True) -> None:
+        args = (*_six("pose", pose), _bounded("distance_mm", distance_mm, "mm"))
+        call = SkillCall(self.skill, args)
+        self._init((call, _BREAK) if break_move else (call,))
+
+    @property
+    def pose(self) -> Pose:
+        return Pose(*self._calls[0].args[:6])
+
+    @property
+    def distance_mm(self) -> float:
+        return float(self._calls[0].args[6])
+
+    def __repr__(self) -> str:
+        vals = ", ".join("%g" % v for v in self.pose)
+        suffix = "" if len(self._calls) == 2 else ", break_move=False"
+        return f"{type(self).__name__}([{vals}], {self.distance_mm:g}{suffix})"
+
+
+class Appros(Appro):
+    """:class:`Appro` on a straight line (V+ ``APPROS``). Skill ``appros``."""
+
+    __slots__ = ()
+    skill = "appros"
+
+
+class Depart(Command):
+    """The tool moves ``distance_mm`` back along its own Z axis (V+ ``DEPART distance``: positive backs away from
+    the part), joint-interpolated, from where the planned motions end (with a break before it: where the arm
+    is). Skill ``depart:dist``; ``break`` follows unless ``break_move=False``."""
+
+    __slots__ = ()
+    skill: str = "depart"
+
+    def __init__(self, distance_mm: float, *, break_move: bool = True) -> None:
+        call = SkillCall(self.skill, (_bounded("distance_mm", distance_mm, "mm"),))
+        self._init((call, _BREAK) if break_move else (call,))
+
+    @property
+    def distance_mm(self) -> float:
+        return float(self._calls[0].args[0])
+
+    def __repr__(self) -> str:
+        suffix = "" if len(self._calls) == 2 else ", break_move=False"
+        return f"{type(self).__name__}({self.distance_mm:g}{suffix})"
+
+
+class Departs(Depart):
+    """:class:`Depart` on a straight line (V+ ``DEPARTS``). Skill ``departs``."""
+
+    __slots__ = ()
+    skill = "departs"
+
+
+_MOTION_UNITS.update({MoveToS.skill: MoveToS.units, MoveRelToolS.skill: MoveRelToolS.units,
+                      Appro.skill: (*_POSE_UNITS, "mm"), Appros.skill: (*_POSE_UNITS, "mm"),
+                      Depart.skill: ("mm",), Departs.skill: ("mm",)})

@@ -16,6 +16,7 @@ from aioadept import defaults
 from aioadept.cli.options import DefaultsHelpFormatter, description
 from aioadept.geometry import NULL, Pose
 from aioadept.robots import viper_s850 as kin
+from aioadept.sim.line import CartesianLimits
 from aioadept.sim.server import DEFAULT_PORT, DEFAULT_STATE_ENDPOINT, Faults, SimOptions, SimServer
 
 
@@ -49,6 +50,16 @@ def _hand(text: str):  # -> aioadept.sim.io.HandConfig
         raise argparse.ArgumentTypeError(f"--hand {text!r}: {exc}") from None
 
 
+def _cartesian_speed(text: str) -> CartesianLimits:
+    try:
+        vals = [float(v) for v in text.split(",")]
+        if len(vals) not in (1, 2):
+            raise ValueError(text)
+        return CartesianLimits(*vals)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"expected MM_S[,DEG_S] (numbers > 0), got {text!r}") from exc
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="aioadept sim", description=description(__doc__),
                                 formatter_class=DefaultsHelpFormatter)
@@ -65,6 +76,10 @@ def build_parser() -> argparse.ArgumentParser:
                    metavar="FLOOR,PER_MM,PER_DEG",
                    help="refuse (JOINT_JUMP) a Cartesian target for which a joint would turn more than FLOOR + PER_MM "
                         "x mm + PER_DEG x degrees of the move, e.g. a wrist flip from a 2 mm step; 'off' disables")
+    p.add_argument("--cartesian-speed", type=_cartesian_speed, default="2000,360", dest="cartesian_speed",
+                   metavar="MM_S[,DEG_S]",
+                   help="what 100 %% speed means for a straight line (move_to_s, MOVES): the tool's speed in mm/s "
+                        "and its turn in deg/s")
     p.add_argument("--max-clients", type=int, default=16, dest="max_clients",
                    help="connections served at once; more are refused with a SERVER_BUSY error ack")
     p.add_argument("--max-queued", type=int, default=defaults.MAX_QUEUED, dest="max_queued", metavar="N",
@@ -160,7 +175,7 @@ def options_from_args(args: argparse.Namespace) -> SimOptions:
     return SimOptions(host=args.host, port=args.port, stop_port=stop_port_of(args.stop_port, args.port),
                       time_scale=args.time_scale, instant=args.instant,
                       monitor_speed_pct=args.monitor_speed, max_speed_pct=args.max_speed,
-                      jump_limit=args.jump_limit,
+                      jump_limit=args.jump_limit, cartesian_limits=args.cartesian_speed,
                       max_clients=args.max_clients, max_queued=args.max_queued, allow=tuple(args.allow),
                       line_timeout_s=args.line_timeout or None, stop_window_s=args.stop_window,
                       state_endpoint=state, state_rate_hz=args.state_rate_hz, faults=Faults.parse(args.fault),

@@ -187,6 +187,9 @@ class CellLogger:
             self.rec.log("world/target", rr.TransformAxes3D(axis_length=_TOOL_AXIS_MM / 2))
 
     def _target(self, skill: str, args: Sequence[Any]) -> Pose | None:
+        line = self._line_target(skill, args)
+        if line is not None:
+            return line
         if skill not in _MOTION_SKILLS or len(args) != 6:
             return None
         vals = [float(a) for a in args]
@@ -206,6 +209,25 @@ class CellLogger:
             return rel_world(self.pose, vals)
         except (ValueError, ArithmeticError):
             return None
+
+    def _line_target(self, skill: str, args: Sequence[Any]) -> Pose | None:
+        """The target of a straight-line or approach skill (issue 19; docs/protocol.md 4.3.1), else None. An
+        approach or depart distance d is along -Z of the tool (V+ ``APPRO``/``DEPART``): ``pose:TRANS(0,0,-d)``."""
+        try:
+            vals = [float(a) for a in args]
+            if skill == "move_to_s" and len(vals) == 6:
+                return Pose.from_seq(vals)
+            if skill in ("appro", "appros") and len(vals) == 7:
+                return rel_tool(Pose.from_seq(vals[:6]), (0.0, 0.0, -vals[6], 0.0, 0.0, 0.0))
+            if self.pose is None:
+                return None
+            if skill == "move_rel_tool_s" and len(vals) == 6:
+                return rel_tool(self.pose, vals)
+            if skill in ("depart", "departs") and len(vals) == 1:
+                return rel_tool(self.pose, (0.0, 0.0, -vals[0], 0.0, 0.0, 0.0))
+        except (ValueError, ArithmeticError):
+            return None
+        return None
 
     def ack(self, cid: str, skill: str, status: str | None, pose: Pose | None, t_recv_loop_s: float | None, *,
             t_send_loop_s: float | None = None, error: str | None = None) -> None:

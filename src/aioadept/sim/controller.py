@@ -1,9 +1,12 @@
 """The simulated SmartController running AdeptServer: skills, one serial executor, V+ motion semantics.
 
+(Over 500 lines because it is the one robot model both backends drive: the executor, forward processing, stop
+and the motion generators (joint and straight-line) share its state; the skill table, the timing and the line
+planning already live in skills.py, motion.py and line.py.)
+
 Pure: no sockets, no clock. The TCP adapter (:mod:`aioadept.sim.server`) feeds it lines with the time they were
 read and calls :meth:`Controller.step` when :meth:`Controller.next_wake_s` says something is due; tests do the
-same with a fake clock. (Over 500 lines because it is the one robot model: executor, stop and motion together.)
-Each call returns the acks to write, each addressed to the connection that sent the command::
+same with a fake clock. Each call returns the acks to write, each addressed to the connection that sent the command::
 
     ctl = Controller()
     ctl.connect("a")
@@ -70,6 +73,7 @@ from aioadept.protocol import (
 )
 from aioadept.robots import viper_s850 as kin
 from aioadept.sim.io import DigitalIO, IoSnapshot
+from aioadept.sim.line import CartesianLimits, LinePath, plan_tool_line
 from aioadept.sim.motion import MotionLimits, Trajectory
 
 # The table's names, re-exported: their old import path.
@@ -129,7 +133,8 @@ class Controller:
                  max_queued_per_conn: int = 10_000, skills: Iterable[SkillSpec] | None = None,
                  version: str | None = None, max_speed_pct: float = 100.0,
                  min_speed_pct: float = MIN_SPEED_PCT,
-                 jump_limit: kin.JumpLimit | None = kin.DEFAULT_JUMP_LIMIT, io: DigitalIO | None = None) -> None:
+                 jump_limit: kin.JumpLimit | None = kin.DEFAULT_JUMP_LIMIT, io: DigitalIO | None = None,
+                 cartesian_limits: CartesianLimits | None = None) -> None:
         if not 0 < monitor_speed_pct <= 100:
             raise ValueError(f"monitor_speed_pct: {monitor_speed_pct} outside (0, 100]")
         if not 0 < max_speed_pct <= 100:
@@ -147,7 +152,8 @@ class Controller:
         self.max_speed_pct = float(max_speed_pct)
         """Cap on the effective speed, whatever the program and monitor speeds ask for."""
         self.joint_limits = joint_limits
-        self.trajectory = Trajectory(joints_deg, limits=motion_limits, time_scale=time_scale, instant=instant)
+        self.trajectory = Trajectory(joints_deg, limits=motion_limits, time_scale=time_scale, instant=instant,
+                                     cartesian=cartesian_limits)
         self.max_queued_per_conn = max_queued_per_conn
         self.always_speed_pct = 100.0
         self.pending_speed_pct: float | None = None
@@ -492,6 +498,31 @@ class Controller:
             self.take_speed_pct()  # the failed motion instruction still consumes SPEED
             raise
         return (yield from self.move_joints(target))
+
+    # -- straight-line motion (V+ MOVES, APPROS, DEPARTS; issue 19) ---------------------------------------------
+    def planned_end_pose(self) -> Pose:
+        """The tool pose where the planned motions end: where the next motion starts (V+ APPRO/DEPART use it)."""
+        return self._forward(self.trajectory.end_deg)
+
+    def plan_line(self, pose: Pose) -> LinePath:
+        """The straight line from where the planned motions end to ``pose``, checked along its whole length
+        (:func:`aioadept.sim.line.plan_tool_line`); raises ``RobotError`` before anything moves."""
+        return plan_tool_line(self.trajectory.end_deg, pose, self.tool, joint_limits=self.joint_limits,
+                              jump=self.jump_limit)
+
+    def move_line(self, pose: Pose) -> SkillGen:
+        """Generator for skills: V+ ``MOVES``. Consume the one-shot speed, check the whole line (refused before
+        anything moves), wait for a motion slot as :meth:`move_joints`, start the line."""
+        speed = self.take_speed_pct()  # a refused motion instruction consumes SPEED too
+        path = self.plan_line(pose)
+        while True:
+            ready = self.trajectory.ready_s()
+            if ready is None or ready <= self.now_s:
+                break
+            yield ready
+        self.trajectory.add_line(path, self.now_s, speed_pct=speed, accel_pct=self.accel_pct)
+        self.io.motion_started(self.now_s)  # a deferred OPEN/CLOSE/RELAX acts as the motion starts, as for MOVE
+        return None
 
     def wait_rest(self) -> SkillGen:
         """Generator for skills: V+ ``BREAK``, until every planned motion is done."""

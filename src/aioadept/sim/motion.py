@@ -6,9 +6,12 @@ run motions without sleeping. The controller (:mod:`aioadept.sim.controller`) de
 
 Model:
 
-- **Joint interpolation.** Every motion is a straight segment in joint space (V+ ``MOVE``; straight-line ``MOVES``
-  is not modelled). All joints share one normalised trapezoidal profile, so they start and arrive together; the
-  duration is that of the slowest joint.
+- **Joint interpolation.** A joint move is a straight segment in joint space (V+ ``MOVE``). All joints share one
+  normalised trapezoidal profile, so they start and arrive together; the duration is that of the slowest joint.
+- **Straight lines.** ``MOVES`` (and ``APPROS``, ``DEPARTS``) moves the tool on a straight line in Cartesian space,
+  position linear and orientation on the shortest rotation (:mod:`aioadept.sim.line`, :class:`LineSegment`): the same
+  trapezoid, on the path parameter; 100 % speed is :class:`CartesianLimits` (tool mm/s and deg/s), slowed down
+  as a whole where a joint would exceed its own limit. A stop during a line decelerates along the line.
 - **Speed.** The joint speed limits are ``MAX_JOINT_SPEED_DEG_S`` times the speed fraction
   (program speed x monitor speed). With ``SCALE.ACCEL`` (on, as V+ defaults) the acceleration limits scale the same
   way, so the ramp time stays at ``ramp_s`` (0.1 s by default: a_max = v_max / 0.1 s).
@@ -29,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from aioadept.robots.viper_s850 import MAX_JOINT_SPEED_DEG_S
+from aioadept.sim.line import CartesianLimits, LinePath, line_duration
 
 
 @dataclass(frozen=True, slots=True)
@@ -171,12 +175,14 @@ class Trajectory:
     """
 
     def __init__(self, joints_deg: Sequence[float], *, limits: MotionLimits = MotionLimits(),
-                 time_scale: float = 1.0, instant: bool = False) -> None:
+                 time_scale: float = 1.0, instant: bool = False, cartesian: CartesianLimits | None = None) -> None:
         if len(joints_deg) != 6:
             raise ValueError("joints_deg: expected 6 values")
         if not time_scale > 0:
             raise ValueError("time_scale: must be > 0")
         self.limits = limits
+        self.cartesian = cartesian if cartesian is not None else CartesianLimits()
+        """What 100 % means for straight-line motions (tool speed and turn rate)."""
         self.time_scale = float(time_scale)
         self.instant = instant
         self._base = np.array(joints_deg, dtype=float)
@@ -276,8 +282,67 @@ class Trajectory:
         self._segments.append(seg)
         return seg
 
+    def add_line(self, path: LinePath, t_s: float, *, speed_pct: float, accel_pct: float = 100.0) -> Segment:
+        """Plan a straight-line motion along ``path`` (from :func:`plan_line`, which must start at :attr:`end_deg`),
+        issued at ``t_s``; blending and start time as :meth:`add`."""
+        self._fold(t_s)
+        if not np.allclose(path.start_deg, self.end_deg, atol=1e-6):
+            raise ValueError("add_line: the path does not start where the planned motions end")
+        duration, ramp = line_duration(path, speed_pct / 100.0, max_joint_speed_deg_s=self.limits.max_speed_deg_s,
+                                       ramp_s=self.limits.ramp_s, cartesian=self.cartesian,
+                                       accel_fraction=accel_pct / 100.0)
+        if self.instant:
+            duration, ramp = 0.0, 0.0
+        else:
+            duration, ramp = duration / self.time_scale, ramp / self.time_scale
+        t0 = t_s
+        if self._segments:
+            last = self._segments[-1]
+            if last.t_end_s > t_s:
+                overlap = min(getattr(last, "ramp_s", 0.0), ramp)
+                t0 = max(t_s, last.t_end_s - overlap)
+        seg = LineSegment(path.start_deg, path.end_deg, t0, duration, ramp, float(speed_pct), path)
+        self._segments.append(seg)
+        return seg
+
+    def _stop_on_line(self, t_s: float) -> float | None:
+        """When a straight line is the only motion under way at ``t_s`` (nothing blending into or out of it),
+        decelerate along it and return the time of rest; else None (the caller stops joint by joint)."""
+        moving = [seg for seg in self._segments if seg.t0_s < t_s < seg.t_end_s]
+        if len(moving) != 1 or not isinstance(moving[0], (LineSegment, LineStopSegment)):
+            return None
+        seg = moving[0]
+        if isinstance(seg, LineSegment):
+            s0, r0 = seg.progress(t_s), seg.rate(t_s)
+        else:
+            tau = t_s - seg.t0_s
+            s0, r0 = seg._s(t_s), seg.r0 * (1.0 - tau / seg.duration_s)
+        p0 = self.position(t_s)
+        path = seg.path
+        if r0 <= 0.0:
+            return None
+        # Rest as soon as the most loaded joint (at full acceleration) and the tool (at the Cartesian acceleration
+        # the ramp implies) allow: the same rule as a joint stop, measured in robot time.
+        sc = self.time_scale
+        a_max = np.array(self.limits.max_speed_deg_s) / self.limits.ramp_s
+        t_joint = float(np.max(np.abs(path.slope(s0) * r0 / sc) / a_max))
+        t_cart = path.length_mm * r0 / sc / (self.cartesian.max_speed_mm_s / self.limits.ramp_s)
+        duration = max(t_joint, t_cart) / sc
+        if duration <= 0.0:
+            return None
+        self._base = np.array(p0)
+        self._base_t = tuple(p0)
+        self._segments = [LineStopSegment(path, s0, r0, t_s, duration)]
+        return t_s + duration
+
     def stop(self, t_s: float) -> float:
-        """Decelerate to rest from ``t_s``, dropping motions not yet reached; returns the time of rest."""
+        """Decelerate to rest from ``t_s``, dropping motions not yet reached; returns the time of rest.
+
+        A straight line under way on its own stops along the line; anything else stops joint by joint."""
+        if not self.instant:
+            t_rest = self._stop_on_line(t_s)
+            if t_rest is not None:
+                return t_rest
         p0 = self.position(t_s)
         v0 = np.array(self.velocity(t_s))
         self._base = np.array(p0)
@@ -292,3 +357,62 @@ class Trajectory:
         duration = t_stop_robot / s
         self._segments.append(StopSegment(tuple(p0), tuple(float(v) for v in v0), t_s, duration))
         return t_s + duration
+
+
+# -- straight-line segments (the line itself is planned in aioadept.sim.line) ------------------------------------
+
+@dataclass(frozen=True, slots=True)
+class LineSegment(Segment):
+    """A straight-line motion: :class:`Segment` timing on the path parameter, joints from ``path``."""
+
+    path: LinePath
+
+    def offset(self, t_s: float) -> np.ndarray:
+        return self.path.joints_at(self.progress(t_s)) - np.asarray(self.start_deg)
+
+    def velocity(self, t_s: float) -> np.ndarray:
+        return self.path.slope(self.progress(t_s)) * self.rate(t_s)
+
+
+@dataclass(frozen=True, slots=True)
+class LineStopSegment:
+    """Deceleration to rest along a straight line: the path rate ``r0`` (1/s) at ``s0`` falls linearly to zero in
+    ``duration_s``, so the tool comes to rest on the line it was given (a stop must not take the arm off its path;
+    how far a real V+ controller strays while braking is UNCONFIRMED, docs/vplus.md)."""
+
+    path: LinePath
+    s0: float
+    r0: float
+    t0_s: float
+    duration_s: float
+
+    @property
+    def t_end_s(self) -> float:
+        return self.t0_s + self.duration_s
+
+    @property
+    def start_deg(self) -> tuple[float, ...]:
+        return tuple(float(v) for v in self.path.joints_at(self.s0))
+
+    def _s(self, t_s: float) -> float:
+        tau = min(max(t_s - self.t0_s, 0.0), self.duration_s)
+        if self.duration_s <= 0.0:
+            return self.s0
+        return self.s0 + self.r0 * tau - 0.5 * self.r0 * tau * tau / self.duration_s
+
+    @property
+    def end_deg(self) -> tuple[float, ...]:
+        return tuple(float(v) for v in self.path.joints_at(self._s(self.t_end_s)))
+
+    @property
+    def speed_pct(self) -> float:
+        return 0.0
+
+    def offset(self, t_s: float) -> np.ndarray:
+        return self.path.joints_at(self._s(t_s)) - self.path.joints_at(self.s0)
+
+    def velocity(self, t_s: float) -> np.ndarray:
+        tau = max(t_s - self.t0_s, 0.0)
+        if tau >= self.duration_s:
+            return np.zeros(6)
+        return self.path.slope(self._s(t_s)) * self.r0 * (1.0 - tau / self.duration_s)

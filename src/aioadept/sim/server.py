@@ -39,6 +39,7 @@ from aioadept.protocol import (
 from aioadept.robots import viper_s850 as kin
 from aioadept.sim.controller import Controller, Outgoing
 from aioadept.sim.io import HAND_TIME_S, DigitalIO, HandConfig
+from aioadept.sim.line import CartesianLimits
 
 log = logging.getLogger(__name__)
 
@@ -137,6 +138,8 @@ class SimOptions:
     """Where the hand is wired (valve outputs, closed-fully switch) and its travel time (aioadept.sim.io)."""
     hand_time_s: float = HAND_TIME_S
     """HAND.TIME at start (a V+ program's PARAMETER HAND.TIME changes it)."""
+    cartesian_limits: CartesianLimits = field(default_factory=CartesianLimits)
+    """What 100 % speed means for a straight line (tool mm/s and deg/s; docs/sim.md)."""
 
     def __post_init__(self) -> None:
         if not self.time_scale > 0:
@@ -167,7 +170,8 @@ class SimOptions:
         return Controller(joints_deg=self.joints_deg, tool=self.tool, monitor_speed_pct=self.monitor_speed_pct,
                           time_scale=self.time_scale, instant=self.instant, max_speed_pct=self.max_speed_pct,
                           jump_limit=self.jump_limit, max_queued_per_conn=self.max_queued,
-                          io=DigitalIO(self.hand, hand_time_s=self.hand_time_s))
+                          io=DigitalIO(self.hand, hand_time_s=self.hand_time_s),
+                          cartesian_limits=self.cartesian_limits)
 
 
 class _NotAStop(Exception):

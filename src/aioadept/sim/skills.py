@@ -147,6 +147,71 @@ def _hello(ctl: Any, args: tuple[float, ...]) -> SkillResult:
     return SkillResult((str(PROTOCOL_VERSION), f"{SERVER_NAME} {ctl.version}"))
 
 
+# -- straight-line and approach skills (issue 19: V+ MOVES, APPRO, APPROS, DEPART, DEPARTS) ---------------------
+
+def _check_distance(d: float, what: str) -> None:
+    _finite((d,))
+    if abs(d) > MAX_POSITION_MM:
+        raise RobotError(ErrorCode.ILLEGAL_VALUE, f"{what} {d:.6g} mm beyond +-{MAX_POSITION_MM:g}")
+
+
+def approach_pose(loc: Pose, dist_mm: float) -> Pose:
+    """V+ ``APPRO loc, dist`` target: ``dist`` mm from ``loc`` back along its tool Z axis, ``loc:TRANS(0,0,-dist)``
+    (positive ``dist``: away from the part, for a tool whose Z points into it)."""
+    return rel_tool(loc, (0.0, 0.0, -dist_mm, 0.0, 0.0, 0.0))
+
+
+def _move_to_s(ctl: Any, args: tuple[float, ...]) -> SkillGen:
+    _check_pose_args(args, "target")
+    return (yield from ctl.move_line(Pose(*args)))
+
+
+def _move_rel_tool_s(ctl: Any, args: tuple[float, ...]) -> SkillGen:
+    # HERE when the skill runs, as move_rel_tool (the paper's skill reads HERE too).
+    _check_pose_args(args, "displacement")
+    return (yield from ctl.move_line(rel_tool(ctl.here, args)))
+
+
+def _appro_target(args: tuple[float, ...]) -> Pose:
+    _check_pose_args(args[:6], "location")
+    _check_distance(args[6], "distance")
+    return approach_pose(Pose(*args[:6]), args[6])
+
+
+def _appro(ctl: Any, args: tuple[float, ...]) -> SkillGen:
+    return (yield from ctl.move_pose(_appro_target(args)))
+
+
+def _appros(ctl: Any, args: tuple[float, ...]) -> SkillGen:
+    return (yield from ctl.move_line(_appro_target(args)))
+
+
+def _depart_target(ctl: Any, args: tuple[float, ...]) -> Pose:
+    # From where the planned motions end, as V+ DEPART (and the emulator's) does: with a break before it, HERE.
+    _check_distance(args[0], "distance")
+    return approach_pose(ctl.planned_end_pose(), args[0])
+
+
+def _depart(ctl: Any, args: tuple[float, ...]) -> SkillGen:
+    return (yield from ctl.move_pose(_depart_target(ctl, args)))
+
+
+def _departs(ctl: Any, args: tuple[float, ...]) -> SkillGen:
+    return (yield from ctl.move_line(_depart_target(ctl, args)))
+
+
+def line_skills() -> list[SkillSpec]:
+    """The straight-line forms of the paper's skills and V+'s approach/depart motions (docs/protocol.md)."""
+    return [
+        SkillSpec("move_to_s", _move_to_s, (6,)),
+        SkillSpec("move_rel_tool_s", _move_rel_tool_s, (6,)),
+        SkillSpec("appro", _appro, (7,)),
+        SkillSpec("appros", _appros, (7,)),
+        SkillSpec("depart", _depart, (1,)),
+        SkillSpec("departs", _departs, (1,)),
+    ]
+
+
 def _stop_placeholder(ctl: Any, args: tuple[float, ...]) -> None:  # pragma: no cover - never called
     raise AssertionError("stop is handled by the controller")
 
@@ -160,8 +225,8 @@ _STOP_RUN = SkillSpec(STOP_SKILL, _stop_wait, (0,))
 
 
 def default_skills() -> list[SkillSpec]:
-    """The AdeptServer skills plus our extensions (stop, here, hello; the I/O and hand skills of
-    the block below)."""
+    """The AdeptServer skills plus our extensions (stop, here, hello; the straight-line skills; the I/O and hand
+    skills of the block below)."""
     six = (6,)
     return [
         SkillSpec("move_to", _move_to, six),
@@ -169,6 +234,7 @@ def default_skills() -> list[SkillSpec]:
         SkillSpec("move_rel_world", _move_rel_world, six),
         SkillSpec("move_rel_tool", _move_rel_tool, six),
         SkillSpec("move_rel_joints", _move_rel_joints, six),
+        *line_skills(),
         SkillSpec("break", _break, (0,)),
         SkillSpec("set_speed", _set_speed, (1,)),
         SkillSpec("enable_air", _enable_air, (0,)),

@@ -26,7 +26,9 @@ functions: nothing happens, not even a check, until the first ``next()``, which 
 
 Choices where the V+ manuals are silent (docs/vplus.md lists them):
 
-- ``MOVES`` is joint-interpolated: the controller has no straight-line model (docs/sim.md says so for the sim).
+- ``MOVES``, ``APPROS``, ``DEPARTS`` follow a straight line (the controller's one straight-line model); a line
+  that would leave the workspace, pass a joint limit or cross a singularity part-way is refused before the arm
+  moves, with the error of the first sample that fails (V+ checks during the motion; UNCONFIRMED which codes).
 - ``BRAKE`` (any task, attached or not) decelerates the arm to rest, drops planned motions, and also drops a
   motion instruction that is waiting for its turn at that moment: it returns without moving. No motion that was
   waiting when the brake came starts afterwards.
@@ -265,7 +267,8 @@ class RobotDevice:
 
     # -- motion ------------------------------------------------------------------------------------------
     def move(self, task: TaskId, target: Location, *, straight: bool = False) -> MotionGen:
-        """V+ ``MOVE`` (``MOVES`` with ``straight``; joint-interpolated, see the module docstring).
+        """V+ ``MOVE`` (``MOVES`` with ``straight``: a straight line in Cartesian space, checked along its whole
+        length before it starts, :meth:`aioadept.sim.controller.Controller.move_line`).
 
         Returns when the motion has started (forward processing, one motion deep). Raises
         :class:`VPlusRobotError` before anything moves for an unreachable target or a joint limit.
@@ -275,13 +278,20 @@ class RobotDevice:
         if self.dry_run:
             self._check_target(target)
             ctl.take_speed_pct()
+            if straight:
+                try:
+                    ctl.plan_line(self._line_target(target))
+                except RobotError as exc:
+                    raise _translate(exc) from exc
             return
         epoch = self._brakes
         try:
-            if isinstance(target, PrecisionPoint):
-                if len(target.joints_deg) != 6:
-                    ctl.take_speed_pct()
-                    raise VPlusRobotError.of("illegal_value", f"precision point has {len(target.joints_deg)} joints")
+            if isinstance(target, PrecisionPoint) and len(target.joints_deg) != 6:
+                ctl.take_speed_pct()
+                raise VPlusRobotError.of("illegal_value", f"precision point has {len(target.joints_deg)} joints")
+            if straight:
+                gen = ctl.move_line(self._line_target(target))
+            elif isinstance(target, PrecisionPoint):
                 gen = ctl.move_joints(target.joints_deg)
             else:
                 gen = ctl.move_pose(target.to_pose())
@@ -297,6 +307,13 @@ class RobotDevice:
                     wake = next(gen, None)
         except RobotError as exc:
             raise _translate(exc) from exc
+
+    def _line_target(self, target: Location) -> Pose:
+        """The tool pose a straight line goes to: a transformation as it is, a precision point through the forward
+        kinematics (with the current TOOL)."""
+        if isinstance(target, PrecisionPoint):
+            return kin.forward(target.joints_deg, self.controller.tool)
+        return target.to_pose()
 
     def moves(self, task: TaskId, target: Location) -> MotionGen:
         """V+ ``MOVES``: as :meth:`move` with ``straight=True``."""
@@ -383,5 +400,8 @@ def _translate(exc: RobotError) -> VPlusRobotError:
     if exc.code == ErrorCode.JOINT_LIMIT:
         return VPlusRobotError(VPLUS_ERRORS["joint_limit"].code, f"{VPLUS_ERRORS['joint_limit'].text} {exc.message}")
     if exc.code == ErrorCode.OUT_OF_REACH:
-        return VPlusRobotError(VPLUS_ERRORS["out_of_range"].code, VPLUS_ERRORS["out_of_range"].text)
+        text = VPLUS_ERRORS["out_of_range"].text
+        if exc.message.startswith("line "):  # where along a straight line (MOVES) it left the workspace
+            text = f"{text} {exc.message}"
+        return VPlusRobotError(VPLUS_ERRORS["out_of_range"].code, text)
     return VPlusRobotError(int(exc.code), exc.message)

@@ -67,6 +67,23 @@ def test_commands_acks_and_spans(tmp_path):
     assert lg.counts == {"command": 3, "ack": 3}
 
 
+def test_targets_of_the_straight_line_and_approach_skills(tmp_path):
+    home = kin.forward(kin.HOME_JOINTS_DEG)  # tool down: -Z of the tool is world up
+    p = Pose(400, 0, 400, 0, 180, 0)
+
+    def fill(lg):
+        lg.ack("h", "here", "done", home, 0.5)
+        lg.command("b1", "move_to_s", p.as_tuple(), 1.0)
+        lg.command("b2", "appros", (*p.as_tuple(), 50.0), 1.1)
+        lg.command("b3", "departs", (30.0,), 1.2)
+        lg.command("b4", "move_rel_tool_s", (0, 0, 10.0, 0, 0, 0), 1.3)
+
+    rows, _ = _record(tmp_path / "l.rrd", fill)
+    targets = rows["/world/targets"][-1]["Points3D:positions"]
+    np.testing.assert_allclose(targets, [(400, 0, 400), (400, 0, 450), home.position_mm + (0, 0, 30),
+                                         home.position_mm - (0, 0, 10)], atol=1e-3)
+
+
 def test_vision_sharpness_frames_and_focus_plane(tmp_path):
     pose0 = Pose(100, 200, 300, 0, 180, 0)
     series = [10.0, 20.0, 30.0, 25.0]

@@ -188,6 +188,15 @@ def test_deferred_hand_acts_as_the_next_motion_starts_and_not_after_a_stop():
     assert not io.state(1), "a deferred OPEN acted on the first motion after a stop"
 
 
+def test_a_deferred_hand_acts_as_a_straight_line_starts_too():
+    """OPEN/CLOSE act at the start of the next motion of any kind: MOVES (move_to_s) as MOVE."""
+    r = Rig(time_scale=10)
+    io = r.ctl.io
+    io.defer_hand("close")
+    r.send("move_to_s:480,0,650,0,180,0", 1.0)
+    assert io.state(2) and changes(io)[-1][0] == 1.0, "the deferred CLOSE did not act as the line started"
+
+
 def test_state_snapshot_carries_io_and_hand():
     r = Rig()
     r.send("signal:8,2001", 0.0)

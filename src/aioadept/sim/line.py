@@ -1,0 +1,245 @@
+"""Straight-line motion of the simulated arm (V+ ``MOVES``, ``APPROS``, ``DEPARTS``): the line's geometry, its
+check along the whole length, and its timing.
+
+Pure: no clock, no I/O. :class:`aioadept.sim.motion.Trajectory` runs a planned line (``LineSegment``), the
+controller (:meth:`aioadept.sim.controller.Controller.move_line`) plans it with :func:`plan_tool_line`.
+
+A straight line is planned once, when its instruction runs: the tool's path (position linear, orientation turning
+on the shortest rotation about one fixed axis, slerp) is sampled every :data:`LINE_STEP_MM` / :data:`LINE_STEP_DEG`
+and each sample is solved with the inverse kinematics, continuing from the previous one. Any sample out of reach,
+past a joint limit, or whose joints jump (a configuration change or a swing through a singularity) refuses the
+whole line before anything moves. The joints between two samples are interpolated linearly: the samples are so
+close that the tool stays within micrometres of the line (tests/unit/sim/test_straight_line.py measures it).
+Timing is the same trapezoid as a joint move, on the path parameter s in [0, 1].
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from aioadept.errors import RobotError
+from aioadept.geometry import NULL, Pose, decompose
+from aioadept.protocol import ErrorCode
+from aioadept.robots import viper_s850 as kin
+
+
+LINE_STEP_MM = 1.0
+"""Largest distance between two samples of a straight line (mm)."""
+LINE_STEP_DEG = 0.5
+"""Largest rotation of the tool between two samples of a straight line (deg)."""
+LINE_MAX_SAMPLES = 10_000
+"""A line longer than this many steps is sampled more coarsely (10 m at 1 mm; beyond the Viper's workspace)."""
+
+
+@dataclass(frozen=True, slots=True)
+class CartesianLimits:
+    """What 100 % speed means for a straight-line motion (V+ ``SPEED``: "motion speed has different meanings for
+    joint-interpolated motions and straight-line motions").
+
+    ``max_speed_mm_s``: the tool tip's linear speed at 100 % (about 2000 mm/s, a value usual for this arm class; UNCONFIRMED for the Viper);
+    ``max_rot_speed_deg_s``: the tool's rotational speed at 100 % (V+'s ``r_speed_factor`` scales it; the value
+    for the Viper is UNCONFIRMED, docs/vplus.md). The joints' own speed limits apply too: where the line needs a
+    joint faster than its limit, the whole line is slowed down, so the path never changes.
+    """
+
+    max_speed_mm_s: float = 2000.0
+    max_rot_speed_deg_s: float = 360.0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.max_speed_mm_s) and self.max_speed_mm_s > 0):
+            raise ValueError("max_speed_mm_s: must be a finite number > 0")
+        if not (math.isfinite(self.max_rot_speed_deg_s) and self.max_rot_speed_deg_s > 0):
+            raise ValueError("max_rot_speed_deg_s: must be a finite number > 0")
+
+
+def _rot_log(r: np.ndarray) -> np.ndarray:
+    """Rotation vector (axis x angle, radians) of a rotation matrix; the angle is in [0, pi]."""
+    cos_a = max(-1.0, min(1.0, (float(np.trace(r)) - 1.0) / 2.0))
+    w = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
+    sin_a = 0.5 * float(np.linalg.norm(w))
+    angle = math.atan2(sin_a, cos_a)
+    if angle < 1e-12:
+        return np.zeros(3)
+    if sin_a > 1e-6:
+        return w / (2.0 * sin_a) * angle
+    # Half a turn: the axis is the column of (R + I)/2 with the largest norm (either sign is the shortest rotation).
+    b = (r + np.eye(3)) / 2.0
+    k = int(np.argmax(np.diag(b)))
+    axis = b[:, k] / math.sqrt(max(b[k, k], 1e-300))
+    return axis / np.linalg.norm(axis) * angle
+
+
+def _rot_exp(v: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a rotation vector (Rodrigues)."""
+    angle = float(np.linalg.norm(v))
+    if angle < 1e-15:
+        return np.eye(3)
+    k = v / angle
+    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + math.sin(angle) * kx + (1.0 - math.cos(angle)) * (kx @ kx)
+
+
+def line_pose_matrix(m0: np.ndarray, m1: np.ndarray, s: float) -> np.ndarray:
+    """The tool's 4x4 pose at ``s`` (0..1) along the straight line from ``m0`` to ``m1``: position linear,
+    orientation on the shortest rotation from one to the other (slerp)."""
+    if s <= 0.0:
+        return m0.copy()
+    if s >= 1.0:
+        return m1.copy()
+    return _line_pose(m0, m1, _rot_log(m0[:3, :3].T @ m1[:3, :3]), s)
+
+
+def _line_pose(m0: np.ndarray, m1: np.ndarray, turn: np.ndarray, s: float) -> np.ndarray:
+    """:func:`line_pose_matrix` with the turn (rotation vector from m0 to m1, in m0's frame) computed once."""
+    m = np.eye(4)
+    m[:3, 3] = m0[:3, 3] + s * (m1[:3, 3] - m0[:3, 3])
+    m[:3, :3] = m0[:3, :3] @ _rot_exp(s * turn)
+    return m
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class LinePath:
+    """A planned straight line: joint samples ``joints_deg[k]`` at path parameters ``s[k]`` (0 .. 1).
+
+    ``length_mm`` and ``rotation_deg`` are the tool's travel and turn; ``start_m``/``end_m`` its 4x4 poses.
+    """
+
+    s: np.ndarray
+    joints_deg: np.ndarray
+    length_mm: float
+    rotation_deg: float
+    start_m: np.ndarray
+    end_m: np.ndarray
+
+    @property
+    def start_deg(self) -> tuple[float, ...]:
+        return tuple(float(v) for v in self.joints_deg[0])
+
+    @property
+    def end_deg(self) -> tuple[float, ...]:
+        return tuple(float(v) for v in self.joints_deg[-1])
+
+    def _bracket(self, s: float) -> tuple[int, float]:
+        n = len(self.s) - 1
+        if s <= 0.0:
+            return 0, 0.0
+        if s >= 1.0:
+            return n - 1, 1.0
+        k = min(int(np.searchsorted(self.s, s, side="right")) - 1, n - 1)
+        return k, (s - self.s[k]) / (self.s[k + 1] - self.s[k])
+
+    def joints_at(self, s: float) -> np.ndarray:
+        """Joint angles (deg) at path parameter ``s`` (clamped to 0..1)."""
+        k, f = self._bracket(s)
+        return self.joints_deg[k] + f * (self.joints_deg[k + 1] - self.joints_deg[k])
+
+    def slope(self, s: float) -> np.ndarray:
+        """d(joints)/ds (deg per unit of s) at ``s``."""
+        k, _ = self._bracket(s)
+        return (self.joints_deg[k + 1] - self.joints_deg[k]) / (self.s[k + 1] - self.s[k])
+
+    @property
+    def max_slope(self) -> np.ndarray:
+        """The largest |d(joint)/ds| of each joint along the line."""
+        d = np.abs(np.diff(self.joints_deg, axis=0)) / np.diff(self.s)[:, None]
+        return d.max(axis=0)
+
+
+def plan_line(start_deg: Sequence[float], target_m: np.ndarray, *,
+              solve: Callable[[np.ndarray, tuple[float, ...]], Sequence[float]], line_start_m: np.ndarray,
+              step_mm: float = LINE_STEP_MM, step_deg: float = LINE_STEP_DEG) -> LinePath:
+    """Sample the straight line from ``line_start_m`` (the tool pose at ``start_deg``) to ``target_m`` and solve
+    every sample with ``solve(m, seed_deg) -> joints_deg`` (the inverse kinematics, continuing from ``seed_deg``;
+    it raises for a sample that cannot be reached). Pure: the kinematics come in as ``solve``.
+
+    Raises :class:`aioadept.errors.RobotError` with the code ``solve`` raised for the first sample that fails
+    (``OUT_OF_REACH``, ``JOINT_LIMIT``, ``JOINT_JUMP``) and where along the line it is.
+    """
+    length = float(np.linalg.norm(target_m[:3, 3] - line_start_m[:3, 3]))
+    turn = _rot_log(line_start_m[:3, :3].T @ target_m[:3, :3])
+    rotation = math.degrees(float(np.linalg.norm(turn)))
+    n = max(1, math.ceil(length / step_mm), math.ceil(rotation / step_deg))
+    n = min(n, LINE_MAX_SAMPLES)
+    s = np.linspace(0.0, 1.0, n + 1)
+    joints = np.empty((n + 1, 6))
+    joints[0] = start_deg
+    seed = tuple(float(v) for v in start_deg)
+    for k in range(1, n + 1):
+        m = target_m if k == n else _line_pose(line_start_m, target_m, turn, float(s[k]))
+        try:
+            seed = tuple(solve(m, seed))
+        except RobotError as exc:
+            # Same code, and where along the line it failed (the ack's text holds 80 characters: keep it short).
+            raise RobotError(exc.code, f"line {float(s[k]) * length:.0f}/{length:.0f} mm: {exc.message}") from exc
+        joints[k] = seed
+    return LinePath(s, joints, length, rotation, line_start_m.copy(), target_m.copy())
+
+
+def line_duration(path: LinePath, speed_fraction: float, *, max_joint_speed_deg_s: Sequence[float], ramp_s: float,
+                  cartesian: CartesianLimits = CartesianLimits(), accel_fraction: float = 1.0) -> tuple[float, float]:
+    """(duration_s, ramp_s) of a straight line at ``speed_fraction`` (0..1]: a trapezoid on the path parameter
+    whose cruise rate keeps the tool within the Cartesian speed, its turn within the rotational speed, and every
+    joint within its own maximum speed (``max_joint_speed_deg_s``, whatever the speed; ``ramp_s`` the ramp time at full
+    acceleration, as :class:`aioadept.sim.motion.MotionLimits`). Robot time, before any time scale."""
+    if not 0.0 < speed_fraction <= 1.0 + 1e-9:
+        raise ValueError(f"speed_fraction: {speed_fraction} outside (0, 1]")
+    if not 0.0 < accel_fraction <= 1.0 + 1e-9:
+        raise ValueError(f"accel_fraction: {accel_fraction} outside (0, 1]")
+    ramp = ramp_s / accel_fraction
+    # The time each limit needs at constant speed, for the whole path (s from 0 to 1).
+    needs = [path.length_mm / (cartesian.max_speed_mm_s * speed_fraction),
+             path.rotation_deg / (cartesian.max_rot_speed_deg_s * speed_fraction)]
+    # The joints are bounded by their own maximum speeds, not scaled by SPEED: for a straight line SPEED sets the
+    # tool's speed, and a joint limits it only where the line needs that joint faster than it can go.
+    needs += list(path.max_slope / np.asarray(max_joint_speed_deg_s))
+    cruise = max(needs)
+    if cruise <= 0.0:
+        return 0.0, 0.0
+    # As plan_duration: cruise + ramp when the ramps fit, else a triangle with the same acceleration.
+    duration = cruise + ramp if cruise >= ramp else 2.0 * math.sqrt(cruise * ramp)
+    return duration, min(ramp, duration / 2.0)
+
+
+def plan_tool_line(start_deg: Sequence[float], pose: Pose, tool: Pose = NULL, *,
+                   joint_limits: kin.JointLimits = kin.VIPER_S850_LIMITS,
+                   jump: kin.JumpLimit | None = kin.DEFAULT_JUMP_LIMIT) -> LinePath:
+    """The straight line of the tool (``tool`` in the flange frame, V+ ``TOOL``) from the joints ``start_deg`` to
+    ``pose``, every sample solved with the Viper's inverse kinematics; raises ``RobotError`` (``OUT_OF_REACH``,
+    ``JOINT_LIMIT``, ``JOINT_JUMP``: a swing through a singularity, or ``ILLEGAL_VALUE``) naming where along the
+    line, before anything moves.
+
+    The jump limit always applies to a line's samples (the default one when ``jump`` is None): with samples 1 mm
+    apart it is what tells a singularity from an ordinary turn of the joints.
+    """
+    start_m = kin.flange_matrix(start_deg)
+    if tool != NULL:
+        start_m = start_m @ tool.to_matrix()
+    target_m = pose.to_matrix()
+    if not np.isfinite(target_m).all():
+        raise RobotError(ErrorCode.ILLEGAL_VALUE, "location is not finite")
+    step_jump = jump if jump is not None else kin.DEFAULT_JUMP_LIMIT
+
+    def solve(m: np.ndarray, seed: tuple[float, ...]) -> tuple[float, ...]:
+        sample = decompose(m)
+        try:
+            return kin.inverse(sample, seed, tool, limits=joint_limits, jump=step_jump)
+        except RobotError as exc:
+            if exc.code != ErrorCode.JOINT_JUMP:
+                raise
+            # Between two samples 1 mm apart a joint jumps: either it would have to pass its limit (the nearer
+            # way round is past it) or the line crosses a singularity. Say which.
+            q = kin.inverse(sample, seed, tool, limits=joint_limits, jump=None)
+            worst = max(range(6), key=lambda i: abs(q[i] - seed[i]))
+            near = q[worst] + 360.0 * round((seed[worst] - q[worst]) / 360.0)
+            if abs(near - seed[worst]) < abs(q[worst] - seed[worst]) - 1e-6 and joint_limits.violations(
+                    [*seed[:worst], near, *seed[worst + 1:]]):
+                raise RobotError(ErrorCode.JOINT_LIMIT, f"J{worst + 1} {near:.1f} past its limit") from exc
+            why = exc.message.rpartition("; ")[2] if "; " in exc.message else "singularity"
+            raise RobotError(ErrorCode.JOINT_JUMP, f"J{worst + 1} jumps {abs(q[worst] - seed[worst]):.1f} deg "
+                                                   f"in a step: {why}") from exc
+
+    return plan_line(start_deg, target_m, solve=solve, line_start_m=start_m)
