@@ -1,4 +1,5 @@
 """The simulated SmartController running AdeptServer: skills, one serial executor, V+ motion semantics.
+(Over 500 lines because the queue, the executor, the stop path and the acks share one state; they read together.)
 
 Pure: no sockets, no clock. The TCP adapter (:mod:`aioadept.sim.server`) feeds it lines with the time they were
 read and calls :meth:`Controller.step` when :meth:`Controller.next_wake_s` says something is due; tests do the
