@@ -57,7 +57,7 @@ async def run(host: str, port: int, endpoint: str, curve) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from aioadept.cli.options import parse_robot_address
+    from aioadept.cli.options import parse_robot_address, report
     from aioadept.cli.sim import _state_curve
 
     parser = build_parser()
@@ -67,8 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         host, port = parse_robot_address(args.robot, defaults.STATE_STREAM_PORT)
         curve = _state_curve(args)
-    except (ValueError, OSError) as exc:
-        parser.error(str(exc))
+    except (ValueError, OSError) as exc:   # one line naming the option or the file, no usage block
+        return report("aioadept state", exc)
     try:
         return asyncio.run(run(host, port, args.state_endpoint, curve))
     except Exception as exc:  # BusError binding the endpoint, etc.

@@ -9,8 +9,9 @@ camera work the same on a real controller. ``aioadept state`` (:mod:`aioadept.cl
 The controller's clock (``t``, seconds since the server started) becomes wall time with the smallest offset seen
 on the connection (``receive time - t``): the sample that arrived fastest bounds the transport delay, so
 ``wall_time_s`` is never later than the sample really was, and stays monotonic in ``t``. A lost connection is
-retried with backoff (0.1 s doubling to ``max_backoff_s``) for as long as the relay runs; a reconnect starts a new
-offset (the server may have restarted, and its clock with it).
+retried with backoff (0.1 s doubling to ``max_backoff_s``) for as long as the relay runs, and so is one that brings
+nothing for ``idle_timeout_s``; a reconnect starts a new offset (the server may have restarted, and its clock
+with it).
 """
 
 from __future__ import annotations
@@ -53,9 +54,12 @@ class StateRelay:
     (an :class:`aioadept.bus.pubsub.Publisher`, owned by the caller). ``await relay.run()`` until cancelled."""
 
     def __init__(self, host: str, port: int, publisher: Any, *, connect_timeout_s: float = 5.0,
-                 max_backoff_s: float = 2.0) -> None:
-        if not connect_timeout_s > 0 or not max_backoff_s > 0:
-            raise ValueError("connect_timeout_s and max_backoff_s must be > 0")
+                 max_backoff_s: float = 2.0, idle_timeout_s: float = 2.0) -> None:
+        if not (connect_timeout_s > 0 and max_backoff_s > 0 and idle_timeout_s > 0):
+            raise ValueError("connect_timeout_s, max_backoff_s and idle_timeout_s must be > 0")
+        self.idle_timeout_s = idle_timeout_s
+        """A connection that brings no data for this long is closed and made again (a controller that hung or a
+        cable pulled: TCP alone may not notice for minutes). The shipped task writes 100 lines a second."""
         self.host = host
         self.port = port
         self.publisher = publisher
@@ -97,7 +101,11 @@ class StateRelay:
         complained = False
         while True:
             try:
-                chunk = await reader.read(65536)
+                async with asyncio.timeout(self.idle_timeout_s):
+                    chunk = await reader.read(65536)
+            except TimeoutError:
+                log.warning("state stream %s:%d: no data for %g s", self.host, self.port, self.idle_timeout_s)
+                return
             except OSError:
                 return
             if not chunk:
@@ -122,7 +130,8 @@ class StateRelay:
                     offset = off
                 self.last = sample
                 try:
-                    self.publisher.publish_nowait(ROBOT_STATE_TOPIC, to_robot_state(sample, offset + sample.t_s).to_bytes())
+                    msg = to_robot_state(sample, offset + sample.t_s)
+                    self.publisher.publish_nowait(ROBOT_STATE_TOPIC, msg.to_bytes())
                     self.stats.published += 1
                 except Exception:
                     log.exception("state publish failed")
