@@ -45,3 +45,17 @@ async def test_client_status_and_the_command(server):
         assert res.messages[-1].skill == "status"
         assert parse_status_fields(res.messages[-1].ack.extra).moving
         await robot.stop()
+
+
+@pytest.mark.timeout(90)
+async def test_aioadept_send_status_prints_the_fields(server):
+    import asyncio
+    import sys
+
+    proc = await asyncio.create_subprocess_exec(sys.executable, "-m", "aioadept", "send", "--host", server.host,
+                                                "--port", str(server.port), "status",
+                                                stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE)
+    out, err = await asyncio.wait_for(proc.communicate(), 60)
+    assert proc.returncode == 0, err
+    (line,) = out.decode().splitlines()
+    assert " status " in line and " done " in line and line.endswith(" mv=0,sp=100,er=0,pw=1,es=0"), line
