@@ -9,7 +9,8 @@ sees). Measurement blocks alternate between the two servers (the order swapped e
   and of ``here`` (answered by the reader itself), one after another. Goal: p50 of the streaming server <= 1.10x
   the baseline's (the median of per-block ratios; the issue's "acks delayed by no more than 10 %").
 - **rate**: the ``robot.state`` messages the relay published during the blocks, per second of the server's own
-  clock (first to last sample). Goal: >= 100 Hz at ``--rate 100``; the baseline is the configured rate.
+  clock (first to last sample). Goal: >= 100 Hz at ``--rate 100``, judged as >= 99.5 Hz (a short run's count
+  over its span); the baseline is the configured rate.
 
 Prints one JSON object. Usage: ``python benchmarks/bench_statestream.py [--quick] [--messages 2000] [--blocks 6]``.
 """
@@ -164,8 +165,8 @@ def main(argv: list[str] | None = None) -> int:
                                 ratio=r[kind]["mean_ratio_per_block"]["median"]))
     rate = r["rate_hz"]
     verdicts.append(verdict("robot.state rate from the V+ stream through the emulator and aioadept state", rate,
-                            float(args.rate), unit="Hz", goal=">= 100 Hz",
-                            passed=rate is not None and rate >= 100 * 0.995))
+                            float(args.rate), unit="Hz", goal=">= 99.5 Hz (100 Hz, 0.5 % for the span's ends)",
+                            passed=rate is not None and rate >= 99.5))
     print(json.dumps({"benchmark": "statestream", "python": platform.python_version(),
                       "machine": platform.machine(), **r, "verdicts": verdicts}, indent=2))
     return 0
