@@ -43,9 +43,10 @@ async def test_waits_until_a_server_started_later_answers_hello():
         assert (version, name.split()[0]) == (1, "aioadept-sim")
         assert 0.8 <= took < 3.0, "backoff is capped at 1 s: ready within about a second of the server"
         assert robot.connected
-        here = await robot.here()        # the connection it made is the one the app goes on with
-        assert here.z > 0
-        await robot.close()
+        async with robot:                # the connection it made is the one the app goes on with
+            here = await robot.here()
+            assert here.z > 0
+        assert not robot.connected
 
 
 @pytest.mark.timeout(60)

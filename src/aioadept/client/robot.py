@@ -269,7 +269,8 @@ class RobotClient:
             raise ClientStateError("RobotClient is not reentrant: already inside 'async with'")
         self._in_context = True
         try:
-            await self.connect()
+            if self._state is not _CONNECTED:     # wait_ready() may have connected it already
+                await self.connect()
         except BaseException:
             self._in_context = False
             raise
@@ -881,7 +882,13 @@ class RobotClient:
         ``(protocol_version, server_name)`` as :meth:`hello` does, or ``(None, "")`` from a server that refuses
         ``hello`` with an error ack (it speaks the protocol without the extensions). Already connected: one
         ``hello``. Raises :class:`~aioadept.errors.ConnectError` naming the last failure when ``timeout_s`` has
-        passed, ``ValueError`` for a ``timeout_s``/``max_backoff_s`` that is not a finite number > 0.
+        passed, ``ValueError`` for a ``timeout_s``/``max_backoff_s`` that is not a finite number > 0. Then
+        ``async with robot:`` uses the connection it made::
+
+            robot = RobotClient(host, port)
+            await robot.wait_ready(120)       # the controller may still be booting
+            async with robot:
+                await robot.cmdexec(...)
         """
         _check_timeout("timeout_s", timeout_s, none_ok=False)
         _check_timeout("max_backoff_s", max_backoff_s, none_ok=False)
