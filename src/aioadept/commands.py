@@ -360,6 +360,14 @@ class RelaxHand(_NoArgs):
     skill = "relax_hand"
 
 
+class GetStatus(_NoArgs):
+    """No motion; the ack carries the robot's status (extension, docs/protocol.md 4.7): read it with
+    :func:`aioadept.protocol.robotstatus.parse_status_fields` or call ``RobotClient.status()``. Skill ``status``."""
+
+    __slots__ = ()
+    skill = "status"
+
+
 class Skill(Command):
     """Any user-defined skill: a V+ program name (≤ 15 chars) and numeric arguments.
 

@@ -24,3 +24,5 @@ REQUEST_ENDPOINT = "tcp://127.0.0.1:5555"
 """Vision requests: the MCN's PUB, the node's SUB."""
 RESPONSE_ENDPOINT = "tcp://127.0.0.1:5556"
 """Vision responses: the node's PUB, the MCN's SUB."""
+STATE_STREAM_PORT = 1235
+"""The V+ server's state-stream TCP port (``rs.stport`` in vplus/rsconfig.V2), which ``aioadept state`` reads."""

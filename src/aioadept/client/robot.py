@@ -87,6 +87,7 @@ from aioadept.errors import (
 )
 from aioadept.geometry import Pose
 from aioadept.protocol import HELLO_SKILL, HERE_SKILL, MAX_ACK_LINE, STOP_SKILL, SkillCall, Status, parse_ack
+from aioadept.protocol.robotstatus import STATUS_SKILL, RobotStatus, parse_status_fields
 
 __all__ = ["Connector", "RobotClient"]
 
@@ -280,7 +281,8 @@ class RobotClient:
             raise ClientStateError("RobotClient is not reentrant: already inside 'async with'")
         self._in_context = True
         try:
-            await self.connect()
+            if self._state is not _CONNECTED:     # wait_ready() may have connected it already
+                await self.connect()
         except BaseException:
             self._in_context = False
             raise
@@ -986,6 +988,69 @@ class RobotClient:
             version = None
         return version, (ack.extra[1] if len(ack.extra) > 1 else "")
 
+    async def status(self, *, timeout_s: float | None = None) -> RobotStatus:
+        """The robot's status from the ``status`` extension skill (docs/protocol.md, section 4.7): moving, the
+        program speed, the last error (code and text), high power and E-stop where the server knows them.
+
+        Raises as :meth:`here`; :class:`~aioadept.errors.RemoteProtocolError` if the ack carries no status.
+        """
+        if timeout_s is not None:
+            _check_timeout("timeout_s", timeout_s)
+        if self._state is not _CONNECTED:
+            await self._ensure_connected()
+        ack = (await self._wait(self._send((_STATUS,)), timeout_s, True))[0].ack
+        return parse_status_fields(ack.extra)
+
+    async def wait_ready(self, timeout_s: float, *, max_backoff_s: float = 1.0) -> tuple[int | None, str]:
+        """Connect, retrying with backoff until the server answers ``hello``: start the app before the controller.
+
+        Each attempt connects (refused, unreachable, or no answer within ``connect_timeout_s``) and sends
+        ``hello`` (no answer within ``min(2 s, time left)``: a server still starting); a failed attempt closes its
+        connection and the next one follows after 0.05 s, doubling up to ``max_backoff_s``. Returns
+        ``(protocol_version, server_name)`` as :meth:`hello` does, or ``(None, "")`` from a server that refuses
+        ``hello`` with an error ack (it speaks the protocol without the extensions). Already connected: one
+        ``hello``. Raises :class:`~aioadept.errors.ConnectError` naming the last failure when ``timeout_s`` has
+        passed, ``ValueError`` for a ``timeout_s``/``max_backoff_s`` that is not a finite number > 0. Then
+        ``async with robot:`` uses the connection it made::
+
+            robot = RobotClient(host, port)
+            await robot.wait_ready(120)       # the controller may still be booting
+            async with robot:
+                await robot.cmdexec(...)
+        """
+        _check_timeout("timeout_s", timeout_s, none_ok=False)
+        _check_timeout("max_backoff_s", max_backoff_s, none_ok=False)
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + timeout_s
+        backoff = 0.05
+        attempts = 0
+        last = "none"
+        while True:
+            left = deadline - loop.time()
+            if left <= 0:
+                raise ConnectError(f"{self.host}:{self.port} not ready within {timeout_s:g} s "
+                                   f"({attempts} attempts; last: {last})")
+            attempts += 1
+            try:
+                async with asyncio.timeout(left):
+                    if self._state is not _CONNECTED:
+                        await self._connect()
+                    return await self.hello(timeout_s=min(_READY_HELLO_S, left))
+            except CommandError:
+                return None, ""
+            except (ConnectError, ConnectionLost, AckTimeout, NotARobotServer, TimeoutError) as exc:
+                if isinstance(exc, AckTimeout) or (type(exc) is TimeoutError and self._state is _CONNECTED):
+                    last = "connected, but no answer to hello"
+                elif type(exc) is TimeoutError:
+                    last = "no connection before the deadline"
+                else:
+                    last = f"{type(exc).__name__}: {exc}"
+                if self._state is _CONNECTED:
+                    await self.close()
+                self._state = _NEW    # connect() may be called again (as after a failed hello check)
+            await asyncio.sleep(min(backoff, max(deadline - loop.time(), 0.0)))
+            backoff = min(backoff * 2, max_backoff_s)
+
     # ------------------------------------------------------------------------------------------- observers
     def _notify_send(self, sub: Submission) -> None:
         for mid, call in zip(sub.ids, sub.calls):
@@ -1013,6 +1078,9 @@ _CALLS_OF_COMMAND = operator.attrgetter("_calls")  # Command._calls; AttributeEr
 _STOP = SkillCall(STOP_SKILL)
 _HERE = SkillCall(HERE_SKILL)
 _HELLO = SkillCall(HELLO_SKILL)
+_STATUS = SkillCall(STATUS_SKILL)
+_READY_HELLO_S = 2.0
+"""How long :meth:`RobotClient.wait_ready` waits for one attempt's ``hello`` answer."""
 
 
 def _log_orphan_stop(task: asyncio.Task[MessageResult]) -> None:

@@ -1,4 +1,5 @@
 """The simulated SmartController running AdeptServer: skills, one serial executor, V+ motion semantics.
+(Over 500 lines because the queue, the executor, the stop path and the acks share one state; they read together.)
 
 (Over 500 lines because it is the one robot model both backends drive: the executor, forward processing, stop
 and the motion generators (joint and straight-line) share its state; the skill table, the timing and the line
@@ -179,6 +180,8 @@ class Controller:
         self._fk_cache: tuple[tuple[float, ...], Pose, Pose] | None = None  # (joints, tool, pose) of the last FK
         self.executed = 0
         """Skills run to completion (done or error), for inspection in tests and benchmarks."""
+        self.last_error: tuple[int, str] = (0, "")
+        """Code and text of the last skill that failed (0, "": none), as the ``status`` skill reports it."""
 
     # -- skill table ---------------------------------------------------------------------------------------
     def register(self, name: str, func: SkillFunc, *, nargs: int | Sequence[int] | None = 0,
@@ -401,6 +404,9 @@ class Controller:
               error: tuple[int, str | None] | None = None, extra: tuple[str, ...] = ()) -> None:
         if status is not Status.ABORTED:
             self.executed += 1
+        if status is Status.ERROR and entry.error is None and error is not None:
+            # a skill that ran and failed (not a line that did not parse): what the status skill reports
+            self.last_error = (int(error[0]), error[1] or "")
         if entry.tracked:  # answered: its ID is free again on its connection
             entry.tracked = False
             ids = self._inflight.get(entry.conn)

@@ -1,6 +1,7 @@
 """The simulated controller's skill table: the AdeptServer skills (``move_to``, ``break``, ``set_speed``, ...) and
-our extensions (``stop``, ``here``, ``hello``; the digital I/O and hand skills, in their own block), the value
-checks they make before anything moves, and the types of a table entry (:class:`SkillSpec`, :class:`SkillResult`).
+our extensions (``stop``, ``here``, ``hello``, ``status``; the digital I/O and hand skills, in their own block),
+the value checks they make before anything moves, and the types of a table entry (:class:`SkillSpec`,
+:class:`SkillResult`).
 
 A skill is ``skill(ctl, args)`` with ``ctl`` the :class:`aioadept.sim.controller.Controller` (not imported here:
 the controller reads this table, never the other way round). :func:`default_skills` is the table a new controller
@@ -212,6 +213,19 @@ def line_skills() -> list[SkillSpec]:
     ]
 
 
+def _status(ctl: Any, args: tuple[float, ...]) -> SkillResult:
+    # The sim's arm never loses power and has no E-stop unless a test gives the controller `power`/`estop`
+    # attributes; the speed is the program speed of every motion (SPEED ... ALWAYS), as V+ SPEED(2) reports it.
+    from aioadept.protocol.messages import sanitize_text
+    from aioadept.protocol.robotstatus import RobotStatus, encode_status_fields
+
+    code, text = ctl.last_error
+    st = RobotStatus(moving=ctl.trajectory.in_motion(ctl.now_s), speed_pct=ctl.always_speed_pct, error_code=code,
+                     power=bool(getattr(ctl, "power", True)), estop=bool(getattr(ctl, "estop", False)))
+    pairs, _ = encode_status_fields(st)
+    return SkillResult((pairs, sanitize_text(text)) if text else (pairs,))
+
+
 def _stop_placeholder(ctl: Any, args: tuple[float, ...]) -> None:  # pragma: no cover - never called
     raise AssertionError("stop is handled by the controller")
 
@@ -241,6 +255,7 @@ def default_skills() -> list[SkillSpec]:
         SkillSpec("disable_air", _disable_air, (0,)),
         SkillSpec("here", _here, (0,), readonly=True),
         SkillSpec("hello", _hello, (0,), readonly=True),
+        SkillSpec("status", _status, (0,), readonly=True),
         SkillSpec("stop", _stop_placeholder, (0,), immediate=True),
         *io_skills(),
     ]

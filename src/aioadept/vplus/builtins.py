@@ -589,8 +589,9 @@ def namespace(rt: Runtime) -> dict[str, Any]:
         "$TIME": lambda *a: "", "NORM": lambda t: t, "$DEFAULT": lambda *a: "",
     }
 
-    from aioadept.vplus import iodev
+    from aioadept.vplus import iodev, status
 
+    fn.update(status.functions(rt))      # STATE(), SWITCH(name): the robot's status (aioadept.vplus.status)
     ns = {"_fn_" + k.replace("$", "s").replace("#", "h").replace(".", "_"): f for k, f in fn.items()}
     ns.update({
         "_G": G, "_FB": _FB, "_static": static, "_arg": arg, "_argarr": argarr, "_arr": _arr, "_ix": _ix, "_IX": _IX,

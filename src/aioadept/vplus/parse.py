@@ -276,6 +276,14 @@ class Parser:
                     d.append(self.expr())
                 self.expect_op(")")
                 return ("shift", base, d)
+            if up == "SWITCH" and self.at_op("("):
+                # SWITCH(name): the argument names a system switch (POWER, DRY.RUN), it is not a variable
+                self.take()
+                arg = self.take()
+                if arg.kind != "name":
+                    raise VSyntaxError("SWITCH needs a switch name", arg.text)
+                self.expect_op(")")
+                return ("call", up, [("str", arg.text.upper())])
             if self.at_op("(") and (_is_function(up)):
                 return ("call", up, self.args(allow_formats=(up == "$ENCODE")))
             if self.at_op("["):
@@ -313,7 +321,7 @@ FUNCTIONS = {
     "COS", "TAN", "ATAN2", "ASIN", "ACOS", "MAX", "MIN", "TIMER", "SIG", "IOSTAT", "TASK", "ERROR", "DEFINED",
     "LAST", "INRANGE", "TRANS", "INVERSE", "DX", "DY", "DZ", "DISTANCE", "#PPOINT", "SIGN", "FRACT", "RANDOM",
     "$TRUNCATE", "RX", "RY", "RZ", "SQR", "$LEFT", "$RIGHT", "HERE", "#HERE", "SPEED", "$TOUPPER", "$TOLOWER",
-    "SWITCH", "BITS", "$TIME", "NORM", "$DEFAULT",
+    "SWITCH", "BITS", "$TIME", "NORM", "$DEFAULT", "STATE",
 }
 _NOARG_FUNCS = {"HERE", "#HERE", "RANDOM", "TASK"}
 

@@ -1,0 +1,85 @@
+"""The ``status`` skill's answer, sans-IO: the trailing fields of its ``done`` ack, encoded by the sim and parsed by
+the client (the V+ server writes the same text in ``vplus/rsskills.V2``). docs/protocol.md, section 4.7::
+
+    ID:done:T0,T1:X,Y,Z,YAW,PITCH,ROLL:mv=0,sp=100,er=0,pw=1,es=0:ERROR TEXT
+
+The first trailing field is ``key=value`` pairs separated by commas, so a server may add keys (the hand) and an
+older client keeps what it does not know in :attr:`RobotStatus.extra`; the second is the text of the last error
+(empty when there is none). Short keys, because a V+ ack line is at most 128 characters: ``mv`` moving (1/0),
+``sp`` program speed (%), ``er`` last error code (0: none), ``pw`` high power on (1/0), ``es`` E-stop pressed
+(1/0). A key the server cannot know is left out and reads as None.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from types import MappingProxyType
+
+from aioadept.protocol.codes import ErrorCode
+from aioadept.protocol.errors import RemoteProtocolError
+
+STATUS_SKILL = "status"
+
+_EMPTY: Mapping[str, str] = MappingProxyType({})
+
+
+@dataclass(frozen=True, slots=True)
+class RobotStatus:
+    """What ``status`` reports. ``power``/``estop`` are None when the server did not say."""
+
+    moving: bool
+    speed_pct: float
+    error_code: int = 0
+    error_text: str = ""
+    power: bool | None = None
+    estop: bool | None = None
+    extra: Mapping[str, str] = field(default_factory=lambda: _EMPTY)
+    """Keys of the answer this client does not know (key -> text), e.g. the hand's."""
+
+
+def encode_status_fields(st: RobotStatus) -> tuple[str, str]:
+    """The two trailing fields of the ``status`` ack for ``st`` (the text is the caller's to sanitise)."""
+    pairs = [f"mv={int(bool(st.moving))}", "sp=%g" % st.speed_pct, f"er={int(st.error_code)}"]
+    if st.power is not None:
+        pairs.append(f"pw={int(st.power)}")
+    if st.estop is not None:
+        pairs.append(f"es={int(st.estop)}")
+    pairs += [f"{k}={v}" for k, v in st.extra.items()]
+    return ",".join(pairs), st.error_text
+
+
+def _num(key: str, text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise RemoteProtocolError(ErrorCode.MALFORMED_MESSAGE, f"status: {key}={text!r} is not a number") from None
+    if not math.isfinite(v):
+        raise RemoteProtocolError(ErrorCode.MALFORMED_MESSAGE, f"status: {key} is not finite")
+    return v
+
+
+def parse_status_fields(extra: Sequence[str]) -> RobotStatus:
+    """The :class:`RobotStatus` of a ``status`` ack's trailing fields; RemoteProtocolError if they are not one."""
+    if not extra:
+        raise RemoteProtocolError(ErrorCode.MALFORMED_MESSAGE, "status: the ack has no status fields")
+    fields: dict[str, str] = {}
+    for pair in extra[0].split(","):
+        key, eq, value = pair.strip().partition("=")
+        if not eq or not key:
+            raise RemoteProtocolError(ErrorCode.MALFORMED_MESSAGE, f"status: {pair!r} is not key=value")
+        fields[key] = value
+    for key in ("mv", "sp"):
+        if key not in fields:
+            raise RemoteProtocolError(ErrorCode.MALFORMED_MESSAGE, f"status: no {key}=")
+    moving = _num("mv", fields.pop("mv")) != 0
+    speed = _num("sp", fields.pop("sp"))
+    code = int(_num("er", fields.pop("er"))) if "er" in fields else 0
+    power = _num("pw", fields.pop("pw")) != 0 if "pw" in fields else None
+    estop = _num("es", fields.pop("es")) != 0 if "es" in fields else None
+    text = ":".join(extra[1:])
+    return RobotStatus(moving, speed, code, text, power, estop, MappingProxyType(fields) if fields else _EMPTY)
+
+
+__all__ = ["STATUS_SKILL", "RobotStatus", "encode_status_fields", "parse_status_fields"]
