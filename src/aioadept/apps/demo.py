@@ -13,7 +13,7 @@ import dataclasses
 import logging
 from pathlib import Path
 
-from aioadept.apps.cell import CellConfig, RunOutcome, run_focus_once, running_cell
+from aioadept.apps.cell import CellConfig, RunOutcome, merged_save_error, run_focus_once, running_cell
 from aioadept.apps.interrupt import Interrupter
 
 log = logging.getLogger("aioadept.demo")
@@ -32,7 +32,6 @@ def _with_frames_checked(cfg: CellConfig, run_dir: Path, outcome: RunOutcome) ->
     """The vision node this demo started saves the frames it served into the run folder, in its own process; once
     it has stopped, a ``frames.csv`` missing there is a file not written (the node writes it whole or not at all:
     a full disk), added to the outcome's ``save_error`` so that it is named with the run's own files."""
-    from aioadept.capture import RunSaveError
     from aioadept.record.hook import frames_dir_of
 
     frames = frames_dir_of(cfg) if cfg.vision.start else None
@@ -42,7 +41,5 @@ def _with_frames_checked(cfg: CellConfig, run_dir: Path, outcome: RunOutcome) ->
         name = (frames / "frames.csv").relative_to(run_dir).as_posix()
     except ValueError:
         name = str(frames / "frames.csv")
-    missing = RunSaveError(run_dir, (), {name: "not written by the vision node (disk full?); see logs/vision.log"})
-    err = outcome.save_error
-    merged = missing if err is None else err.merged(missing) if isinstance(err, RunSaveError) else err
-    return dataclasses.replace(outcome, save_error=merged)
+    why = "not written by the vision node (disk full?); see logs/vision.log"
+    return dataclasses.replace(outcome, save_error=merged_save_error(outcome.save_error, run_dir, {name: why}))

@@ -91,9 +91,16 @@ def _run(cfg: CellConfig, grid: list[tuple[int, float]], runs: int, out: Path) -
         log.error("no run succeeded")
         return 1
     from aioadept.analysis import analyze_runs
+    from aioadept.apps.interrupt import EXIT_INTERRUPTED
+    from aioadept.cli.report import stop_signals_interrupt
 
     try:
-        analyze_runs(run_dirs, out / "analysis")
+        with stop_signals_interrupt():
+            analyze_runs(run_dirs, out / "analysis")
+    except KeyboardInterrupt:  # the runs are saved; the analysis writes nothing half (issue 24, item 3)
+        print(f"aioadept experiment: interrupted during the analysis: the runs are kept in {out}; redo it with "
+              f"`aioadept analyze {out} --out {out / 'analysis'}`", file=sys.stderr)
+        return EXIT_INTERRUPTED
     except (OSError, ValueError) as exc:
         print(f"aioadept experiment: the runs are saved in {out}, but the analysis was not written: {exc}",
               file=sys.stderr)

@@ -85,7 +85,7 @@ def report_saving(outcome: Any, *, analyze: bool, prog: str) -> int:
 
 
 @contextlib.contextmanager
-def _stop_signals_interrupt() -> Iterator[None]:
+def stop_signals_interrupt() -> Iterator[None]:
     """After the run (the robot's connection is closed): SIGTERM and SIGHUP interrupt like Ctrl-C
     (KeyboardInterrupt), so that each gets the one line of :func:`run_once`, not a silent death mid-file."""
     saved = {}
@@ -124,7 +124,7 @@ def run_once(app: Callable[[Interrupter], Awaitable[Any]], run_dir: Path, *, ana
     outcome = outcomes[0]
     assert outcome.result is not None
     try:
-        with _stop_signals_interrupt():
+        with stop_signals_interrupt():
             print_result(outcome.result, run_dir)
             return report_saving(outcome, analyze=analyze, prog=prog)
     except KeyboardInterrupt:
