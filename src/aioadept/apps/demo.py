@@ -41,5 +41,5 @@ def _with_frames_checked(cfg: CellConfig, run_dir: Path, outcome: RunOutcome) ->
         name = (frames / "frames.csv").relative_to(run_dir).as_posix()
     except ValueError:
         name = str(frames / "frames.csv")
-    why = "not written by the vision node (disk full?); see logs/vision.log"
+    why = "the vision node did not write it (a full disk, or the node was killed): see logs/vision.log"
     return dataclasses.replace(outcome, save_error=merged_save_error(outcome.save_error, run_dir, {name: why}))

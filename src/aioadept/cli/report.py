@@ -74,6 +74,8 @@ def report_saving(outcome: Any, *, analyze: bool, prog: str) -> int:
         except (OSError, ValueError) as exc:
             not_written["analysis"] = f"{type(exc).__name__}: {exc}" if isinstance(exc, ValueError) else (
                 exc.strerror or str(exc))
+    elif analyze:
+        not_written["analysis"] = f"not made: the run folder is incomplete; `aioadept analyze {run_dir}` once it is"
     if not not_written:
         return 0
     listed = complete and note_not_written(run_dir, not_written)
