@@ -11,11 +11,9 @@ run's name and parameters (approach speed, delta_z, ...) as columns of ``iterati
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import json
 import os
-import shutil
 import statistics
 import time
 from collections.abc import Iterable, Mapping, Sequence
@@ -26,7 +24,8 @@ from typing import Any
 
 from aioadept.analysis.fits import fit_for
 from aioadept.analysis.metrics import QUANTITIES, Iteration, Stats, describe, iterations_of_run, quantity_values
-from aioadept.capture import Run, RunSaveError, load_run, write_atomic
+from aioadept.analysis.outputs import AnalysisSaveError, publish, staging
+from aioadept.capture import Run, load_run, write_atomic
 
 __all__ = ["ANALYSIS_FILES", "AnalysisSaveError", "DEFAULT_GROUP_BY", "FIGURES", "Group", "RunInfo", "Summary", "analyze_runs", "expand_run_dirs",
            "cycle_line", "cycle_split", "fits_table", "gantt_bars", "group_stats", "summary_table", "vision_spans",
@@ -41,6 +40,10 @@ FIGURES = {
     "switching_send": "fig13_switching_sends.png",
 }
 """Figure key -> file name written into the output folder."""
+ITERATIONS_FILE = "iterations.csv"
+SUMMARY_FILE = "summary.json"
+ANALYSIS_FILES = (*FIGURES.values(), ITERATIONS_FILE, SUMMARY_FILE)
+"""Every file an analysis writes into its folder; a new analysis removes those it does not write again."""
 
 ITERATION_COLUMNS = (
     "index", "vision_id", "batch", "complete", "sharpness", "t_vreq_s", "t_vresp_s", "t_ss_rreq_s", "t_mrt_rreq_s",
@@ -390,7 +393,9 @@ def analyze_runs(run_dirs: Iterable[str | os.PathLike[str]], out_dir: str | os.P
     complete iterations from position ``gantt_first`` of the first run. ``summary.json`` also holds the stats per
     combination of the run parameters named in ``group_by`` (the paper's speed x delta_z grid). Raises
     ``FileNotFoundError`` for a path with no run and ``ValueError`` for a run folder that does not parse. A run
-    with no complete iteration is not an error: its stats have ``n = 0``.
+    with no complete iteration is not an error: its stats have ``n = 0``. The outputs replace the folder's previous
+    analysis as a whole (:mod:`aioadept.analysis.outputs`); those the disk could not take raise
+    :class:`~aioadept.analysis.outputs.AnalysisSaveError` naming them, after the others are in place.
     """
     paths = expand_run_dirs(run_dirs)
     if not paths:
@@ -414,10 +419,7 @@ def analyze_runs(run_dirs: Iterable[str | os.PathLike[str]], out_dir: str | os.P
     # previous analysis's outputs are removed (summary.json first: no summary ever describes figures it did not
     # make) and the new ones renamed into place, summary.json last. An interruption before that leaves the previous
     # analysis as it was; a figure the data (or --no-plots) no longer gives is not left behind from an earlier run.
-    stage = out / f".analysis.{os.getpid()}.tmp"
-    shutil.rmtree(stage, ignore_errors=True)
-    stage.mkdir()
-    try:
+    with staging(out) as stage:
         not_written: dict[str, str] = {}
         staged: dict[str, Path] = {}
         if plots:
@@ -437,43 +439,10 @@ def analyze_runs(run_dirs: Iterable[str | os.PathLike[str]], out_dir: str | os.P
         except OSError as exc:
             not_written[SUMMARY_FILE] = exc.strerror or str(exc)
             del files["summary"]
-        _publish(stage, out, staged)
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
+        publish(stage, out, staged, ANALYSIS_FILES, last=SUMMARY_FILE)
     if not_written:
         raise AnalysisSaveError(out, [p.name for p in files.values()], not_written, summary=summary)
     return summary
-
-
-ITERATIONS_FILE = "iterations.csv"
-SUMMARY_FILE = "summary.json"
-ANALYSIS_FILES = (*FIGURES.values(), ITERATIONS_FILE, SUMMARY_FILE)
-"""Every file an analysis writes into its folder; a new analysis removes those it does not write again."""
-
-
-class AnalysisSaveError(RunSaveError):
-    """Outputs of an analysis that could not be written (disk full, ...); the others were written. ``summary``: the
-    analysis itself (its ``not_written`` names the same files)."""
-
-    def __init__(self, out_dir: str | os.PathLike[str], written: Iterable[str], not_written: Mapping[str, str], *,
-                 summary: Summary | None = None) -> None:
-        super().__init__(out_dir, written, not_written)
-        self.summary = summary
-        parts = "; ".join(f"{name} ({why})" for name, why in self.not_written.items())
-        self.args = (f"analysis in {self.run_dir}: not written: {parts}",)
-
-
-def _publish(stage: Path, out: Path, staged: Mapping[str, Path]) -> None:
-    """Replace the analysis in ``out`` with the files in ``stage`` (see :func:`analyze_runs`)."""
-    names = {p.name for p in staged.values()}
-    with contextlib.suppress(FileNotFoundError):
-        os.unlink(out / SUMMARY_FILE)
-    for name in ANALYSIS_FILES:
-        if name not in names:
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(out / name)
-    for path in sorted(staged.values(), key=lambda p: p.name == SUMMARY_FILE):
-        os.replace(path, out / path.name)
 
 
 def _renamed(run: Run, name: str) -> Run:
