@@ -50,6 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     from rich.console import Console
 
     from aioadept.analysis.report import AnalysisSaveError, analyze_runs, fits_table, summary_table
+    from aioadept.cli.report import stop_signals_interrupt
 
     console = Console()
     args.run_dirs = _with_runs(args.run_dirs)
@@ -58,9 +59,10 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     not_saved = None
     try:
-        summary = analyze_runs(args.run_dirs, args.out, plots=not args.no_plots, gantt_first=args.gantt_first,
-                               gantt_count=args.gantt_count,
-                               group_by=[k for k in args.group_by.split(",") if k.strip()])
+        with stop_signals_interrupt():  # Ctrl-C, SIGTERM, SIGHUP: one line, the previous analysis kept
+            summary = analyze_runs(args.run_dirs, args.out, plots=not args.no_plots, gantt_first=args.gantt_first,
+                                   gantt_count=args.gantt_count,
+                                   group_by=[k for k in args.group_by.split(",") if k.strip()])
     except AnalysisSaveError as exc:  # the analysis is done; some of its files are not on disk (named)
         if exc.summary is None:
             print(f"aioadept analyze: {exc}", file=sys.stderr)
@@ -73,7 +75,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"aioadept analyze: the analysis was not written: {exc}", file=sys.stderr)
         return EXIT_NOT_SAVED
     except KeyboardInterrupt:
-        print("aioadept analyze: interrupted; nothing was changed (a previous analysis stays as it was)",
+        print("aioadept analyze: interrupted: the analysis was not written (a previous one stays as it was)",
               file=sys.stderr)
         return 130
     if not args.no_rrd:

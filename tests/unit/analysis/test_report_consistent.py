@@ -76,3 +76,19 @@ def test_an_interrupted_analysis_leaves_the_previous_one_as_it_was(tmp_path, mon
         analyze_runs([run_dir], plots=True)
     assert _outputs(run_dir) == before
     assert not [p for p in run_dir.iterdir() if p.name.startswith(".")], "a staging folder was left behind"
+
+
+def test_aioadept_analyze_names_what_it_could_not_write_and_says_one_line_on_ctrl_c(tmp_path, monkeypatch, capsys):
+    from aioadept.cli.analyze import main
+
+    run_dir = _run(tmp_path / "run")
+    _fail_writes(monkeypatch, lambda name: "fig10" in name, lambda: OSError(errno.ENOSPC, "No space left on device"))
+    assert main([str(run_dir), "--no-rrd"]) == 4
+    err = capsys.readouterr().err.splitlines()
+    assert err == [f"aioadept analyze: analysis in {run_dir}: not written: fig10_gantt.png (No space left on device)"]
+    _fail_writes(monkeypatch, lambda name: "summary" in name, KeyboardInterrupt)
+    before = _outputs(run_dir)
+    assert main([str(run_dir), "--no-rrd"]) == 130
+    err = capsys.readouterr().err.splitlines()
+    assert err == ["aioadept analyze: interrupted: the analysis was not written (a previous one stays as it was)"]
+    assert _outputs(run_dir) == before
