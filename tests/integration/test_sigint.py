@@ -461,3 +461,31 @@ async def test_send_stops_the_arm_when_its_terminal_goes_away(tmp_path):
     assert t_rest - t_hup < 2.0, f"at rest {t_rest - t_hup:.3f} s after the hangup"
     assert proc.returncode == 130, (proc.returncode, b"".join(terminal))  # the stop was acked
     _assert_no_motion_after(rest, later)
+
+
+@pytest.mark.timeout(120)
+async def test_demo_sighup_stops_the_arm_then_the_nodes_and_exits_130(tmp_path):
+    # The demo's nodes run in sessions of their own: a hangup reaches the app only, which stops the arm first.
+    state = f"tcp://127.0.0.1:{free_port()}"
+    watch = StateWatch(state)
+    try:
+        proc = await _spawn("demo", "--config", str(_demo_config(tmp_path, state)), "--speed", str(SLOW_SPEED),
+                            "--delta-z", "40", "--max-steps", "5")
+        try:
+            await watch.until(moving_at(SLOW_SPEED), f"moving at {SLOW_SPEED} %", timeout_s=60)
+            t_hup = asyncio.get_running_loop().time()
+            os.kill(proc.pid, signal.SIGHUP)
+            t_rest, rest = await watch.until(at_rest, "at rest", timeout_s=5)
+            later = await watch.collect_for(0.5)
+            out, err = await _finish(proc, timeout_s=30)
+        finally:
+            if proc.returncode is None:
+                proc.kill()
+                await proc.wait()
+    finally:
+        watch.close()
+    assert t_rest - t_hup < 2.0, f"at rest {t_rest - t_hup:.3f} s after SIGHUP"
+    assert not [st for st in later if st.in_motion]
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "SIGHUP: stopping the robot" in err and "interrupted: robot stopped" in err
+    await _gone(state)
