@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from aioadept.record.rrd import APP_ID, CellLogger, default_blueprint, frame_file
-from aioadept.record.sinks import close_bounded
+from aioadept.record.sinks import close_bounded, rrd_incomplete
 
 __all__ = ["STATE_RATE_HZ", "SWITCH_INTERVAL_S", "RunRecording"]
 
@@ -82,26 +82,6 @@ def _loop_clock() -> float:
         return asyncio.get_running_loop().time()
     except RuntimeError:
         return time.monotonic()
-
-
-def rrd_incomplete(path: str | os.PathLike[str]) -> str | None:
-    """Why the recording file at ``path`` is not complete (missing, cut short), or None when Rerun's reader finds
-    its footer. Reads the footer only (~1 ms), not the file."""
-    import warnings
-
-    import rerun as rr
-
-    if not os.path.exists(path):
-        return "not written"
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        try:
-            rr.chunk.RrdReader(os.fspath(path))
-        except Exception as exc:  # noqa: BLE001 - Rerun raises RuntimeError for a file it cannot read
-            return f"cut short ({exc})"
-    if any("footer" in str(w.message) for w in caught):
-        return "cut short (no footer: the disk full?)"
-    return None
 
 
 class RunRecording:

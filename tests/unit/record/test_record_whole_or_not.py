@@ -7,7 +7,8 @@ import pytest
 
 pytest.importorskip("rerun")
 
-from aioadept.record.live import RunRecording, rrd_incomplete  # noqa: E402
+from aioadept.record.live import RunRecording  # noqa: E402
+from aioadept.record.sinks import rrd_incomplete  # noqa: E402
 
 
 def test_a_closed_recording_is_renamed_into_place_whole_and_no_temporary_file_is_left(tmp_path):
