@@ -144,3 +144,36 @@ async def test_ctrl_c_during_the_analysis_keeps_the_run_and_says_how_to_redo_it(
         assert f"redo it with `aioadept analyze {run_dir}`" in lines[0], err
         assert not names & {*FIGURES.values(), "iterations.csv"}, names
         assert [ln for ln in err.splitlines() if ln.strip()] == lines, err  # one line, nothing else
+
+
+@pytest.mark.timeout(120)
+async def test_ctrl_c_during_the_experiments_analysis_keeps_the_runs_and_says_how_to_redo_it(tmp_path):
+    out = tmp_path / "x"
+    proc = await asyncio.create_subprocess_exec(
+        *AIOADEPT, "experiment", "--speeds", "25", "--delta-z", "2", "--runs", "1", "--time-scale", "10",
+        "--no-record", "--out", str(out), stdin=asyncio.subprocess.DEVNULL, stdout=asyncio.subprocess.PIPE,
+        stderr=asyncio.subprocess.PIPE)
+    try:
+        async with asyncio.timeout(90):  # the analysis has begun once its staging folder exists
+            while not list((out / "analysis").glob(".analysis.*.tmp")) and proc.returncode is None:
+                await asyncio.sleep(0.005)
+        os.kill(proc.pid, signal.SIGINT)
+        async with asyncio.timeout(30):
+            _out, err_b = await proc.communicate()
+    finally:
+        if proc.returncode is None:
+            proc.kill()
+            await proc.wait()
+    err = err_b.decode(errors="replace")
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err
+    assert len(lines) == 1 and "interrupted during the analysis: the runs are kept" in lines[0], err
+    left = sorted(p.name for p in (out / "analysis").iterdir())
+    if "summary.json" in left:  # an interrupt swallowed by a __del__ and raised again at the end: whole
+        assert "its analysis was written" in lines[0], err
+    else:
+        assert f"redo it with `aioadept analyze {out} --out {out / 'analysis'}`" in lines[0], err
+        assert not left, f"half an analysis was left: {left}"
+    (run_json,) = out.rglob("run.json")  # the run is kept
+    assert json.loads(run_json.read_text())["not_written"] == {}

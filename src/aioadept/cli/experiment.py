@@ -98,8 +98,12 @@ def _run(cfg: CellConfig, grid: list[tuple[int, float]], runs: int, out: Path) -
         with stop_signals_interrupt():
             analyze_runs(run_dirs, out / "analysis")
     except KeyboardInterrupt:  # the runs are saved; the analysis writes nothing half (issue 24, item 3)
-        print(f"aioadept experiment: interrupted during the analysis: the runs are kept in {out}; redo it with "
-              f"`aioadept analyze {out} --out {out / 'analysis'}`", file=sys.stderr)
+        if (out / "analysis" / "summary.json").is_file():  # the interrupt came as it was ending: it is whole
+            done = "its analysis was written"
+        else:
+            done = f"its analysis was not written: redo it with `aioadept analyze {out} --out {out / 'analysis'}`"
+        print(f"aioadept experiment: interrupted during the analysis: the runs are kept in {out}; {done}",
+              file=sys.stderr)
         return EXIT_INTERRUPTED
     except (OSError, ValueError) as exc:
         print(f"aioadept experiment: the runs are saved in {out}, but the analysis was not written: {exc}",
