@@ -92,3 +92,15 @@ def test_aioadept_analyze_names_what_it_could_not_write_and_says_one_line_on_ctr
     err = capsys.readouterr().err.splitlines()
     assert err == ["aioadept analyze: interrupted: the analysis was not written (a previous one stays as it was)"]
     assert _outputs(run_dir) == before
+
+
+def test_the_default_analysis_folder_is_ignored_by_git():
+    # `aioadept analyze RUN RUN...` writes ./analysis/ into the current folder: in a clone, never a file to commit.
+    import subprocess
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[3]
+    ignored = subprocess.run(["git", "check-ignore", "-q", "analysis/summary.json"], cwd=root)
+    assert ignored.returncode == 0, "analysis/ is not in .gitignore"
+    kept = subprocess.run(["git", "check-ignore", "-q", "src/aioadept/analysis/report.py"], cwd=root)
+    assert kept.returncode == 1, "the analysis package itself must not be ignored"
