@@ -432,8 +432,14 @@ async def test_send_stops_the_arm_when_its_terminal_goes_away(tmp_path):
             terminal: list[bytes] = []
 
             def drain() -> None:  # keep the terminal readable, as a terminal emulator does
-                with contextlib.suppress(OSError):
-                    terminal.append(os.read(master, 4096))
+                try:
+                    data = os.read(master, 4096)
+                except OSError:  # EIO: the app has gone (and with it the terminal's last reader)
+                    data = b""
+                if data:
+                    terminal.append(data)
+                else:
+                    loop.remove_reader(master)
 
             loop.add_reader(master, drain)
             try:
