@@ -50,6 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     from rich.console import Console
 
     from aioadept.analysis.report import AnalysisSaveError, analyze_runs, fits_table, summary_table
+    from aioadept.apps.interrupt import interrupt_handled
     from aioadept.cli.report import stop_signals_interrupt
 
     console = Console()
@@ -75,6 +76,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"aioadept analyze: the analysis was not written: {exc}", file=sys.stderr)
         return EXIT_NOT_SAVED
     except KeyboardInterrupt:
+        interrupt_handled()
         print("aioadept analyze: interrupted: the analysis was not written (a previous one stays as it was)",
               file=sys.stderr)
         return 130

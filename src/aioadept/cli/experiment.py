@@ -91,13 +91,14 @@ def _run(cfg: CellConfig, grid: list[tuple[int, float]], runs: int, out: Path) -
         log.error("no run succeeded")
         return 1
     from aioadept.analysis import analyze_runs
-    from aioadept.apps.interrupt import EXIT_INTERRUPTED
+    from aioadept.apps.interrupt import EXIT_INTERRUPTED, interrupt_handled
     from aioadept.cli.report import stop_signals_interrupt
 
     try:
         with stop_signals_interrupt():
             analyze_runs(run_dirs, out / "analysis")
     except KeyboardInterrupt:  # the runs are saved; the analysis writes nothing half (issue 24, item 3)
+        interrupt_handled()
         if (out / "analysis" / "summary.json").is_file():  # the interrupt came as it was ending: it is whole
             done = "its analysis was written"
         else:

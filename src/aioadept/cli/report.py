@@ -127,7 +127,7 @@ def run_once(app: Callable[[Interrupter], Awaitable[Any]], run_dir: Path, *, ana
     Ctrl-C (or SIGTERM/SIGHUP) after the run, while its result is printed or the run analysed, gives one line: the
     run is kept and ``aioadept analyze RUN`` redoes the analysis (exit 130); the analysis writes nothing half.
     """
-    from aioadept.apps.interrupt import EXIT_INTERRUPTED, run_interruptible
+    from aioadept.apps.interrupt import EXIT_INTERRUPTED, interrupt_handled, run_interruptible
 
     outcomes: list[Any] = []
 
@@ -149,6 +149,7 @@ def run_once(app: Callable[[Interrupter], Awaitable[Any]], run_dir: Path, *, ana
             print_result(outcome.result, run_dir)
             return report_saving(outcome, analyze=analyze, prog=prog)
     except KeyboardInterrupt:
+        interrupt_handled()
         kept = "is kept" if outcome.save_error is None else "is kept, NOT fully saved,"
         if not analyze:
             redo = ""
