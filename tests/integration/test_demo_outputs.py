@@ -94,6 +94,44 @@ def test_a_full_disk_leaves_no_empty_file_and_names_every_output_not_written(tmp
     assert "run.rrd" in not_written, not_written
 
 
+@pytest.mark.timeout(150)
+def test_an_experiment_run_whose_recording_the_full_disk_cut_short_is_still_analysed(tmp_path):
+    # Its tables are whole: the run counts and is analysed; run.rrd is named in its run.json, never left cut short.
+    prefix = _unshare_prefix()
+    if prefix is None:
+        pytest.skip("cannot mount a tmpfs in a mount namespace here (unshare not permitted)")
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    (tmp_path / "listing.py").write_text(textwrap.dedent("""
+        import json, os, sys
+        root, found = sys.argv[1], {"empty": [], "not_written": {}, "n_runs": None}
+        for d, _dirs, names in os.walk(root):
+            for n in names:
+                p = os.path.join(d, n)
+                if os.path.getsize(p) == 0 or n.startswith("."):
+                    found["empty"].append(p)
+                if n == "run.json":
+                    found["not_written"][os.path.basename(d)] = json.load(open(p))["not_written"]
+                if n == "summary.json":
+                    found["n_runs"] = json.load(open(p))["n_runs"]
+        print("LISTING " + json.dumps(found))
+    """))
+    script = (f'mount -t tmpfs -o size=200k tmpfs "{disk}" || exit 99\n'
+              f'"{sys.executable}" -m aioadept experiment --speeds 25 --delta-z 2 --runs 1 --time-scale 10 '
+              f'--out "{disk}/x"; rc=$?\n'
+              f'"{sys.executable}" "{tmp_path / "listing.py"}" "{disk}"\n'
+              'echo "EXPERIMENT_RC $rc"\n')
+    proc = subprocess.run([*prefix, "sh", "-c", script], capture_output=True, text=True, timeout=140)
+    lines = proc.stdout.splitlines()
+    assert "Traceback" not in proc.stderr, proc.stderr
+    found = json.loads(next(ln for ln in lines if ln.startswith("LISTING "))[len("LISTING "):])
+    assert found["empty"] == [], found
+    ((_run, not_written),) = found["not_written"].items()
+    assert "run.rrd" in not_written, not_written
+    assert found["n_runs"] == 1, (found, proc.stderr)  # a run lacking only its recording is analysed
+    assert any(ln in ("EXPERIMENT_RC 0", "EXPERIMENT_RC 4") for ln in lines), proc.stdout[-2000:] + proc.stderr
+
+
 async def _read_until(stream: asyncio.StreamReader, needle: str, seen: list[str], timeout_s: float) -> None:
     async with asyncio.timeout(timeout_s):
         while True:

@@ -107,7 +107,7 @@ def _run(cfg: CellConfig, grid: list[tuple[int, float]], runs: int, out: Path) -
               file=sys.stderr)
         return EXIT_INTERRUPTED
     except (OSError, ValueError) as exc:
-        print(f"aioadept experiment: the runs are saved in {out}, but the analysis was not written: {exc}",
+        print(f"aioadept experiment: the runs are saved in {out}, but the analysis was not (fully) written: {exc}",
               file=sys.stderr)
         return 4
     log.info("analysis of %d runs written to %s", len(run_dirs), out / "analysis")
