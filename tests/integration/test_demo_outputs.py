@@ -15,6 +15,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import pytest
 
@@ -92,6 +93,33 @@ def test_a_full_disk_leaves_no_empty_file_and_names_every_output_not_written(tmp
             assert f"{name} ({why})" in line, (name, line)
     # run.rrd (~140 KiB here) is the first to meet the full disk: before, it was left cut short under its name.
     assert "run.rrd" in not_written, not_written
+
+
+@pytest.mark.timeout(150)
+def test_a_file_size_limit_leaves_no_cut_short_recording_and_names_it(tmp_path):
+    # The same promise where no tmpfs can be mounted: the file-size limit of tests/integration/test_results_kept.py
+    # (RLIMIT_FSIZE binds root too; the nodes inherit it). 64 KiB: the tables fit, run.rrd (~240 KiB) does not.
+    import resource
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (64 * 1024, 64 * 1024))
+
+    runs = tmp_path / "runs"
+    proc = subprocess.run([*AIOADEPT, "demo", "--fast", "--out", str(runs)], capture_output=True, text=True,
+                          timeout=140, preexec_fn=limit, stdin=subprocess.DEVNULL)
+    assert proc.returncode == 4, proc.stdout[-2000:] + proc.stderr
+    assert "Traceback" not in proc.stderr, proc.stderr
+    (run_dir,) = runs.iterdir()
+    files = {p.relative_to(run_dir).as_posix(): p.stat().st_size for p in run_dir.rglob("*") if p.is_file()}
+    assert not [n for n, size in files.items() if size == 0], files
+    assert not [n for n in files if Path(n).name.startswith(".")], files
+    not_written = json.loads((run_dir / "run.json").read_text())["not_written"]
+    (line,) = [ln for ln in proc.stderr.splitlines() if "NOT fully saved" in ln]
+    assert "run.rrd" in not_written and "run.rrd" not in files, (not_written, files)
+    for name in OUTPUTS:
+        assert (name in files) != (name in not_written), (name, files, not_written)
+    for name, why in not_written.items():
+        assert f"{name} ({why})" in line, (name, line)
 
 
 @pytest.mark.timeout(150)
