@@ -1,6 +1,6 @@
 """Benchmark: Ctrl-C -> stop latency of the command-line apps (issue 10, item 4), with a plain stop as baseline.
 
-    .venv/bin/python benchmarks/bench_sigint.py [--rounds N]
+    .venv/bin/python benchmarks/bench_sigint.py [--rounds N] [--signal INT|TERM|HUP]
 
 Each round starts ``aioadept send`` as a real process, waits until its command is under way, sends it SIGINT
 (``os.kill``) and measures, on the robot's side:
@@ -20,6 +20,8 @@ Baselines measured in the same run, same servers:
 
 Prints one JSON object: p50/p95/max per quantity and the ratios of the medians (signal path / direct stop). The
 difference is the cost of the signal path: signal delivery, the loop's wake-up, and a second process.
+``--signal HUP`` (or TERM) sends that signal instead (a closed terminal; issue 18, item 6): the apps treat every
+stop signal alike, so the same keys hold its figures; ``signal`` in the JSON says which one was sent.
 """
 
 from __future__ import annotations
@@ -46,6 +48,8 @@ from verdicts import verdict  # noqa: E402
 
 AIOADEPT = [sys.executable, "-m", "aioadept"]
 POSE = Pose(480.0, 0.0, 710.0, 0.0, 180.0, 0.0)
+SIGNAL = signal.SIGINT
+"""The signal sent to the app (``--signal``)."""
 
 
 def _stats(xs: list[float]) -> dict[str, float]:
@@ -102,7 +106,7 @@ async def wire_rounds(rounds: int) -> dict[str, list[float]]:
             proc = await _spawn_send(port, "move_rel_joints:10,0,0,0,0,0", "break")
             await asyncio.wait_for(bare.break_seen.wait(), 30)
             t0 = time.monotonic()
-            os.kill(proc.pid, signal.SIGINT)
+            os.kill(proc.pid, SIGNAL)
             await asyncio.wait_for(proc.wait(), 30)
             t_exit = time.monotonic()
             assert proc.returncode == 130, proc.returncode
@@ -138,7 +142,7 @@ async def sim_rounds(rounds: int) -> dict[str, list[float]]:
                 proc = await _spawn_send(port, "set_speed:5", f"move_rel_joints:{30 * sign},0,0,0,0,0", "break")
                 await _until(sub, lambda st: st.in_motion and st.speed_pct == 5)
                 t0 = time.monotonic()
-                os.kill(proc.pid, signal.SIGINT)
+                os.kill(proc.pid, SIGNAL)
                 out["sigint_to_rest_ms"].append((await _until(sub, lambda st: not st.in_motion) - t0) * 1e3)
                 await asyncio.wait_for(proc.wait(), 30)
                 # Baseline: the same motion, stopped by RobotClient.stop() in this process.
@@ -163,6 +167,7 @@ async def main(rounds: int) -> dict:
     return {
         "benchmark": "sigint_to_stop",
         "rounds": rounds,
+        "signal": SIGNAL.name,
         "cpu_count": os.cpu_count(),
         "stats_ms": stats,
         "ratios_of_medians": {
@@ -186,4 +191,7 @@ async def main(rounds: int) -> dict:
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()
     ap.add_argument("--rounds", type=int, default=20)
-    print(json.dumps(asyncio.run(main(ap.parse_args().rounds)), indent=2))
+    ap.add_argument("--signal", choices=("INT", "TERM", "HUP"), default="INT")
+    cli = ap.parse_args()
+    SIGNAL = signal.Signals[f"SIG{cli.signal}"]
+    print(json.dumps(asyncio.run(main(cli.rounds)), indent=2))

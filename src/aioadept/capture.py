@@ -48,7 +48,7 @@ from aioadept.geometry import Pose
 
 __all__ = [
     "FORMAT_VERSION", "MARK_COLUMNS", "ROBOT_COLUMNS", "VISION_COLUMNS", "Mark", "Recorder", "RobotRecord", "Run",
-    "RunSaveError", "VisionRecord", "load_run", "write_atomic",
+    "RunSaveError", "VisionRecord", "load_run", "note_not_written", "write_atomic",
 ]
 
 FORMAT_VERSION = 1
@@ -290,9 +290,10 @@ class Recorder:
             "clocks": CLOCK_NOTES,
             "counts": {"robot": len(run.robot), "vision": len(run.vision), "marks": len(run.marks)},
             "files": files,
+            "not_written": dict(failed),
         }
         try:  # run.json appears last and whole: its presence means the folder is complete
-            write_atomic(path / "run.json", json.dumps(info, indent=2, default=repr) + "\n")
+            write_atomic(path / "run.json", _with_reserve(json.dumps(info, indent=2, default=repr) + "\n"))
             files.append("run.json")
         except OSError as exc:
             failed["run.json"] = _why(exc)
@@ -317,6 +318,46 @@ class RunSaveError(OSError):
 
     def merged(self, other: RunSaveError) -> RunSaveError:
         return RunSaveError(self.run_dir, (*self.written, *other.written), {**self.not_written, **other.not_written})
+
+
+def note_not_written(run_dir: str | os.PathLike[str], not_written: Mapping[str, str]) -> bool:
+    """Add outputs written after ``run.json`` that failed (the vision node's frames, the analysis, ...) to its
+    ``not_written`` (file name -> reason), so the folder says itself what it lacks. Returns False, without raising,
+    when ``run.json`` is missing or cannot be rewritten (the disk still full): the caller says so itself."""
+    path = Path(run_dir) / "run.json"
+    try:
+        old = path.read_bytes()
+        info = json.loads(old)
+        if not isinstance(info, dict):
+            return False
+        info["not_written"] = {**(info.get("not_written") or {}), **dict(not_written)}
+        text = json.dumps(info, indent=2, default=repr) + "\n"
+        try:
+            write_atomic(path, _with_reserve(text))
+        except OSError:
+            # The disk is full (the usual reason to be here): no room for a temporary file. Overwrite in place,
+            # within the bytes run.json already holds (its reserve), which needs no new block on common filesystems;
+            # a crash during this one small write could spoil run.json, a risk taken only when the alternative is a
+            # folder that does not say what it lacks.
+            data = text.encode("utf-8")
+            if len(data) > len(old):
+                return False
+            with open(path, "r+b") as f:
+                f.write(data + b" " * (len(old) - len(data)))
+                f.flush()
+                os.fsync(f.fileno())
+    except (OSError, ValueError):
+        return False
+    return True
+
+
+RUN_JSON_RESERVE = 2048
+"""Trailing blanks after ``run.json``'s JSON: room for :func:`note_not_written` to list outputs that failed later
+on a full disk (where it cannot write a temporary file) by overwriting the file in place."""
+
+
+def _with_reserve(text: str) -> str:
+    return text + " " * (RUN_JSON_RESERVE - 1) + "\n"
 
 
 def _open_for_write(path: Path, binary: bool) -> IO[Any]:

@@ -26,7 +26,7 @@ import pytest
 from aioadept.apps.cell import free_port
 from aioadept.bus.messages import ROBOT_STATE_TOPIC, RobotState
 from aioadept.bus.pubsub import Subscriber
-from aioadept.geometry import Pose
+from aioadept.geometry import Pose, rel_tool
 from aioadept.protocol import Ack, LineFramer, Status, encode_ack, parse_command
 from aioadept.testing.nodes import running_node
 
@@ -398,4 +398,100 @@ async def test_experiment_first_sigint_stops_the_arm_and_ends_the_whole_grid(tmp
     assert proc.returncode == 130, err
     assert "Traceback" not in err and "interrupted: robot stopped" in err
     assert not (tmp_path / "x" / "analysis").exists()  # no analysis of an interrupted grid
+    await _gone(state)
+
+
+# --------------------------------------------------------------------------------------------- SIGHUP (issue 18, item 6)
+def _controlling_tty() -> None:
+    """For the child, after setsid (start_new_session): make its stdin, a pty slave, the controlling terminal, so that
+    closing the master is a real hangup (the kernel sends SIGHUP to the session's controlling process)."""
+    import fcntl
+    import termios
+
+    fcntl.ioctl(0, termios.TIOCSCTTY, 0)
+
+
+@pytest.mark.timeout(60)
+async def test_send_stops_the_arm_when_its_terminal_goes_away(tmp_path):
+    # The issue's case: `aioadept send set_speed:.. move_rel_tool:0,0,60,0,0,0 break` in a terminal (or an SSH
+    # session) that closes. The terminal is a pty whose master this test holds; closing it hangs the terminal up.
+    loop = asyncio.get_running_loop()
+    async with running_node("sim", "--port", "0", "--state-endpoint", "tcp://127.0.0.1:0",
+                            log_path=tmp_path / "sim.log") as sim:
+        watch = StateWatch(sim.ready["state"])
+        master, slave = os.openpty()
+        master_open = True
+        try:
+            _t, start = await watch.until(lambda st: True, "at all", timeout_s=10)
+            target = rel_tool(start.pose, (0.0, 0.0, 60.0, 0.0, 0.0, 0.0))
+            proc = await asyncio.create_subprocess_exec(
+                *AIOADEPT, "send", "--port", sim.ready["port"], f"set_speed:{SLOW_SPEED}", "move_rel_tool:0,0,60,0,0,0",
+                "break", stdin=slave, stdout=slave, stderr=slave, start_new_session=True,
+                preexec_fn=_controlling_tty)
+            os.close(slave)
+            terminal: list[bytes] = []
+
+            def drain() -> None:  # keep the terminal readable, as a terminal emulator does
+                try:
+                    data = os.read(master, 4096)
+                except OSError:  # EIO: the app has gone (and with it the terminal's last reader)
+                    data = b""
+                if data:
+                    terminal.append(data)
+                else:
+                    loop.remove_reader(master)
+
+            loop.add_reader(master, drain)
+            try:
+                await watch.until(moving_at(SLOW_SPEED), f"moving at {SLOW_SPEED} %", timeout_s=20)
+                t_hup = loop.time()
+                loop.remove_reader(master)
+                os.close(master)  # the terminal goes away: SIGHUP
+                master_open = False
+                t_rest, rest = await watch.until(at_rest, "at rest", timeout_s=5)
+                async with asyncio.timeout(20):
+                    await proc.wait()
+                later = await watch.collect_for(1.0)
+            finally:
+                if proc.returncode is None:
+                    proc.kill()
+                    await proc.wait()
+        finally:
+            if master_open:
+                loop.remove_reader(master)
+                os.close(master)
+            watch.close()
+    # Today's code: the process dies of the signal (-1) and the 60 mm move runs to its end.
+    moved_mm = rest.pose.translation_distance_mm(start.pose)
+    assert rest.pose.translation_distance_mm(target) > 30.0, f"the move ran on after the hangup ({moved_mm:.1f} mm)"
+    assert t_rest - t_hup < 2.0, f"at rest {t_rest - t_hup:.3f} s after the hangup"
+    assert proc.returncode == 130, (proc.returncode, b"".join(terminal))  # the stop was acked
+    _assert_no_motion_after(rest, later)
+
+
+@pytest.mark.timeout(120)
+async def test_demo_sighup_stops_the_arm_then_the_nodes_and_exits_130(tmp_path):
+    # The demo's nodes run in sessions of their own: a hangup reaches the app only, which stops the arm first.
+    state = f"tcp://127.0.0.1:{free_port()}"
+    watch = StateWatch(state)
+    try:
+        proc = await _spawn("demo", "--config", str(_demo_config(tmp_path, state)), "--speed", str(SLOW_SPEED),
+                            "--delta-z", "40", "--max-steps", "5")
+        try:
+            await watch.until(moving_at(SLOW_SPEED), f"moving at {SLOW_SPEED} %", timeout_s=60)
+            t_hup = asyncio.get_running_loop().time()
+            os.kill(proc.pid, signal.SIGHUP)
+            t_rest, rest = await watch.until(at_rest, "at rest", timeout_s=5)
+            later = await watch.collect_for(0.5)
+            out, err = await _finish(proc, timeout_s=30)
+        finally:
+            if proc.returncode is None:
+                proc.kill()
+                await proc.wait()
+    finally:
+        watch.close()
+    assert t_rest - t_hup < 2.0, f"at rest {t_rest - t_hup:.3f} s after SIGHUP"
+    assert not [st for st in later if st.in_motion]
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "SIGHUP: stopping the robot" in err and "interrupted: robot stopped" in err
     await _gone(state)

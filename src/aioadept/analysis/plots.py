@@ -43,10 +43,12 @@ def _figure(width_in: float, height_in: float) -> Any:
 
 
 def _save(fig: Any, path: str | os.PathLike[str]) -> Path:
+    from aioadept.capture import write_atomic
+
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=DPI)
-    return out
+    # Whole or not at all (a full disk used to leave an empty fig09_sharpness.png): a temporary file, then rename.
+    return write_atomic(out, lambda f: fig.savefig(f, dpi=DPI, format=out.suffix.lstrip(".") or "png"), binary=True)
 
 
 def _bins(x: np.ndarray) -> int:

@@ -24,9 +24,10 @@ from typing import Any
 
 from aioadept.analysis.fits import fit_for
 from aioadept.analysis.metrics import QUANTITIES, Iteration, Stats, describe, iterations_of_run, quantity_values
+from aioadept.analysis.outputs import AnalysisSaveError, publish, staging
 from aioadept.capture import Run, load_run, write_atomic
 
-__all__ = ["DEFAULT_GROUP_BY", "FIGURES", "Group", "RunInfo", "Summary", "analyze_runs", "expand_run_dirs",
+__all__ = ["ANALYSIS_FILES", "AnalysisSaveError", "DEFAULT_GROUP_BY", "FIGURES", "Group", "RunInfo", "Summary", "analyze_runs", "expand_run_dirs",
            "cycle_line", "cycle_split", "fits_table", "gantt_bars", "group_stats", "summary_table", "vision_spans",
            "write_figures"]
 
@@ -39,6 +40,10 @@ FIGURES = {
     "switching_send": "fig13_switching_sends.png",
 }
 """Figure key -> file name written into the output folder."""
+ITERATIONS_FILE = "iterations.csv"
+SUMMARY_FILE = "summary.json"
+ANALYSIS_FILES = (*FIGURES.values(), ITERATIONS_FILE, SUMMARY_FILE)
+"""Every file an analysis writes into its folder; a new analysis removes those it does not write again."""
 
 ITERATION_COLUMNS = (
     "index", "vision_id", "batch", "complete", "sharpness", "t_vreq_s", "t_vresp_s", "t_ss_rreq_s", "t_mrt_rreq_s",
@@ -93,6 +98,8 @@ class Summary:
     groups: tuple[Group, ...] = ()
     cycle: Mapping[str, Any] = field(default_factory=dict)
     """:func:`cycle_split`: the focus loop's cycle time split motion / vision / MCN, and the vision part's floor."""
+    not_written: Mapping[str, str] = field(default_factory=dict)
+    """Outputs of this analysis that could not be written: file name -> reason (also in ``summary.json``)."""
 
     @property
     def n_complete(self) -> int:
@@ -122,6 +129,7 @@ class Summary:
             "groups": [g.as_dict() for g in self.groups],
             "cycle": dict(self.cycle),
             "files": {k: p.name for k, p in self.files.items()},
+            "not_written": dict(self.not_written),
         }
 
 
@@ -272,54 +280,67 @@ def gantt_bars(run: Run, iterations: Sequence[Iteration], *, first: int = 1,
 
 def write_figures(runs: Sequence[Run], iterations: Sequence[Iteration], stats: Mapping[str, Stats],
                   fits: Mapping[str, Any], out_dir: Path, *, gantt_first: int = 1,
-                  gantt_count: int = 2) -> dict[str, Path]:
-    """Write the figures that the data allows into ``out_dir``; returns figure key -> path (see FIGURES)."""
+                  gantt_count: int = 2, not_written: dict[str, str] | None = None) -> dict[str, Path]:
+    """Write the figures that the data allows into ``out_dir``; returns figure key -> path (see FIGURES).
+
+    Each figure is written whole or not at all. A figure that cannot be written (OSError: disk full, ...) raises,
+    unless ``not_written`` is given: then its file name and the reason go there and the other figures are written.
+    """
     from aioadept.analysis import plots
 
     files: dict[str, Path] = {}
+
+    def attempt(key: str, make: Any) -> None:
+        try:
+            files[key] = make()
+        except OSError as exc:
+            if not_written is None:
+                raise
+            not_written[FIGURES[key]] = exc.strerror or str(exc)
+
     # Figs. 9 and 10 show one run: the first one with a complete iteration (else the first one).
     shown = next((r for r in runs if any(it.complete and it.run == r.name for it in iterations)), runs[0])
     sharp = [v.sharpness for v in shown.vision if v.sharpness is not None]
     if sharp:
-        files["sharpness"] = plots.plot_sharpness(
+        attempt("sharpness", lambda: plots.plot_sharpness(
             sharp, out_dir / FIGURES["sharpness"], delta_z_mm=_delta_z(shown.parameters),
-            title=f"Sharpness after consecutive robot motions (cf. paper Fig. 9)\nrun {shown.name}")
+            title=f"Sharpness after consecutive robot motions (cf. paper Fig. 9)\nrun {shown.name}"))
     bars, (a, b) = gantt_bars(shown, iterations, first=gantt_first, count=gantt_count)
     if bars:
         span = f"iteration {a}" if a == b else f"iterations {a}-{b}"
-        files["gantt"] = plots.plot_gantt(
+        attempt("gantt", lambda: plots.plot_gantt(
             bars, out_dir / FIGURES["gantt"],
-            title=f"Vision (orange) and robot (blue) requests (cf. paper Fig. 10)\nrun {shown.name}, approach {span}")
+            title=f"Vision (orange) and robot (blue) requests (cf. paper Fig. 10)\nrun {shown.name}, approach {span}"))
 
     def vals(name: str) -> Any:
         return quantity_values(iterations, name)
 
     if stats["tau_r_ms"].n:
-        files["tau_r"] = plots.plot_normal_hist(
+        attempt("tau_r", lambda: plots.plot_normal_hist(
             vals("tau_r_ms"), fits.get("tau_r_ms"), out_dir / FIGURES["tau_r"],
             xlabel="τ_r, ms  (eq. 1: client wait − server time from set_speed start to break start)",
-            title=f"Travel time of robot motion increments, {len(runs)} run(s) (cf. paper Fig. 11)")
+            title=f"Travel time of robot motion increments, {len(runs)} run(s) (cf. paper Fig. 11)"))
     if stats["tau_overhead_ms"].n:
         # Not a paper figure: eq. 1 contains the motion time when break's start is stamped before the motion ends
         # (the simulator, V+ forward processing); this is the part the paper's 5 ms Gaussian looks like.
-        files["overhead"] = plots.plot_normal_hist(
+        attempt("overhead", lambda: plots.plot_normal_hist(
             vals("tau_overhead_ms"), fits.get("tau_overhead_ms"), out_dir / FIGURES["overhead"],
             xlabel="τ_ovh, ms  (client wait − server time from set_speed start to break done)",
-            title=f"Communication overhead of motion increments, {len(runs)} run(s)")
+            title=f"Communication overhead of motion increments, {len(runs)} run(s)"))
     if stats["tau_r_to_v_ms"].n or stats["tau_v_to_r_ms"].n:
-        files["switching_rv"] = plots.plot_lognormal_pair(
+        attempt("switching_rv", lambda: plots.plot_lognormal_pair(
             (vals("tau_r_to_v_ms"), fits.get("tau_r_to_v_ms"), "τ(r→v), ms  (eq. 2)", "robot → vision"),
             (vals("tau_v_to_r_ms"), fits.get("tau_v_to_r_ms"), "τ(v→r), ms  (eq. 3)", "vision → robot"),
             out_dir / FIGURES["switching_rv"],
-            title="Switching durations between robot and vision requests (cf. paper Fig. 12)")
+            title="Switching durations between robot and vision requests (cf. paper Fig. 12)"))
     if stats["tau_ss_to_mrt_ms"].n or stats["tau_mrt_to_b_ms"].n:
-        files["switching_send"] = plots.plot_lognormal_pair(
+        attempt("switching_send", lambda: plots.plot_lognormal_pair(
             (vals("tau_ss_to_mrt_ms"), fits.get("tau_ss_to_mrt_ms"), "τ(ss→mrt), ms  (eq. 4)",
              "set_speed → move_rel_tool"),
             (vals("tau_mrt_to_b_ms"), fits.get("tau_mrt_to_b_ms"), "τ(mrt→b), ms  (eq. 5)",
              "move_rel_tool → break"),
             out_dir / FIGURES["switching_send"],
-            title="Durations between starting consecutive sends to the RobotServer (cf. paper Fig. 13)")
+            title="Durations between starting consecutive sends to the RobotServer (cf. paper Fig. 13)"))
     return files
 
 
@@ -372,7 +393,9 @@ def analyze_runs(run_dirs: Iterable[str | os.PathLike[str]], out_dir: str | os.P
     complete iterations from position ``gantt_first`` of the first run. ``summary.json`` also holds the stats per
     combination of the run parameters named in ``group_by`` (the paper's speed x delta_z grid). Raises
     ``FileNotFoundError`` for a path with no run and ``ValueError`` for a run folder that does not parse. A run
-    with no complete iteration is not an error: its stats have ``n = 0``.
+    with no complete iteration is not an error: its stats have ``n = 0``. The outputs replace the folder's previous
+    analysis as a whole (:mod:`aioadept.analysis.outputs`); those the disk could not take raise
+    :class:`~aioadept.analysis.outputs.AnalysisSaveError` naming them, after the others are in place.
     """
     paths = expand_run_dirs(run_dirs)
     if not paths:
@@ -392,15 +415,33 @@ def analyze_runs(run_dirs: Iterable[str | os.PathLike[str]], out_dir: str | os.P
         values = quantity_values(iterations, q.name)
         stats[q.name] = describe(values)
         fits[q.name] = fit_for(q.family, values)
-    files: dict[str, Path] = {}
-    if plots:
-        files.update(write_figures(runs, iterations, stats, fits, out, gantt_first=gantt_first,
-                                   gantt_count=gantt_count))
-    files["iterations"] = _write_iterations(out / "iterations.csv", iterations)
-    files["summary"] = out / "summary.json"
-    summary = Summary(infos, stats, fits, iterations, out, files, group_stats(infos, iterations, group_by),
-                      cycle_split(runs, iterations))
-    write_atomic(out / "summary.json", json.dumps(summary.as_dict(), indent=2, default=repr) + "\n")
+    # One consistent analysis (issue 24, item 4): every output is written into a staging folder first, then the
+    # previous analysis's outputs are removed (summary.json first: no summary ever describes figures it did not
+    # make) and the new ones renamed into place, summary.json last. An interruption before that leaves the previous
+    # analysis as it was; a figure the data (or --no-plots) no longer gives is not left behind from an earlier run.
+    with staging(out) as stage:
+        not_written: dict[str, str] = {}
+        staged: dict[str, Path] = {}
+        if plots:
+            staged.update(write_figures(runs, iterations, stats, fits, stage, gantt_first=gantt_first,
+                                        gantt_count=gantt_count, not_written=not_written))
+        try:
+            staged["iterations"] = _write_iterations(stage / ITERATIONS_FILE, iterations)
+        except OSError as exc:
+            not_written[ITERATIONS_FILE] = exc.strerror or str(exc)
+        files = {key: out / path.name for key, path in staged.items()}
+        files["summary"] = out / SUMMARY_FILE
+        summary = Summary(infos, stats, fits, iterations, out, files, group_stats(infos, iterations, group_by),
+                          cycle_split(runs, iterations), not_written=dict(not_written))
+        try:
+            staged["summary"] = write_atomic(stage / SUMMARY_FILE,
+                                             json.dumps(summary.as_dict(), indent=2, default=repr) + "\n")
+        except OSError as exc:
+            not_written[SUMMARY_FILE] = exc.strerror or str(exc)
+            del files["summary"]
+        publish(stage, out, staged, ANALYSIS_FILES, last=SUMMARY_FILE)
+    if not_written:
+        raise AnalysisSaveError(out, [p.name for p in files.values()], not_written, summary=summary)
     return summary
 
 

@@ -259,7 +259,19 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
             log.error("%s", save_error)  # the run's own error propagates; this one must not vanish either
         if rrd is not None:
             await asyncio.shield(rrd.aclose())  # flushed and closed even when the run was cancelled
+            if rrd.error is not None and rrd.rrd_path is not None:  # e.g. a full disk: named with the others
+                save_error = merged_save_error(save_error, run_dir, {rrd.rrd_path.name: rrd.error})
     return RunOutcome(run_dir, result, error, save_error)
+
+
+def merged_save_error(err: OSError | None, run_dir: Path, not_written: dict[str, str]) -> OSError:
+    """``err`` (a run's ``save_error``, or None) with more files not written (name -> reason) added."""
+    from aioadept.capture import RunSaveError
+
+    more = RunSaveError(run_dir, (), not_written)
+    if err is None:
+        return more
+    return err.merged(more) if isinstance(err, RunSaveError) else err
 
 
 def save_run(recorder: Any, run_dir: Path, meta: dict[str, Any]) -> OSError | None:

@@ -9,10 +9,11 @@ once (:mod:`aioadept.apps.interrupt`).
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from pathlib import Path
 
-from aioadept.apps.cell import CellConfig, RunOutcome, run_focus_once, running_cell
+from aioadept.apps.cell import CellConfig, RunOutcome, merged_save_error, run_focus_once, running_cell
 from aioadept.apps.interrupt import Interrupter
 
 log = logging.getLogger("aioadept.demo")
@@ -24,4 +25,21 @@ async def run_demo(cfg: CellConfig, run_dir: Path, *, interrupter: Interrupter |
         log.info("robot server %s:%s, vision %s / %s", cell.cfg.robot.host, cell.cfg.robot.port,
                  cell.cfg.vision.request_endpoint, cell.cfg.vision.response_endpoint)
         outcome: RunOutcome = await cell.run(run_focus_once(cell.cfg, run_dir, interrupter=interrupter))
-    return outcome
+    return _with_frames_checked(cfg, run_dir, outcome)
+
+
+def _with_frames_checked(cfg: CellConfig, run_dir: Path, outcome: RunOutcome) -> RunOutcome:
+    """The vision node this demo started saves the frames it served into the run folder, in its own process; once
+    it has stopped, a ``frames.csv`` missing there is a file not written (the node writes it whole or not at all:
+    a full disk), added to the outcome's ``save_error`` so that it is named with the run's own files."""
+    from aioadept.record.hook import frames_dir_of
+
+    frames = frames_dir_of(cfg) if cfg.vision.start else None
+    if frames is None or (frames / "frames.csv").is_file():
+        return outcome
+    try:
+        name = (frames / "frames.csv").relative_to(run_dir).as_posix()
+    except ValueError:
+        name = str(frames / "frames.csv")
+    why = "the vision node did not write it (a full disk, or the node was killed): see logs/vision.log"
+    return dataclasses.replace(outcome, save_error=merged_save_error(outcome.save_error, run_dir, {name: why}))

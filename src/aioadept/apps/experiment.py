@@ -20,8 +20,12 @@ log = logging.getLogger("aioadept.experiment")
 
 async def run_experiment(cfg: CellConfig, grid: list[tuple[int, float]], runs: int, out: Path, *,
                          interrupter: Interrupter | None = None) -> list[Path]:
-    """Run the grid against nodes started once; returns the run folders that are complete (result and files)."""
+    """Run the grid against nodes started once; returns the run folders that are complete (their tables and
+    ``run.json`` written; a file that failed besides them, e.g. ``run.rrd`` on a full disk, is named in ``run.json``
+    and logged)."""
     from rich.progress import Progress
+
+    from aioadept.capture import RunSaveError, note_not_written
 
     done: list[Path] = []
     failures = 0
@@ -39,12 +43,17 @@ async def run_experiment(cfg: CellConfig, grid: list[tuple[int, float]], runs: i
                     failures += 1
                     log.error("run %s failed: %s", run_dir.name, exc)
                 else:
-                    if outcome.save_error is None:
+                    complete = (run_dir / "run.json").is_file()  # its tables are whole: the analysis can use it
+                    if outcome.save_error is not None:
+                        # e.g. only run.rrd cut short by a full disk: named in run.json, the run still counts
+                        if complete and isinstance(outcome.save_error, RunSaveError):
+                            note_not_written(run_dir, outcome.save_error.not_written)
+                        log.error("run %s found the inspection pose %s but %s", run_dir.name,
+                                  outcome.result.inspection_pose if outcome.result else None, outcome.save_error)
+                    if complete:
                         done.append(run_dir)
                     else:  # the result is in the log line; the folder is incomplete, so the analysis leaves it out
                         failures += 1
-                        log.error("run %s found the inspection pose %s but %s", run_dir.name,
-                                  outcome.result.inspection_pose if outcome.result else None, outcome.save_error)
                 progress.advance(task)
     log.info("%d runs done, %d failed", len(done), failures)
     return done

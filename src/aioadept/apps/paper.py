@@ -17,6 +17,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+from aioadept.bus.messages import VISION_REQUEST as _VISION_REQUEST
 from aioadept.commands import MoveJoints, MoveRelJoints, MoveRelTool, MoveTo, MoveToolZ, SetSpeed
 from aioadept.errors import AdeptError, CommandAborted, CommandError, VisionError
 from aioadept.geometry import Pose
@@ -35,7 +36,7 @@ INIT_MOVE = (
 HOME_JOINTS_DEG = paper_cell.HOME_JOINTS_DEG
 """The paper's "home" joint configuration: upper arm vertical, forearm horizontal, tool pointing down."""
 
-VISION_REQUEST = "VisionRequest"
+VISION_REQUEST = _VISION_REQUEST
 
 
 class FocusError(AdeptError):

@@ -34,6 +34,7 @@ __all__ = [
     "RobotState",
     "SignalEvent",
     "ROBOT_STATE_TOPIC",
+    "VISION_REQUEST",
     "INT32_MIN",
     "INT32_MAX",
     "attributes_to_pb",
@@ -289,6 +290,9 @@ def decode_image(data: bytes) -> ImageMessage:
 
 
 # ---------------------------------------------------------------------------------------------------- robot state
+
+VISION_REQUEST = "VisionRequest"
+"""The event type of a vision request (the paper's MCN, EPypes); the one type the vision node serves."""
 
 ROBOT_STATE_TOPIC = b"robot.state"
 """Topic frame of the robot state stream (docs/interfaces.md)."""

@@ -73,7 +73,9 @@ class Responder:
     - Requests are handled one at a time, in arrival order. A repeat that arrives while its request is still queued
       or being processed is dropped: the answer, published when it is ready, serves it. (Queued repeats could
       outlive the cached answer under load and be processed again.)
-    - ``request_types`` restricts which event types are answered (others are ignored); None answers all.
+    - ``request_types`` restricts which event types are answered; None answers all. Any other event (a
+      ``Shutdown``, a ``VisionResponse`` echoed back, a typo) is ignored: never handled, never queued, never
+      answered; ``ignored`` counts them and each is logged at debug level.
     - Limits (docs/bus.md, "Limits"): at most ``max_queue`` requests wait; when one more arrives the **oldest**
       waiting request is dropped and answered at once with ``error = "dropped: ..."`` (the newest request is the
       one a waiting requester still cares about; a requester that re-sends gets the newest place). Requests are
@@ -169,6 +171,8 @@ class Responder:
         self._next_drop_log = 0.0
         self.rejected = 0
         """Requests answered with an error before processing: ``t_deadline`` not a finite number."""
+        self.ignored = 0
+        """Events not of a ``request_types`` type: dropped unanswered, before anything else looks at them."""
 
     @property
     def actual_request_endpoint(self) -> str:
@@ -263,6 +267,9 @@ class Responder:
             log.warning("Responder: ignoring undecodable request on %s: %s", self._actual_req, exc)
             return
         if self._request_types is not None and event_type not in self._request_types:
+            self.ignored += 1
+            log.debug("Responder on %s: ignoring a %r event (id %s): not a request type it serves; %d ignored",
+                      self._actual_req, event_type, rid, self.ignored)
             return
         bad = self._bad_deadline(attrs)
         if bad is not None:

@@ -1,7 +1,8 @@
 """``aioadept analyze RUN_DIR...``: the paper's timing metrics, fits and figures for one or many recorded runs.
 
 Exit codes: 0 analysed; 1 no complete approach iteration in the runs (outputs are still written, with n = 0);
-2 bad arguments, or no readable run in any path (paths without one are skipped with a note).
+2 bad arguments, or no readable run in any path (paths without one are skipped with a note); 4 outputs not written
+(disk full, ...: each named); 130 interrupted (the folder keeps its previous analysis).
 """
 
 from __future__ import annotations
@@ -11,6 +12,9 @@ import sys
 from pathlib import Path
 
 __all__ = ["main"]
+
+EXIT_NOT_SAVED = 4
+"""Exit code when outputs of the analysis could not be written (named on stderr), as ``demo``/``focus``'s 4."""
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -22,7 +26,8 @@ def _parser() -> argparse.ArgumentParser:
                     "run, into ./analysis/ (created in the current folder) for several, unless --out. Folders "
                     "without a run (e.g. the logs a failed demo leaves) are skipped with a note.",
         epilog="Exit codes: 0 analysed; 1 no complete approach iteration (outputs still written); 2 no readable "
-               "run in any path, or bad arguments. See docs/analysis.md.")
+               "run in any path, or bad arguments; 4 outputs not written (each named); 130 interrupted. "
+               "See docs/analysis.md.")
     p.add_argument("run_dirs", nargs="+", metavar="RUN_DIR",
                    help="a run folder (with run.json), or a folder whose subfolders are runs")
     p.add_argument("--out", metavar="DIR", default=None,
@@ -44,20 +49,37 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(sys.argv[1:] if argv is None else argv)
     from rich.console import Console
 
-    from aioadept.analysis.report import analyze_runs, fits_table, summary_table
+    from aioadept.analysis.report import AnalysisSaveError, analyze_runs, fits_table, summary_table
+    from aioadept.apps.interrupt import interrupt_handled
+    from aioadept.cli.report import stop_signals_interrupt
 
     console = Console()
     args.run_dirs = _with_runs(args.run_dirs)
     if not args.run_dirs:
         print("aioadept analyze: no run folder (run.json) in any of the paths given", file=sys.stderr)
         return 2
+    not_saved = None
     try:
-        summary = analyze_runs(args.run_dirs, args.out, plots=not args.no_plots, gantt_first=args.gantt_first,
-                               gantt_count=args.gantt_count,
-                               group_by=[k for k in args.group_by.split(",") if k.strip()])
+        with stop_signals_interrupt():  # Ctrl-C, SIGTERM, SIGHUP: one line, the previous analysis kept
+            summary = analyze_runs(args.run_dirs, args.out, plots=not args.no_plots, gantt_first=args.gantt_first,
+                                   gantt_count=args.gantt_count,
+                                   group_by=[k for k in args.group_by.split(",") if k.strip()])
+    except AnalysisSaveError as exc:  # the analysis is done; some of its files are not on disk (named)
+        if exc.summary is None:
+            print(f"aioadept analyze: {exc}", file=sys.stderr)
+            return EXIT_NOT_SAVED
+        summary, not_saved = exc.summary, exc
     except (FileNotFoundError, ValueError) as exc:
         print(f"aioadept analyze: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:
+        print(f"aioadept analyze: the analysis was not written: {exc}", file=sys.stderr)
+        return EXIT_NOT_SAVED
+    except KeyboardInterrupt:
+        interrupt_handled()
+        print("aioadept analyze: interrupted: the analysis was not written (a previous one stays as it was)",
+              file=sys.stderr)
+        return 130
     if not args.no_rrd:
         _write_rrds(args.run_dirs, console)
     console.print(summary_table(summary))
@@ -71,6 +93,9 @@ def main(argv: list[str] | None = None) -> int:
                           markup=False, highlight=False)
     console.print(f"wrote {', '.join(sorted(p.name for p in summary.files.values()))} to {summary.out_dir}",
                   markup=False, highlight=False)
+    if not_saved is not None:
+        print(f"aioadept analyze: {not_saved}", file=sys.stderr)
+        return EXIT_NOT_SAVED
     if summary.n_complete == 0:
         print("aioadept analyze: no complete approach iteration (vision request + set_speed/move_rel_tool/break) "
               "in these runs", file=sys.stderr)

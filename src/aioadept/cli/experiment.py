@@ -91,11 +91,23 @@ def _run(cfg: CellConfig, grid: list[tuple[int, float]], runs: int, out: Path) -
         log.error("no run succeeded")
         return 1
     from aioadept.analysis import analyze_runs
+    from aioadept.apps.interrupt import EXIT_INTERRUPTED, interrupt_handled
+    from aioadept.cli.report import stop_signals_interrupt
 
     try:
-        analyze_runs(run_dirs, out / "analysis")
+        with stop_signals_interrupt():
+            analyze_runs(run_dirs, out / "analysis")
+    except KeyboardInterrupt:  # the runs are saved; the analysis writes nothing half (issue 24, item 3)
+        interrupt_handled()
+        if (out / "analysis" / "summary.json").is_file():  # the interrupt came as it was ending: it is whole
+            done = "its analysis was written"
+        else:
+            done = f"its analysis was not written: redo it with `aioadept analyze {out} --out {out / 'analysis'}`"
+        print(f"aioadept experiment: interrupted during the analysis: the runs are kept in {out}; {done}",
+              file=sys.stderr)
+        return EXIT_INTERRUPTED
     except (OSError, ValueError) as exc:
-        print(f"aioadept experiment: the runs are saved in {out}, but the analysis was not written: {exc}",
+        print(f"aioadept experiment: the runs are saved in {out}, but the analysis was not (fully) written: {exc}",
               file=sys.stderr)
         return 4
     log.info("analysis of %d runs written to %s", len(run_dirs), out / "analysis")

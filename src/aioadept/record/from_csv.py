@@ -19,7 +19,7 @@ from typing import Any
 from aioadept.capture import load_run
 from aioadept.geometry import Pose
 from aioadept.record.rrd import APP_ID, CellLogger, default_blueprint, frame_file
-from aioadept.record.sinks import close_bounded
+from aioadept.record.sinks import close_bounded, rrd_incomplete
 
 __all__ = ["rrd_from_run"]
 
@@ -96,6 +96,8 @@ def rrd_from_run(run_dir: str | os.PathLike[str], out: str | os.PathLike[str] | 
             lg.focus_plane(Pose(**result["inspection_pose"]), offset_mm=_float(result.get("peak_offset_mm")))
     finally:
         errors = close_bounded(rec, 10.0)
+    if not errors and (why := rrd_incomplete(tmp)):  # a full disk: Rerun's sink says so only in its own log
+        errors.append(why)
     if errors:  # never publish a cut-short recording under the real name
         with contextlib.suppress(OSError):
             tmp.unlink()

@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from aioadept.record.rrd import APP_ID, CellLogger, default_blueprint, frame_file
-from aioadept.record.sinks import close_bounded
+from aioadept.record.sinks import close_bounded, rrd_incomplete
 
 __all__ = ["STATE_RATE_HZ", "SWITCH_INTERVAL_S", "RunRecording"]
 
@@ -114,9 +114,13 @@ class RunRecording:
         self.loop_to_epoch_s = wall - loop_t
         self.rec = rr.RecordingStream(APP_ID, recording_id=str(uuid.uuid4()))
         sinks: list[Any] = []
+        # The file is written under a temporary name and renamed to ``rrd_path`` by close() once complete: a full
+        # disk used to leave a truncated run.rrd under its final name (issue 18, item 8).
+        self._rrd_tmp = None if self.rrd_path is None else self.rrd_path.with_name(
+            f".{self.rrd_path.name}.{os.getpid()}.tmp")
         if self.rrd_path is not None:
             self.rrd_path.parent.mkdir(parents=True, exist_ok=True)
-            sinks.append(rr.FileSink(str(self.rrd_path)))
+            sinks.append(rr.FileSink(str(self._rrd_tmp)))
         if viewer_url is not None:
             sinks.append(rr.GrpcSink(viewer_url))
         self.rec.set_sinks(*sinks)
@@ -208,9 +212,25 @@ class RunRecording:
         # A recording never fails a run, nor holds it up: a full disk (or any sink error) is said once and the run's
         # result stands.
         errors = close_bounded(self.rec, timeout_s)
+        if self._rrd_tmp is not None and not errors:
+            # Rerun's file sink reports a failed write (ENOSPC) only in its own log, not to Python: the file is
+            # checked instead, for the footer a complete recording ends with.
+            why = rrd_incomplete(self._rrd_tmp)
+            if why:
+                errors.append(why)
+        if self._rrd_tmp is not None:
+            try:
+                if errors:
+                    os.unlink(self._rrd_tmp)  # not there rather than cut short
+                else:
+                    os.replace(self._rrd_tmp, self.rrd_path)
+            except OSError as exc:
+                errors.append(exc.strerror or str(exc))
+                with contextlib.suppress(OSError):
+                    os.unlink(self._rrd_tmp)
         if errors:
             self.error = "; ".join(errors)
-            log.warning("run.rrd not fully written (%s): %s", self.rrd_path, self.error)
+            log.warning("run.rrd not written (%s): %s", self.rrd_path, self.error)
 
     def __enter__(self) -> RunRecording:
         return self.start()

@@ -45,6 +45,7 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any, Literal
 
 from aioadept.bus.communicator import Responder
+from aioadept.bus.messages import VISION_REQUEST
 from aioadept.errors import VisionError
 from aioadept.vision.acquisition import DEFAULT_POLICY, Acquisition, Policy
 from aioadept.vision.graph import CompGraph
@@ -366,10 +367,15 @@ class NodeResponder(Responder):
     answer without waiting (:meth:`VisionNode.answers_at_once`) are answered right in the socket callback; the
     others (policy ``after``, a graph sent to the worker thread) come back as awaitables that the Responder's worker
     task awaits, in arrival order. Same options as :class:`Responder`, minus the handler and ``in_thread``.
+
+    It serves ``VisionRequest`` events only (``request_types`` by default): any other event on the request port (a
+    ``Shutdown``, a ``VisionResponse`` sent back) takes no frame and no queue slot; it is ignored and counted
+    (``ignored``, a debug log line each). Issue 18, item 7: each used to be served as a request.
     """
 
     def __init__(self, request_endpoint: str, response_endpoint: str, node: VisionNode, **options: Any) -> None:
         if "in_thread" in options:
             raise TypeError("NodeResponder: the node chooses where its graph runs (graph_thread), not in_thread")
+        options.setdefault("request_types", (VISION_REQUEST,))
         super().__init__(request_endpoint, response_endpoint, node.respond, **options)
         self.node = node

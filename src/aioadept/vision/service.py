@@ -129,9 +129,9 @@ async def serve(opts: argparse.Namespace) -> int:
             return 1
         serve_task.cancel()
         log.info("stopping: %d requests served (%d failed, %d of them for a stale robot state), %d dropped (queue "
-                 "full), %d refused (bad t_deadline); graph runs on the loop %d, in the worker %d",
-                 node.served, node.failed, node.stale, responder.dropped, responder.rejected, node.inline_runs,
-                 node.thread_runs)
+                 "full), %d refused (bad t_deadline), %d ignored (other event types); graph runs on the loop %d, "
+                 "in the worker %d", node.served, node.failed, node.stale, responder.dropped, responder.rejected,
+                 responder.ignored, node.inline_runs, node.thread_runs)
         return 0
     finally:
         if responder is not None:

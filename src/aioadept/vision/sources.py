@@ -16,7 +16,9 @@ loop does.
 from __future__ import annotations
 
 import abc
+import contextlib
 import csv
+import logging
 import os
 import time
 from collections.abc import Callable
@@ -27,6 +29,8 @@ import cv2
 import numpy as np
 
 from aioadept.errors import VisionError
+
+log = logging.getLogger(__name__)
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm")
 
@@ -188,18 +192,32 @@ class FrameRecorder:
     """Write frames as PNG files plus ``frames.csv`` (``file,t_s,camera_id,seq``) into a folder, so that
     :class:`ImageFolderSource` with ``timestamps_csv`` replays them with their original times.
 
-    Thread-safe enough for one writer per camera; files are named ``<camera_id>_<seq:06d>.png``.
+    Thread-safe enough for one writer per camera; files are named ``<camera_id>_<seq:06d>.png``. Nothing is left
+    half written under its final name (issue 18, item 8: a full disk left an empty ``frames.csv``): each PNG is
+    renamed into place once whole, and ``frames.csv`` is written under a temporary name and renamed by
+    :meth:`close` only if every row reached the disk (else it is removed, ``csv_error`` says why, and a
+    ``frames.csv`` from before keeps its content). Its rows list the PNGs that were written.
     """
 
     def __init__(self, folder: str | os.PathLike[str]) -> None:
         self.folder = Path(folder)
         self.folder.mkdir(parents=True, exist_ok=True)
         self._csv_path = self.folder / "frames.csv"
-        new = not self._csv_path.exists()
-        self._fh = open(self._csv_path, "a", newline="")
-        self._writer = csv.writer(self._fh)
-        if new:
-            self._writer.writerow(["file", "t_s", "camera_id", "seq"])
+        self._tmp_path = self.folder / f".frames.csv.{os.getpid()}.tmp"
+        self.csv_error: str | None = None
+        """Why ``frames.csv`` was not written (set by a failed write or :meth:`close`), else None."""
+        self._fh = open(self._tmp_path, "w", newline="")
+        try:
+            self._writer = csv.writer(self._fh)
+            if self._csv_path.exists():  # a second recorder into the same folder appends, as before
+                self._fh.write(self._csv_path.read_text())
+            else:
+                self._writer.writerow(["file", "t_s", "camera_id", "seq"])
+        except BaseException:
+            self._fh.close()
+            with contextlib.suppress(OSError):
+                os.unlink(self._tmp_path)
+            raise
 
     def write(self, frame: Frame) -> Path:
         name = f"{frame.camera_id.replace(':', '_').replace('/', '_')}_{frame.seq:06d}.png"
@@ -207,13 +225,41 @@ class FrameRecorder:
         # Written under a temporary name and renamed: a reader following the folder (the run recorder) never sees
         # half a PNG. The temporary name keeps the .png suffix, which tells OpenCV the format.
         tmp = self.folder / f".{name[:-4]}.tmp.png"
-        if not cv2.imwrite(str(tmp), frame.image):
-            raise VisionError(f"cannot write {path}")
-        os.replace(tmp, path)
-        self._writer.writerow([name, f"{frame.t_s:.6f}", frame.camera_id, frame.seq])
-        self._fh.flush()
+        try:
+            if not cv2.imwrite(str(tmp), frame.image):
+                raise VisionError(f"cannot write {path}")
+            os.replace(tmp, path)
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)  # a full disk leaves part of it
+            raise
+        if self.csv_error is None:
+            try:
+                self._writer.writerow([name, f"{frame.t_s:.6f}", frame.camera_id, frame.seq])
+                self._fh.flush()
+            except OSError as exc:
+                self.csv_error = exc.strerror or str(exc)
         return path
 
     def close(self) -> None:
-        if not self._fh.closed:
-            self._fh.close()
+        """Finish ``frames.csv``: renamed into place when every row was written, else removed (``csv_error``)."""
+        if self._fh.closed:
+            return
+        try:
+            if self.csv_error is None:
+                self._fh.flush()
+                os.fsync(self._fh.fileno())
+        except OSError as exc:
+            self.csv_error = exc.strerror or str(exc)
+        finally:
+            with contextlib.suppress(OSError):  # the error, if any, was already met by the flush above
+                self._fh.close()
+        try:
+            if self.csv_error is None:
+                os.replace(self._tmp_path, self._csv_path)
+                return
+        except OSError as exc:
+            self.csv_error = exc.strerror or str(exc)
+        with contextlib.suppress(OSError):
+            os.unlink(self._tmp_path)
+        log.error("%s not written: %s", self._csv_path, self.csv_error)

@@ -40,3 +40,39 @@ def test_a_reader_polling_the_folder_never_sees_a_partial_png(tmp_path):
     assert sorted(p.name for p in tmp_path.glob("*.png")) == [f"cam0_{i:06d}.png" for i in range(1, 41)]
     assert not list(tmp_path.glob(".*")), "temporary files left behind"
     assert len((tmp_path / "frames.csv").read_text().splitlines()) == 41
+
+
+def test_a_frames_csv_the_disk_cannot_take_is_not_left_under_its_name(tmp_path):
+    # Issue 18, item 8: a full disk used to leave an empty frames.csv. A real write error: a child process with a
+    # file-size limit (RLIMIT_FSIZE binds root too; Python ignores SIGXFSZ, so the write fails with EFBIG). The
+    # 200 rows need ~8 KiB, over the 2 KiB limit; each tiny PNG fits.
+    import subprocess
+    import sys
+
+    script = (
+        "import resource, sys, numpy as np\n"
+        "from aioadept.vision.sources import Frame, FrameRecorder\n"
+        "resource.setrlimit(resource.RLIMIT_FSIZE, (2048, 2048))\n"
+        "rec = FrameRecorder(sys.argv[1])\n"
+        "for seq in range(200):\n"
+        "    rec.write(Frame(image=np.zeros((8, 8), np.uint8), t_s=1000.0 + seq, camera_id='cam0', seq=seq))\n"
+        "rec.close()\n"
+        "print(rec.csv_error)\n")
+    proc = subprocess.run([sys.executable, "-c", script, str(tmp_path)], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "File too large"
+    assert not (tmp_path / "frames.csv").exists()  # not there rather than cut short
+    assert not list(tmp_path.glob(".*")), "temporary files left behind"
+    assert len(list(tmp_path.glob("cam0_*.png"))) == 200
+    assert "frames.csv not written: File too large" in proc.stderr
+
+
+def test_a_second_recorder_appends_to_the_frames_csv_of_the_first(tmp_path):
+    for seqs in ((1, 2), (3,)):
+        rec = FrameRecorder(tmp_path)
+        for seq in seqs:
+            rec.write(Frame(image=np.zeros((8, 8), np.uint8), t_s=1000.0 + seq, camera_id="cam0", seq=seq))
+        rec.close()
+    rows = (tmp_path / "frames.csv").read_text().splitlines()
+    assert rows[0] == "file,t_s,camera_id,seq" and [r.split(",")[0] for r in rows[1:]] == [
+        "cam0_000001.png", "cam0_000002.png", "cam0_000003.png"]

@@ -1,0 +1,59 @@
+"""How an analysis reaches its folder: all of it or none of it, and what the disk could not take, named.
+
+:func:`aioadept.analysis.report.analyze_runs` writes every output into a :func:`staging` folder beside the
+destination, then :func:`publish` replaces the previous analysis as a whole; outputs that could not be written are
+reported with :class:`AnalysisSaveError` (issue 24 item 4, issue 18 item 8; docs/analysis.md).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+from collections.abc import Iterable, Iterator, Mapping
+from pathlib import Path
+from typing import Any
+
+from aioadept.capture import RunSaveError
+
+__all__ = ["AnalysisSaveError", "publish", "staging"]
+
+
+class AnalysisSaveError(RunSaveError):
+    """Outputs of an analysis that could not be written (disk full, ...); the others were written. ``summary``: the
+    analysis itself (a :class:`~aioadept.analysis.report.Summary`, whose ``not_written`` names the same files)."""
+
+    def __init__(self, out_dir: str | os.PathLike[str], written: Iterable[str], not_written: Mapping[str, str], *,
+                 summary: Any = None) -> None:
+        super().__init__(out_dir, written, not_written)
+        self.summary = summary
+        parts = "; ".join(f"{name} ({why})" for name, why in self.not_written.items())
+        self.args = (f"analysis in {self.run_dir}: not written: {parts}",)
+
+
+@contextlib.contextmanager
+def staging(out: Path) -> Iterator[Path]:
+    """A fresh folder ``out/.analysis.<pid>.tmp`` for the outputs, removed on the way out whatever happens (an
+    interrupted analysis leaves nothing behind)."""
+    stage = out / f".analysis.{os.getpid()}.tmp"
+    shutil.rmtree(stage, ignore_errors=True)
+    stage.mkdir()
+    try:
+        yield stage
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+
+
+def publish(stage: Path, out: Path, staged: Mapping[str, Path], known: Iterable[str], *, last: str) -> None:
+    """Replace the analysis in ``out`` with the ``staged`` files: ``last`` (the summary) is removed first, every
+    ``known`` output not staged again is removed, then the staged files are renamed into place, ``last`` last. So no
+    summary ever sits beside figures it did not make, and an interruption leaves at worst no summary."""
+    names = {p.name for p in staged.values()}
+    with contextlib.suppress(FileNotFoundError):
+        os.unlink(out / last)
+    for name in known:
+        if name not in names:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(out / name)
+    for path in sorted(staged.values(), key=lambda p: p.name == last):
+        os.replace(path, out / path.name)
