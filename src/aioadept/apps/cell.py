@@ -18,6 +18,8 @@ from typing import Any
 
 from aioadept.apps.focus import FocusParams, FocusResult, ufloop
 from aioadept.apps.processes import NodeProcess, watch
+from aioadept.commands import SPEED_MAX, SPEED_MIN
+from aioadept.configfile import Range, ranged
 from aioadept.defaults import ROBOT_HOST, ROBOT_PORT, STATE_ENDPOINT
 from aioadept.vision.options import VisionOptions
 
@@ -27,18 +29,18 @@ log = logging.getLogger(__name__)
 @dataclass(slots=True)
 class RobotSection:
     host: str = ROBOT_HOST
-    port: int = ROBOT_PORT
+    port: int = ranged(ROBOT_PORT, Range(0, 0xFFFF, integer=True))
     """0 with ``start_sim``: pick a free port."""
     start_sim: bool = True
     """Start ``aioadept sim`` on this machine (else connect to a running server, e.g. a real controller)."""
-    time_scale: float = 1.0
+    time_scale: float = ranged(1.0, Range(0.0, lo_open=True))
     """Sim motion speed-up (1 = real time)."""
-    monitor_speed: int = 100
+    monitor_speed: int = ranged(100, Range(SPEED_MIN, SPEED_MAX, integer=True, unit="%"))
     state_endpoint: str = STATE_ENDPOINT
     """Where the sim publishes the robot state (the virtual camera subscribes). Port 0: pick a free one."""
-    connect_timeout_s: float = 5.0
-    ack_timeout_s: float = 30.0
-    hello_timeout_s: float = 2.0
+    connect_timeout_s: float = ranged(5.0, Range(0.0, lo_open=True, unit="s"))
+    ack_timeout_s: float = ranged(30.0, Range(0.0, lo_open=True, unit="s"))
+    hello_timeout_s: float = ranged(2.0, Range(0.0, unit="s"))
     """After connecting, send ``hello`` and give up this soon if nothing like a RobotServer answers (a wrong port).
     0: no check (the original V+ AdeptServer, whose task halts on an unknown skill)."""
     sim_args: list[str] = field(default_factory=list)
@@ -81,7 +83,7 @@ class CellConfig:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any], *, source: str = "config") -> CellConfig:
-        from aioadept.configfile import ConfigError, check_section
+        from aioadept.configfile import ConfigError, check_ranges, check_section
 
         known = {"robot": RobotSection, "vision": VisionSection, "focus": FocusParams, "run": RunSection}
         unknown = set(data) - set(known)
@@ -90,12 +92,19 @@ class CellConfig:
                               f"{', '.join(known)}")
         parts = {}
         for name, typ in known.items():
-            # Unknown keys and wrong types as one line naming file, key and what was expected (ConfigError).
+            # Unknown keys, wrong types and values out of range as one line naming file, key and what was expected
+            # (ConfigError).
             where = f"{source} [{name}]"
             if typ is VisionSection:
                 parts[name] = VisionSection.from_table(data.get(name, {}), where)
-            else:
-                parts[name] = typ(**check_section(typ, data.get(name, {}), where))
+                continue
+            try:
+                parts[name] = typ(**check_section(typ, data.get(name, {}), where))  # FocusParams checks its ranges
+                check_ranges(parts[name])
+            except ConfigError:
+                raise
+            except ValueError as exc:
+                raise ConfigError(f"{where}: {exc}") from None
         cfg = cls(**parts)
         v = cfg.vision
         if not v.exposure_ms > 0:  # the node takes 0 (a camera's own minimum); a cell's camera must expose

@@ -115,8 +115,13 @@ async def ufloop(rc: Robot, comm: Vision, delta_z: float, appr_speed: int, *, ma
     ``error`` ack) the robot is sent back to the approach pose before the error propagates. After a cancellation, a
     stop (an ``aborted`` ack, or ``stop_event`` set), a lost connection, an ack timeout or any other error no motion
     is started: the robot stays where it is. Raises :class:`FocusError` (step limit, vision failure) or the robot's
-    own error.
+    own error. ValueError before any motion for a value outside the range of its
+    :class:`~aioadept.apps.focus.FocusParams` field (a step of 0 or below would report noise or the start as the peak).
     """
+    from aioadept.apps.focus import FocusParams  # the ranges live there; a lazy import: focus imports this module
+
+    FocusParams(delta_z_mm=delta_z, approach_speed=appr_speed, max_steps=max_steps, retract_speed=retract_speed,
+                **({} if vision_timeout_s is None else {"vision_timeout_s": vision_timeout_s}))
     if do_init_move:
         approach = (await init_move(rc)).pose
     else:

@@ -13,7 +13,7 @@ import signal
 import sys
 
 from aioadept import defaults
-from aioadept.cli.options import DefaultsHelpFormatter, description
+from aioadept.cli.options import ArgumentParser, DefaultsHelpFormatter, description
 from aioadept.geometry import NULL, Pose
 from aioadept.robots import viper_s850 as kin
 from aioadept.sim.server import DEFAULT_PORT, DEFAULT_STATE_ENDPOINT, Faults, SimOptions, SimServer
@@ -37,7 +37,7 @@ def _jump_limit(text: str) -> kin.JumpLimit | None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="aioadept sim", description=description(__doc__),
+    p = ArgumentParser(prog="aioadept sim", description=description(__doc__),
                                 formatter_class=DefaultsHelpFormatter)
     p.add_argument("--host", default=defaults.ROBOT_HOST, help="address to bind")
     p.add_argument("--port", type=int, default=DEFAULT_PORT, help="TCP port (0: pick a free one)")
