@@ -227,35 +227,53 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
     error: str | None = None
     save_error: OSError | None = None
     started = _dt.datetime.now(_dt.timezone.utc).isoformat()
+    connected = False
     try:
         async with RobotClient(cfg.robot.host, cfg.robot.port, connect_timeout_s=cfg.robot.connect_timeout_s,
                                ack_timeout_s=cfg.robot.ack_timeout_s, observers=observers,
-                               hello_timeout_s=cfg.robot.hello_timeout_s or None) as rc, \
-                Communicator(opposite(cfg.vision.request_endpoint), opposite(cfg.vision.response_endpoint),
-                             timeout_s=params.vision_timeout_s, observers=observers) as comm, \
-                _guarded(interrupter, rc):
-            result = await ufloop(rc, comm, params.delta_z_mm, params.approach_speed, max_steps=params.max_steps,
-                                  vision_timeout_s=params.vision_timeout_s, retract_speed=params.retract_speed,
-                                  recorder=recorder if rrd is None else MarkTee(recorder, rrd))
+                               hello_timeout_s=cfg.robot.hello_timeout_s or None) as rc:
+            connected = True
+            async with Communicator(opposite(cfg.vision.request_endpoint), opposite(cfg.vision.response_endpoint),
+                                    timeout_s=params.vision_timeout_s, observers=observers) as comm, \
+                    _guarded(interrupter, rc):
+                result = await ufloop(rc, comm, params.delta_z_mm, params.approach_speed,
+                                      max_steps=params.max_steps, vision_timeout_s=params.vision_timeout_s,
+                                      retract_speed=params.retract_speed,
+                                      recorder=recorder if rrd is None else MarkTee(recorder, rrd))
     except BaseException as exc:
         if isinstance(exc, (asyncio.CancelledError, KeyboardInterrupt)):
             error = "interrupted"
         else:
             error = f"{type(exc).__name__}: {exc}"
+        if not connected:  # nothing happened that a run folder could keep: leave none behind
+            if rrd is not None:
+                await asyncio.shield(rrd.aclose())
+            discard_run_dir(run_dir)
         raise
     finally:
-        meta = {
-            "app": "focus", "aioadept_version": __version__, "started_utc": started,
-            "approach_speed": params.approach_speed, "delta_z_mm": params.delta_z_mm,
-            "max_steps": params.max_steps, "cell": cfg.to_dict(), "error": error,
-            "result": None if result is None else focus_result_dict(result),
-        }
-        save_error = save_run(recorder, run_dir, meta)
-        if save_error is not None and result is None:
-            log.error("%s", save_error)  # the run's own error propagates; this one must not vanish either
-        if rrd is not None:
-            await asyncio.shield(rrd.aclose())  # flushed and closed even when the run was cancelled
+        if connected:  # (else the run folder is gone, above, and the connect error propagates)
+            meta = {
+                "app": "focus", "aioadept_version": __version__, "started_utc": started,
+                "approach_speed": params.approach_speed, "delta_z_mm": params.delta_z_mm,
+                "max_steps": params.max_steps, "cell": cfg.to_dict(), "error": error,
+                "result": None if result is None else focus_result_dict(result),
+            }
+            save_error = save_run(recorder, run_dir, meta)
+            if save_error is not None and result is None:
+                log.error("%s", save_error)  # the run's own error propagates; this one must not vanish either
+            if rrd is not None:
+                await asyncio.shield(rrd.aclose())  # flushed and closed even when the run was cancelled
     return RunOutcome(run_dir, result, error, save_error)
+
+
+def discard_run_dir(run_dir: Path) -> None:
+    """Remove a run folder whose robot connection never succeeded: its ``run.rrd`` (opened before connecting)
+    and the folder, unless something else is in it (the logs of nodes a demo started: kept, they say why)."""
+    with contextlib.suppress(OSError):
+        (run_dir / "run.rrd").unlink(missing_ok=True)
+    for d in (run_dir / "frames", run_dir / "logs", run_dir):
+        with contextlib.suppress(OSError):
+            d.rmdir()  # only when empty
 
 
 def save_run(recorder: Any, run_dir: Path, meta: dict[str, Any]) -> OSError | None:
