@@ -110,11 +110,12 @@ class CellConfig:
         if not v.exposure_ms > 0:  # the node takes 0 (a camera's own minimum); a cell's camera must expose
             raise ConfigError(f"{source} [vision]: exposure_ms = {v.exposure_ms!r}: expected a finite number of "
                               f"ms > 0")
-        from aioadept.bus.endpoints import parse_endpoint
+        from aioadept.bus.endpoints import is_none, parse_endpoint
         from aioadept.errors import BusError
 
         try:
-            parse_endpoint(cfg.robot.state_endpoint)
+            if not is_none(cfg.robot.state_endpoint):  # "none": the sim publishes no state stream
+                parse_endpoint(cfg.robot.state_endpoint)
         except BusError as exc:
             raise ConfigError(f"{source}: robot.state_endpoint: {exc}") from None
         return cfg

@@ -45,7 +45,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="virtual | gige:ADDRESS (a GigE Vision camera's IPv4 address, opened by address, never by "
                         "discovery; needs the [gige] extra) | folder:PATH | opencv:SPEC (device index, video file or "
                         "URL); repeat for several cameras (default: virtual)")
-    p.add_argument("--state-endpoint", help=with_default("robot state stream to follow (virtual source)",
+    p.add_argument("--state-endpoint", help=with_default("robot state stream to follow (virtual source; 'none': no stream, the "
+                                                          "virtual camera shows the target at the approach pose)",
                                                           defaults.STATE_ENDPOINT))
     p.add_argument("--request-endpoint",
                    help=with_default("SUB for VisionRequest events: connects to the MCN's PUB by default, as EPypes "
@@ -209,10 +210,12 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
         value = merged[key]
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             parser.error(f"{key.replace('_', '-')} must be an integer >= 1, got {value!r}")
-    from aioadept.bus.endpoints import parse_endpoint
+    from aioadept.bus.endpoints import is_none, parse_endpoint
     from aioadept.errors import BusError
 
     for key in ("request_endpoint", "response_endpoint", "state_endpoint"):
+        if key == "state_endpoint" and is_none(merged[key]):
+            continue
         try:
             parse_endpoint(merged[key])
         except BusError as exc:

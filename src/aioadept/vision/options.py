@@ -137,10 +137,12 @@ class VisionOptions:
         for key in ("max_queue", "max_request_bytes"):
             if getattr(self, key) < 1:
                 raise ValueError(f"{key} = {getattr(self, key)!r}: expected an integer >= 1")
-        from aioadept.bus.endpoints import parse_endpoint
+        from aioadept.bus.endpoints import is_none, parse_endpoint
         from aioadept.errors import BusError
 
         for key in ("request_endpoint", "response_endpoint", "state_endpoint"):
+            if key == "state_endpoint" and is_none(self.state_endpoint):
+                continue  # no robot state stream: the virtual camera shows the target at the approach pose
             try:
                 parse_endpoint(getattr(self, key))
             except BusError as exc:
