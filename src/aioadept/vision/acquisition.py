@@ -301,7 +301,8 @@ class Acquisition:
             raise RuntimeError("Acquisition already started")
         for src in self.sources:
             loop = self._trigger_loop if self.triggered[src.camera_id] else self._grab_loop
-            t = threading.Thread(target=loop, args=(src,), name=f"grab:{src.camera_id}")
+            t = threading.Thread(target=loop, args=(src,), name=f"grab:{src.camera_id}",
+                                 daemon=src.stop_wait_s is not None)
             t.start()
             self._threads.append(t)
             if self.triggered[src.camera_id]:
@@ -364,9 +365,12 @@ class Acquisition:
         while not self._stop.is_set():
             try:
                 frame = src.grab()
-            except Exception:
+            except Exception as exc:
                 self._errors[src.camera_id] += 1
-                log.exception("%s: grab failed", src.camera_id)
+                if isinstance(exc, VisionError):  # a camera's own words (timeout, lost frame, camera gone): one line
+                    log.warning("%s: grab failed: %s", src.camera_id, exc)
+                else:
+                    log.exception("%s: grab failed", src.camera_id)
                 self._stop.wait(max(period, 0.05))  # do not spin on a broken device
                 continue
             if frame is None:
@@ -391,13 +395,18 @@ class Acquisition:
         """Stop and join every grabbing thread, then close the sources (idempotent).
 
         A thread notices the stop between grabs, so stopping takes at most one ``grab()``; a device whose read
-        never returns keeps ``stop()`` waiting (closing a capture under a reading thread is not safe in OpenCV).
+        never returns keeps ``stop()`` waiting (closing a capture under a reading thread is not safe in OpenCV),
+        unless the source says how long to wait (``Camera.stop_wait_s``: a GigE camera that has gone away blocks a
+        grab for seconds of GVCP retries): then the stop goes on without that grab, and says so.
         """
         self._stop.set()
         for ev in self._trigger_events.values():
             ev.set()  # wakes the triggered threads, which then see the stop
-        for t in self._threads:
-            t.join()
+        for t, src in zip(self._threads, self.sources):
+            t.join(src.stop_wait_s)
+            if t.is_alive():
+                log.warning("%s: a grab has not returned within %g s: stopping without it", src.camera_id,
+                            src.stop_wait_s)
         self._threads.clear()
         if self._close_sources:
             for s in self.sources:
