@@ -211,3 +211,17 @@ def test_a_node_whose_camera_has_gone_away_stops_within_2_s_on_sigint_with_a_lin
     assert took < 2.0, (took, err)  # it was 13 s, silent
     assert "GigE camera 127.0.0.1 lost" in err, err
     assert "Traceback" not in err, err
+
+
+@pytest.mark.timeout(30)
+def test_without_the_gige_extra_the_node_says_in_one_line_to_run_make_gige(tmp_path):
+    # The [gige] extra made unimportable in the child (sys.modules entries of None make an import fail), as on a
+    # machine where `pip install '.[gige]'` failed for want of the Debian packages.
+    code = ("import sys; sys.modules['aravis'] = None; sys.modules['gi'] = None; from aioadept.cli import main; "
+            "sys.exit(main(['vision', '--source', 'gige:127.0.0.1', '--request-endpoint', 'tcp://127.0.0.1:0', "
+            "'--response-endpoint', 'tcp://127.0.0.1:0']))")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=25)
+    assert proc.returncode == 2, proc.stderr
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert "needs the [gige] extra: from a clone run 'make gige'" in lines[0]

@@ -52,9 +52,10 @@ def test_one_table_with_pass_fail_and_no_goal_rows_and_the_json_kept(fakes: Path
     out = res.stdout
     assert out.count("┏") == 1                      # one table
     for text in ("bench_a_good", "fast path p50", "110 us", "100 us", "1.1", "ratio <= 1.3", "pass",
-                 "slow path p50", "FAIL", "informative", "bench_b_plain", "no goal stated"):
+                 "slow path p50", "missed", "informative", "bench_b_plain", "no goal stated"):
         assert text in out, text
-    assert "1 goals met, 1 missed, 2 without a stated goal, 0 benchmarks failed" in out
+    assert "FAIL" not in out and "CRASHED" not in out  # a goal missed is not a crash (issue 24)
+    assert "1 goals met, 1 missed, 2 without a stated goal, 0 benchmarks crashed" in out
     # The JSON is kept, not printed.
     assert json.loads((tmp_path / "out" / "bench_b_plain.json").read_text()) == {"p50_us": 12.0}
     assert '"p50_us"' not in out
@@ -68,8 +69,9 @@ def test_a_crashing_benchmark_or_one_without_json_is_a_failed_row_and_exit_1(fak
     (fakes / "bench_d_text.py").write_text(NO_JSON)
     res = _run("--dir", str(fakes), "--out", str(tmp_path / "out"), cwd=tmp_path)
     assert res.returncode == 1
-    assert "exit status 1" in res.stdout and "printed no JSON object" in res.stdout
-    assert "2 benchmarks failed" in res.stdout
+    assert "crashed: exit status 1" in res.stdout and "crashed: printed no JSON object" in res.stdout
+    assert res.stdout.count("CRASHED") == 2 and "missed" in res.stdout  # the two kinds kept apart (issue 24)
+    assert "2 benchmarks crashed" in res.stdout
     assert "fast path p50" in res.stdout          # the others are still in the table
 
 

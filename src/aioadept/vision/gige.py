@@ -59,9 +59,10 @@ def load_aravis() -> Any:
             from gi.repository import Aravis
         except Exception as exc:  # ImportError, or gi's ValueError/ImportError when the typelib or libusb is missing
             raise VisionError(
-                "GigE Vision source needs the [gige] extra: pip install 'aioadept[gige]' (aravis-python and "
-                "PyGObject; PyGObject builds with the Debian packages libgirepository1.0-dev, libcairo2-dev, "
-                f"pkg-config, and libaravis needs libusb-1.0-0): {type(exc).__name__}: {exc}") from exc
+                "GigE Vision source needs the [gige] extra: from a clone run 'make gige' (it installs the Debian "
+                "packages PyGObject builds with, libgirepository1.0-dev libcairo2-dev pkg-config, and libusb-1.0-0 "
+                "for libaravis, then the pinned aravis-python and PyGObject); pip install 'aioadept[gige]' alone "
+                f"fails without those packages ({type(exc).__name__}: {exc})") from exc
         # Before any device-list update: nothing in this process may send a broadcast discovery.
         Aravis.disable_interface("GigEVision")
         return Aravis
