@@ -236,7 +236,7 @@ def test_focus_robot_address_mistake_is_one_line(tmp_path, address):
 
 def test_focus_robot_without_a_port_means_port_1234():
     # Not run against 127.0.0.1:1234 itself: whatever listens there on this machine is not ours to move.
-    from aioadept.apps.focus_cli import parse_robot_address
+    from aioadept.cli.options import parse_robot_address
 
     assert parse_robot_address("127.0.0.1") == ("127.0.0.1", 1234)
     assert parse_robot_address("10.0.0.5:2000") == ("10.0.0.5", 2000)

@@ -27,6 +27,7 @@ from aioadept.apps.paper import (  # noqa: F401  (the paper's coroutines, re-exp
     HOME_JOINTS_DEG,
     INIT_MOVE,
     VISION_REQUEST,
+    FOCUS_RANGES,
     FocusError,
     FocusResult,
     Robot,
@@ -36,8 +37,7 @@ from aioadept.apps.paper import (  # noqa: F401  (the paper's coroutines, re-exp
     move_tool_z,
     ufloop,
 )
-from aioadept.commands import SPEED_MAX, SPEED_MIN
-from aioadept.configfile import Range, check_ranges, ranged
+from aioadept.configfile import check_ranges, ranged
 from aioadept.errors import AdeptError
 
 log = logging.getLogger(__name__)
@@ -61,26 +61,23 @@ class StopFailed(AdeptError):
         self.stop_id = stop_id
 
 
-_SPEED = Range(SPEED_MIN, SPEED_MAX, integer=True, unit="%")
-
-
 @dataclass(frozen=True, slots=True)
 class FocusParams:
     """Parameters of one calibration run (the paper varied speed in {5..100} and delta_z in {1.5, 2.0, 2.5}).
 
-    Each field's range is written once, here (:func:`aioadept.configfile.range_of`): a value outside it raises
-    ValueError naming the field, so a run never starts with a step that cannot find the focal plane (0, negative:
-    the approach pose or noise would be reported as the peak) or a speed the robot refuses.
+    Each field's range is :data:`~aioadept.apps.paper.FOCUS_RANGES`' (read with
+    :func:`aioadept.configfile.range_of`): a value outside it raises ValueError naming the field, so a run never
+    starts with a step that cannot find the focal plane (0, negative: the approach pose or noise would be reported
+    as the peak) or a speed the robot refuses.
     """
 
-    delta_z_mm: float = ranged(2.0, Range(0.1, 50.0, unit="mm"))
-    """The step along tool +z. Below 0.1 mm two steps differ by little more than the arm's repeatability
-    (about 0.03 mm) and sensor noise decides the peak; above 50 mm a step is no search."""
-    approach_speed: int = ranged(25, _SPEED)
-    max_steps: int = ranged(40, Range(1, 1000, integer=True))
+    delta_z_mm: float = ranged(2.0, FOCUS_RANGES["delta_z_mm"])
+    """The step along tool +z."""
+    approach_speed: int = ranged(25, FOCUS_RANGES["approach_speed"])
+    max_steps: int = ranged(40, FOCUS_RANGES["max_steps"])
     """Give up (and retract) after this many z steps without passing the sharpness peak."""
-    vision_timeout_s: float = ranged(5.0, Range(0.0, lo_open=True, unit="s"))
-    retract_speed: int = ranged(25, _SPEED)
+    vision_timeout_s: float = ranged(5.0, FOCUS_RANGES["vision_timeout_s"])
+    retract_speed: int = ranged(25, FOCUS_RANGES["retract_speed"])
 
     def __post_init__(self) -> None:
         check_ranges(self)

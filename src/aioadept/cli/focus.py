@@ -12,8 +12,8 @@ from pathlib import Path
 
 from aioadept.apps.cell import CellConfig, new_run_dir, run_focus_once
 from aioadept import defaults
-from aioadept.cli.options import (ArgumentParser, add_cell_options, add_robot_option, apply_overrides, configure_logging, description,
-                                  parse_robot_address, report, with_default)
+from aioadept.cli.options import (ArgumentParser, add_cell_options, add_robot_option, apply_overrides,
+                                  configure_logging, description, parse_robot_address, report, with_default)
 from aioadept.cli.report import run_once
 
 log = logging.getLogger("aioadept.focus")

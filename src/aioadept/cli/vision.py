@@ -45,9 +45,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="virtual | gige:ADDRESS (a GigE Vision camera's IPv4 address, opened by address, never by "
                         "discovery; needs the [gige] extra) | folder:PATH | opencv:SPEC (device index, video file or "
                         "URL); repeat for several cameras (default: virtual)")
-    p.add_argument("--state-endpoint", help=with_default("robot state stream to follow (virtual source; 'none': no stream, the "
-                                                          "virtual camera shows the target at the approach pose)",
-                                                          defaults.STATE_ENDPOINT))
+    p.add_argument("--state-endpoint",
+                   help=with_default("robot state stream to follow (virtual source; 'none': no stream, the virtual "
+                                     "camera shows the target at the approach pose)",
+                                     defaults.STATE_ENDPOINT))
     p.add_argument("--request-endpoint",
                    help=with_default("SUB for VisionRequest events: connects to the MCN's PUB by default, as EPypes "
                                      "nodes do; '@tcp://...' binds, '>tcp://...' connects (port 0: bind any free "
@@ -86,7 +87,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--readout-ms", type=float,
                    help="virtual camera: readout + transfer time, ms (default: frame bytes over 1 Gbit/s GigE, 6.3 "
                         "ms for 1024x768 mono8)")
-    p.add_argument("--frame-timeout", type=float, help=option_help("max wait for a frame", VisionOptions, "frame_timeout"))
+    p.add_argument("--frame-timeout", type=float,
+                   help=option_help("max wait for a frame", VisionOptions, "frame_timeout"))
     p.add_argument("--graph", choices=("sharpness", "frame-sharpness", "noop"),
                    help="processing graph: sharpness (the paper's, of the calibration object; default), "
                         "frame-sharpness (the whole frame, no object search: aiming a real camera), noop (latency "

@@ -1,5 +1,5 @@
 """Acquisition into ring buffers, software-triggered or free-running, and the frame for a request (FxIS,
-Semeniuta 2018).
+Semeniuta 2018). Over 500 lines because the ring, the two grabbing loops and their one stop share the same state.
 
 **Software trigger** (``trigger="auto"`` for sources that can, ``"software"`` to insist): the source's thread waits
 for :meth:`Acquisition.trigger`; a request triggers its own exposure and is answered from that frame, whatever the
@@ -365,12 +365,9 @@ class Acquisition:
         while not self._stop.is_set():
             try:
                 frame = src.grab()
-            except Exception as exc:
+            except Exception as exc:  # a camera's own words (VisionError: lost, timeout) in one line; a bug in full
                 self._errors[src.camera_id] += 1
-                if isinstance(exc, VisionError):  # a camera's own words (timeout, lost frame, camera gone): one line
-                    log.warning("%s: grab failed: %s", src.camera_id, exc)
-                else:
-                    log.exception("%s: grab failed", src.camera_id)
+                log.warning("%s: grab failed: %s", src.camera_id, exc, exc_info=not isinstance(exc, VisionError))
                 self._stop.wait(max(period, 0.05))  # do not spin on a broken device
                 continue
             if frame is None:
@@ -395,18 +392,15 @@ class Acquisition:
         """Stop and join every grabbing thread, then close the sources (idempotent).
 
         A thread notices the stop between grabs, so stopping takes at most one ``grab()``; a device whose read
-        never returns keeps ``stop()`` waiting (closing a capture under a reading thread is not safe in OpenCV),
-        unless the source says how long to wait (``Camera.stop_wait_s``: a GigE camera that has gone away blocks a
-        grab for seconds of GVCP retries): then the stop goes on without that grab, and says so.
-        """
+        never returns keeps ``stop()`` waiting (closing an OpenCV capture under a reading thread is not safe) unless
+        its ``Camera.stop_wait_s`` bounds the wait (GigE): then it goes on without it, and says so."""
         self._stop.set()
         for ev in self._trigger_events.values():
             ev.set()  # wakes the triggered threads, which then see the stop
         for t, src in zip(self._threads, self.sources):
-            t.join(src.stop_wait_s)
+            t.join(t_s := src.stop_wait_s)
             if t.is_alive():
-                log.warning("%s: a grab has not returned within %g s: stopping without it", src.camera_id,
-                            src.stop_wait_s)
+                log.warning("%s: a grab is still running after %g s: stopped without it", src.camera_id, t_s)
         self._threads.clear()
         if self._close_sources:
             for s in self.sources:
