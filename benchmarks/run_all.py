@@ -39,7 +39,7 @@ QUICK_ARGS: dict[str, list[str]] = {
     "bench_safety": ["--trials", "3"],
     "bench_sim": ["--messages", "300", "--warmup", "30", "--clients", "1,5", "--rounds", "1"],
     "bench_sigint": ["--rounds", "2"],
-    "bench_vision": ["--frames", "20", "--n", "100", "--warmup", "20", "--rounds", "1"],
+    "bench_vision": ["--frames", "20", "--n", "100", "--warmup", "20", "--rounds", "1", "--verdict-rounds", "1"],
     "bench_vplus": ["--quick"],
 }
 

@@ -98,3 +98,26 @@ def test_a_real_benchmark_in_quick_mode_gives_its_verdict(tmp_path: Path) -> Non
 def test_each_benchmark_puts_the_standard_verdicts_in_its_json(name: str) -> None:
     # A benchmark without the list still runs: the table shows it as "no goal stated".
     assert '"verdicts"' in (ROOT / "benchmarks" / f"{name}.py").read_text(encoding="utf-8")
+
+
+@pytest.mark.timeout(240)
+def test_the_node_and_pipelined_verdicts_come_from_interleaved_samples(tmp_path: Path) -> None:
+    """Issue 24: bench_vision's node-vs-raw and bench_client's pipelined ratios swung across their goals from run to
+    run (measured kind after kind). Each verdict is now the median of ratios taken pair by pair with its baseline."""
+    import statistics
+
+    res = _run("--quick", "--only", "bench_vision", "--only", "bench_client", "--out", str(tmp_path / "out"),
+               cwd=ROOT)
+    assert "CRASHED" not in res.stdout, res.stdout + res.stderr
+    vision = json.loads((tmp_path / "out" / "bench_vision.json").read_text())
+    il = vision["latency_interleaved"]
+    assert len(il["ratio_p50_per_round"]) == il["rounds"] >= 1
+    (node,) = [v for v in vision["verdicts"] if v["name"].startswith("vision node request->response")]
+    assert "interleaved" in node["name"]
+    assert node["ratio"] == pytest.approx(statistics.median(il["ratio_p50_per_round"]), abs=1e-3)
+    assert node["figure"] == il["p50_us"]["node_auto"] and node["baseline"] == il["p50_us"]["raw_async"]
+    client = json.loads((tmp_path / "out" / "bench_client.json").read_text())
+    (tp,) = [v for v in client["verdicts"] if v["name"].startswith("pipelined throughput")]
+    size = tp["name"].split("batches of ")[1].split()[0]
+    pipe = client["pipelined"][size]
+    assert pipe["pairs"] >= 30 and tp["ratio"] == pytest.approx(pipe["ratio_median_of_pairs"]["throughput"], abs=1e-3)

@@ -115,14 +115,16 @@ def _run(cfg: CellConfig, grid: list[tuple[int, float]], runs: int, out: Path) -
 
     try:
         code = run_interruptible(app, prog="aioadept experiment")
-    except Exception as exc:
-        log.error("experiment failed: %s: %s", type(exc).__name__, exc)
+    except Exception as exc:  # one line on stderr, as demo and focus
+        from aioadept.cli.report import failure_line
+
+        print(failure_line("aioadept experiment", exc, out), file=sys.stderr)
         return 1
     if code:
         return code
     run_dirs = results[0]
     if not run_dirs:
-        log.error("no run succeeded")
+        print(f"aioadept experiment: no run succeeded (logs in {out})", file=sys.stderr)
         return 1
     from aioadept.analysis import analyze_runs
 
