@@ -154,7 +154,7 @@ async def measure(port_ack: int, port_echo: int, quick: bool) -> dict:
     perf = time.perf_counter
 
     # --- round trip of one instant skill
-    rounds, per_round = (4, 250) if quick else (10, 500)
+    rounds, per_round = (4, 250) if quick else (12, 500)
     rtt = {"bare": [], "client": [], "echo": []}
 
     async def rtt_bare(b: Bare, out: list) -> None:
@@ -187,28 +187,38 @@ async def measure(port_ack: int, port_echo: int, quick: bool) -> dict:
     # --- pipelined throughput and CPU per message
     pipelined: dict = {}
     for size in (10, 100):
-        batches = (200 if size == 10 else 30) if quick else (600 if size == 10 else 80)
+        batches = (200 if size == 10 else 30) if quick else (1500 if size == 10 else 200)
         commands = [cmd] * size
         lines = [line] * size
         acc = {"bare": [0.0, 0.0, 0], "client": [0.0, 0.0, 0]}  # wall, cpu, messages
         for _ in range(2):  # warm-up both
             await bare_ack.batch(lines)
             await robot.cmdexec_joined(*commands)
-        for _ in range(rounds):
-            for name in ("bare", "client"):
+        # Interleaved batch by batch (bare, client, client, bare, ...), so each pair of batches runs under the same
+        # load, and the verdict is the median over the pairs of the ratio within each pair: a load spike spoils a
+        # few pairs, not the figure (issue 24: measured block by block, the ratio swung across its goal from run
+        # to run, 0.89 then 0.95 on a quiet machine).
+        pairs: dict[str, list[float]] = {"throughput": [], "cpu_per_msg": []}
+        for i in range(batches):
+            t = {}
+            for name in (("bare", "client") if i % 2 == 0 else ("client", "bare")):
                 w, c = perf(), time.process_time()
                 if name == "bare":
-                    for _ in range(batches // rounds):
-                        await bare_ack.batch(lines)
+                    await bare_ack.batch(lines)
                 else:
-                    for _ in range(batches // rounds):
-                        await robot.cmdexec_joined(*commands)
-                acc[name][0] += perf() - w
-                acc[name][1] += time.process_time() - c
-                acc[name][2] += (batches // rounds) * size
+                    await robot.cmdexec_joined(*commands)
+                t[name] = (perf() - w, time.process_time() - c)
+                acc[name][0] += t[name][0]
+                acc[name][1] += t[name][1]
+                acc[name][2] += size
+            pairs["throughput"].append(t["bare"][0] / t["client"][0])
+            if t["bare"][1] > 0:
+                pairs["cpu_per_msg"].append(t["client"][1] / t["bare"][1])
         pipelined[str(size)] = {
             name: {"msgs_per_s": a[2] / a[0], "cpu_us_per_msg": a[1] / a[2] * 1e6, "messages": a[2]}
             for name, a in acc.items()}
+        pipelined[str(size)]["pairs"] = len(pairs["throughput"])
+        pipelined[str(size)]["ratio_median_of_pairs"] = {k: round(statistics.median(v), 3) for k, v in pairs.items()}
 
     # --- why: the bare client's RTT when it does extra CPU work before each write (busy loop), to show how much a
     # microsecond of client work costs in round trip on this machine (cross-process wake-ups).
@@ -234,9 +244,9 @@ async def measure(port_ack: int, port_echo: int, quick: bool) -> dict:
         "rtt_p50": rtt_us["client"]["p50"] / rtt_us["bare"]["p50"],
         "rtt_p99": rtt_us["client"]["p99"] / rtt_us["bare"]["p99"],
     }
-    for size, d in pipelined.items():
-        ratios[f"throughput_{size}"] = d["client"]["msgs_per_s"] / d["bare"]["msgs_per_s"]
-        ratios[f"cpu_per_msg_{size}"] = d["client"]["cpu_us_per_msg"] / d["bare"]["cpu_us_per_msg"]
+    for size, d in pipelined.items():  # the median of the per-pair ratios: steadier than the pooled one
+        ratios[f"throughput_{size}"] = d["ratio_median_of_pairs"]["throughput"]
+        ratios[f"cpu_per_msg_{size}"] = d["ratio_median_of_pairs"]["cpu_per_msg"]
     met = {
         "rtt_p50": ratios["rtt_p50"] <= TARGETS["rtt_p50_ratio_max"],
         "throughput": min(ratios["throughput_10"], ratios["throughput_100"]) >= TARGETS["throughput_ratio_min"],

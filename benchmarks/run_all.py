@@ -6,11 +6,12 @@ Each ``benchmarks/bench_*.py`` runs as its own process, one after another (the m
 once would measure each other). Its JSON goes to ``OUT/NAME.json`` (default ``runs/bench-YYYYmmdd-HHMMSS/``, so the
 full figures are kept but not printed) and its standard ``"verdicts"`` list (``benchmarks/verdicts.py``) becomes
 rows of the table: the figure, its baseline measured in the same run, the ratio, the goal and whether this run met
-it. A benchmark without verdicts is shown as "no goal stated"; one that crashes or prints no JSON as FAILED.
+it ("pass", or "missed": the benchmark ran and the goal was not met). A benchmark without verdicts is shown as
+"no goal stated"; one that crashes, times out or prints no JSON as "CRASHED" (it gave no result at all).
 
 ``--quick`` runs each known benchmark with few iterations: a smoke run of the whole chain, whose figures are noisy.
 Exit status: 0 when every benchmark ran (goals missed are in the table; ``--strict`` makes them exit 1 too), 1 when
-a benchmark failed, 2 on bad usage.
+a benchmark crashed, 2 on bad usage.
 """
 
 from __future__ import annotations
@@ -39,7 +40,7 @@ QUICK_ARGS: dict[str, list[str]] = {
     "bench_sim": ["--messages", "300", "--warmup", "30", "--clients", "1,5", "--rounds", "1"],
     "bench_sigint": ["--rounds", "2"],
     "bench_statestream": ["--quick"],
-    "bench_vision": ["--frames", "20", "--n", "100", "--warmup", "20", "--rounds", "1"],
+    "bench_vision": ["--frames", "20", "--n", "100", "--warmup", "20", "--rounds", "1", "--verdict-rounds", "1"],
     "bench_vplus": ["--quick"],
 }
 
@@ -69,14 +70,14 @@ def run_one(path: Path, args: list[str], timeout_s: float) -> dict[str, Any]:
         res = subprocess.run([sys.executable, str(path), *args], stdout=subprocess.PIPE, text=True,
                              timeout=timeout_s)
     except subprocess.TimeoutExpired:
-        return {"status": f"FAILED: no result within {timeout_s:g} s", "seconds": time.monotonic() - t0}
+        return {"status": f"crashed: no result within {timeout_s:g} s", "seconds": time.monotonic() - t0}
     out: dict[str, Any] = {"seconds": time.monotonic() - t0, "stdout": res.stdout}
     if res.returncode != 0:
-        out["status"] = f"FAILED: exit status {res.returncode}"
+        out["status"] = f"crashed: exit status {res.returncode}"
         return out
     data = parse_json(res.stdout)
     if data is None:
-        out["status"] = "FAILED: printed no JSON object"
+        out["status"] = "crashed: printed no JSON object"
         return out
     out.update(status="ok", data=data)
     return out
@@ -106,8 +107,9 @@ def _fmt(x: Any, unit: str = "") -> str:
     return f"{x} {unit}".strip()
 
 
-RESULT_TEXT = {"pass": "[green]pass[/]", "miss": "[red]FAIL[/]", "none": "[dim]no goal stated[/]",
-               "failed": "[red]FAILED[/]"}
+RESULT_TEXT = {"pass": "[green]pass[/]", "miss": "[yellow]missed[/]", "none": "[dim]no goal stated[/]",
+               "failed": "[bold red]CRASHED[/]"}
+"""The result column: a goal met or missed (the benchmark ran), no goal, or no result at all (crashed)."""
 
 
 def table(rows: list[dict[str, Any]], title: str) -> Table:
@@ -170,7 +172,7 @@ def main(argv: list[str] | None = None) -> int:
     console.print(table(rows, title))
     n = {k: sum(r["kind"] == k for r in rows) for k in RESULT_TEXT}
     console.print(f"{n['pass']} goals met, {n['miss']} missed, {n['none']} without a stated goal, "
-                  f"{n['failed']} benchmarks failed. Full JSON: {out_dir}/")
+                  f"{n['failed']} benchmarks crashed. Full JSON: {out_dir}/")
     if n["failed"]:
         return 1
     return 1 if args.strict and n["miss"] else 0

@@ -23,6 +23,8 @@ from aioadept.protocol import SkillCall
 
 _BREAK = SkillCall("break")
 
+SPEED_MIN, SPEED_MAX = 1, 100
+"""The speeds :class:`SetSpeed` accepts, in %: every speed option and cell-file speed quotes these."""
 MAX_ABS_MM = 1e5
 """Largest length (mm) a motion command accepts, absolute or relative: 100 m (``-100000.000`` is 11 characters)."""
 MAX_ABS_DEG = 1e4
@@ -183,8 +185,8 @@ class SetSpeed(Command):
             speed = int(speed)
         else:
             raise ValueError(f"speed: {speed!r} is not an integer")
-        if not 0 < speed <= 100:
-            raise ValueError(f"speed: {speed} is outside 1..100 (0 % would never end a motion)")
+        if not SPEED_MIN <= speed <= SPEED_MAX:
+            raise ValueError(f"speed: {speed} is outside {SPEED_MIN}..{SPEED_MAX} (0 % would never end a motion)")
         self._init((SkillCall("set_speed", (speed,)),))
 
     @property

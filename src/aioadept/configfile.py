@@ -10,6 +10,7 @@ traceback only with ``-v``).
 from __future__ import annotations
 
 import dataclasses
+import math
 import sys
 import tomllib
 import traceback
@@ -41,6 +42,76 @@ def load_toml(path: str | Path) -> dict[str, Any]:
         raise ConfigError(f"{path}: not valid TOML: {exc}") from None
     except UnicodeDecodeError as exc:
         raise ConfigError(f"{path}: not valid TOML: not UTF-8 text ({exc.reason})") from None
+
+
+@dataclasses.dataclass(frozen=True, slots=True)
+class Range:
+    """The values a number may take, written once: a dataclass field holds it (:func:`ranged`), the checks
+    (:func:`check_ranges`, :meth:`check`) enforce it, and ``--help`` quotes :attr:`text`, so the two cannot disagree.
+
+    Every bound is finite or open (``inf`` and NaN are never in a range).
+    """
+
+    lo: float
+    hi: float = math.inf
+    lo_open: bool = False
+    """``lo`` itself is excluded (``> 0`` rather than ``>= 0``)."""
+    integer: bool = False
+    unit: str = ""
+
+    @property
+    def text(self) -> str:
+        """The range as ``--help`` shows it: ``1..100``, ``> 0``, ``>= 1``, ``0.1..50 mm``."""
+        if self.hi == math.inf:
+            core = f"{'>' if self.lo_open else '>='} {self.lo:g}"
+        else:
+            core = f"{self.lo:g}..{self.hi:g}" if not self.lo_open else f"> {self.lo:g} and <= {self.hi:g}"
+        return f"{core} {self.unit}".rstrip()
+
+    @property
+    def words(self) -> str:
+        """What a value must be, for an error message: ``an integer in 1..100``, ``a number > 0``."""
+        kind = "an integer" if self.integer else "a number"
+        return f"{kind} {'in ' if self.hi != math.inf and not self.lo_open else ''}{self.text}"
+
+    def contains(self, value: Any) -> bool:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            return False
+        if self.integer and not float(value).is_integer():
+            return False
+        if not math.isfinite(value):
+            return False
+        above = value > self.lo if self.lo_open else value >= self.lo
+        return above and value <= self.hi
+
+    def check(self, name: str, value: Any, *, sep: str = " = ") -> None:
+        """ValueError ``"NAME = VALUE: expected WORDS"`` unless ``value`` is in the range (``sep=" "`` for an
+        option: ``"--speed 0: expected ..."``)."""
+        if not self.contains(value):
+            raise ValueError(f"{name}{sep}{_show(value)}: expected {self.words}")
+
+
+def ranged(default: Any, rng: Range) -> Any:
+    """A dataclass field with a default and its :class:`Range` (``approach_speed: int = ranged(25, Range(1, 100))``)."""
+    return dataclasses.field(default=default, metadata={"range": rng})
+
+
+def range_of(cls: Any, name: str) -> Range:
+    """The :class:`Range` of field ``name`` of dataclass ``cls`` (KeyError if it has none)."""
+    for f in dataclasses.fields(cls):
+        if f.name == name:
+            return f.metadata["range"]
+    raise KeyError(name)
+
+
+def check_ranges(obj: Any) -> None:
+    """Check every field of dataclass instance ``obj`` that has a :class:`Range` (None passes: "not set");
+    ValueError ``"KEY = VALUE: expected ..."`` for the first value out of range."""
+    for f in dataclasses.fields(obj):
+        rng = f.metadata.get("range")
+        value = getattr(obj, f.name)
+        if rng is not None and value is not None:
+            rng.check(f.name, value)
 
 
 _WORDS = {bool: "true or false", int: "an integer", float: "a number", str: "a string"}

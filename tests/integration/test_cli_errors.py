@@ -94,11 +94,12 @@ def test_demo_with_start_sim_false_connects_to_the_configured_address_and_fails_
     cfg.write_text(f'[robot]\nstart_sim = false\nhost = "127.0.0.1"\nport = {port}\nconnect_timeout_s = 2.0\n'
                    f'[vision]\nstart = false\n[run]\nout_dir = "{tmp_path / "runs"}"\n')
     proc = run("demo", "--config", str(cfg), cwd=tmp_path)
-    assert proc.returncode != 0, proc.stdout + proc.stderr
+    assert proc.returncode == 1, proc.stdout + proc.stderr
     assert "inspection-start pose" not in proc.stdout
-    assert f"127.0.0.1:{port}" in proc.stdout + proc.stderr
-    (run_dir,) = (tmp_path / "runs").iterdir()
-    assert not (run_dir / "logs" / "sim.log").exists()  # no sim of its own was started
+    line = one_error_line(proc)  # issue 24: one line on stderr, naming the address
+    assert line.startswith(f"aioadept demo failed: connect to 127.0.0.1:{port}: "), line
+    # No sim of its own was started, and a connection that never succeeded leaves no run folder (issue 24).
+    assert list((tmp_path / "runs").iterdir()) == []
 
 
 @pytest.mark.timeout(120)
@@ -154,15 +155,40 @@ def zmq_port():
         ctx.term()
 
 
+@contextlib.contextmanager
+def http_server():
+    """A real HTTP server (the standard library's), which answers our hello line with an HTML error page."""
+    from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+
+    httpd = ThreadingHTTPServer(("127.0.0.1", 0), BaseHTTPRequestHandler)
+    httpd.daemon_threads = True
+    t = threading.Thread(target=httpd.serve_forever, daemon=True)
+    t.start()
+    try:
+        yield httpd.server_address[1]
+    finally:
+        httpd.shutdown()
+        httpd.server_close()
+
+
+WHAT_ANSWERED = {
+    silent_tcp_server: "(it sent nothing)",
+    zmq_port: r"(it sent b'\xff\x00\x00\x00\x00\x00\x00\x00\x01\x7f': a ZeroMQ greeting",
+    http_server: "(it sent b'<!DOCTYPE HTML>': an HTTP server; then it closed the connection)",
+}
+
+
 @pytest.mark.timeout(40)
-@pytest.mark.parametrize("server", [silent_tcp_server, zmq_port])
+@pytest.mark.parametrize("server", [silent_tcp_server, zmq_port, http_server])
 def test_send_to_something_that_is_not_a_robot_server_says_so_in_one_line(server):
     with server() as port:
         proc = run("send", "--port", str(port), "here", timeout=30)  # today: silent for the 60 s ack timeout
     assert proc.returncode == 3, proc.stdout + proc.stderr
-    line = one_error_line(proc)
-    assert f"127.0.0.1:{port} answered nothing like a RobotServer within 2 s" in line
-    assert "is this the robot's port?" in line
+    line = one_error_line(proc)  # issue 24: the HTTP server's page was thirteen warnings before this line
+    assert line.startswith(f"aioadept send: 127.0.0.1:{port} answered nothing like a RobotServer within 2 s "
+                           f"{WHAT_ANSWERED[server]}"), line
+    assert line.endswith("is this the robot's port?")
+    assert proc.stdout == ""
 
 
 @pytest.mark.timeout(40)
@@ -170,8 +196,12 @@ def test_focus_against_a_zeromq_port_says_so(tmp_path):
     with zmq_port() as port:
         proc = run("focus", "--robot", f"127.0.0.1:{port}", "--out", str(tmp_path), timeout=30, cwd=tmp_path)
     assert proc.returncode == 1, proc.stdout + proc.stderr
-    assert "Traceback" not in proc.stdout + proc.stderr
-    assert f"127.0.0.1:{port} answered nothing like a RobotServer" in " ".join((proc.stdout + proc.stderr).split())
+    line = one_error_line(proc)  # issue 24: one line (it was fifteen), naming the address and what answered
+    assert line.startswith(f"aioadept focus failed: 127.0.0.1:{port} answered nothing like a RobotServer within "
+                           r"2 s (it sent b'\xff\x00\x00\x00\x00\x00\x00\x00\x01\x7f': a ZeroMQ greeting"), line
+    assert line.endswith("): is this the robot's port?"), line  # "; then it closed the connection" if it did
+    assert proc.stdout == ""
+    assert list(tmp_path.glob("*focus-*")) == []  # no run folder for a connection that never succeeded
 
 
 @pytest.mark.timeout(30)
@@ -206,7 +236,7 @@ def test_focus_robot_address_mistake_is_one_line(tmp_path, address):
 
 def test_focus_robot_without_a_port_means_port_1234():
     # Not run against 127.0.0.1:1234 itself: whatever listens there on this machine is not ours to move.
-    from aioadept.apps.focus_cli import parse_robot_address
+    from aioadept.cli.options import parse_robot_address
 
     assert parse_robot_address("127.0.0.1") == ("127.0.0.1", 1234)
     assert parse_robot_address("10.0.0.5:2000") == ("10.0.0.5", 2000)

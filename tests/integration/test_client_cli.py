@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from aioadept.client_cli import main, parse_skill
+from aioadept.cli.send import main, parse_skill
 from aioadept.commands import Skill
 from aioadept.protocol import parse_command
 from aioadept.testing import Reply, ScriptedServer

@@ -169,3 +169,59 @@ def test_a_bad_gige_source_is_one_line_and_exit_2(tmp_path):
                           capture_output=True, text=True, timeout=25, env={**os.environ, "PYTHONWARNINGS": "ignore"})
     assert proc.returncode == 2, proc.stderr
     assert "never by discovery" in proc.stderr and "Traceback" not in proc.stderr
+
+
+# --------------------------------------------------------------- a camera gone away does not hold up a stop (issue 24)
+@needs_gige
+@pytest.mark.timeout(30)
+def test_closing_a_camera_that_has_gone_away_returns_at_once_and_says_it_was_lost(fake_camera, caplog):
+    from aioadept.vision.gige import CLOSE_WAIT_S, GigECamera
+
+    cam = GigECamera("127.0.0.1", timeout_s=0.5)
+    assert cam.grab().seq == 0
+    fake_camera.stop(signal.SIGKILL)
+    t0 = time.monotonic()
+    with caplog.at_level("WARNING", logger="aioadept.vision.gige"):
+        cam.close()  # Aravis alone: ~12 s of GVCP retries (stop acquisition, stream channel, control release)
+    assert time.monotonic() - t0 < CLOSE_WAIT_S + 0.5
+    assert any("GigE camera 127.0.0.1 lost" in r.getMessage() for r in caplog.records), caplog.text
+
+
+@needs_gige
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("trigger", ["software", "free"])
+def test_a_node_whose_camera_has_gone_away_stops_within_2_s_on_sigint_with_a_line(fake_camera, trigger):
+    node = subprocess.Popen([sys.executable, "-m", "aioadept", "vision", "--source", "gige:127.0.0.1", "--trigger",
+                             trigger, "--request-endpoint", "tcp://127.0.0.1:0", "--response-endpoint",
+                             "tcp://127.0.0.1:0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        ready, _, _ = select.select([node.stdout], [], [], 20)
+        assert ready and node.stdout.readline().startswith("READY")
+        fake_camera.stop(signal.SIGKILL)
+        time.sleep(2.0)  # free: a grab is now blocked in GVCP retries (software: the node is idle)
+        t0 = time.monotonic()
+        node.send_signal(signal.SIGINT)
+        _, err = node.communicate(timeout=20)
+        took = time.monotonic() - t0
+    finally:
+        if node.poll() is None:
+            node.kill()
+            node.wait()
+    assert node.returncode == 0, err
+    assert took < 2.0, (took, err)  # it was 13 s, silent
+    assert "GigE camera 127.0.0.1 lost" in err, err
+    assert "Traceback" not in err, err
+
+
+@pytest.mark.timeout(30)
+def test_without_the_gige_extra_the_node_says_in_one_line_to_run_make_gige(tmp_path):
+    # The [gige] extra made unimportable in the child (sys.modules entries of None make an import fail), as on a
+    # machine where `pip install '.[gige]'` failed for want of the Debian packages.
+    code = ("import sys; sys.modules['aravis'] = None; sys.modules['gi'] = None; from aioadept.cli import main; "
+            "sys.exit(main(['vision', '--source', 'gige:127.0.0.1', '--request-endpoint', 'tcp://127.0.0.1:0', "
+            "'--response-endpoint', 'tcp://127.0.0.1:0']))")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=25)
+    assert proc.returncode == 2, proc.stderr
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert "needs the [gige] extra: from a clone run 'make gige'" in lines[0]

@@ -52,9 +52,10 @@ def test_one_table_with_pass_fail_and_no_goal_rows_and_the_json_kept(fakes: Path
     out = res.stdout
     assert out.count("┏") == 1                      # one table
     for text in ("bench_a_good", "fast path p50", "110 us", "100 us", "1.1", "ratio <= 1.3", "pass",
-                 "slow path p50", "FAIL", "informative", "bench_b_plain", "no goal stated"):
+                 "slow path p50", "missed", "informative", "bench_b_plain", "no goal stated"):
         assert text in out, text
-    assert "1 goals met, 1 missed, 2 without a stated goal, 0 benchmarks failed" in out
+    assert "FAIL" not in out and "CRASHED" not in out  # a goal missed is not a crash (issue 24)
+    assert "1 goals met, 1 missed, 2 without a stated goal, 0 benchmarks crashed" in out
     # The JSON is kept, not printed.
     assert json.loads((tmp_path / "out" / "bench_b_plain.json").read_text()) == {"p50_us": 12.0}
     assert '"p50_us"' not in out
@@ -68,8 +69,9 @@ def test_a_crashing_benchmark_or_one_without_json_is_a_failed_row_and_exit_1(fak
     (fakes / "bench_d_text.py").write_text(NO_JSON)
     res = _run("--dir", str(fakes), "--out", str(tmp_path / "out"), cwd=tmp_path)
     assert res.returncode == 1
-    assert "exit status 1" in res.stdout and "printed no JSON object" in res.stdout
-    assert "2 benchmarks failed" in res.stdout
+    assert "crashed: exit status 1" in res.stdout and "crashed: printed no JSON object" in res.stdout
+    assert res.stdout.count("CRASHED") == 2 and "missed" in res.stdout  # the two kinds kept apart (issue 24)
+    assert "2 benchmarks crashed" in res.stdout
     assert "fast path p50" in res.stdout          # the others are still in the table
 
 
@@ -96,3 +98,26 @@ def test_a_real_benchmark_in_quick_mode_gives_its_verdict(tmp_path: Path) -> Non
 def test_each_benchmark_puts_the_standard_verdicts_in_its_json(name: str) -> None:
     # A benchmark without the list still runs: the table shows it as "no goal stated".
     assert '"verdicts"' in (ROOT / "benchmarks" / f"{name}.py").read_text(encoding="utf-8")
+
+
+@pytest.mark.timeout(240)
+def test_the_node_and_pipelined_verdicts_come_from_interleaved_samples(tmp_path: Path) -> None:
+    """Issue 24: bench_vision's node-vs-raw and bench_client's pipelined ratios swung across their goals from run to
+    run (measured kind after kind). Each verdict is now the median of ratios taken pair by pair with its baseline."""
+    import statistics
+
+    res = _run("--quick", "--only", "bench_vision", "--only", "bench_client", "--out", str(tmp_path / "out"),
+               cwd=ROOT)
+    assert "CRASHED" not in res.stdout, res.stdout + res.stderr
+    vision = json.loads((tmp_path / "out" / "bench_vision.json").read_text())
+    il = vision["latency_interleaved"]
+    assert len(il["ratio_p50_per_round"]) == il["rounds"] >= 1
+    (node,) = [v for v in vision["verdicts"] if v["name"].startswith("vision node request->response")]
+    assert "interleaved" in node["name"]
+    assert node["ratio"] == pytest.approx(statistics.median(il["ratio_p50_per_round"]), abs=1e-3)
+    assert node["figure"] == il["p50_us"]["node_auto"] and node["baseline"] == il["p50_us"]["raw_async"]
+    client = json.loads((tmp_path / "out" / "bench_client.json").read_text())
+    (tp,) = [v for v in client["verdicts"] if v["name"].startswith("pipelined throughput")]
+    size = tp["name"].split("batches of ")[1].split()[0]
+    pipe = client["pipelined"][size]
+    assert pipe["pairs"] >= 30 and tp["ratio"] == pytest.approx(pipe["ratio_median_of_pairs"]["throughput"], abs=1e-3)

@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from aioadept import Break, Here, MoveToolZ, SetSpeed, Skill
 from aioadept.client import RobotClient
-from aioadept.client_cli import main as send_main
+from aioadept.cli.send import main as send_main
 from aioadept.errors import AckTimeout
 from aioadept.protocol import NO_ID
 from aioadept.testing import Reply, ScriptedServer

@@ -41,6 +41,12 @@ def test_the_site_builds_strictly_with_every_page_and_the_api_reference(tmp_path
         html = (site / "api" / f"{page}.html").read_text(encoding="utf-8")
         assert f'id="aioadept.{page}' in html, page
         assert name in html, (page, name)
+    # Issue 24: the V+ emulator and the run.rrd reader have pages too, with their public names documented.
+    for page, ids in [("vplus", ["aioadept.vplus.Emulator", "aioadept.vplus.Emulator.load"]),
+                      ("record", ["aioadept.record.read.read_rrd", "aioadept.record.read.blueprint_views"])]:
+        html = (site / "api" / f"{page}.html").read_text(encoding="utf-8")
+        for anchor in ids:
+            assert f'id="{anchor}"' in html, (page, anchor)
     # Nothing is fetched from the internet when a page is shown: no web fonts, no scripts or styles from a CDN.
     for html_file in site.rglob("*.html"):
         html = html_file.read_text(encoding="utf-8")

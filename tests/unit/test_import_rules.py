@@ -176,3 +176,18 @@ def test_files_over_500_lines_say_why():
         if LONG_FILE_MARKER not in " ".join(head.split()):
             unexplained.append(f"{path.relative_to(SRC)} ({text.count(chr(10))} lines)")
     assert unexplained == [], f"over 500 lines without a why ('{LONG_FILE_MARKER} because ...') at the top: {unexplained}"
+
+
+# Issue 24: the command line is the outermost layer. Only it imports ``aioadept.cli``, besides the ``python -m``
+# entry points (``__main__`` modules), which are command lines themselves; no library leans on it.
+CLI_IMPORTERS_ALLOWED = {"aioadept.__main__", "aioadept.sim.__main__", "aioadept.vision.__main__"}
+
+
+def test_only_the_command_line_imports_the_command_line():
+    g = graph()
+    leaning = {m for m, deps in g.items() if any(d == "aioadept.cli" or d.startswith("aioadept.cli.") for d in deps)
+               and not (m == "aioadept.cli" or m.startswith("aioadept.cli."))}
+    assert leaning <= CLI_IMPORTERS_ALLOWED, f"modules outside cli/ that import it: {sorted(leaning)}"
+    for shim in ("aioadept.client_cli", "aioadept.apps.focus_cli", "aioadept.apps.cli_common",
+                 "aioadept.analysis.__main__"):
+        assert shim not in g, f"{shim} is back"

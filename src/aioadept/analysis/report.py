@@ -473,6 +473,10 @@ def summary_table(summary: Summary) -> Any:
     return table
 
 
+FAMILY_NAMES = {"normal": "Gaussian", "lognormal": "log-normal"}
+"""A fit family's name (``summary.json``'s ``fit_family``) as tables and figures print it: one name per family."""
+
+
 def fits_table(summary: Summary) -> Any:
     """A rich ``Table`` of the distribution fits (Gaussian for tau_r, log-normal with loc 0 for the others)."""
     from rich.table import Table
@@ -482,11 +486,11 @@ def fits_table(summary: Summary) -> Any:
         table.add_column(col, justify="right" if col == "n" else "left", no_wrap=True)
     for q in QUANTITIES:
         fit = summary.fits.get(q.name)
+        family = FAMILY_NAMES.get(q.family, q.family)
         if fit is None:
-            table.add_row(q.symbol, q.family, "— (fewer than 2 distinct usable values)",
-                          str(summary.stats[q.name].n))
+            table.add_row(q.symbol, family, "— (fewer than 2 distinct usable values)", str(summary.stats[q.name].n))
         elif fit.family == "normal":
-            table.add_row(q.symbol, "Gaussian", f"μ = {fit.mu_ms:.4g}, σ = {fit.sigma_ms:.4g}", str(fit.n))
+            table.add_row(q.symbol, family, f"μ = {fit.mu_ms:.4g}, σ = {fit.sigma_ms:.4g}", str(fit.n))
         else:
-            table.add_row(q.symbol, "log-normal", f"s = {fit.shape:.4g}, median = {fit.scale_ms:.4g}", str(fit.n))
+            table.add_row(q.symbol, family, f"s = {fit.shape:.4g}, median = {fit.scale_ms:.4g}", str(fit.n))
     return table

@@ -18,6 +18,8 @@ from typing import Any
 
 from aioadept.apps.focus import FocusParams, FocusResult, ufloop
 from aioadept.apps.processes import NodeProcess, watch
+from aioadept.commands import SPEED_MAX, SPEED_MIN
+from aioadept.configfile import Range, ranged
 from aioadept.defaults import ROBOT_HOST, ROBOT_PORT, STATE_ENDPOINT, STOP_PORT_OFFSET
 from aioadept.vision.options import VisionOptions
 
@@ -27,7 +29,7 @@ log = logging.getLogger(__name__)
 @dataclass(slots=True)
 class RobotSection:
     host: str = ROBOT_HOST
-    port: int = ROBOT_PORT
+    port: int = ranged(ROBOT_PORT, Range(0, 0xFFFF, integer=True))
     """0 with ``start_sim``: pick a free port."""
     stop_port: int = 0
     """The server's stop port (serves only stop/here/hello: docs/protocol.md 4.2.1), which the client uses by itself
@@ -35,14 +37,14 @@ class RobotSection:
     and ``port = 0``."""
     start_sim: bool = True
     """Start ``aioadept sim`` on this machine (else connect to a running server, e.g. a real controller)."""
-    time_scale: float = 1.0
+    time_scale: float = ranged(1.0, Range(0.0, lo_open=True))
     """Sim motion speed-up (1 = real time)."""
-    monitor_speed: int = 100
+    monitor_speed: int = ranged(100, Range(SPEED_MIN, SPEED_MAX, integer=True, unit="%"))
     state_endpoint: str = STATE_ENDPOINT
     """Where the sim publishes the robot state (the virtual camera subscribes). Port 0: pick a free one."""
-    connect_timeout_s: float = 5.0
-    ack_timeout_s: float = 30.0
-    hello_timeout_s: float = 2.0
+    connect_timeout_s: float = ranged(5.0, Range(0.0, lo_open=True, unit="s"))
+    ack_timeout_s: float = ranged(30.0, Range(0.0, lo_open=True, unit="s"))
+    hello_timeout_s: float = ranged(2.0, Range(0.0, unit="s"))
     """After connecting, send ``hello`` and give up this soon if nothing like a RobotServer answers (a wrong port).
     0: no check (the original V+ AdeptServer, whose task halts on an unknown skill)."""
     sim_args: list[str] = field(default_factory=list)
@@ -85,7 +87,7 @@ class CellConfig:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any], *, source: str = "config") -> CellConfig:
-        from aioadept.configfile import ConfigError, check_section
+        from aioadept.configfile import ConfigError, check_ranges, check_section
 
         known = {"robot": RobotSection, "vision": VisionSection, "focus": FocusParams, "run": RunSection}
         unknown = set(data) - set(known)
@@ -94,22 +96,30 @@ class CellConfig:
                               f"{', '.join(known)}")
         parts = {}
         for name, typ in known.items():
-            # Unknown keys and wrong types as one line naming file, key and what was expected (ConfigError).
+            # Unknown keys, wrong types and values out of range as one line naming file, key and what was expected
+            # (ConfigError).
             where = f"{source} [{name}]"
             if typ is VisionSection:
                 parts[name] = VisionSection.from_table(data.get(name, {}), where)
-            else:
-                parts[name] = typ(**check_section(typ, data.get(name, {}), where))
+                continue
+            try:
+                parts[name] = typ(**check_section(typ, data.get(name, {}), where))  # FocusParams checks its ranges
+                check_ranges(parts[name])
+            except ConfigError:
+                raise
+            except ValueError as exc:
+                raise ConfigError(f"{where}: {exc}") from None
         cfg = cls(**parts)
         v = cfg.vision
         if not v.exposure_ms > 0:  # the node takes 0 (a camera's own minimum); a cell's camera must expose
             raise ConfigError(f"{source} [vision]: exposure_ms = {v.exposure_ms!r}: expected a finite number of "
                               f"ms > 0")
-        from aioadept.bus.endpoints import parse_endpoint
+        from aioadept.bus.endpoints import is_none, parse_endpoint
         from aioadept.errors import BusError
 
         try:
-            parse_endpoint(cfg.robot.state_endpoint)
+            if not is_none(cfg.robot.state_endpoint):  # "none": the sim publishes no state stream
+                parse_endpoint(cfg.robot.state_endpoint)
         except BusError as exc:
             raise ConfigError(f"{source}: robot.state_endpoint: {exc}") from None
         return cfg
@@ -230,37 +240,45 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
     error: str | None = None
     save_error: OSError | None = None
     started = _dt.datetime.now(_dt.timezone.utc).isoformat()
+    connected = False
     try:
         async with RobotClient(cfg.robot.host, cfg.robot.port, connect_timeout_s=cfg.robot.connect_timeout_s,
                                ack_timeout_s=cfg.robot.ack_timeout_s, observers=observers,
                                hello_timeout_s=cfg.robot.hello_timeout_s or None,
-                               stop_port=stop_port_of(cfg)) as rc, \
-                Communicator(opposite(cfg.vision.request_endpoint), opposite(cfg.vision.response_endpoint),
-                             timeout_s=params.vision_timeout_s, observers=observers) as comm, \
-                _guarded(interrupter, rc):
-            result = await ufloop(rc, comm, params.delta_z_mm, params.approach_speed, max_steps=params.max_steps,
-                                  vision_timeout_s=params.vision_timeout_s, retract_speed=params.retract_speed,
-                                  recorder=recorder if rrd is None else MarkTee(recorder, rrd))
+                               stop_port=stop_port_of(cfg)) as rc:
+            connected = True
+            async with Communicator(opposite(cfg.vision.request_endpoint), opposite(cfg.vision.response_endpoint),
+                                    timeout_s=params.vision_timeout_s, observers=observers) as comm, \
+                    _guarded(interrupter, rc):
+                result = await ufloop(rc, comm, params.delta_z_mm, params.approach_speed,
+                                      max_steps=params.max_steps, vision_timeout_s=params.vision_timeout_s,
+                                      retract_speed=params.retract_speed,
+                                      recorder=recorder if rrd is None else MarkTee(recorder, rrd))
     except BaseException as exc:
         if isinstance(exc, (asyncio.CancelledError, KeyboardInterrupt)):
             error = "interrupted"
         else:
             error = f"{type(exc).__name__}: {exc}"
+        if not connected:  # nothing happened that a run folder could keep: leave none behind
+            if rrd is not None:
+                await asyncio.shield(rrd.aclose())
+            discard_run_dir(run_dir)
         raise
     finally:
-        meta = {
-            "app": "focus", "aioadept_version": __version__, "started_utc": started,
-            "approach_speed": params.approach_speed, "delta_z_mm": params.delta_z_mm,
-            "max_steps": params.max_steps, "cell": cfg.to_dict(), "error": error,
-            "result": None if result is None else focus_result_dict(result),
-        }
-        save_error = save_run(recorder, run_dir, meta)
-        if save_error is not None and result is None:
-            log.error("%s", save_error)  # the run's own error propagates; this one must not vanish either
-        if rrd is not None:
-            await asyncio.shield(rrd.aclose())  # flushed and closed even when the run was cancelled
-            if rrd.error is not None and rrd.rrd_path is not None:  # e.g. a full disk: named with the others
-                save_error = merged_save_error(save_error, run_dir, {rrd.rrd_path.name: rrd.error})
+        if connected:  # (else the run folder is gone, above, and the connect error propagates)
+            meta = {
+                "app": "focus", "aioadept_version": __version__, "started_utc": started,
+                "approach_speed": params.approach_speed, "delta_z_mm": params.delta_z_mm,
+                "max_steps": params.max_steps, "cell": cfg.to_dict(), "error": error,
+                "result": None if result is None else focus_result_dict(result),
+            }
+            save_error = save_run(recorder, run_dir, meta)
+            if save_error is not None and result is None:
+                log.error("%s", save_error)  # the run's own error propagates; this one must not vanish either
+            if rrd is not None:
+                await asyncio.shield(rrd.aclose())  # flushed and closed even when the run was cancelled
+                if rrd.error is not None and rrd.rrd_path is not None:  # e.g. a full disk: named with the others
+                    save_error = merged_save_error(save_error, run_dir, {rrd.rrd_path.name: rrd.error})
     return RunOutcome(run_dir, result, error, save_error)
 
 
@@ -272,6 +290,16 @@ def merged_save_error(err: OSError | None, run_dir: Path, not_written: dict[str,
     if err is None:
         return more
     return err.merged(more) if isinstance(err, RunSaveError) else err
+
+
+def discard_run_dir(run_dir: Path) -> None:
+    """Remove a run folder whose robot connection never succeeded: its ``run.rrd`` (opened before connecting)
+    and the folder, unless something else is in it (the logs of nodes a demo started: kept, they say why)."""
+    with contextlib.suppress(OSError):
+        (run_dir / "run.rrd").unlink(missing_ok=True)
+    for d in (run_dir / "frames", run_dir / "logs", run_dir):
+        with contextlib.suppress(OSError):
+            d.rmdir()  # only when empty
 
 
 def save_run(recorder: Any, run_dir: Path, meta: dict[str, Any]) -> OSError | None:

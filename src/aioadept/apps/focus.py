@@ -27,6 +27,7 @@ from aioadept.apps.paper import (  # noqa: F401  (the paper's coroutines, re-exp
     HOME_JOINTS_DEG,
     INIT_MOVE,
     VISION_REQUEST,
+    FOCUS_RANGES,
     FocusError,
     FocusResult,
     Robot,
@@ -36,6 +37,7 @@ from aioadept.apps.paper import (  # noqa: F401  (the paper's coroutines, re-exp
     move_tool_z,
     ufloop,
 )
+from aioadept.configfile import check_ranges, ranged
 from aioadept.errors import AdeptError
 
 log = logging.getLogger(__name__)
@@ -61,14 +63,24 @@ class StopFailed(AdeptError):
 
 @dataclass(frozen=True, slots=True)
 class FocusParams:
-    """Parameters of one calibration run (the paper varied speed in {5..100} and delta_z in {1.5, 2.0, 2.5})."""
+    """Parameters of one calibration run (the paper varied speed in {5..100} and delta_z in {1.5, 2.0, 2.5}).
 
-    delta_z_mm: float = 2.0
-    approach_speed: int = 25
-    max_steps: int = 40
+    Each field's range is :data:`~aioadept.apps.paper.FOCUS_RANGES`' (read with
+    :func:`aioadept.configfile.range_of`): a value outside it raises ValueError naming the field, so a run never
+    starts with a step that cannot find the focal plane (0, negative: the approach pose or noise would be reported
+    as the peak) or a speed the robot refuses.
+    """
+
+    delta_z_mm: float = ranged(2.0, FOCUS_RANGES["delta_z_mm"])
+    """The step along tool +z."""
+    approach_speed: int = ranged(25, FOCUS_RANGES["approach_speed"])
+    max_steps: int = ranged(40, FOCUS_RANGES["max_steps"])
     """Give up (and retract) after this many z steps without passing the sharpness peak."""
-    vision_timeout_s: float = 5.0
-    retract_speed: int = 25
+    vision_timeout_s: float = ranged(5.0, FOCUS_RANGES["vision_timeout_s"])
+    retract_speed: int = ranged(25, FOCUS_RANGES["retract_speed"])
+
+    def __post_init__(self) -> None:
+        check_ranges(self)
 
 
 async def stop_listener(rc: Any, subscriber: Any, *, event_type: str = "StopRequest",

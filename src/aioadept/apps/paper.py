@@ -18,7 +18,8 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 from aioadept.bus.messages import VISION_REQUEST as _VISION_REQUEST
-from aioadept.commands import MoveJoints, MoveRelJoints, MoveRelTool, MoveTo, MoveToolZ, SetSpeed
+from aioadept.commands import SPEED_MAX, SPEED_MIN, MoveJoints, MoveRelJoints, MoveRelTool, MoveTo, MoveToolZ, SetSpeed
+from aioadept.configfile import Range
 from aioadept.errors import AdeptError, CommandAborted, CommandError, VisionError
 from aioadept.geometry import Pose
 from aioadept.robots import paper_cell
@@ -85,6 +86,20 @@ class FocusResult:
         return self.peak_index * self.delta_z_mm
 
 
+_SPEED = Range(SPEED_MIN, SPEED_MAX, integer=True, unit="%")
+FOCUS_RANGES: dict[str, Range] = {
+    "delta_z_mm": Range(0.1, 50.0, unit="mm"),
+    "approach_speed": _SPEED,
+    "max_steps": Range(1, 1000, integer=True),
+    "vision_timeout_s": Range(0.0, lo_open=True, unit="s"),
+    "retract_speed": _SPEED,
+}
+"""The values :func:`ufloop`'s parameters (and :class:`~aioadept.apps.focus.FocusParams`' fields, the cell file's
+``[focus]`` table, ``--delta-z``/``--speed``/...) may take, written once. ``delta_z_mm``: below 0.1 mm two steps
+differ by little more than the arm's repeatability (about 0.03 mm) and sensor noise decides the peak; 0 or less
+never reaches the focal plane (the start or noise was reported as the peak); above 50 mm a step is no search."""
+
+
 async def init_move(rc: Robot) -> Any:
     """Retract to the home pose, then go to the approach pose (the paper's ``init_move``)."""
     return await rc.cmdexec(*INIT_MOVE)
@@ -116,8 +131,13 @@ async def ufloop(rc: Robot, comm: Vision, delta_z: float, appr_speed: int, *, ma
     ``error`` ack) the robot is sent back to the approach pose before the error propagates. After a cancellation, a
     stop (an ``aborted`` ack, or ``stop_event`` set), a lost connection, an ack timeout or any other error no motion
     is started: the robot stays where it is. Raises :class:`FocusError` (step limit, vision failure) or the robot's
-    own error.
+    own error. ValueError before any motion for a value outside its range (:data:`FOCUS_RANGES`: a step of 0 or
+    below would report noise or the start as the peak).
     """
+    for key, value in (("delta_z_mm", delta_z), ("approach_speed", appr_speed), ("max_steps", max_steps),
+                       ("vision_timeout_s", vision_timeout_s), ("retract_speed", retract_speed)):
+        if value is not None:
+            FOCUS_RANGES[key].check(key, value)
     if do_init_move:
         approach = (await init_move(rc)).pose
     else:

@@ -25,7 +25,15 @@ from dataclasses import dataclass
 
 from aioadept.errors import BusError
 
-__all__ = ["Endpoint", "opposite", "parse_endpoint", "peer", "peer_actual", "resolve"]
+__all__ = ["NONE", "Endpoint", "is_none", "opposite", "parse_endpoint", "peer", "peer_actual", "resolve"]
+
+NONE = "none"
+"""The word that turns an optional stream off (``--state-endpoint none``: no robot state stream), in every node."""
+
+
+def is_none(text: str | None) -> bool:
+    """Whether ``text`` turns the stream off: :data:`NONE` (any case) or empty/None."""
+    return not text or text.strip().lower() == NONE
 
 _TRANSPORTS = ("tcp", "ipc", "inproc", "pgm", "epgm", "ws", "wss", "vmci", "udp")
 _ADDRESS = re.compile(r"^(?P<transport>[a-z]+)://(?P<rest>.+)$")

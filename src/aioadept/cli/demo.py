@@ -16,20 +16,26 @@ from pathlib import Path
 
 from aioadept.apps.cell import CellConfig, new_run_dir
 from aioadept.apps.demo import run_demo
-from aioadept.cli.options import add_cell_options, apply_overrides, configure_logging, description, report
+from aioadept.cli.options import (ArgumentParser, add_cell_options, apply_overrides, check_option, configure_logging,
+                                  description, option_help, report)
 from aioadept.cli.report import run_once
 
 log = logging.getLogger("aioadept.demo")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="aioadept demo", description=description(__doc__))
+    from aioadept.apps.cell import RobotSection
+    from aioadept.vision.options import VisionOptions
+
+    p = ArgumentParser(prog="aioadept demo", description=description(__doc__))
     add_cell_options(p)
     p.add_argument("--time-scale", type=float, dest="time_scale",
-                   help="run the simulated motion this many times faster than real time (default 1)")
+                   help=option_help("run the simulated motion this many times faster than real time", RobotSection,
+                                    "time_scale"))
     p.add_argument("--fast", action="store_true", help="same as --time-scale 10")
     p.add_argument("--focus-offset-mm", type=float, dest="focus_offset_mm",
-                   help="virtual camera: focal plane distance beyond the approach pose along tool z (default 20)")
+                   help=option_help("virtual camera: focal plane distance beyond the approach pose along tool z",
+                                    VisionOptions, "focus_offset_mm"))
     return p
 
 
@@ -46,8 +52,10 @@ def demo_config(args: argparse.Namespace) -> CellConfig:
     if args.fast:
         cfg.robot.time_scale = 10.0
     if args.time_scale is not None:
+        check_option("--time-scale", type(cfg.robot), "time_scale", args.time_scale)
         cfg.robot.time_scale = args.time_scale
     if args.focus_offset_mm is not None:
+        check_option("--focus-offset-mm", type(cfg.vision), "focus_offset_mm", args.focus_offset_mm)
         cfg.vision.focus_offset_mm = args.focus_offset_mm
     return apply_overrides(cfg, args)
 

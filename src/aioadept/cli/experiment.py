@@ -15,21 +15,50 @@ from pathlib import Path
 from aioadept.apps.cell import CellConfig
 from aioadept.apps.experiment import run_experiment
 from aioadept.apps.interrupt import Interrupter, run_interruptible
-from aioadept.cli.options import add_config, add_verbose, configure_logging, description, report
+from aioadept.cli.options import (ArgumentParser, add_config, add_verbose, check_option, configure_logging,
+                                  description, report)
 
 log = logging.getLogger("aioadept.experiment")
 
 
-def _floats(text: str) -> list[float]:
-    return [float(x) for x in text.split(",") if x.strip()]
+def _floats(option: str, text: str) -> list[float]:
+    try:
+        values = [float(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise ValueError(f"{option} {text!r}: expected comma-separated numbers") from None
+    if not values:
+        raise ValueError(f"{option} {text!r}: expected at least one value")
+    return values
+
+
+def grid_of(args: argparse.Namespace) -> list[tuple[int, float]]:
+    """The (speed, delta_z) grid of ``--speeds`` x ``--delta-z``, every value checked against the range of its
+    :class:`~aioadept.apps.focus.FocusParams` field; ValueError naming the option."""
+    from aioadept.apps.focus import FocusParams
+
+    speeds = _floats("--speeds", args.speeds)
+    steps = _floats("--delta-z", args.delta_z)
+    for s in speeds:
+        check_option("--speeds", FocusParams, "approach_speed", s)
+    for dz in steps:
+        check_option("--delta-z", FocusParams, "delta_z_mm", dz)
+    if args.runs < 1:
+        raise ValueError(f"--runs {args.runs}: expected an integer >= 1")
+    return [(int(s), dz) for s in speeds for dz in steps]
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="aioadept experiment", description=description(__doc__))
+    from aioadept.apps.focus import FocusParams
+    from aioadept.configfile import range_of
+
+    p = ArgumentParser(prog="aioadept experiment", description=description(__doc__))
     add_config(p, "cell description (TOML)", type=Path)
-    p.add_argument("--speeds", default="5,25,50,75,100", help="approach speeds (default: the paper's)")
-    p.add_argument("--delta-z", dest="delta_z", default="1.5,2.0,2.5", help="z steps in mm (default: the paper's)")
-    p.add_argument("--runs", type=int, default=2, help="runs per grid point (default 2)")
+    speeds, steps = range_of(FocusParams, "approach_speed").text, range_of(FocusParams, "delta_z_mm").text
+    p.add_argument("--speeds", default="5,25,50,75,100",
+                   help=f"approach speeds, each {speeds} (default: the paper's)".replace("%", "%%"))
+    p.add_argument("--delta-z", dest="delta_z", default="1.5,2.0,2.5",
+                   help=f"z steps, each {steps} (default: the paper's)")
+    p.add_argument("--runs", type=int, default=2, help="runs per grid point, >= 1 (default 2)")
     p.add_argument("--time-scale", type=float, dest="time_scale", default=None, help="sim motion speed-up")
     p.add_argument("--out", default=None, help="experiment folder (default runs/experiment-<time>)")
     add_verbose(p)
@@ -49,6 +78,12 @@ def main(argv: list[str] | None = None) -> int:
     if not args.config:
         cfg.robot.port = 0
         cfg.robot.state_endpoint = cfg.vision.request_endpoint = cfg.vision.response_endpoint = "tcp://127.0.0.1:0"
+    try:
+        grid = grid_of(args)
+        if args.time_scale is not None:
+            check_option("--time-scale", type(cfg.robot), "time_scale", args.time_scale)
+    except ValueError as exc:
+        return report("aioadept experiment", exc, verbose=args.verbose)
     if args.time_scale is not None:
         cfg.robot.time_scale = args.time_scale
     from aioadept.record.hook import refuse_view_without_rerun
@@ -63,7 +98,6 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:
         print(f"aioadept experiment: cannot create {str(out)!r}: {exc}; nothing was started", file=sys.stderr)
         return 2
-    grid = [(int(s), dz) for s in _floats(args.speeds) for dz in _floats(args.delta_z)]
     from aioadept.record.hook import keep_frames, run_with_viewer
 
     cfg.run.record = not args.no_record
@@ -81,14 +115,16 @@ def _run(cfg: CellConfig, grid: list[tuple[int, float]], runs: int, out: Path) -
 
     try:
         code = run_interruptible(app, prog="aioadept experiment")
-    except Exception as exc:
-        log.error("experiment failed: %s: %s", type(exc).__name__, exc)
+    except Exception as exc:  # one line on stderr, as demo and focus
+        from aioadept.cli.report import failure_line
+
+        print(failure_line("aioadept experiment", exc, out), file=sys.stderr)
         return 1
     if code:
         return code
     run_dirs = results[0]
     if not run_dirs:
-        log.error("no run succeeded")
+        print(f"aioadept experiment: no run succeeded (logs in {out})", file=sys.stderr)
         return 1
     from aioadept.analysis import analyze_runs
     from aioadept.apps.interrupt import EXIT_INTERRUPTED, interrupt_handled

@@ -12,15 +12,15 @@ from pathlib import Path
 
 from aioadept.apps.cell import CellConfig, new_run_dir, run_focus_once
 from aioadept import defaults
-from aioadept.cli.options import (add_cell_options, add_robot_option, apply_overrides, configure_logging, description,
-                                  parse_robot_address, report, with_default)
+from aioadept.cli.options import (ArgumentParser, add_cell_options, add_robot_option, apply_overrides,
+                                  configure_logging, description, parse_robot_address, report, with_default)
 from aioadept.cli.report import run_once
 
 log = logging.getLogger("aioadept.focus")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="aioadept focus", description=description(__doc__))
+    p = ArgumentParser(prog="aioadept focus", description=description(__doc__))
     add_cell_options(p)
     add_robot_option(p)
     p.add_argument("--request-endpoint", dest="request_endpoint",
@@ -62,7 +62,10 @@ def main(argv: list[str] | None = None) -> int:
     except BusError as exc:
         print(f"aioadept focus: {exc}", file=sys.stderr)
         return 2
-    cfg = apply_overrides(cfg, args)
+    try:
+        cfg = apply_overrides(cfg, args)
+    except ValueError as exc:
+        return report("aioadept focus", exc, verbose=args.verbose)
     from aioadept.record.hook import refuse_view_without_rerun
 
     if refuse_view_without_rerun(args, "aioadept focus"):

@@ -17,13 +17,30 @@ from aioadept.configfile import report
 if TYPE_CHECKING:
     from aioadept.apps.cell import CellConfig
 
-__all__ = ["DefaultsHelpFormatter", "ROBOT_HELP", "add_cell_options", "add_config", "add_verbose",
-           "apply_overrides", "configure_logging", "description", "parse_robot_address", "report"]
+__all__ = ["ArgumentParser", "DefaultsHelpFormatter", "ROBOT_HELP", "add_cell_options", "add_config", "add_verbose",
+           "apply_overrides", "check_option", "configure_logging", "description", "option_help", "parse_robot_address",
+           "report"]
 
 
 def description(doc: str | None) -> str:
     """A module docstring's first paragraph as a subcommand's ``--help`` shows it: without ````literal```` markup."""
     return (doc or "").split("\n\n")[0].replace("``", "")
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse's parser with a mistake reported in one line on stderr (``PROG: error: MESSAGE``, exit 2), without
+    the usage block argparse prints first: every subcommand's bad option reads like its bad config value."""
+
+    def error(self, message: str):  # type: ignore[override]  # noqa: ANN201
+        import re
+
+        # "argument --x: ..." names the option; its form (the usage argparse no longer prints) follows the message.
+        m = re.match(r"argument ([^/:\s]+)", message)
+        action = self._option_string_actions.get(m.group(1)) if m else None
+        form = ""
+        if action is not None and action.nargs != 0:
+            form = f"{m.group(1)} {action.metavar or action.dest.upper()}; "  # type: ignore[union-attr]
+        self.exit(2, f"{self.prog}: error: {message} ({form}see {self.prog} --help)\n")
 
 
 class DefaultsHelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
@@ -61,13 +78,31 @@ def parse_robot_address(text: str, default_port: int = defaults.ROBOT_PORT) -> t
     return host or defaults.ROBOT_HOST, int(port)
 
 
+_FOCUS_OPTIONS = (("speed", "approach_speed"), ("delta_z", "delta_z_mm"), ("max_steps", "max_steps"),
+                  ("vision_timeout", "vision_timeout_s"))
+"""The cell options that set a :class:`~aioadept.apps.focus.FocusParams` field: (argparse dest, field)."""
+
+
+def option_help(text: str, cls: type, name: str) -> str:
+    """An option's help ending in the range and default of dataclass field ``cls.name``, both read from the field
+    (:func:`aioadept.configfile.range_of`), so ``--help`` says what the check enforces."""
+    from aioadept.configfile import range_of
+
+    default = next(f.default for f in dataclasses.fields(cls) if f.name == name)
+    return f"{text} ({range_of(cls, name).text}; default {default:g})".replace("%", "%%")  # argparse expands %
+
+
 def add_cell_options(p: argparse.ArgumentParser) -> None:
+    from aioadept.apps.focus import FocusParams
+
     add_config(p, "cell description (TOML); options below override it", type=Path)
     p.add_argument("--out", help="folder for run folders (default: runs)")
-    p.add_argument("--speed", type=int, help="approach speed 0..100 (default 25)")
-    p.add_argument("--delta-z", type=float, dest="delta_z", help="tool z step in mm (default 2.0)")
-    p.add_argument("--max-steps", type=int, dest="max_steps", help="give up after this many steps (default 40)")
-    p.add_argument("--vision-timeout", type=float, dest="vision_timeout", help="seconds per vision request")
+    p.add_argument("--speed", type=int, help=option_help("approach speed", FocusParams, "approach_speed"))
+    p.add_argument("--delta-z", type=float, dest="delta_z", help=option_help("tool z step", FocusParams, "delta_z_mm"))
+    p.add_argument("--max-steps", type=int, dest="max_steps",
+                   help=option_help("give up after this many steps", FocusParams, "max_steps"))
+    p.add_argument("--vision-timeout", type=float, dest="vision_timeout",
+                   help=option_help("seconds per vision request", FocusParams, "vision_timeout_s"))
     p.add_argument("--no-analyze", action="store_true", help="do not compute the timing analysis and plots")
     add_verbose(p)
     from aioadept.record.hook import add_view_options
@@ -75,17 +110,25 @@ def add_cell_options(p: argparse.ArgumentParser) -> None:
     add_view_options(p)
 
 
+def check_option(option: str, cls: type, name: str, value: object) -> None:
+    """ValueError ``"--OPTION VALUE: expected ..."`` unless ``value`` is in the range of field ``cls.name``."""
+    from aioadept.configfile import range_of
+
+    range_of(cls, name).check(option, value, sep=" ")
+
+
 def apply_overrides(cfg: "CellConfig", args: argparse.Namespace) -> "CellConfig":
-    focus = cfg.focus
-    if args.speed is not None:
-        focus = dataclasses.replace(focus, approach_speed=args.speed)
-    if args.delta_z is not None:
-        focus = dataclasses.replace(focus, delta_z_mm=args.delta_z)
-    if args.max_steps is not None:
-        focus = dataclasses.replace(focus, max_steps=args.max_steps)
-    if args.vision_timeout is not None:
-        focus = dataclasses.replace(focus, vision_timeout_s=args.vision_timeout)
-    cfg.focus = focus
+    """The cell options of ``args`` applied to ``cfg``; ValueError naming the option for a value out of its range
+    (checked here, before anything starts)."""
+    from aioadept.apps.focus import FocusParams
+
+    changes = {}
+    for dest, name in _FOCUS_OPTIONS:
+        value = getattr(args, dest)
+        if value is not None:
+            check_option("--" + dest.replace("_", "-"), FocusParams, name, value)
+            changes[name] = value
+    cfg.focus = dataclasses.replace(cfg.focus, **changes)
     if args.out:
         cfg.run.out_dir = args.out
     if args.no_analyze:

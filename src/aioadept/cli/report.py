@@ -120,6 +120,16 @@ def stop_signals_interrupt() -> Iterator[None]:
             signal.signal(sig, handler)
 
 
+def failure_line(prog: str, exc: BaseException, run_dir: Path) -> str:
+    """The one line a failed run prints on stderr (never wrapped, never split): what failed, and where its log is
+    while the run folder exists (a run whose robot connection never succeeded leaves none)."""
+    from aioadept.errors import ConnectError
+
+    what = str(exc) if isinstance(exc, ConnectError) else f"{type(exc).__name__}: {exc}"
+    where = f" (log in {run_dir})" if run_dir.exists() else ""
+    return " ".join(f"{prog} failed: {what}{where}".split())
+
+
 def run_once(app: Callable[[Interrupter], Awaitable[Any]], run_dir: Path, *, analyze: bool, prog: str) -> int:
     """Run one focus run (``app(interrupter)`` returns its :class:`~aioadept.apps.cell.RunOutcome`) with the
     Ctrl-C policy, print its result, then :func:`report_saving`. Returns the exit code (``focus``/``demo``'s).
@@ -137,8 +147,8 @@ def run_once(app: Callable[[Interrupter], Awaitable[Any]], run_dir: Path, *, ana
 
     try:
         code = run_interruptible(main, prog=prog)
-    except Exception as exc:  # one clear line for the user; details are in the run folder's logs
-        log.error("%s failed: %s: %s (log in %s)", prog, type(exc).__name__, exc, run_dir)
+    except Exception as exc:  # one clear line for the user, on stderr; details are in the run folder's logs
+        print(failure_line(prog, exc, run_dir), file=sys.stderr)
         return 1
     if code or not outcomes:
         return code or 1

@@ -25,7 +25,7 @@ from aioadept.apps.interrupt import Interrupter, run_interruptible
 from aioadept.client import ExecResult, MessageResult, RobotClient
 from aioadept.commands import Skill
 from aioadept.errors import AckTimeout, CommandAborted, CommandError, ConnectError, ConnectionLost
-from aioadept.cli.options import description
+from aioadept.cli.options import ArgumentParser, description
 from aioadept.protocol import STOP_SKILL
 
 
@@ -138,7 +138,7 @@ def _syntax_hint(tokens: Sequence[str]) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="aioadept send", description=description(__doc__))
+    ap = ArgumentParser(prog="aioadept send", description=description(__doc__))
     ap.add_argument("skills", nargs="+", metavar="SKILL[:ARGS]", help="skill calls, e.g. move_to:1,2,3,4,5,6")
     ap.add_argument("--host", default=defaults.ROBOT_HOST, help=f"robot server address (default {defaults.ROBOT_HOST})")
     ap.add_argument("--port", type=int, default=defaults.ROBOT_PORT,

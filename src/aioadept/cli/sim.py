@@ -13,7 +13,7 @@ import signal
 import sys
 
 from aioadept import defaults
-from aioadept.cli.options import DefaultsHelpFormatter, description
+from aioadept.cli.options import ArgumentParser, DefaultsHelpFormatter, description
 from aioadept.geometry import NULL, Pose
 from aioadept.robots import viper_s850 as kin
 from aioadept.sim.line import CartesianLimits
@@ -61,8 +61,12 @@ def _cartesian_speed(text: str) -> CartesianLimits:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="aioadept sim", description=description(__doc__),
+    p = ArgumentParser(prog="aioadept sim", description=description(__doc__),
                                 formatter_class=DefaultsHelpFormatter)
+    p.add_argument("--config", metavar="FILE",
+                   help="cell file (examples/cell.toml): its [robot] table gives host, port, time_scale, "
+                        "monitor_speed, state_endpoint and sim_args (the whole file is checked as demo checks it); "
+                        "options given here override it")
     p.add_argument("--host", default=defaults.ROBOT_HOST, help="address to bind")
     p.add_argument("--port", type=int, default=DEFAULT_PORT, help="TCP port (0: pick a free one)")
     p.add_argument("--time-scale", type=float, default=1.0, dest="time_scale",
@@ -160,7 +164,9 @@ def stop_port_of(value: str, port: int) -> int | None:
 
 def options_from_args(args: argparse.Namespace) -> SimOptions:
     """Raises ``ValueError`` for inconsistent values."""
-    state = None if args.state_endpoint.lower() == "none" else args.state_endpoint
+    from aioadept.bus.endpoints import is_none
+
+    state = None if is_none(args.state_endpoint) else args.state_endpoint
     extra = {}
     if args.joints is not None:
         extra["joints_deg"] = args.joints
@@ -212,9 +218,33 @@ _PYTHON_SERVER_ONLY = (
 --vplus they would be silently ignored, so they are refused, each with where its V+ counterpart lives."""
 
 
+_ROBOT_TABLE = (("host", "host"), ("port", "port"), ("time_scale", "time_scale"),
+                ("monitor_speed", "monitor_speed"), ("state_endpoint", "state_endpoint"))
+"""The cell file's [robot] keys this node reads: (key, argparse dest), and ``stop_port`` (0 = the port + 1, as
+``--stop-port auto``). The rest of [robot] is the client's (start_sim, the timeouts)."""
+
+
+def parse_args(parser: argparse.ArgumentParser, argv: list[str] | None) -> argparse.Namespace:
+    """Defaults < the cell file's ``[robot]`` table (``--config``) < the command line. A bad file: one line, exit 2."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = parser.parse_args(argv)
+    if not args.config:
+        return args
+    from aioadept.apps.cell import CellConfig
+    from aioadept.configfile import report
+
+    try:
+        robot = CellConfig.from_toml(args.config).robot
+    except (OSError, ValueError) as exc:
+        raise SystemExit(report("aioadept sim", exc)) from None
+    parser.set_defaults(**{dest: getattr(robot, key) for key, dest in _ROBOT_TABLE},
+                        stop_port=str(robot.stop_port) if robot.stop_port else "auto")
+    return parser.parse_args([*robot.sim_args, *argv])
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parse_args(parser, argv)
     if args.vplus is None and (args.run or args.map_port):
         parser.error("--run and --map-port need --vplus")
     if args.vplus is not None:

@@ -24,7 +24,7 @@ import tomllib
 from typing import Any
 
 from aioadept import defaults
-from aioadept.cli.options import description, with_default
+from aioadept.cli.options import ArgumentParser, description, option_help, with_default
 
 log = logging.getLogger("aioadept.vision")
 
@@ -38,15 +38,17 @@ DEFAULTS["source"] = ["virtual"]
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="aioadept vision", description=description(__doc__),
+    p = ArgumentParser(prog="aioadept vision", description=description(__doc__),
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--config", metavar="FILE", help="TOML file with any of these options (CLI overrides it)")
     p.add_argument("--source", action="append", metavar="SPEC",
                    help="virtual | gige:ADDRESS (a GigE Vision camera's IPv4 address, opened by address, never by "
                         "discovery; needs the [gige] extra) | folder:PATH | opencv:SPEC (device index, video file or "
                         "URL); repeat for several cameras (default: virtual)")
-    p.add_argument("--state-endpoint", help=with_default("robot state stream to follow (virtual source)",
-                                                          defaults.STATE_ENDPOINT))
+    p.add_argument("--state-endpoint",
+                   help=with_default("robot state stream to follow (virtual source; 'none': no stream, the virtual "
+                                     "camera shows the target at the approach pose)",
+                                     defaults.STATE_ENDPOINT))
     p.add_argument("--request-endpoint",
                    help=with_default("SUB for VisionRequest events: connects to the MCN's PUB by default, as EPypes "
                                      "nodes do; '@tcp://...' binds, '>tcp://...' connects (port 0: bind any free "
@@ -54,14 +56,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--response-endpoint",
                    help=with_default("PUB for VisionResponse events: binds by default; '>tcp://...' connects to a "
                                      "bound SUB (port 0: any free port)", defaults.RESPONSE_ENDPOINT))
-    p.add_argument("--fps", type=float, help="grab rate cap per source (default 15)")
-    p.add_argument("--buffer-size", type=int, help="frames kept per source (default 64)")
+    p.add_argument("--fps", type=float, help=option_help("grab rate cap per source", VisionOptions, "fps"))
+    p.add_argument("--buffer-size", type=int, help=option_help("frames kept per source", VisionOptions, "buffer_size"))
     p.add_argument("--focus-offset-mm", type=float,
-                   help="virtual camera: focal plane this far along tool +z from the approach pose (default 20)")
+                   help=option_help("virtual camera: focal plane this far along tool +z from the approach pose",
+                                    VisionOptions, "focus_offset_mm"))
     p.add_argument("--working-distance-mm", type=float,
-                   help="virtual camera: lens to target at the approach pose (default 300)")
-    p.add_argument("--f-number", type=float, help="virtual camera: lens f-number (default 2.8)")
-    p.add_argument("--noise-sigma", type=float, help="virtual camera: sensor noise, grey levels (default 2)")
+                   help=option_help("virtual camera: lens to target at the approach pose", VisionOptions,
+                                    "working_distance_mm"))
+    p.add_argument("--f-number", type=float,
+                   help=option_help("virtual camera: lens f-number", VisionOptions, "f_number"))
+    p.add_argument("--noise-sigma", type=float,
+                   help=option_help("virtual camera: sensor noise, grey levels", VisionOptions, "noise_sigma"))
     p.add_argument("--seed", type=int, help="virtual camera: noise seed")
     p.add_argument("--policy", choices=("nearest", "after"),
                    help="free-running sources: the frame for a request: the first exposed at/after t_request "
@@ -81,7 +87,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--readout-ms", type=float,
                    help="virtual camera: readout + transfer time, ms (default: frame bytes over 1 Gbit/s GigE, 6.3 "
                         "ms for 1024x768 mono8)")
-    p.add_argument("--frame-timeout", type=float, help="max wait for a frame, s (default 1)")
+    p.add_argument("--frame-timeout", type=float,
+                   help=option_help("max wait for a frame", VisionOptions, "frame_timeout"))
     p.add_argument("--graph", choices=("sharpness", "frame-sharpness", "noop"),
                    help="processing graph: sharpness (the paper's, of the calibration object; default), "
                         "frame-sharpness (the whole frame, no object search: aiming a real camera), noop (latency "
@@ -205,14 +212,22 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
         value = merged[key]
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             parser.error(f"{key.replace('_', '-')} must be an integer >= 1, got {value!r}")
-    from aioadept.bus.endpoints import parse_endpoint
+    from aioadept.bus.endpoints import is_none, parse_endpoint
     from aioadept.errors import BusError
 
     for key in ("request_endpoint", "response_endpoint", "state_endpoint"):
+        if key == "state_endpoint" and is_none(merged[key]):
+            continue
         try:
             parse_endpoint(merged[key])
         except BusError as exc:
             parser.error(f"--{key.replace('_', '-')}: {exc}")
+    from aioadept.configfile import check_ranges
+
+    try:  # the ranges of VisionOptions' fields, the same the cell file is checked against
+        check_ranges(VisionOptions(**{k: merged[k] for k in VisionOptions.__dataclass_fields__}))
+    except ValueError as exc:
+        parser.error(str(exc))
     merged["curve"] = _curve_server(parser, merged)
     return argparse.Namespace(**merged)
 

@@ -151,6 +151,10 @@ class PendingCalls:
     def __len__(self) -> int:
         return len(self._pending)
 
+    def partial_line(self) -> bytes:
+        """The bytes received after the last complete line (a peer that speaks no line protocol)."""
+        return self._reader.framer.partial
+
     def reset(self) -> None:
         """A new connection: forget a partial line and the last server error (pending calls were failed)."""
         self._reader.reset()

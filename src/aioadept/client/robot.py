@@ -192,6 +192,8 @@ class RobotClient:
         self._registry = PendingCalls(id_start=secrets.randbits(32) if id_start is None else id_start,
                                       max_line=max_line)
         self._registry.on_unexpected = self._log_unexpected
+        self._probe_lines: list[bytes] | None = None
+        """While the connect-time ``hello`` runs: the unexpected lines, kept for the one error instead of logged."""
         self._observers_changed()
         # Waiters with the default timeout, in deadline order, watched by ONE timer (a timer per wait costs
         # ~10-30 us of loop time per round trip on a small VM; deadlines of a constant timeout come in order).
@@ -344,6 +346,7 @@ class RobotClient:
         # is awaited before any command of this client is sent, so nothing else is written meanwhile.
         observers, self._observers = self._observers, []
         self._observers_changed()
+        self._probe_lines = []
         try:
             self.server_hello = await self.hello(timeout_s=timeout_s)
         except CommandError as exc:  # it speaks the protocol, without the hello extension: go on
@@ -353,10 +356,13 @@ class RobotClient:
         except (AckTimeout, ConnectionLost) as exc:
             await self.close()
             self._state = _NEW  # connect() may be called again
-            said = " (it closed the connection)" if isinstance(exc, ConnectionLost) else ""
+            lines = self._probe_lines
+            said = _what_answered(lines[0] if lines else self._registry.partial_line(),
+                                  closed=isinstance(exc, ConnectionLost))
             raise NotARobotServer(f"{self.host}:{self.port} answered nothing like a RobotServer within "
-                                  f"{timeout_s:g} s{said}: is this the robot's port?") from None
+                                  f"{timeout_s:g} s ({said}): is this the robot's port?") from None
         finally:
+            self._probe_lines = None
             self._observers = observers
             self._observers_changed()
 
@@ -415,6 +421,9 @@ class RobotClient:
             self._on_lost(exc)
 
     def _log_unexpected(self, kind: str, line: bytes, t_recv: float) -> None:
+        if self._probe_lines is not None:  # a peer that is no RobotServer: said once, in NotARobotServer
+            self._probe_lines.append(line)
+            return
         log.warning("robot server %s:%s sent %s: %r", self.host, self.port, kind.replace("_", " "), line[:80])
 
     def _observers_changed(self) -> None:
@@ -429,7 +438,9 @@ class RobotClient:
         if self._registry.server_error is not None:
             err = self._registry.server_error
             why += f" after the server's error ack: {err.error_message} (code {err.error_code})"
-        log.warning("%s with %d message(s) unacked", why, len(self._registry))
+        # During the connect-time hello a loss is reported once, by NotARobotServer.
+        log.log(logging.DEBUG if self._probe_lines is not None else logging.WARNING,
+                "%s with %d message(s) unacked", why, len(self._registry))
         self._registry.fail_all(why)
 
 
@@ -1091,3 +1102,17 @@ def _log_orphan_stop(task: asyncio.Task[MessageResult]) -> None:
         log.error("a stop whose caller was cancelled failed: %s", task.exception())
 
 
+_ZMTP_SIGNATURE_END = 0x7F  # a ZeroMQ peer's greeting: 0xFF, 8 bytes, 0x7F (ZMTP 3.x, rfc.zeromq.org/spec/23)
+
+
+def _what_answered(first: bytes, *, closed: bool) -> str:
+    """What a peer that is no RobotServer did, for :class:`NotARobotServer`'s one line: its first bytes, named
+    when they are a ZeroMQ greeting or HTTP."""
+    if not first:
+        return "it closed the connection without a word" if closed else "it sent nothing"
+    said = f"it sent {first[:40]!r}"
+    if first[:1] == b"\xff" and len(first) >= 10 and first[9] == _ZMTP_SIGNATURE_END:
+        said += ": a ZeroMQ greeting"
+    elif first.lstrip().lower().startswith((b"http/", b"<!doctype html", b"<html")):
+        said += ": an HTTP server"
+    return said + ("; then it closed the connection" if closed else "")

@@ -49,6 +49,11 @@ class LineFramer:
         return len(self._buf)
 
     @property
+    def partial(self) -> bytes:
+        """The bytes held for an incomplete line (what a peer that never ends a line has sent)."""
+        return self._buf
+
+    @property
     def in_line(self) -> bool:
         """True between a line's first byte and its delimiter (also while skipping an oversize line's rest)."""
         return bool(self._buf) or self._discarding

@@ -121,11 +121,13 @@ def open_run_recording(cfg: Any, run_dir: Path, recorder: Any) -> Any:
     if not rerun_available():
         log.debug("rerun-sdk not installed: no run.rrd (%s)", VIEWER_INSTALL_HINT)
         return None
+    from aioadept.bus.endpoints import is_none
     from aioadept.record.live import RunRecording
 
     try:
         rec = RunRecording(run_dir / "run.rrd" if getattr(cfg.run, "record", True) else None,
-                           viewer_url=view_url, state_endpoint=cfg.robot.state_endpoint or None,
+                           viewer_url=view_url,
+                           state_endpoint=None if is_none(cfg.robot.state_endpoint) else cfg.robot.state_endpoint,
                            frames_dir=frames_dir_of(cfg), clock_ref=recorder,
                            name=run_dir.name, short_switch_interval=True)
     except Exception as exc:  # noqa: BLE001 - see the docstring: never fail a run for its recording

@@ -1,5 +1,5 @@
 """Acquisition into ring buffers, software-triggered or free-running, and the frame for a request (FxIS,
-Semeniuta 2018).
+Semeniuta 2018). Over 500 lines because the ring, the two grabbing loops and their one stop share the same state.
 
 **Software trigger** (``trigger="auto"`` for sources that can, ``"software"`` to insist): the source's thread waits
 for :meth:`Acquisition.trigger`; a request triggers its own exposure and is answered from that frame, whatever the
@@ -301,7 +301,8 @@ class Acquisition:
             raise RuntimeError("Acquisition already started")
         for src in self.sources:
             loop = self._trigger_loop if self.triggered[src.camera_id] else self._grab_loop
-            t = threading.Thread(target=loop, args=(src,), name=f"grab:{src.camera_id}")
+            t = threading.Thread(target=loop, args=(src,), name=f"grab:{src.camera_id}",
+                                 daemon=src.stop_wait_s is not None)
             t.start()
             self._threads.append(t)
             if self.triggered[src.camera_id]:
@@ -364,9 +365,9 @@ class Acquisition:
         while not self._stop.is_set():
             try:
                 frame = src.grab()
-            except Exception:
+            except Exception as exc:  # a camera's own words (VisionError: lost, timeout) in one line; a bug in full
                 self._errors[src.camera_id] += 1
-                log.exception("%s: grab failed", src.camera_id)
+                log.warning("%s: grab failed: %s", src.camera_id, exc, exc_info=not isinstance(exc, VisionError))
                 self._stop.wait(max(period, 0.05))  # do not spin on a broken device
                 continue
             if frame is None:
@@ -391,13 +392,15 @@ class Acquisition:
         """Stop and join every grabbing thread, then close the sources (idempotent).
 
         A thread notices the stop between grabs, so stopping takes at most one ``grab()``; a device whose read
-        never returns keeps ``stop()`` waiting (closing a capture under a reading thread is not safe in OpenCV).
-        """
+        never returns keeps ``stop()`` waiting (closing an OpenCV capture under a reading thread is not safe) unless
+        its ``Camera.stop_wait_s`` bounds the wait (GigE): then it goes on without it, and says so."""
         self._stop.set()
         for ev in self._trigger_events.values():
             ev.set()  # wakes the triggered threads, which then see the stop
-        for t in self._threads:
-            t.join()
+        for t, src in zip(self._threads, self.sources):
+            t.join(t_s := src.stop_wait_s)
+            if t.is_alive():
+                log.warning("%s: a grab is still running after %g s: stopped without it", src.camera_id, t_s)
         self._threads.clear()
         if self._close_sources:
             for s in self.sources:

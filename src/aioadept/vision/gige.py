@@ -26,6 +26,7 @@ start) when the camera acknowledged it (so at most one GVCP round trip late, plu
 
 from __future__ import annotations
 
+import logging
 import socket
 import threading
 import time
@@ -44,6 +45,7 @@ _BAYER_TO_GRAY = {"BayerRG8": "COLOR_BayerRG2GRAY", "BayerGR8": "COLOR_BayerGR2G
                   "BayerGB8": "COLOR_BayerGB2GRAY", "BayerBG8": "COLOR_BayerBG2GRAY"}
 
 _aravis_lock = threading.Lock()
+log = logging.getLogger(__name__)
 
 
 def load_aravis() -> Any:
@@ -57,9 +59,10 @@ def load_aravis() -> Any:
             from gi.repository import Aravis
         except Exception as exc:  # ImportError, or gi's ValueError/ImportError when the typelib or libusb is missing
             raise VisionError(
-                "GigE Vision source needs the [gige] extra: pip install 'aioadept[gige]' (aravis-python and "
-                "PyGObject; PyGObject builds with the Debian packages libgirepository1.0-dev, libcairo2-dev, "
-                f"pkg-config, and libaravis needs libusb-1.0-0): {type(exc).__name__}: {exc}") from exc
+                "GigE Vision source needs the [gige] extra: from a clone run 'make gige' (it installs the Debian "
+                "packages PyGObject builds with, libgirepository1.0-dev libcairo2-dev pkg-config, and libusb-1.0-0 "
+                "for libaravis, then the pinned aravis-python and PyGObject); pip install 'aioadept[gige]' alone "
+                f"fails without those packages ({type(exc).__name__}: {exc})") from exc
         # Before any device-list update: nothing in this process may send a broadcast discovery.
         Aravis.disable_interface("GigEVision")
         return Aravis
@@ -93,6 +96,7 @@ class GigECamera(Camera):
     """
 
     can_trigger = True
+    stop_wait_s = 0.5  # a grab of a camera that has gone away blocks for seconds of GVCP retries; close() is safe
 
     def __init__(self, address: str, *, camera_id: str | None = None, exposure_ms: float | None = 5.0,
                  pixel_format: str | None = "Mono8", interface_address: str | None = None,
@@ -154,12 +158,16 @@ class GigECamera(Camera):
             raise
 
     def _on_control_lost(self, *_: Any) -> None:
-        self._control_lost = True  # Aravis's heartbeat thread: the camera stopped answering
+        # Aravis's heartbeat thread: the camera stopped answering. Said once, at the time, in one line.
+        if not self._control_lost and not self._closed:
+            log.warning("GigE camera %s lost: no answer to the control heartbeat", self.address)
+        self._control_lost = True
 
-    def _drain(self) -> None:
+    @staticmethod
+    def _drain(stream: Any) -> None:
         """Give back buffers that came in since the last grab (a late frame of an earlier, timed-out trigger)."""
-        while (buf := self._stream.try_pop_buffer()) is not None:
-            self._stream.push_buffer(buf)
+        while (buf := stream.try_pop_buffer()) is not None:
+            stream.push_buffer(buf)
 
     def grab(self) -> Frame | None:
         with self._lock:
@@ -168,14 +176,17 @@ class GigECamera(Camera):
             if self._control_lost:
                 raise VisionError(f"GigE camera {self.address} lost (no answer to the control heartbeat)")
             Arv = self._arv
+            # Our own references: close() (from another thread, when a stop does not wait for this grab) hands the
+            # camera's over to its release thread.
+            cam, stream = self._cam, self._stream
             seq = self._seq
             self._seq += 1  # counted per trigger, so a lost frame leaves a gap in the sequence
             try:
-                self._drain()
+                self._drain(stream)
                 t_trigger = time.time()
-                self._cam.software_trigger()
+                cam.software_trigger()
                 t_ack = time.time()
-                buf = self._stream.timeout_pop_buffer(int(self.timeout_s * 1e6))
+                buf = stream.timeout_pop_buffer(int(self.timeout_s * 1e6))
             except self._glib_error as exc:
                 raise VisionError(f"GigE camera {self.address}: {exc.message}") from None
             t_done = time.time()
@@ -194,7 +205,7 @@ class GigECamera(Camera):
                 data = buf.get_image_data()
                 t_memory = buf.get_system_timestamp() / 1e9 or t_done
             finally:
-                self._stream.push_buffer(buf)  # back into the pool
+                stream.push_buffer(buf)  # back into the pool
         image = self._to_mono8(data, h, w)
         readout_s = max(0.0, t_memory - t_ack - self.exposure_s)
         return Frame(image, t_ack, self.camera_id, seq, exposure_s=self.exposure_s, readout_s=readout_s,
@@ -213,16 +224,46 @@ class GigECamera(Camera):
         return arr  # Mono8: a read-only view of the one copy, no further copy
 
     def close(self) -> None:
+        """Stop acquisition and release the camera; returns within :data:`CLOSE_WAIT_S`.
+
+        A camera that has gone away answers no GVCP command, and Aravis retries each one (stop acquisition, close
+        the stream channel, release control: about 12 s in all), so the release runs on a daemon thread of its
+        own: when it is not done in time a warning says the camera was lost, and the process need not wait for it.
+        """
         if self._closed:
             return
         self._closed = True
-        cam = getattr(self, "_cam", None)
-        if cam is not None and self._acquiring:
-            try:
-                cam.stop_acquisition()
-            except Exception:  # the camera may be gone: closing must not raise
-                pass
-        self._acquiring = False
+        # The last references go to the thread: Aravis's finalizers (stream channel, control release) write to the
+        # camera too, so they must run there, not here.
+        held = [getattr(self, "_cam", None), getattr(self, "_stream", None), getattr(self, "_device", None)]
+        acquiring, self._acquiring = self._acquiring, False
         self._stream = None
         self._cam = None
         self._device = None
+        done = threading.Event()
+        threading.Thread(target=_release, args=(held, acquiring, done), daemon=True,
+                         name=f"{self.camera_id} close").start()
+        del held
+        if not done.wait(CLOSE_WAIT_S):
+            lost = "it stopped answering its control heartbeat" if self._control_lost else "it does not answer"
+            log.warning("GigE camera %s lost (%s): closed without waiting for it", self.address, lost)
+
+
+CLOSE_WAIT_S = 0.5
+"""How long :meth:`GigECamera.close` waits for a camera to confirm its release (a present one takes milliseconds)."""
+
+
+def _release(held: list[Any], stop_acquisition: bool, done: threading.Event) -> None:
+    """Stop acquisition, then drop the stream, camera and device (in that order): their finalizers run here."""
+    try:
+        cam = held[0]
+        if cam is not None and stop_acquisition:
+            try:
+                cam.stop_acquisition()
+            except Exception:  # noqa: BLE001 - the camera may be gone: closing must not raise
+                pass
+        del cam
+        held[1] = None  # the stream first: its channel is the camera's
+        held.clear()
+    finally:
+        done.set()

@@ -14,6 +14,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from aioadept.configfile import Range, check_ranges, ranged
 from aioadept.defaults import REQUEST_ENDPOINT, RESPONSE_ENDPOINT, STATE_ENDPOINT
 
 SOURCES: dict[str, str] = {
@@ -52,13 +53,14 @@ class VisionOptions:
     PubSubPair does), ``@`` makes the node bind it (the MCN connects); see docs/interfaces.md."""
     response_endpoint: str = RESPONSE_ENDPOINT
     """The node's response PUB: bare binds (the MCN connects), ``>`` makes the node connect to the MCN's SUB."""
-    fps: float = 15.0
-    buffer_size: int = 64
-    focus_offset_mm: float = 20.0
-    """Virtual camera: how far along tool z beyond the approach pose the focal plane lies."""
-    working_distance_mm: float = 300.0
-    f_number: float = 2.8
-    noise_sigma: float = 2.0
+    fps: float = ranged(15.0, Range(0.0, lo_open=True))
+    buffer_size: int = ranged(64, Range(1, integer=True))
+    focus_offset_mm: float = ranged(20.0, Range(0.0, unit="mm"))
+    """Virtual camera: how far along tool z beyond the approach pose the focal plane lies. Not negative: the sweep
+    steps along +z from the approach pose, so a plane behind it would be reported at the approach pose."""
+    working_distance_mm: float = ranged(300.0, Range(0.0, lo_open=True, unit="mm"))
+    f_number: float = ranged(2.8, Range(0.0, lo_open=True))
+    noise_sigma: float = ranged(2.0, Range(0.0))
     seed: int | None = None
     policy: str = "after"
     """Frame choice: "nearest" in time to the request (the paper), or the first frame "after" it."""
@@ -71,10 +73,10 @@ class VisionOptions:
     pixel_format: str = "Mono8"
     """GigE cameras: the PixelFormat written at open (Mono8, Mono16, Bayer..8)."""
     readout_ms: float | None = None
-    frame_timeout: float = 1.0
+    frame_timeout: float = ranged(1.0, Range(0.0, lo_open=True, unit="s"))
     graph: str = "sharpness"
     graph_thread: str = "auto"
-    graph_inline_max_ms: float = 5.0
+    graph_inline_max_ms: float = ranged(5.0, Range(0.0, unit="ms"))
     inline: bool = False
     save_frames: str | None = None
     figures: str | None = None
@@ -131,13 +133,16 @@ class VisionOptions:
         for key in ("max_state_age", "max_frame_age"):
             if not getattr(self, key) > 0:
                 raise ValueError(f"{key} = {getattr(self, key)!r}: expected seconds > 0 (inf: no check)")
-        for key in ("max_queue", "max_request_bytes", "buffer_size"):
+        check_ranges(self)
+        for key in ("max_queue", "max_request_bytes"):
             if getattr(self, key) < 1:
                 raise ValueError(f"{key} = {getattr(self, key)!r}: expected an integer >= 1")
-        from aioadept.bus.endpoints import parse_endpoint
+        from aioadept.bus.endpoints import is_none, parse_endpoint
         from aioadept.errors import BusError
 
         for key in ("request_endpoint", "response_endpoint", "state_endpoint"):
+            if key == "state_endpoint" and is_none(self.state_endpoint):
+                continue  # no robot state stream: the virtual camera shows the target at the approach pose
             try:
                 parse_endpoint(getattr(self, key))
             except BusError as exc:

@@ -85,7 +85,9 @@ async def serve(opts: argparse.Namespace) -> int:
         loop.add_signal_handler(sig, stop.set)
 
     follower = None
-    if any(s.split(":", 1)[0] == "virtual" for s in opts.source):
+    from aioadept.bus.endpoints import is_none
+
+    if any(s.split(":", 1)[0] == "virtual" for s in opts.source) and not is_none(opts.state_endpoint):
         follower = RobotStateFollower(opts.state_endpoint, curve=_state_curve(opts)).start()
     recorder = FrameRecorder(opts.save_frames) if opts.save_frames else None
     acq = node = responder = None
@@ -110,16 +112,23 @@ async def serve(opts: argparse.Namespace) -> int:
                                   **({"curve": opts.curve} if opts.curve is not None else {}))
         responder.start()
         cams = ",".join(acq.camera_ids)
-        # In the form the MCN uses (e.g. request=@tcp://127.0.0.1:5555: bind your PUB there; response=>tcp://...:
-        # connect your SUB there), so the line can be passed on as is.
-        print(f"READY request={responder.peer_request_endpoint} response={responder.peer_response_endpoint} "
+        from aioadept.bus.endpoints import opposite
+
+        # request=/response=: the form the MCN uses (e.g. request=@tcp://127.0.0.1:5555: bind your PUB there;
+        # response=>tcp://...: connect your SUB there), so the line can be passed on as is (aioadept focus
+        # --request-endpoint/--response-endpoint). node_request=/node_response=: the same links as this node uses
+        # them (real ports), so neither side has to be guessed.
+        mcn_req, mcn_resp = responder.peer_request_endpoint, responder.peer_response_endpoint
+        print(f"READY request={mcn_req} response={mcn_resp} node_request={opposite(mcn_req)} "
+              f"node_response={opposite(mcn_resp)} "
               f"cameras={cams} fps={opts.fps:g} policy={opts.policy} graph={opts.graph} "
               f"trigger={'software' if any(acq.triggered.values()) else 'free'} "
-              f"thread={THREAD_WORDS[opts.graph_thread]}", flush=True)
-        log.info("serving %s requests on %s, responses on %s; cameras %s at %g fps, policy %s, graph thread %s%s",
-                 opts.graph, responder.actual_request_endpoint, responder.actual_response_endpoint, cams, opts.fps,
-                 opts.policy, opts.graph_thread,
-                 f", following robot state on {opts.state_endpoint}" if follower else "")
+              f"thread={THREAD_WORDS[opts.graph_thread]} "
+              f"state={opts.state_endpoint if follower else 'none'}", flush=True)
+        log.info("serving %s requests on %s (the MCN's PUB: %s), responses on %s (the MCN's SUB: %s); cameras %s at "
+                 "%g fps, policy %s, graph thread %s%s", opts.graph, opposite(mcn_req), mcn_req, opposite(mcn_resp),
+                 mcn_resp, cams, opts.fps, opts.policy, opts.graph_thread,
+                 f", following robot state on {opts.state_endpoint}" if follower else ", no robot state stream")
         stop_task = asyncio.create_task(stop.wait())
         serve_task = asyncio.create_task(responder.wait_closed())
         done, _ = await asyncio.wait({stop_task, serve_task}, return_when=asyncio.FIRST_COMPLETED)

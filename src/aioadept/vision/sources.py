@@ -64,6 +64,10 @@ class Camera(abc.ABC):
 
     camera_id: str
     can_trigger: bool = False
+    stop_wait_s: float | None = None
+    """How long :meth:`Acquisition.stop <aioadept.vision.acquisition.Acquisition.stop>` waits for a grab in
+    progress before it stops without it (the grabbing thread is then a daemon, and :meth:`close` must be safe
+    under it). None: as long as the grab takes (closing an OpenCV capture under a reading thread is not safe)."""
 
     @abc.abstractmethod
     def grab(self) -> Frame | None:

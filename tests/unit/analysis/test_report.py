@@ -8,7 +8,7 @@ import json
 import pytest
 
 from aioadept.analysis import FIGURES, analyze_runs
-from aioadept.analysis.__main__ import main
+from aioadept.cli.analyze import main
 from aioadept.analysis.report import gantt_bars
 from aioadept.analysis.synthetic import synthetic_recorder
 from aioadept.bus import Request, Response
