@@ -19,7 +19,7 @@ async def test_status_at_rest_then_moving_then_at_rest(server):
     assert (idle.id, idle.status) == ("cccc0001", Status.DONE)
     assert idle.extra[0].startswith("mv=0,sp=100,er=0,"), idle.extra
     assert parse_status_fields(idle.extra) == RobotStatus(moving=False, speed_pct=100.0, error_code=0,
-                                                          error_text="", power=True, estop=False)
+                                                          error_text="", power=True, estop=False, hand="relaxed")
     # a long joint move: forward processing acks it as it starts; status then finds the arm moving
     await c.send("cccc0002:set_speed:10", "cccc0003:move_joints:60.000,-90.000,180.000,0.000,90.000,0.000",
                  "cccc0004:status")
@@ -58,4 +58,19 @@ async def test_aioadept_send_status_prints_the_fields(server):
     out, err = await asyncio.wait_for(proc.communicate(), 60)
     assert proc.returncode == 0, err
     (line,) = out.decode().splitlines()
-    assert " status " in line and " done " in line and line.endswith(" mv=0,sp=100,er=0,pw=1,es=0"), line
+    assert " status " in line and " done " in line and line.endswith(" mv=0,sp=100,er=0,pw=1,es=0,hd=r"), line
+
+
+@pytest.mark.timeout(90)
+async def test_status_reports_the_hand_as_its_valves_command_it(server):
+    """hd= follows open_hand, close_hand and relax_hand, and signal on the valve outputs (1 open, 2 close: both
+    servers' defaults), including the fault of both valves on."""
+    c = await server.connect()
+    seen = []
+    for i, line in enumerate(("close_hand", "open_hand", "relax_hand", "signal:1,2", "signal:-1,-2")):
+        await c.send(f"cccd{i:04d}:{line}", f"ccce{i:04d}:status")
+        act, st = await c.acks(2)
+        assert act.status is Status.DONE and st.status is Status.DONE, (act, st)
+        seen.append(parse_status_fields(st.extra).hand)
+    assert seen == ["closed", "open", "relaxed", "both", "relaxed"]
+    await c.close()

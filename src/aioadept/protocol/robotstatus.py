@@ -1,13 +1,14 @@
 """The ``status`` skill's answer, sans-IO: the trailing fields of its ``done`` ack, encoded by the sim and parsed by
 the client (the V+ server writes the same text in ``vplus/rsskills.V2``). docs/protocol.md, section 4.7::
 
-    ID:done:T0,T1:X,Y,Z,YAW,PITCH,ROLL:mv=0,sp=100,er=0,pw=1,es=0:ERROR TEXT
+    ID:done:T0,T1:X,Y,Z,YAW,PITCH,ROLL:mv=0,sp=100,er=0,pw=1,es=0,hd=o:ERROR TEXT
 
-The first trailing field is ``key=value`` pairs separated by commas, so a server may add keys (the hand) and an
-older client keeps what it does not know in :attr:`RobotStatus.extra`; the second is the text of the last error
-(empty when there is none). Short keys, because a V+ ack line is at most 128 characters: ``mv`` moving (1/0),
-``sp`` program speed (%), ``er`` last error code (0: none), ``pw`` high power on (1/0), ``es`` E-stop pressed
-(1/0). A key the server cannot know is left out and reads as None.
+The first trailing field is ``key=value`` pairs separated by commas, so a server may add keys and an older client
+keeps what it does not know in :attr:`RobotStatus.extra`; the second is the text of the last error (empty when
+there is none). Short keys, because a V+ ack line is at most 128 characters: ``mv`` moving (1/0), ``sp`` program
+speed (%), ``er`` last error code (0: none), ``pw`` high power on (1/0), ``es`` E-stop pressed (1/0), ``hd`` the
+hand as its two valve outputs command it (``o`` open, ``c`` closed, ``r`` relaxed: both off, ``x`` both on, a
+wiring or program fault). A key the server cannot know is left out and reads as None.
 """
 
 from __future__ import annotations
@@ -35,8 +36,21 @@ class RobotStatus:
     error_text: str = ""
     power: bool | None = None
     estop: bool | None = None
+    hand: str | None = None
+    """``"open"``, ``"closed"``, ``"relaxed"`` or ``"both"`` (both valves on): what the valves command, not where
+    the fingers are (they are still travelling for a moment after a switch)."""
     extra: Mapping[str, str] = field(default_factory=lambda: _EMPTY)
     """Keys of the answer this client does not know (key -> text), e.g. the hand's."""
+
+
+HAND_CODES = {"open": "o", "closed": "c", "relaxed": "r", "both": "x"}
+"""``RobotStatus.hand`` -> its ``hd=`` letter."""
+_HAND_NAMES = {v: k for k, v in HAND_CODES.items()}
+
+
+def hand_of_valves(open_on: bool, close_on: bool) -> str:
+    """The ``RobotStatus.hand`` word for the two valve outputs' states."""
+    return ("both" if close_on else "open") if open_on else ("closed" if close_on else "relaxed")
 
 
 def encode_status_fields(st: RobotStatus) -> tuple[str, str]:
@@ -46,6 +60,8 @@ def encode_status_fields(st: RobotStatus) -> tuple[str, str]:
         pairs.append(f"pw={int(st.power)}")
     if st.estop is not None:
         pairs.append(f"es={int(st.estop)}")
+    if st.hand is not None:
+        pairs.append(f"hd={HAND_CODES[st.hand]}")
     pairs += [f"{k}={v}" for k, v in st.extra.items()]
     return ",".join(pairs), st.error_text
 
@@ -78,8 +94,14 @@ def parse_status_fields(extra: Sequence[str]) -> RobotStatus:
     code = int(_num("er", fields.pop("er"))) if "er" in fields else 0
     power = _num("pw", fields.pop("pw")) != 0 if "pw" in fields else None
     estop = _num("es", fields.pop("es")) != 0 if "es" in fields else None
+    hand = None
+    if "hd" in fields:
+        hand = _HAND_NAMES.get(fields.pop("hd").strip())
+        if hand is None:
+            raise RemoteProtocolError(ErrorCode.MALFORMED_MESSAGE, "status: hd= is not one of o, c, r, x")
     text = ":".join(extra[1:])
-    return RobotStatus(moving, speed, code, text, power, estop, MappingProxyType(fields) if fields else _EMPTY)
+    return RobotStatus(moving, speed, code, text, power, estop, hand,
+                       MappingProxyType(fields) if fields else _EMPTY)
 
 
-__all__ = ["STATUS_SKILL", "RobotStatus", "encode_status_fields", "parse_status_fields"]
+__all__ = ["HAND_CODES", "STATUS_SKILL", "RobotStatus", "hand_of_valves", "encode_status_fields", "parse_status_fields"]

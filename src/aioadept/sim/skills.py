@@ -217,11 +217,14 @@ def _status(ctl: Any, args: tuple[float, ...]) -> SkillResult:
     # The sim's arm never loses power and has no E-stop unless a test gives the controller `power`/`estop`
     # attributes; the speed is the program speed of every motion (SPEED ... ALWAYS), as V+ SPEED(2) reports it.
     from aioadept.protocol.messages import sanitize_text
-    from aioadept.protocol.robotstatus import RobotStatus, encode_status_fields
+    from aioadept.protocol.robotstatus import RobotStatus, encode_status_fields, hand_of_valves
 
     code, text = ctl.last_error
+    io = ctl.io
+    wired = io.hand_config  # the valves switch at once (the fingers follow): no time to advance
     st = RobotStatus(moving=ctl.trajectory.in_motion(ctl.now_s), speed_pct=ctl.always_speed_pct, error_code=code,
-                     power=bool(getattr(ctl, "power", True)), estop=bool(getattr(ctl, "estop", False)))
+                     power=bool(getattr(ctl, "power", True)), estop=bool(getattr(ctl, "estop", False)),
+                     hand=hand_of_valves(io.state(wired.open_signal), io.state(wired.close_signal)))
     pairs, _ = encode_status_fields(st)
     return SkillResult((pairs, sanitize_text(text)) if text else (pairs,))
 
