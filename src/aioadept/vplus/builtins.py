@@ -64,6 +64,14 @@ def _arr(container: dict, key: str) -> dict:
     return a
 
 
+def vint(v: float) -> int:
+    """A real used where V+ needs an integer: rounded to the nearest, halves away from zero (V+ Language User's
+    Guide, "Numeric Representation": real values are rounded where an integer is required; 1.6 is 2, not 1)."""
+    if type(v) is not float and type(v) is not int:
+        raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* (a number is needed)")
+    return int(math.floor(v + 0.5)) if v >= 0 else -int(math.floor(0.5 - v))
+
+
 def _ix(v: float) -> int:
     i = int(v)
     if i < 0:
@@ -466,7 +474,11 @@ def namespace(rt: Runtime) -> dict[str, Any]:
             a[first + i] = float(x) if dbl else f32(x)
 
     def timer_set(n: float, v: float) -> None:
-        rt.timers[int(n)] = rt.now - float(v)
+        # V+ Reference Guide, TIMER instruction: timers 1 to 15; timer 0 is the system clock and cannot be set
+        k = vint(n)
+        if not 1 <= k <= 15:
+            raise VPlusError(E.ILLEGAL_VALUE, f"*Illegal value* (TIMER {k}: the timer number must be 1 to 15)")
+        rt.timers[k] = rt.now - float(v)
 
     # -- functions --------------------------------------------------------------------------------------
     def timer(n: float = 0.0) -> float:

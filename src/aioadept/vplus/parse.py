@@ -631,7 +631,10 @@ def _statement(p: Parser):
         p.eq_ends = False
         return ("BITS", first, count, p.expr())
     if w == "TIMER":
+        # TIMER timer_number = time_value: the '=' ends the number's expression (as in BITS)
+        p.eq_ends = True
         n = p.expr()
+        p.eq_ends = False
         p.expect_op("=")
         return ("TIMERSET", n, p.expr())
     raise VSyntaxError(f"instruction {w} is not implemented by the emulator", t.text)  # pragma: no cover
