@@ -154,9 +154,8 @@ class Runtime:
 
         for kind, name, index, value in self.module.data:
             if kind == "LOC":
-                v = loc.trans(*value) if len(value) == 6 else loc.Transform.from_matrix(
-                    [list(value[0:3]) + [value[9]], list(value[3:6]) + [value[10]], list(value[6:9]) + [value[11]],
-                     [0, 0, 0, 1]])
+                # six: x y z yaw pitch roll; twelve: the 3x4 matrix row by row (the loader reorders STORE's)
+                v = loc.trans(*value) if len(value) == 6 else loc.Transform(tuple(float(x) for x in value))
             elif kind == "PPOINT":
                 v = loc.ppoint(*value)
             elif kind == "REAL":
