@@ -66,14 +66,15 @@ def _arr(container: dict, key: str) -> dict:
 
 def vint(v: float) -> int:
     """A real used where V+ needs an integer: rounded to the nearest, halves away from zero (V+ Language User's
-    Guide, "Numeric Representation": real values are rounded where an integer is required; 1.6 is 2, not 1)."""
+    Guide v17, p. 102, "Real and Integer Data Types": "V+ promotes the real to an integer by rounding (not
+    truncation)"; 1.6 is 2). Halves: UNCONFIRMED (the manual does not say), away from zero chosen."""
     if type(v) is not float and type(v) is not int:
         raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* (a number is needed)")
     return int(math.floor(v + 0.5)) if v >= 0 else -int(math.floor(0.5 - v))
 
 
 def _ix(v: float) -> int:
-    i = int(v)
+    i = vint(v)
     if i < 0:
         raise VPlusError(E.ILLEGAL_ARRAY_INDEX, f"*Illegal array index* {v:g}")
     return i
@@ -196,23 +197,32 @@ def _val(s: str) -> float:
 
 
 def _mid(s: str, first: float, n: float) -> str:
-    i = int(first)
+    i = vint(first)
     if i < 1:
         raise VPlusError(E.ILLEGAL_VALUE, "*Illegal value* ($MID start below 1)")
-    return s[i - 1:i - 1 + max(int(n), 0)]
+    return s[i - 1:i - 1 + max(vint(n), 0)]
 
 
 def _pos(s: str, sub: str, start: float = 1.0) -> float:
-    return float(s.find(sub, max(int(start), 1) - 1) + 1)
+    return float(s.find(sub, max(vint(start), 1) - 1) + 1)
 
 
 def _asc(s: str, i: float = 1.0) -> float:
-    k = int(i)
+    k = vint(i)
     return float(ord(s[k - 1])) if 1 <= k <= len(s) else -1.0
 
 
+def _left(s: str, n: float) -> str:
+    return s[:max(vint(n), 0)]
+
+
+def _right(s: str, n: float) -> str:
+    k = vint(n)
+    return s[-k:] if k > 0 else ""
+
+
 def _chr(n: float) -> str:
-    k = int(n)
+    k = vint(n)
     if not 0 <= k <= 255:
         raise VPlusError(E.ILLEGAL_VALUE, "*Illegal value* ($CHR outside 0..255)")
     return chr(k)
@@ -257,20 +267,25 @@ def namespace(rt: Runtime) -> dict[str, Any]:
         return T.statics.setdefault(prog, {})
 
     def arg(A: tuple, i: int, name: str):
+        # An argument omitted or left blank is undefined in the callee (V+ Language User's Guide v17, p. 45,
+        # "Undefined Arguments"). Each call gets a container of its own: a callee that assigns to it must not
+        # make it defined for the next call (one shared container did).
         if i >= len(A):
-            return (_MISSING_C, name)
+            return (_Missing(), name)
         a = A[i]
-        if type(a) is dict:
+        if type(a) is dict or type(a) is _Missing:
             raise VPlusError(E.ILLEGAL_OPERATION, f"*Illegal operation* (an array passed for {name})")
         if a[0] is _MISSING_C:
-            return (_MISSING_C, name)
+            return (_Missing(), name)
         return a
 
     def argarr(A: tuple, i: int, name: str) -> dict:
         if i >= len(A):
-            return {}
+            return _Missing()         # omitted: undefined in the callee (DEFINED(q[]) is FALSE), its own each call
         a = A[i]
-        if type(a) is not dict:
+        if type(a) is tuple and a[0] is _MISSING_C:
+            return _Missing()         # left blank
+        if type(a) is not dict and type(a) is not _Missing:
             raise VPlusError(E.ILLEGAL_OPERATION, f"*Illegal operation* ({name}[] needs an array argument)")
         return a
 
@@ -322,7 +337,7 @@ def namespace(rt: Runtime) -> dict[str, Any]:
         # SIGNAL n, ...: outputs and soft signals (aioadept.sim.io: numbering, the hand's valves, the change
         # log); an input or a number that is no signal is an error and changes nothing. Zero is ignored.
         try:
-            rt.io.signal([int(n) for n in nums if int(n) != 0], rt.now)
+            rt.io.signal([k for k in map(vint, nums) if k != 0], rt.now)
         except RobotError as exc:
             raise _io_error(exc) from None
 
@@ -482,7 +497,7 @@ def namespace(rt: Runtime) -> dict[str, Any]:
 
     # -- functions --------------------------------------------------------------------------------------
     def timer(n: float = 0.0) -> float:
-        k = int(n)
+        k = vint(n)
         if k == -3:
             return rt.now - rt.t0
         if k < 0:
@@ -549,7 +564,10 @@ def namespace(rt: Runtime) -> dict[str, Any]:
 
     def defarr(get) -> float:
         try:
-            return -1.0 if get() is not None else 0.0
+            a = get()
+            if type(a) is _Missing and not a:
+                return 0.0            # an array argument the caller did not pass
+            return -1.0 if a is not None else 0.0
         except KeyError:
             return 0.0
 
@@ -595,7 +613,7 @@ def namespace(rt: Runtime) -> dict[str, Any]:
         "DISTANCE": lambda a, b: L.distance(loc_check(a), loc_check(b)), "SHIFT": shift,
         "RX": L.rx, "RY": L.ry, "RZ": L.rz,
         "SIGN": lambda x: float((x > 0) - (x < 0)), "FRACT": lambda x: x - int(x), "RANDOM": lambda: random.random(),
-        "$TRUNCATE": lambda s: s, "$LEFT": lambda s, n: s[:int(n)], "$RIGHT": lambda s, n: s[-int(n):] if n else "",
+        "$TRUNCATE": lambda s: s, "$LEFT": _left, "$RIGHT": _right,
         "$TOUPPER": str.upper, "$TOLOWER": str.lower, "SPEED": speed_fn,
         "SWITCH": lambda *a: -1.0 if rt.switches.get("DRY.RUN") else 0.0, "BITS": _bits(rt),
         "$TIME": lambda *a: "", "NORM": lambda t: t, "$DEFAULT": lambda *a: "",

@@ -25,6 +25,7 @@ is passed by reference and an expression by value. Arrays are dicts ``index -> v
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass, field
 from typing import Any
@@ -183,8 +184,9 @@ class _Gen:
     def index(self, idx: list) -> str:
         parts = []
         for e in idx:
-            if e[0] == "num":
-                parts.append(repr(int(e[1])))
+            if e[0] == "num" and e[1] >= 0:
+                # rounded, not truncated (V+ Language User's Guide v17, p. 102), as builtins.vint does at run time
+                parts.append(repr(int(math.floor(e[1] + 0.5))))
             else:
                 parts.append(f"_IX[{self.val(e)[0]}]")     # a dict of 0.0..4095.0; _ix() for the rest
         return parts[0] if len(parts) == 1 else "(" + ", ".join(parts) + ")"
@@ -205,6 +207,8 @@ class _Gen:
             return repr(e[1]), "str"
         if k == "var":
             return self.lv(e[1]), self.vtype(e[1])
+        if k == "paren":
+            return self.val(e[1])             # (x) as a CALL argument: its value (passed by value)
         if k == "idx":
             return f"{self.arr(e[1], False)}[{self.index(e[2])}]", self.vtype(e[1])
         if k == "arr":

@@ -420,8 +420,49 @@ def _call_target(p: Parser):
         raise VSyntaxError("expected a program name", t.text)
     args: list = []
     if p.at_op("("):
-        args = p.args()
+        args = _call_args(p)
     return norm(t.text), args
+
+
+def _call_args(p: Parser) -> list:
+    """The argument list of CALL/CALLS: as :meth:`Parser.args`, but a variable in parentheses, ``(x)``, is kept
+    as ``("paren", e)``: V+ passes it by value (V+ Language User's Guide v17, p. 44, "Call by Value")."""
+    start = p.i
+    out = p.args()
+    # mark arguments that are exactly '(' variable ')'; the token positions tell where each argument was
+    depth, arg_no, toks, j = 0, 0, p.t, start + 1
+    first = j
+    marks = set()
+    while j < p.i - 1:
+        tk = toks[j]
+        if tk.kind == "op" and tk.text in "([":
+            depth += 1
+        elif tk.kind == "op" and tk.text in ")]":
+            depth -= 1
+        elif tk.kind == "op" and tk.text == "," and depth == 0:
+            if _parenthesised(toks, first, j):
+                marks.add(arg_no)
+            arg_no, first = arg_no + 1, j + 1
+        j += 1
+    if _parenthesised(toks, first, p.i - 1):
+        marks.add(arg_no)
+    return [("paren", a) if k in marks and a is not None and a[0] in ("var", "idx") else a
+            for k, a in enumerate(out)]
+
+
+def _parenthesised(toks: list[Tok], a: int, b: int) -> bool:
+    """Tokens a..b-1 are one parenthesised group: '(' ... ')' with the first '(' closed by the last ')'."""
+    if b - a < 3 or toks[a].text != "(" or toks[b - 1].text != ")" or toks[a].kind != "op":
+        return False
+    depth = 0
+    for j in range(a, b):
+        if toks[j].kind == "op" and toks[j].text == "(":
+            depth += 1
+        elif toks[j].kind == "op" and toks[j].text == ")":
+            depth -= 1
+            if depth == 0 and j != b - 1:
+                return False
+    return True
 
 
 def _statement(p: Parser):
@@ -517,7 +558,7 @@ def _statement(p: Parser):
                 e = ("idx", e[1], idx)
         else:
             raise VSyntaxError("CALLS needs a string variable", t2.text)
-        args = p.args() if p.at_op("(") else []
+        args = _call_args(p) if p.at_op("(") else []
         return ("CALLS", e, args)
     if w in ("EXIT", "NEXT"):
         n = 1
