@@ -20,7 +20,7 @@ from aioadept.errors import RobotError
 from aioadept.protocol import ErrorCode
 from aioadept.vplus import errors as E
 from aioadept.vplus.errors import VPlusError, VPlusHalt
-from aioadept.vplus.runtime import _FB, _GOTO, MAX_STRING, Runtime, Task, _Goto, _Missing, f32
+from aioadept.vplus.runtime import _FB, _GOTO, MAX_STRING, Runtime, Task, _Goto, _LocArray, _Missing, f32
 
 _NUM_RE = re.compile(r"\s*[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
 _FMT_RE = re.compile(r"([A-Z])(\d+)?(?:\.(\d+))?\Z")
@@ -35,13 +35,30 @@ def _str(v: Any) -> str:
 
 
 def _real(v: Any) -> Any:
-    """Assignment to a plain name: REAL (float32) for numbers; a location keeps its type (SET optional)."""
+    """Assignment without SET to a plain name: REAL (float32) for numbers. A location needs SET (V+ Language
+    User's Guide v17, p. 111: ``loc_var1 = loc_var2`` "is unacceptable for location and precision-point
+    variables"); the compiler refuses the forms it can see, this the rest."""
     if type(v) is float or type(v) is int:
         _FB[0] = v
         return _FB[0]
     if isinstance(v, str):
         raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* (a string assigned to a real variable)")
-    return v
+    raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* (a location is assigned with SET)")
+
+
+def _loc_store(c: dict, key: str, arr: Any, idx: Any, v: Any, name: str) -> None:
+    """``SET name[idx] = v``: the array is, or becomes, an array of locations; one holding numbers refuses it."""
+    a = arr if arr is not None else c.get(key)
+    if a is None:
+        a = c[key] = _LocArray()
+        a.name = name
+    elif type(a) is not _LocArray:
+        for x in a.values():
+            if type(x) is float or type(x) is int:
+                raise VPlusError(E.ILLEGAL_OPERATION, f"*Illegal operation* (array {name}[] holds numbers: a "
+                                                      "location cannot be stored in it)")
+            break
+    dict.__setitem__(a, idx, v)
 
 
 def _dbl(v: Any) -> float:
@@ -625,7 +642,7 @@ def namespace(rt: Runtime) -> dict[str, Any]:
     ns = {"_fn_" + k.replace("$", "s").replace("#", "h").replace(".", "_"): f for k, f in fn.items()}
     ns.update({
         "_G": G, "_FB": _FB, "_static": static, "_arg": arg, "_argarr": argarr, "_arr": _arr, "_ix": _ix, "_IX": _IX,
-        "_encv": _encv, "_MC": _MISSING_C,
+        "_encv": _encv, "_MC": _MISSING_C, "_loc_store": _loc_store,
         "_str": _str, "_pp": pp_check, "_loc": loc_check, "_dbl": _dbl, "_real": _real, "_f32": f32,
         "_byval": _byval, "_MISSING": (_MISSING_C, "?"), "_call": call, "_progname": progname, "_tick": tick, "_ctick": cond_tick,
         "_halt": halt, "_stop": stop, "_pause": pause, "_type": type_, "_prompt": prompt, "_signal": signal,

@@ -377,6 +377,12 @@ class _Gen:
         if name.startswith("#"):
             return f"{t} = _pp({code})"
         if force_loc or typ == "loc":
+            if target[0] == "idx":
+                # an array holds one type (V+ Language User's Guide v17, p. 105): a location array is a _LocArray
+                c, key = ("L", repr(name + "[]")) if name in self.autos else (
+                    ("S", repr(name + "[]")) if name in self.statics else ("G", repr(name + "[]")))
+                arr = self.arr(name, False) if name in self.params else "None"
+                return f"_loc_store({c}, {key}, {arr}, {self.index(target[2])}, _loc({code}), {name!r})"
             return f"{t} = _loc({code})"
         if self.is_double(name):
             return f"{t} = _dbl({code})"
@@ -394,9 +400,19 @@ class _Gen:
 
     # -- statements -----------------------------------------------------------------------------------------
     def declare(self, steps) -> None:
+        executable = False
         for line, st in steps:
-            if st[0] == "LABEL" and st[2] is not None:
+            if st[0] == "LABEL":
+                if st[2] is None:
+                    continue
                 st = st[2]
+            if st[0] in ("AUTO", "LOCAL", "GLOBAL"):
+                if executable:
+                    # V+ Language User's Guide v17, p. 36 ("Program Organization")
+                    raise CompileError(line, f"{st[0]} after an executable instruction (AUTO, LOCAL and GLOBAL "
+                                             "must precede every executable instruction)", st[0])
+            elif st[0] != "NOP":
+                executable = True
             if st[0] in ("AUTO", "LOCAL"):
                 for name, typ, is_arr in st[1]:
                     if name in self.params:
@@ -611,6 +627,9 @@ class _Gen:
             code, typ = self.val(expr)
             if target[0] == "arr":
                 raise CompileError(line, "cannot assign to a whole array", target[1])
+            if not is_set and (typ in ("loc", "pp") or target[1].startswith("#")):
+                # V+ Language User's Guide v17, p. 111 ("Assignment Operator")
+                raise CompileError(line, "a location is assigned with SET (SET name = value)", target[1])
             self.guarded(line, [self.store(target, code, typ, is_set and not target[1].startswith(("$", "#")))])
         elif k == "GOTO":
             if st[1] not in self.labels:

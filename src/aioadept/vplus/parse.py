@@ -359,7 +359,7 @@ def parse_statement(text: str):
     toks = tokenize(text)
     label = None
     if toks and toks[0].kind == "num" and re.fullmatch(r"\d+", toks[0].text):
-        label = int(toks[0].text)
+        label = _label(toks[0])
         toks = toks[1:]
         if not toks:
             return ("LABEL", label, None)
@@ -369,6 +369,19 @@ def parse_statement(text: str):
     if label is not None:
         return ("LABEL", label, stmt)
     return stmt
+
+
+MAX_LABEL = 65535
+
+
+def _label(tok: Tok) -> int:
+    """A step label: an integer 0 to 65535 (V+ Language User's Guide v17, p. 35, "Program Lines")."""
+    if tok.kind != "num" or not re.fullmatch(r"\d+", tok.text):
+        raise VSyntaxError("expected a label number (an integer 0 to 65535)", tok.text)
+    n = int(tok.text)
+    if n > MAX_LABEL:
+        raise VSyntaxError(f"label {n} is outside 0 to {MAX_LABEL}", tok.text)
+    return n
 
 
 def _exprs(p: Parser) -> list:
@@ -495,10 +508,7 @@ def _statement(p: Parser):
             return ("IF", cond)
         if p.at_word("GOTO"):
             p.take()
-            lab = p.take()
-            if lab.kind != "num":
-                raise VSyntaxError("expected a label number", lab.text)
-            return ("IFGOTO", cond, int(lab.value))
+            return ("IFGOTO", cond, _label(p.take()))
         t2 = p.peek()
         raise VSyntaxError("IF without THEN", t2.text if t2 else "end of line")
     if w in ("ELSE", "END", "DO", "ANY", "RETURN", "RETURNE", "HALT", "STOP", "PAUSE", "BREAK", "BRAKE", "NULL"):
@@ -535,10 +545,7 @@ def _statement(p: Parser):
         p.expect_op(":")
         return ("VALUE", vals)
     if w == "GOTO":
-        lab = p.take()
-        if lab.kind != "num":
-            raise VSyntaxError("expected a label number", lab.text)
-        return ("GOTO", int(lab.value))
+        return ("GOTO", _label(p.take()))
     if w == "CALL":
         name, args = _call_target(p)
         return ("CALL", name, args)

@@ -60,6 +60,21 @@ class _Missing(dict):
     """The container of an omitted argument: reading it is an undefined value."""
 
 
+class _LocArray(dict):
+    """An array of transformations: storing anything else in it is an error (V+ Language User's Guide v17,
+    p. 105: "If a data type different from the one the array was originally created with is specified, an error
+    will result"). Arrays of reals stay plain dicts (their stores are the hot path); a location stored into a
+    plain dict that holds reals is refused by ``_loc_store``."""
+
+    __slots__ = ("name",)
+
+    def __setitem__(self, k: Any, v: Any) -> None:
+        if type(v) is float or type(v) is int or isinstance(v, str):
+            raise VPlusError(E.ILLEGAL_OPERATION, f"*Illegal operation* (array {getattr(self, 'name', '')}[] holds "
+                                                  "locations: a number cannot be stored in it)")
+        dict.__setitem__(self, k, v)
+
+
 # -- clocks ------------------------------------------------------------------------------------------------------
 
 class VirtualClock:
@@ -165,7 +180,12 @@ class Runtime:
             if index is None:
                 self.globals[name] = v
             else:
-                self.globals.setdefault(name + "[]", {})[index] = v
+                arr = self.globals.get(name + "[]")
+                if arr is None:
+                    arr = self.globals[name + "[]"] = _LocArray() if kind == "LOC" else {}
+                    if kind == "LOC":
+                        arr.name = name
+                arr[index] = v
 
     def doubles(self) -> set[str]:
         out = {name for kind, name, _, _ in self.module.data if kind == "DOUBLE"}
