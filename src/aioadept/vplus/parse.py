@@ -21,6 +21,8 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
+from aioadept.vplus import keywords
+
 MAX_NAME = 15
 
 
@@ -300,7 +302,7 @@ class Parser:
             if up in _NOARG_FUNCS:
                 return ("call", up, [])
             if self.at_op("("):
-                raise VSyntaxError(f"unknown function {t.text}", t.text)
+                raise _unknown_function(t.text)
             _check_name(t.text)
             return ("var", norm(t.text))
         raise VSyntaxError(f"unexpected {t.text!r}", t.text)
@@ -493,9 +495,7 @@ def _statement(p: Parser):
             p.expect_op("=")
             return ("ASSIGN", target, p.expr(), False)
     if w not in INSTRUCTIONS:
-        if w in FUNCTIONS or w.startswith(("$", "#")) or nxt is None:
-            raise VSyntaxError(f"not an instruction: {t.text}", t.text)
-        raise VSyntaxError(f"instruction {t.text} is not implemented by the emulator", t.text)
+        raise _unknown_instruction(t.text)
     p.take()
     if w == "SET":
         target = p.lvalue()
@@ -686,6 +686,29 @@ def _statement(p: Parser):
         p.expect_op("=")
         return ("TIMERSET", n, p.expr())
     raise VSyntaxError(f"instruction {w} is not implemented by the emulator", t.text)  # pragma: no cover
+
+
+def _unknown_instruction(word: str) -> VSyntaxError:
+    """The error for a statement's first word that the emulator does not know: a typo, or a V+ gap (named)."""
+    up = word.upper()
+    if up in keywords.INSTRUCTIONS:
+        return VSyntaxError(f"V+ instruction {up} is not implemented by the emulator "
+                            f"(see {keywords.where(up)})", word)
+    if up in keywords.MONITOR_COMMANDS:
+        return VSyntaxError(f"{up} is a V+ monitor command, not a program instruction "
+                            f"(see {keywords.where(up)})", word)
+    if keywords.is_keyword(up) or up in FUNCTIONS:
+        return VSyntaxError(f"syntax error: {up} is a V+ keyword but not an instruction", word)
+    return VSyntaxError(f"syntax error: {word} is not a V+ keyword", word)
+
+
+def _unknown_function(word: str) -> VSyntaxError:
+    """The error for ``name(`` in an expression where ``name`` is no function the emulator implements."""
+    up = word.upper()
+    if up in keywords.FUNCTIONS:
+        return VSyntaxError(f"V+ function {up} is not implemented by the emulator "
+                            f"(see {keywords.where(up, as_function=True)})", word)
+    return VSyntaxError(f"syntax error: {word} is not a V+ function", word)
 
 
 def _outputs_or_empty(p: Parser) -> list:

@@ -468,6 +468,8 @@ class Runtime:
         err = self.as_vplus(exc)
         if err.program is None:
             err.program, err.line = program, line
+            prog = self.module.programs.get(program)
+            err.file = prog.file if prog is not None else None     # run-time errors name the file too
         err.task = T.num
         T.last_error = err.code
         if T.reacte is not None and not T.in_reaction:
