@@ -18,35 +18,20 @@ from __future__ import annotations
 import math
 import re
 import struct
-from array import array
 from collections import deque
 from collections.abc import Callable, Generator, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
+from aioadept.vplus import builtins as B
 from aioadept.vplus import errors as E
+from aioadept.vplus import iodev
 from aioadept.vplus.compiler import compile_program
 from aioadept.vplus.errors import VPlusError, VPlusHalt
 from aioadept.vplus.loader import LoadProblem, Module
+from aioadept.vplus.values import _FB, _GOTO, MAX_STRING, _Goto, _LocArray, _Missing, f32  # noqa: F401 (re-exported)
 
-MAX_STRING = 128
 PREEMPT = -1.0
-
-_FB = array("f", [0.0])
-
-
-def f32(x: float) -> float:
-    """A value as a V+ REAL stores it (IEEE single precision)."""
-    _FB[0] = x
-    return _FB[0]
-
-
-class _Goto(BaseException):
-    def __init__(self, pc: int) -> None:
-        self.pc = pc
-
-
-_GOTO = [_Goto(i) for i in range(4096)]
 
 _UNBOUND_RE = re.compile(r"(?:variable|name) '(V_\w+)'")   # unbound local, or a local never assigned
 
@@ -54,25 +39,6 @@ _COMPILED: dict[tuple, tuple] = {}
 """Code objects of compiled programs by their source text (and the DOUBLE names, which change the code): an
 emulator built again from the same files (one per test) only runs the code in a fresh namespace. The code and
 its constants are immutable; each runtime has its own namespace and data."""
-
-
-class _Missing(dict):
-    """The container of an omitted argument: reading it is an undefined value."""
-
-
-class _LocArray(dict):
-    """An array of transformations: storing anything else in it is an error (V+ Language User's Guide v17,
-    p. 105: "If a data type different from the one the array was originally created with is specified, an error
-    will result"). Arrays of reals stay plain dicts (their stores are the hot path); a location stored into a
-    plain dict that holds reals is refused by ``_loc_store``."""
-
-    __slots__ = ("name",)
-
-    def __setitem__(self, k: Any, v: Any) -> None:
-        if type(v) is float or type(v) is int or isinstance(v, str):
-            raise VPlusError(E.ILLEGAL_OPERATION, f"*Illegal operation* (array {getattr(self, 'name', '')}[] holds "
-                                                  "locations: a number cannot be stored in it)")
-        dict.__setitem__(self, k, v)
 
 
 # -- clocks ------------------------------------------------------------------------------------------------------
@@ -264,8 +230,6 @@ class Runtime:
         return f(T, args)
 
     def _release(self, T: Task) -> None:
-        from aioadept.vplus import iodev
-
         iodev.release_task(self, T)
         if T.robot_attached and self.robot is not None:
             T.robot_attached = False
@@ -512,6 +476,4 @@ class Runtime:
 
     # -- the namespace of generated code ------------------------------------------------------------------
     def _namespace(self) -> dict[str, Any]:
-        from aioadept.vplus import builtins as B
-
         return B.namespace(self)
