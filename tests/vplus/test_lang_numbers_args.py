@@ -87,3 +87,18 @@ def test_a_variable_in_parentheses_is_passed_by_value():
     emu.call("p")
     g = emu.globals
     assert (g["x"], g["y"], g["z"], g["$s"]) == (1.0, 2.0, 1.0, "a")
+
+
+def test_a_blank_argument_of_execute_is_undefined_in_the_task():
+    emu = emu_of(".PROGRAM p()\n\tx = 1\n\tEXECUTE 1 sub(x, , x)\n.END\n" + SUB)
+    emu.call("p")
+    emu.run(0.1)
+    g = emu.globals
+    assert (g["da"], g["db"], g["dc"], g["dq"]) == (-1.0, 0.0, -1.0, 0.0)
+
+
+def test_defined_of_a_parameter_passed_by_value_is_true_whatever_its_value():
+    emu = emu_of(".PROGRAM p()\n\tx = 1\n\tCALL sub((x), 2, x+1)\n.END\n" + SUB)
+    emu.call("p")
+    g = emu.globals
+    assert (g["da"], g["db"], g["dc"], g["dq"]) == (-1.0, -1.0, -1.0, 0.0)

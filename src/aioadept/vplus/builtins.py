@@ -51,6 +51,14 @@ def _real(v: Any) -> Any:
     raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* (a location is assigned with SET)")
 
 
+def _defref(c: Any, k: Any) -> float:
+    """DEFINED of a parameter: its (container, key) holds a value (a by-value argument is a one-element list,
+    where ``k in c`` would test the value, not the index)."""
+    if type(c) is list:
+        return -1.0 if 0 <= k < len(c) else 0.0
+    return -1.0 if k in c else 0.0
+
+
 def _loc_store(c: dict, key: str, arr: Any, idx: Any, v: Any, name: str) -> None:
     """``SET name[idx] = v``: the array is, or becomes, an array of locations; one holding numbers refuses it."""
     a = arr if arr is not None else c.get(key)
@@ -330,7 +338,9 @@ def namespace(rt: Runtime) -> dict[str, Any]:
             rt.signal_event(other)
 
     def execute(T: Task, task: Any, prog: str, args: tuple) -> None:
-        rt.start_task(int(task) if task is not None else 0, prog, tuple(([_byval(a)], 0) for a in args))
+        # by value; an argument left blank is undefined in the program, as for CALL
+        rt.start_task(int(task) if task is not None else 0, prog,
+                      tuple((_MISSING_C, "?") if a is None else ([_byval(a)], 0) for a in args))
 
     def abort(T: Task, nums: tuple) -> None:
         for n in nums or (0,):
@@ -573,7 +583,7 @@ def namespace(rt: Runtime) -> dict[str, Any]:
     ns = {"_fn_" + k.replace("$", "s").replace("#", "h").replace(".", "_"): f for k, f in fn.items()}
     ns.update({
         "_G": G, "_FB": _FB, "_static": static, "_arg": arg, "_argarr": argarr, "_arr": _arr, "_ix": _ix, "_IX": _IX,
-        "_encv": _encv, "_MC": _MISSING_C, "_loc_store": _loc_store,
+        "_encv": _encv, "_MC": _MISSING_C, "_loc_store": _loc_store, "_defref": _defref,
         "_str": _str, "_pp": pp_check, "_loc": loc_check, "_dbl": _dbl, "_real": _real, "_f32": f32,
         "_byval": _byval, "_MISSING": (_MISSING_C, "?"), "_call": call, "_progname": progname, "_tick": tick, "_ctick": cond_tick,
         "_halt": halt, "_stop": stop, "_pause": pause, "_type": type_, "_prompt": prompt, "_signal": signal,

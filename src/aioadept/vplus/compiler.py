@@ -289,6 +289,9 @@ class _Gen:
             a = args[0]
             if a[0] == "var":
                 c, key = self.scope(a[1])
+                if a[1] in self.params:
+                    # a parameter's container is a dict, or the one-element list of a value passed by value
+                    return f"_defref({c}, {key})", "num"
                 return f"(-1.0 if {key} in {c} else 0.0)", "num"
             if a[0] == "arr":
                 return f"_defarr(lambda: {self.arr(a[1], False)})", "num"
