@@ -19,7 +19,6 @@ PKG = SRC / "aioadept"
 KNOWN_CYCLES: list[frozenset[str]] = [
     # to be removed by issue 13 item 2/5
     frozenset({"aioadept.record", "aioadept.record.viewer"}),
-    frozenset({"aioadept.vplus.builtins", "aioadept.vplus.iodev", "aioadept.vplus.runtime"}),
 ]
 
 # Dependencies that point the wrong way: (importer prefix, imported prefix). The vision side must not need the

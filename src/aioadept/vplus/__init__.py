@@ -5,6 +5,8 @@
 - :mod:`~aioadept.vplus.loader`, :mod:`~aioadept.vplus.parse`, :mod:`~aioadept.vplus.compiler`: source to
   Python generator functions; :mod:`~aioadept.vplus.runtime`: tasks, scheduler, clock;
   :mod:`~aioadept.vplus.builtins`: functions and instructions; :mod:`~aioadept.vplus.iodev`: TCP;
+  :mod:`~aioadept.vplus.values` and :mod:`~aioadept.vplus.render`: values and output formats, below both (the
+  imports form a DAG); :mod:`~aioadept.vplus.keywords`: the V+ keyword index (a typo vs a gap);
   :mod:`~aioadept.vplus.robot` and :mod:`~aioadept.vplus.locations`: the robot and location values.
 
 docs/vplus.md, "The emulator", says what runs, how it is emulated and what is not supported.

@@ -20,10 +20,15 @@ from aioadept.errors import RobotError
 from aioadept.protocol import ErrorCode
 from aioadept.vplus import errors as E
 from aioadept.vplus.errors import VPlusError, VPlusHalt
-from aioadept.vplus.runtime import _FB, _GOTO, MAX_STRING, Runtime, Task, _Goto, _Missing, f32
+from aioadept.vplus import iodev, status
+from aioadept.vplus.render import _FMT_CACHE, _FMT_RE, _default_number, _fmt_number, _render  # noqa: F401
+from aioadept.vplus.values import _FB, _GOTO, MAX_STRING, _Goto, _LocArray, _Missing, f32  # noqa: F401
+
+# The run time's classes, for annotations only: runtime imports this module, so this one does not import it.
+Runtime = Any
+Task = Any
 
 _NUM_RE = re.compile(r"\s*[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
-_FMT_RE = re.compile(r"([A-Z])(\d+)?(?:\.(\d+))?\Z")
 
 
 def _str(v: Any) -> str:
@@ -35,13 +40,38 @@ def _str(v: Any) -> str:
 
 
 def _real(v: Any) -> Any:
-    """Assignment to a plain name: REAL (float32) for numbers; a location keeps its type (SET optional)."""
+    """Assignment without SET to a plain name: REAL (float32) for numbers. A location needs SET (V+ Language
+    User's Guide v17, p. 111: ``loc_var1 = loc_var2`` "is unacceptable for location and precision-point
+    variables"); the compiler refuses the forms it can see, this the rest."""
     if type(v) is float or type(v) is int:
         _FB[0] = v
         return _FB[0]
     if isinstance(v, str):
         raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* (a string assigned to a real variable)")
-    return v
+    raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* (a location is assigned with SET)")
+
+
+def _defref(c: Any, k: Any) -> float:
+    """DEFINED of a parameter: its (container, key) holds a value (a by-value argument is a one-element list,
+    where ``k in c`` would test the value, not the index)."""
+    if type(c) is list:
+        return -1.0 if 0 <= k < len(c) else 0.0
+    return -1.0 if k in c else 0.0
+
+
+def _loc_store(c: dict, key: str, arr: Any, idx: Any, v: Any, name: str) -> None:
+    """``SET name[idx] = v``: the array is, or becomes, an array of locations; one holding numbers refuses it."""
+    a = arr if arr is not None else c.get(key)
+    if a is None:
+        a = c[key] = _LocArray()
+        a.name = name
+    elif type(a) is not _LocArray:
+        for x in a.values():
+            if type(x) is float or type(x) is int:
+                raise VPlusError(E.ILLEGAL_OPERATION, f"*Illegal operation* (array {name}[] holds numbers: a "
+                                                      "location cannot be stored in it)")
+            break
+    dict.__setitem__(a, idx, v)
 
 
 def _dbl(v: Any) -> float:
@@ -64,8 +94,17 @@ def _arr(container: dict, key: str) -> dict:
     return a
 
 
+def vint(v: float) -> int:
+    """A real used where V+ needs an integer: rounded to the nearest, halves away from zero (V+ Language User's
+    Guide v17, p. 102, "Real and Integer Data Types": "V+ promotes the real to an integer by rounding (not
+    truncation)"; 1.6 is 2). Halves: UNCONFIRMED (the manual does not say), away from zero chosen."""
+    if type(v) is not float and type(v) is not int:
+        raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* (a number is needed)")
+    return int(math.floor(v + 0.5)) if v >= 0 else -int(math.floor(0.5 - v))
+
+
 def _ix(v: float) -> int:
-    i = int(v)
+    i = vint(v)
     if i < 0:
         raise VPlusError(E.ILLEGAL_ARRAY_INDEX, f"*Illegal array index* {v:g}")
     return i
@@ -97,78 +136,6 @@ def _decode(c: dict, k: Any, breaks: str, mode: float) -> str:
     return s[:i]
 
 
-def _fmt_number(v: float, spec: tuple[str, int | None, int | None]) -> str:
-    kind, w, d = spec
-    if kind == "F":
-        s = "%.*f" % (d if d is not None else 2, v)
-    elif kind == "E":
-        s = "%.*E" % (d if d is not None else 6, v)
-    elif kind == "G":
-        s = "%.*G" % (d if d is not None else 6, v)
-    elif kind == "I":
-        s = "%d" % round(v)
-    elif kind == "H":
-        s = "%X" % (int(v) & 0xFFFFFFFF)
-    elif kind == "O":
-        s = "%o" % (int(v) & 0xFFFFFFFF)
-    else:  # D: the default format
-        s = _default_number(v)
-    if w:
-        s = s.rjust(w)
-    return s
-
-
-def _default_number(v: float) -> str:
-    if v == int(v) and abs(v) < 1e9:
-        return "%d" % int(v)
-    s = "%.6g" % v
-    return s
-
-
-_FMT_CACHE: dict[str, tuple] = {}     # format text -> (kind, width, decimals): formats are program constants
-
-
-def _render(items: tuple) -> tuple[str, bool]:
-    """Output items (values and ("fmt", spec) constants) to text; True if /S suppressed the line end."""
-    for it in items:
-        if type(it) is not str:
-            break
-    else:
-        return "".join(items), False        # only strings (WRITE of built lines): nothing to format
-    out: list[str] = []
-    spec: tuple = ("D", None, None)
-    no_eol = False
-    for it in items:
-        if type(it) is tuple and len(it) == 2 and it[0] == "fmt":
-            f = it[1]
-            parsed = _FMT_CACHE.get(f)
-            if parsed is None:
-                m = _FMT_RE.match(f)
-                parsed = _FMT_CACHE[f] = (m.group(1) if m else f[:1], int(m.group(2)) if m and m.group(2) else None,
-                                          int(m.group(3)) if m and m.group(3) else None)
-            kind, num, prec = parsed
-            if kind == "S":
-                no_eol = True
-            elif kind == "X":
-                out.append(" " * (num if num is not None else 1))
-            elif kind == "C":
-                out.append("\r\n" * (num if num is not None else 1))
-            elif kind in ("N", "B", "U"):
-                pass
-            elif kind in ("F", "E", "G", "I", "H", "O", "D"):
-                spec = (kind, num, prec)
-            else:
-                raise VPlusError(E.ILLEGAL_VALUE, f"*Illegal value* (format /{f})")
-            continue
-        if isinstance(it, str):
-            out.append(it)
-        elif isinstance(it, (int, float)):
-            out.append(_fmt_number(float(it), spec))
-        else:
-            out.append(repr(it))
-    return "".join(out), no_eol
-
-
 def _encv(v: Any, spec: tuple) -> str:
     """One value of a compiled $ENCODE with its format (as _render does it)."""
     if type(v) is str:
@@ -188,23 +155,32 @@ def _val(s: str) -> float:
 
 
 def _mid(s: str, first: float, n: float) -> str:
-    i = int(first)
+    i = vint(first)
     if i < 1:
         raise VPlusError(E.ILLEGAL_VALUE, "*Illegal value* ($MID start below 1)")
-    return s[i - 1:i - 1 + max(int(n), 0)]
+    return s[i - 1:i - 1 + max(vint(n), 0)]
 
 
 def _pos(s: str, sub: str, start: float = 1.0) -> float:
-    return float(s.find(sub, max(int(start), 1) - 1) + 1)
+    return float(s.find(sub, max(vint(start), 1) - 1) + 1)
 
 
 def _asc(s: str, i: float = 1.0) -> float:
-    k = int(i)
+    k = vint(i)
     return float(ord(s[k - 1])) if 1 <= k <= len(s) else -1.0
 
 
+def _left(s: str, n: float) -> str:
+    return s[:max(vint(n), 0)]
+
+
+def _right(s: str, n: float) -> str:
+    k = vint(n)
+    return s[-k:] if k > 0 else ""
+
+
 def _chr(n: float) -> str:
-    k = int(n)
+    k = vint(n)
     if not 0 <= k <= 255:
         raise VPlusError(E.ILLEGAL_VALUE, "*Illegal value* ($CHR outside 0..255)")
     return chr(k)
@@ -249,20 +225,25 @@ def namespace(rt: Runtime) -> dict[str, Any]:
         return T.statics.setdefault(prog, {})
 
     def arg(A: tuple, i: int, name: str):
+        # An argument omitted or left blank is undefined in the callee (V+ Language User's Guide v17, p. 45,
+        # "Undefined Arguments"). Each call gets a container of its own: a callee that assigns to it must not
+        # make it defined for the next call (one shared container did).
         if i >= len(A):
-            return (_MISSING_C, name)
+            return (_Missing(), name)
         a = A[i]
-        if type(a) is dict:
+        if type(a) is dict or type(a) is _Missing:
             raise VPlusError(E.ILLEGAL_OPERATION, f"*Illegal operation* (an array passed for {name})")
         if a[0] is _MISSING_C:
-            return (_MISSING_C, name)
+            return (_Missing(), name)
         return a
 
     def argarr(A: tuple, i: int, name: str) -> dict:
         if i >= len(A):
-            return {}
+            return _Missing()         # omitted: undefined in the callee (DEFINED(q[]) is FALSE), its own each call
         a = A[i]
-        if type(a) is not dict:
+        if type(a) is tuple and a[0] is _MISSING_C:
+            return _Missing()         # left blank
+        if type(a) is not dict and type(a) is not _Missing:
             raise VPlusError(E.ILLEGAL_OPERATION, f"*Illegal operation* ({name}[] needs an array argument)")
         return a
 
@@ -314,7 +295,7 @@ def namespace(rt: Runtime) -> dict[str, Any]:
         # SIGNAL n, ...: outputs and soft signals (aioadept.sim.io: numbering, the hand's valves, the change
         # log); an input or a number that is no signal is an error and changes nothing. Zero is ignored.
         try:
-            rt.io.signal([int(n) for n in nums if int(n) != 0], rt.now)
+            rt.io.signal([k for k in map(vint, nums) if k != 0], rt.now)
         except RobotError as exc:
             raise _io_error(exc) from None
 
@@ -357,7 +338,9 @@ def namespace(rt: Runtime) -> dict[str, Any]:
             rt.signal_event(other)
 
     def execute(T: Task, task: Any, prog: str, args: tuple) -> None:
-        rt.start_task(int(task) if task is not None else 0, prog, tuple(([_byval(a)], 0) for a in args))
+        # by value; an argument left blank is undefined in the program, as for CALL
+        rt.start_task(int(task) if task is not None else 0, prog,
+                      tuple((_MISSING_C, "?") if a is None else ([_byval(a)], 0) for a in args))
 
     def abort(T: Task, nums: tuple) -> None:
         for n in nums or (0,):
@@ -466,11 +449,15 @@ def namespace(rt: Runtime) -> dict[str, Any]:
             a[first + i] = float(x) if dbl else f32(x)
 
     def timer_set(n: float, v: float) -> None:
-        rt.timers[int(n)] = rt.now - float(v)
+        # V+ Reference Guide, TIMER instruction: timers 1 to 15; timer 0 is the system clock and cannot be set
+        k = vint(n)
+        if not 1 <= k <= 15:
+            raise VPlusError(E.ILLEGAL_VALUE, f"*Illegal value* (TIMER {k}: the timer number must be 1 to 15)")
+        rt.timers[k] = rt.now - float(v)
 
     # -- functions --------------------------------------------------------------------------------------
     def timer(n: float = 0.0) -> float:
-        k = int(n)
+        k = vint(n)
         if k == -3:
             return rt.now - rt.t0
         if k < 0:
@@ -537,7 +524,10 @@ def namespace(rt: Runtime) -> dict[str, Any]:
 
     def defarr(get) -> float:
         try:
-            return -1.0 if get() is not None else 0.0
+            a = get()
+            if type(a) is _Missing and not a:
+                return 0.0            # an array argument the caller did not pass
+            return -1.0 if a is not None else 0.0
         except KeyError:
             return 0.0
 
@@ -583,19 +573,17 @@ def namespace(rt: Runtime) -> dict[str, Any]:
         "DISTANCE": lambda a, b: L.distance(loc_check(a), loc_check(b)), "SHIFT": shift,
         "RX": L.rx, "RY": L.ry, "RZ": L.rz,
         "SIGN": lambda x: float((x > 0) - (x < 0)), "FRACT": lambda x: x - int(x), "RANDOM": lambda: random.random(),
-        "$TRUNCATE": lambda s: s, "$LEFT": lambda s, n: s[:int(n)], "$RIGHT": lambda s, n: s[-int(n):] if n else "",
+        "$TRUNCATE": lambda s: s, "$LEFT": _left, "$RIGHT": _right,
         "$TOUPPER": str.upper, "$TOLOWER": str.lower, "SPEED": speed_fn,
         "SWITCH": lambda *a: -1.0 if rt.switches.get("DRY.RUN") else 0.0, "BITS": _bits(rt),
         "$TIME": lambda *a: "", "NORM": lambda t: t, "$DEFAULT": lambda *a: "",
     }
 
-    from aioadept.vplus import iodev, status
-
     fn.update(status.functions(rt))      # STATE(), SWITCH(name): the robot's status (aioadept.vplus.status)
     ns = {"_fn_" + k.replace("$", "s").replace("#", "h").replace(".", "_"): f for k, f in fn.items()}
     ns.update({
         "_G": G, "_FB": _FB, "_static": static, "_arg": arg, "_argarr": argarr, "_arr": _arr, "_ix": _ix, "_IX": _IX,
-        "_encv": _encv, "_MC": _MISSING_C,
+        "_encv": _encv, "_MC": _MISSING_C, "_loc_store": _loc_store, "_defref": _defref,
         "_str": _str, "_pp": pp_check, "_loc": loc_check, "_dbl": _dbl, "_real": _real, "_f32": f32,
         "_byval": _byval, "_MISSING": (_MISSING_C, "?"), "_call": call, "_progname": progname, "_tick": tick, "_ctick": cond_tick,
         "_halt": halt, "_stop": stop, "_pause": pause, "_type": type_, "_prompt": prompt, "_signal": signal,

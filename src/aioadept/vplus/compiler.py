@@ -25,6 +25,7 @@ is passed by reference and an expression by value. Arrays are dicts ``index -> v
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass, field
 from typing import Any
@@ -183,8 +184,9 @@ class _Gen:
     def index(self, idx: list) -> str:
         parts = []
         for e in idx:
-            if e[0] == "num":
-                parts.append(repr(int(e[1])))
+            if e[0] == "num" and e[1] >= 0:
+                # rounded, not truncated (V+ Language User's Guide v17, p. 102), as builtins.vint does at run time
+                parts.append(repr(int(math.floor(e[1] + 0.5))))
             else:
                 parts.append(f"_IX[{self.val(e)[0]}]")     # a dict of 0.0..4095.0; _ix() for the rest
         return parts[0] if len(parts) == 1 else "(" + ", ".join(parts) + ")"
@@ -205,6 +207,8 @@ class _Gen:
             return repr(e[1]), "str"
         if k == "var":
             return self.lv(e[1]), self.vtype(e[1])
+        if k == "paren":
+            return self.val(e[1])             # (x) as a CALL argument: its value (passed by value)
         if k == "idx":
             return f"{self.arr(e[1], False)}[{self.index(e[2])}]", self.vtype(e[1])
         if k == "arr":
@@ -285,6 +289,9 @@ class _Gen:
             a = args[0]
             if a[0] == "var":
                 c, key = self.scope(a[1])
+                if a[1] in self.params:
+                    # a parameter's container is a dict, or the one-element list of a value passed by value
+                    return f"_defref({c}, {key})", "num"
                 return f"(-1.0 if {key} in {c} else 0.0)", "num"
             if a[0] == "arr":
                 return f"_defarr(lambda: {self.arr(a[1], False)})", "num"
@@ -373,6 +380,12 @@ class _Gen:
         if name.startswith("#"):
             return f"{t} = _pp({code})"
         if force_loc or typ == "loc":
+            if target[0] == "idx":
+                # an array holds one type (V+ Language User's Guide v17, p. 105): a location array is a _LocArray
+                c, key = ("L", repr(name + "[]")) if name in self.autos else (
+                    ("S", repr(name + "[]")) if name in self.statics else ("G", repr(name + "[]")))
+                arr = self.arr(name, False) if name in self.params else "None"
+                return f"_loc_store({c}, {key}, {arr}, {self.index(target[2])}, _loc({code}), {name!r})"
             return f"{t} = _loc({code})"
         if self.is_double(name):
             return f"{t} = _dbl({code})"
@@ -390,9 +403,19 @@ class _Gen:
 
     # -- statements -----------------------------------------------------------------------------------------
     def declare(self, steps) -> None:
+        executable = False
         for line, st in steps:
-            if st[0] == "LABEL" and st[2] is not None:
+            if st[0] == "LABEL":
+                if st[2] is None:
+                    continue
                 st = st[2]
+            if st[0] in ("AUTO", "LOCAL", "GLOBAL"):
+                if executable:
+                    # V+ Language User's Guide v17, p. 36 ("Program Organization")
+                    raise CompileError(line, f"{st[0]} after an executable instruction (AUTO, LOCAL and GLOBAL "
+                                             "must precede every executable instruction)", st[0])
+            elif st[0] != "NOP":
+                executable = True
             if st[0] in ("AUTO", "LOCAL"):
                 for name, typ, is_arr in st[1]:
                     if name in self.params:
@@ -607,6 +630,9 @@ class _Gen:
             code, typ = self.val(expr)
             if target[0] == "arr":
                 raise CompileError(line, "cannot assign to a whole array", target[1])
+            if not is_set and (typ in ("loc", "pp") or target[1].startswith("#")):
+                # V+ Language User's Guide v17, p. 111 ("Assignment Operator")
+                raise CompileError(line, "a location is assigned with SET (SET name = value)", target[1])
             self.guarded(line, [self.store(target, code, typ, is_set and not target[1].startswith(("$", "#")))])
         elif k == "GOTO":
             if st[1] not in self.labels:

@@ -55,7 +55,7 @@ def text(code: int) -> str:
 
 
 class VPlusError(Exception):
-    """An error of a V+ program: code, text, and where (program, source line, task).
+    """An error of a V+ program: code, text, and where (file, program, source line, task).
 
     ``fatal`` is set once the error has been offered to the task's REACTE program (or there was none): it then
     unwinds the task's call stack and stops the task.
@@ -67,6 +67,7 @@ class VPlusError(Exception):
         self.message = message or text(code)
         self.program = program
         self.line = line
+        self.file: str | None = None
         self.task = task
         self.fatal = False
         super().__init__(str(self))
@@ -74,7 +75,8 @@ class VPlusError(Exception):
     def __str__(self) -> str:
         where = ""
         if self.program is not None:
-            where = f" ({self.program}" + (f", line {self.line}" if self.line else "") + ")"
+            where = (f" ({self.program}" + (f", line {self.line}" if self.line else "")
+                     + (f" of {self.file}" if self.file else "") + ")")
         return f"{self.message}{where}"
 
 

@@ -46,6 +46,7 @@ from typing import Any
 
 from aioadept.vplus import errors as E
 from aioadept.vplus.errors import VPlusError
+from aioadept.vplus.render import _render
 
 _OPT_RE = re.compile(r"/([A-Za-z_]+)\s*([^/\s]*)")
 _READ_MAX = 128
@@ -360,8 +361,6 @@ def attach(rt: Any):
             rt.robot.attach(T.num)
             T.robot_attached = True
             return
-        from aioadept.vplus.builtins import _render
-
         c, k = refs[0]
         mode = int(refs[1][1]) if len(refs) > 1 and refs[1] is not None else 0
         name = _render(text)[0].strip().upper() if text else ""
@@ -392,8 +391,6 @@ def _lun_number(refs: tuple) -> int:
 
 def fopen(rt: Any):
     def io_fopen(T: Any, refs: tuple, text: tuple) -> Generator:
-        from aioadept.vplus.builtins import _render
-
         lun = _lun_number(refs)
         dev = _lun_of(T, lun)
         if dev is None:
@@ -520,8 +517,6 @@ def _no_wait(items: tuple) -> bool:
 
 def write(rt: Any):
     def io_write(T: Any, lun: Any, handle: Any, items: tuple) -> Generator:
-        from aioadept.vplus.builtins import _render
-
         n = int(lun)
         dev = _lun_of(T, n)
         if dev is None:

@@ -6,8 +6,13 @@ not executable, as the controller does when it loads a program with a bad step, 
 
 Data sections, as controller-saved files carry them (one value per line, ``name value...``):
 
-- ``.LOCATIONS``: ``name x y z yaw pitch roll`` (a transformation) or 12 numbers (the 3x4 matrix, rows of the
-  rotation then the position, as V+ ``TRANSB`` orders them); ``#name j1 ... jn`` is a precision point;
+- ``.LOCATIONS``: a transformation as ``STORE`` writes it, ``name`` and the 12 components of its 3x4 matrix
+  *stored by column* (V+ Language Reference Guide, ``TRANSB``/``$TRANSB``: the x, y and z axes of the rotation,
+  then the position), which a controller writes over two lines (the second line has no name); or, as the
+  emulator's own shorthand, ``name x y z yaw pitch roll`` on one line; ``#name j1 ... jn`` is a precision point
+  (its values may also continue on the next line). A location that cannot be read exactly (another count, a
+  matrix whose rotation is not a rotation) is not defined and is reported on its name, never loaded as a
+  different value;
 - ``.PRECISION POINTS``: ``#name j1 ... jn`` (the ``#`` may be omitted);
 - ``.REALS`` and ``.DOUBLES``: ``name value``; ``.STRINGS``: ``$name "text"``.
 
@@ -18,6 +23,7 @@ DeskTop writes between programs, are ignored.
 from __future__ import annotations
 
 import hashlib
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -139,6 +145,7 @@ def load_text(text: str, filename: str, module: Module) -> Module:
 def _parse_text(text: str, filename: str, module: Module) -> Module:
     cur: Program | None = None
     section: str | None = None
+    pending: tuple | None = None         # a location whose values may continue on the next line
     for n, raw in enumerate(text.replace("\r\n", "\n").replace("\r", "\n").split("\n"), 1):
         line = raw.replace("\x0c", "").replace("\x1a", "")
         head = line.strip()
@@ -162,11 +169,27 @@ def _parse_text(text: str, filename: str, module: Module) -> Module:
         if up == ".END":
             if cur is not None:
                 _finish(cur, module)
+            if pending is not None:
+                _flush_location(pending, filename, module)
+                pending = None
             cur, section = None, None
             continue
         if section is not None:
             code = strip_comment(line).strip()
-            if code:
+            if code and section in ("LOC", "PPOINT") and _CONTINUATION.match(code):
+                # the second line of a stored transformation (or a long precision point): values, no name
+                if pending is None:
+                    module.problems.append(LoadProblem(filename, n, f"values without a location name",
+                                                       code.split()[0], None))
+                else:
+                    pending[3].append((n, code))
+                continue
+            if pending is not None:
+                _flush_location(pending, filename, module)
+                pending = None
+            if code and section in ("LOC", "PPOINT"):
+                pending = (section, n, code, [])
+            elif code:
                 try:
                     module.data.append(_data_line(section, code))
                 except (ValueError, VSyntaxError) as exc:
@@ -191,9 +214,45 @@ def _parse_text(text: str, filename: str, module: Module) -> Module:
     if cur is not None:
         module.problems.append(LoadProblem(filename, cur.line, "program not closed by .END", cur.name, cur.name))
         _finish(cur, module)
+    if pending is not None:
+        _flush_location(pending, filename, module)
     if section is not None:
         module.problems.append(LoadProblem(filename, n, "data section not closed by .END", section, None))
     return module
+
+
+_CONTINUATION = re.compile(r"[-+.\d]")
+ROTATION_TOLERANCE = 1e-3
+"""How far a stored rotation may be from orthonormal (STORE writes about 6 significant digits)."""
+
+
+def _flush_location(pending: tuple, filename: str, module: Module) -> None:
+    """A location entry with its continuation lines: its value, or a problem on its name (never a guess)."""
+    section, line, code, more = pending
+    text = " ".join([code] + [c for _, c in more])
+    try:
+        module.data.append(_data_line(section, text))
+    except (ValueError, VSyntaxError) as exc:
+        name = code.split()[0]
+        module.problems.append(LoadProblem(filename, line, f"location {name} not loaded: {exc}", name, None))
+
+
+def _stored_transform(nums: list[float]) -> tuple[float, ...]:
+    """12 numbers as STORE writes them (the 3x4 matrix by column: x axis, y axis, z axis, position) to the
+    row-major 3x4 of :class:`aioadept.vplus.locations.Transform`; ``ValueError`` if the rotation is none."""
+    cols = [nums[0:3], nums[3:6], nums[6:9]]
+    for i in range(3):
+        for j in range(i, 3):
+            dot = sum(cols[i][k] * cols[j][k] for k in range(3))
+            if abs(dot - (1.0 if i == j else 0.0)) > ROTATION_TOLERANCE:
+                raise ValueError("its 3x3 rotation (the first 9 of the 12 values, by column) is not orthonormal")
+    x, y, z = cols
+    det = (x[0] * (y[1] * z[2] - y[2] * z[1]) - y[0] * (x[1] * z[2] - x[2] * z[1])
+           + z[0] * (x[1] * y[2] - x[2] * y[1]))
+    if det < 0:
+        raise ValueError("its 3x3 rotation (the first 9 of the 12 values, by column) is a reflection")
+    p = nums[9:12]
+    return tuple(v for r in range(3) for v in (x[r], y[r], z[r], p[r]))
 
 
 def _finish(prog: Program, module: Module) -> None:
@@ -222,6 +281,8 @@ def _data_line(section: str, code: str) -> tuple[str, str, Any, Any]:
             name = "$" + name
         return ("STRING", name, index, s.group(1))
     nums = [float(v) for v in rest.replace(",", " ").split()]
+    if not all(math.isfinite(v) for v in nums):
+        raise ValueError("a value is not a finite number")
     if section in ("REAL", "DOUBLE"):
         if len(nums) != 1:
             raise ValueError("expected one number")
@@ -232,6 +293,9 @@ def _data_line(section: str, code: str) -> tuple[str, str, Any, Any]:
         if not nums:
             raise ValueError("expected joint values")
         return ("PPOINT", name, index, tuple(nums))
-    if len(nums) not in (6, 12):
-        raise ValueError(f"expected 6 or 12 numbers, got {len(nums)}")
+    if len(nums) == 12:
+        return ("LOC", name, index, _stored_transform(nums))
+    if len(nums) != 6:
+        raise ValueError(f"expected the 12 values of a stored transformation (or x y z yaw pitch roll), "
+                         f"got {len(nums)}")
     return ("LOC", name, index, tuple(nums))

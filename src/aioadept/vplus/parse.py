@@ -21,6 +21,8 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
+from aioadept.vplus import keywords
+
 MAX_NAME = 15
 
 
@@ -300,7 +302,7 @@ class Parser:
             if up in _NOARG_FUNCS:
                 return ("call", up, [])
             if self.at_op("("):
-                raise VSyntaxError(f"unknown function {t.text}", t.text)
+                raise _unknown_function(t.text)
             _check_name(t.text)
             return ("var", norm(t.text))
         raise VSyntaxError(f"unexpected {t.text!r}", t.text)
@@ -359,7 +361,7 @@ def parse_statement(text: str):
     toks = tokenize(text)
     label = None
     if toks and toks[0].kind == "num" and re.fullmatch(r"\d+", toks[0].text):
-        label = int(toks[0].text)
+        label = _label(toks[0])
         toks = toks[1:]
         if not toks:
             return ("LABEL", label, None)
@@ -369,6 +371,19 @@ def parse_statement(text: str):
     if label is not None:
         return ("LABEL", label, stmt)
     return stmt
+
+
+MAX_LABEL = 65535
+
+
+def _label(tok: Tok) -> int:
+    """A step label: an integer 0 to 65535 (V+ Language User's Guide v17, p. 35, "Program Lines")."""
+    if tok.kind != "num" or not re.fullmatch(r"\d+", tok.text):
+        raise VSyntaxError("expected a label number (an integer 0 to 65535)", tok.text)
+    n = int(tok.text)
+    if n > MAX_LABEL:
+        raise VSyntaxError(f"label {n} is outside 0 to {MAX_LABEL}", tok.text)
+    return n
 
 
 def _exprs(p: Parser) -> list:
@@ -420,8 +435,49 @@ def _call_target(p: Parser):
         raise VSyntaxError("expected a program name", t.text)
     args: list = []
     if p.at_op("("):
-        args = p.args()
+        args = _call_args(p)
     return norm(t.text), args
+
+
+def _call_args(p: Parser) -> list:
+    """The argument list of CALL/CALLS: as :meth:`Parser.args`, but a variable in parentheses, ``(x)``, is kept
+    as ``("paren", e)``: V+ passes it by value (V+ Language User's Guide v17, p. 44, "Call by Value")."""
+    start = p.i
+    out = p.args()
+    # mark arguments that are exactly '(' variable ')'; the token positions tell where each argument was
+    depth, arg_no, toks, j = 0, 0, p.t, start + 1
+    first = j
+    marks = set()
+    while j < p.i - 1:
+        tk = toks[j]
+        if tk.kind == "op" and tk.text in "([":
+            depth += 1
+        elif tk.kind == "op" and tk.text in ")]":
+            depth -= 1
+        elif tk.kind == "op" and tk.text == "," and depth == 0:
+            if _parenthesised(toks, first, j):
+                marks.add(arg_no)
+            arg_no, first = arg_no + 1, j + 1
+        j += 1
+    if _parenthesised(toks, first, p.i - 1):
+        marks.add(arg_no)
+    return [("paren", a) if k in marks and a is not None and a[0] in ("var", "idx") else a
+            for k, a in enumerate(out)]
+
+
+def _parenthesised(toks: list[Tok], a: int, b: int) -> bool:
+    """Tokens a..b-1 are one parenthesised group: '(' ... ')' with the first '(' closed by the last ')'."""
+    if b - a < 3 or toks[a].text != "(" or toks[b - 1].text != ")" or toks[a].kind != "op":
+        return False
+    depth = 0
+    for j in range(a, b):
+        if toks[j].kind == "op" and toks[j].text == "(":
+            depth += 1
+        elif toks[j].kind == "op" and toks[j].text == ")":
+            depth -= 1
+            if depth == 0 and j != b - 1:
+                return False
+    return True
 
 
 def _statement(p: Parser):
@@ -439,9 +495,7 @@ def _statement(p: Parser):
             p.expect_op("=")
             return ("ASSIGN", target, p.expr(), False)
     if w not in INSTRUCTIONS:
-        if w in FUNCTIONS or w.startswith(("$", "#")) or nxt is None:
-            raise VSyntaxError(f"not an instruction: {t.text}", t.text)
-        raise VSyntaxError(f"instruction {t.text} is not implemented by the emulator", t.text)
+        raise _unknown_instruction(t.text)
     p.take()
     if w == "SET":
         target = p.lvalue()
@@ -454,10 +508,7 @@ def _statement(p: Parser):
             return ("IF", cond)
         if p.at_word("GOTO"):
             p.take()
-            lab = p.take()
-            if lab.kind != "num":
-                raise VSyntaxError("expected a label number", lab.text)
-            return ("IFGOTO", cond, int(lab.value))
+            return ("IFGOTO", cond, _label(p.take()))
         t2 = p.peek()
         raise VSyntaxError("IF without THEN", t2.text if t2 else "end of line")
     if w in ("ELSE", "END", "DO", "ANY", "RETURN", "RETURNE", "HALT", "STOP", "PAUSE", "BREAK", "BRAKE", "NULL"):
@@ -494,10 +545,7 @@ def _statement(p: Parser):
         p.expect_op(":")
         return ("VALUE", vals)
     if w == "GOTO":
-        lab = p.take()
-        if lab.kind != "num":
-            raise VSyntaxError("expected a label number", lab.text)
-        return ("GOTO", int(lab.value))
+        return ("GOTO", _label(p.take()))
     if w == "CALL":
         name, args = _call_target(p)
         return ("CALL", name, args)
@@ -517,7 +565,7 @@ def _statement(p: Parser):
                 e = ("idx", e[1], idx)
         else:
             raise VSyntaxError("CALLS needs a string variable", t2.text)
-        args = p.args() if p.at_op("(") else []
+        args = _call_args(p) if p.at_op("(") else []
         return ("CALLS", e, args)
     if w in ("EXIT", "NEXT"):
         n = 1
@@ -631,10 +679,36 @@ def _statement(p: Parser):
         p.eq_ends = False
         return ("BITS", first, count, p.expr())
     if w == "TIMER":
+        # TIMER timer_number = time_value: the '=' ends the number's expression (as in BITS)
+        p.eq_ends = True
         n = p.expr()
+        p.eq_ends = False
         p.expect_op("=")
         return ("TIMERSET", n, p.expr())
     raise VSyntaxError(f"instruction {w} is not implemented by the emulator", t.text)  # pragma: no cover
+
+
+def _unknown_instruction(word: str) -> VSyntaxError:
+    """The error for a statement's first word that the emulator does not know: a typo, or a V+ gap (named)."""
+    up = word.upper()
+    if up in keywords.INSTRUCTIONS:
+        return VSyntaxError(f"V+ instruction {up} is not implemented by the emulator "
+                            f"(see {keywords.where(up)})", word)
+    if up in keywords.MONITOR_COMMANDS:
+        return VSyntaxError(f"{up} is a V+ monitor command, not a program instruction "
+                            f"(see {keywords.where(up)})", word)
+    if keywords.is_keyword(up) or up in FUNCTIONS:
+        return VSyntaxError(f"syntax error: {up} is a V+ keyword but not an instruction", word)
+    return VSyntaxError(f"syntax error: {word} is not a V+ keyword", word)
+
+
+def _unknown_function(word: str) -> VSyntaxError:
+    """The error for ``name(`` in an expression where ``name`` is no function the emulator implements."""
+    up = word.upper()
+    if up in keywords.FUNCTIONS:
+        return VSyntaxError(f"V+ function {up} is not implemented by the emulator "
+                            f"(see {keywords.where(up, as_function=True)})", word)
+    return VSyntaxError(f"syntax error: {word} is not a V+ function", word)
 
 
 def _outputs_or_empty(p: Parser) -> list:

@@ -18,35 +18,20 @@ from __future__ import annotations
 import math
 import re
 import struct
-from array import array
 from collections import deque
 from collections.abc import Callable, Generator, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
+from aioadept.vplus import builtins as B
 from aioadept.vplus import errors as E
+from aioadept.vplus import iodev
 from aioadept.vplus.compiler import compile_program
 from aioadept.vplus.errors import VPlusError, VPlusHalt
 from aioadept.vplus.loader import LoadProblem, Module
+from aioadept.vplus.values import _FB, _GOTO, MAX_STRING, _Goto, _LocArray, _Missing, f32  # noqa: F401 (re-exported)
 
-MAX_STRING = 128
 PREEMPT = -1.0
-
-_FB = array("f", [0.0])
-
-
-def f32(x: float) -> float:
-    """A value as a V+ REAL stores it (IEEE single precision)."""
-    _FB[0] = x
-    return _FB[0]
-
-
-class _Goto(BaseException):
-    def __init__(self, pc: int) -> None:
-        self.pc = pc
-
-
-_GOTO = [_Goto(i) for i in range(4096)]
 
 _UNBOUND_RE = re.compile(r"(?:variable|name) '(V_\w+)'")   # unbound local, or a local never assigned
 
@@ -54,10 +39,6 @@ _COMPILED: dict[tuple, tuple] = {}
 """Code objects of compiled programs by their source text (and the DOUBLE names, which change the code): an
 emulator built again from the same files (one per test) only runs the code in a fresh namespace. The code and
 its constants are immutable; each runtime has its own namespace and data."""
-
-
-class _Missing(dict):
-    """The container of an omitted argument: reading it is an undefined value."""
 
 
 # -- clocks ------------------------------------------------------------------------------------------------------
@@ -154,9 +135,8 @@ class Runtime:
 
         for kind, name, index, value in self.module.data:
             if kind == "LOC":
-                v = loc.trans(*value) if len(value) == 6 else loc.Transform.from_matrix(
-                    [list(value[0:3]) + [value[9]], list(value[3:6]) + [value[10]], list(value[6:9]) + [value[11]],
-                     [0, 0, 0, 1]])
+                # six: x y z yaw pitch roll; twelve: the 3x4 matrix row by row (the loader reorders STORE's)
+                v = loc.trans(*value) if len(value) == 6 else loc.Transform(tuple(float(x) for x in value))
             elif kind == "PPOINT":
                 v = loc.ppoint(*value)
             elif kind == "REAL":
@@ -166,7 +146,12 @@ class Runtime:
             if index is None:
                 self.globals[name] = v
             else:
-                self.globals.setdefault(name + "[]", {})[index] = v
+                arr = self.globals.get(name + "[]")
+                if arr is None:
+                    arr = self.globals[name + "[]"] = _LocArray() if kind == "LOC" else {}
+                    if kind == "LOC":
+                        arr.name = name
+                arr[index] = v
 
     def doubles(self) -> set[str]:
         out = {name for kind, name, _, _ in self.module.data if kind == "DOUBLE"}
@@ -245,8 +230,6 @@ class Runtime:
         return f(T, args)
 
     def _release(self, T: Task) -> None:
-        from aioadept.vplus import iodev
-
         iodev.release_task(self, T)
         if T.robot_attached and self.robot is not None:
             T.robot_attached = False
@@ -449,6 +432,8 @@ class Runtime:
         err = self.as_vplus(exc)
         if err.program is None:
             err.program, err.line = program, line
+            prog = self.module.programs.get(program)
+            err.file = prog.file if prog is not None else None     # run-time errors name the file too
         err.task = T.num
         T.last_error = err.code
         if T.reacte is not None and not T.in_reaction:
@@ -491,6 +476,4 @@ class Runtime:
 
     # -- the namespace of generated code ------------------------------------------------------------------
     def _namespace(self) -> dict[str, Any]:
-        from aioadept.vplus import builtins as B
-
         return B.namespace(self)

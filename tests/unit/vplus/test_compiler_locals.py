@@ -165,7 +165,8 @@ def test_encode_with_an_unknown_format_fails_when_it_runs():
 
 
 def test_array_indices_fractional_and_negative():
-    emu = emu_of(".PROGRAM p()\n\ta[2] = 5\n\tr = a[2.7]\n\ti = 5000\n\tb[i] = 1\n\tr2 = b[5000]\n\tq = a[-1]\n.END\n")
+    # a fractional index is rounded (V+ Language User's Guide v17, p. 102): a[2.4] is a[2] (a[2.7] would be a[3])
+    emu = emu_of(".PROGRAM p()\n\ta[2] = 5\n\tr = a[2.4]\n\ti = 5000\n\tb[i] = 1\n\tr2 = b[5000]\n\tq = a[-1]\n.END\n")
     with pytest.raises(VPlusError) as info:
         emu.call("p")
     assert emu.globals["r"] == 5.0 and emu.globals["r2"] == 1.0

@@ -28,7 +28,7 @@ def test_unbalanced_blocks_make_the_program_not_executable():
 
 
 def test_real_is_single_precision_double_is_not():
-    emu = emu_of(".PROGRAM p()\n\tAUTO DOUBLE d\n\tx = 0.1\n\td = 0.1\n\ty = d\n\tGLOBAL DOUBLE g\n\tg = 0.1\n.END\n")
+    emu = emu_of(".PROGRAM p()\n\tAUTO DOUBLE d\n\tGLOBAL DOUBLE g\n\tx = 0.1\n\td = 0.1\n\ty = d\n\tg = 0.1\n.END\n")
     emu.call("p")
     assert emu.globals["x"] != 0.1 and emu.globals["x"] == pytest.approx(0.1, rel=1e-7)
     assert emu.globals["g"] == 0.1
