@@ -352,6 +352,18 @@ def _lun_of(T: Any, lun: Any) -> TcpLun | None:
     return dev if isinstance(dev, TcpLun) else None
 
 
+def _is_disk(dev: Any) -> bool:
+    from aioadept.vplus.disk import DiskLun
+
+    return isinstance(dev, DiskLun)
+
+
+def _disk_of(T: Any, lun: Any) -> Any:
+    """The disk LUN ``lun`` of task ``T`` (aioadept.vplus.disk), or None."""
+    dev = T.luns.get(int(lun)) if lun is not None else None
+    return dev if dev is not None and _is_disk(dev) else None
+
+
 def attach(rt: Any):
     def io_attach(T: Any, refs: tuple, text: tuple) -> Generator:
         if not refs or refs[0] is None:
@@ -373,9 +385,15 @@ def attach(rt: Any):
                 c[k] = float(lun)
         else:
             lun = int(c[k] if c is not None else k)
+        if name == "DISK":
+            from aioadept.vplus.disk import DiskLun
+
+            T.luns[lun] = DiskLun(rt, T, lun)     # files in the emulator's disk folder (aioadept.vplus.disk)
+            T.iostat[lun] = 1
+            return
         if name != "TCP":
             T.iostat[lun] = E.NOT_ATTACHED
-            rt.console(T.num, f"*Device not available* {name!r} (the emulator has TCP only)")
+            rt.console(T.num, f"*Device not available* {name!r} (the emulator has TCP and DISK only)")
             return
         T.luns[lun] = TcpLun(rt, T, lun)
         T.iostat[lun] = 1
@@ -453,6 +471,10 @@ def fopen(rt: Any):
 def fclose(rt: Any):
     def io_fclose(T: Any, refs: tuple, text: tuple) -> Generator:
         lun = _lun_number(refs)
+        disk = _disk_of(T, lun)
+        if disk is not None:
+            T.iostat[lun] = disk.close()
+            return
         dev = _lun_of(T, lun)
         if dev is None:
             T.iostat[lun] = E.NOT_ATTACHED
@@ -478,7 +500,7 @@ def detach(rt: Any):
             return
         lun = _lun_number(refs)
         dev = T.luns.pop(lun, None)
-        if isinstance(dev, TcpLun):
+        if isinstance(dev, TcpLun) or _is_disk(dev):
             dev.close()
         T.iostat[lun] = 1
         return
@@ -490,6 +512,12 @@ def detach(rt: Any):
 def read(rt: Any):
     def io_read(T: Any, lun: Any, handle: tuple | None, mode: float, targets: tuple) -> Generator:
         n = int(lun)
+        disk = _disk_of(T, n)
+        if disk is not None:
+            from aioadept.vplus import disk as D
+
+            D.read(T, disk, targets)
+            return
         dev = _lun_of(T, n)
         if dev is None:
             T.iostat[n] = E.NOT_ATTACHED
@@ -523,6 +551,12 @@ def write(rt: Any):
         from aioadept.vplus.builtins import _render
 
         n = int(lun)
+        disk = _disk_of(T, n)
+        if disk is not None:
+            from aioadept.vplus import disk as D
+
+            D.write(T, disk, items)
+            return
         dev = _lun_of(T, n)
         if dev is None:
             T.iostat[n] = E.NOT_ATTACHED
@@ -576,6 +610,6 @@ def write(rt: Any):
 
 def release_task(rt: Any, T: Any) -> None:
     for dev in list(T.luns.values()):
-        if isinstance(dev, TcpLun):
+        if isinstance(dev, TcpLun) or _is_disk(dev):
             dev.close()
     T.luns.clear()
