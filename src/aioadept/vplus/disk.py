@@ -10,9 +10,9 @@ program. Records are sequential, variable length, each ended by CR LF (WRITE add
 
 The disk is a folder of the host that the user names (``Emulator(disk_dir=...)``, ``aioadept sim --vplus ...
 --disk DIR``; a new temporary folder by default). A file specification ``[unit:][\\path\\]name.ext`` names a file
-in it: the unit letter is ignored (one disk), ``\\`` and ``/`` separate folders, a leading one starts at the
-folder itself (V+'s absolute path on the unit). A name with ``..``, a host path (``/etc/passwd`` resolved
-outside), or a symbolic link that leads out of the folder is refused with IOSTAT ``*Invalid file name*`` and no
+in it: the unit letter is ignored (one disk), ``\\`` (and ``/`` inside a name) separate folders, a leading ``\\``
+starts at the folder itself (V+'s absolute path on the unit). A name with ``..``, a host absolute path
+(``/etc/passwd``), or a symbolic link that leads out of the folder is refused with IOSTAT ``*Invalid file name*`` and no
 file is touched. Error numbers are in :mod:`aioadept.vplus.errors` (UNCONFIRMED, as noted there).
 
 Choices where the guide is silent (docs/vplus.md): a record longer than 128 characters is handed over 128 at a
@@ -54,8 +54,8 @@ class DiskFolder:
         spec = spec.strip()
         if len(spec) >= 2 and spec[1] == ":" and spec[0].isalpha():
             spec = spec[2:]                      # the disk unit (A:, C:, D:): one disk here
-        if not spec or "\0" in spec:
-            return None
+        if not spec or "\0" in spec or spec.startswith("/"):
+            return None                          # a host absolute path (V+ paths use \\): refused
         parts = [p for p in spec.replace("\\", "/").split("/") if p not in ("", ".")]
         if not parts or any(p == ".." for p in parts):
             return None
