@@ -57,9 +57,11 @@ class DiskFolder:
         if not spec or "\0" in spec or spec.startswith("/"):
             return None                          # a host absolute path (V+ paths use \\): refused
         parts = [p for p in spec.replace("\\", "/").split("/") if p not in ("", ".")]
-        if not parts or any(p == ".." for p in parts):
+        if any(p == ".." for p in parts):
             return None
         root = self.root
+        if not parts:
+            return root                          # "\\": the folder itself (a directory read, FOPEND)
         target = root.joinpath(*parts)
         try:
             real = target.resolve()             # follows symbolic links: one leading out is refused
