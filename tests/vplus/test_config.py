@@ -69,3 +69,13 @@ def test_the_python_sim_model_takes_the_same_request():
     assert kin.configuration(ctl.trajectory.end_deg).wrist == -1
     assert ctl.trajectory.end_deg == pytest.approx(joints_after("\tFLIP"), abs=1e-6)
     assert ctl.config_request is None          # consumed by that motion
+
+
+def test_a_configuration_the_joint_limits_exclude_is_refused_before_anything_moves():
+    start = (-30.0, -80.0, 170.0, 10.0, 60.0, 20.0)
+    emu = Emulator.from_source(f".PROGRAM t()\n\tMOVE #PPOINT({', '.join(map(str, start))})\n\tBREAK\n\tBELOW\n"
+                               "\tMOVE TRANS(380, -220, 420, 30, 150, 10)\n.END\n", filename="c.V2", strict=True)
+    with pytest.raises(VPlusError, match="Joint limit"):
+        emu.call("t")
+    assert emu.controller.joints_at(emu.time_s) == pytest.approx(start)
+    assert emu.controller.config_request is None      # the refused motion took the request with it

@@ -339,8 +339,10 @@ class RobotDevice:
 
     def set_duration(self, task: TaskId, seconds: float, *, always: bool = False) -> None:
         """V+ ``DURATION s [ALWAYS]``: the least time of the next (every) motion
-        (:meth:`aioadept.sim.controller.Controller.set_duration`)."""
-        self._check_owner(task)
+        (:meth:`aioadept.sim.controller.Controller.set_duration`). Any task may set it while no other task has the
+        robot attached (the manual's DURATION page)."""
+        if self.owner is not None and self.owner != task:
+            raise VPlusRobotError.of("attached", f"(task {self.owner})")
         try:
             self.controller.set_duration(seconds, always=always)
         except ValueError:
