@@ -24,6 +24,13 @@ def test_radix_constants_hex_binary_octal_and_power_after_an_operand():
     assert (g["x"], g["y"], g["z"], g["w"], g["v"], g["u"]) == (0x23FF, 9.0, 0o346, 8.0, 9.0, 16.0)
 
 
+def test_a_binary_constant_has_at_most_8_bits_and_d_is_a_double_integer():
+    g = run("\tGLOBAL DOUBLE dd\n\tdd = ^D20000001\n\tb = ^B11111111", robot=False).globals
+    assert g["b"] == 255.0 and g["dd"] == 20000001.0      # a REAL would hold 20000000
+    emu = Emulator.from_source(".PROGRAM t()\n\tx = ^B111111111\n.END\n", filename="w.V2", robot=False)
+    assert [(p.line, p.word) for p in emu.problems] == [(2, "^B111111111")]
+
+
 def test_a_comment_after_the_program_line_may_hold_parentheses():
     emu = emu_of(".PROGRAM p(a, b) ; pick (fast) and place\n\ta = b+1\n.END\n", robot=False)
     assert emu.call("p", 0, 4).args == (5.0, 4.0)

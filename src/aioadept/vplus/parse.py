@@ -44,7 +44,7 @@ def norm(name: str) -> str:
 _TOKEN = re.compile(r"""
     (?P<ws>\s+)
   | (?P<num>(?:\d+\.?\d*|\.\d+)(?:[Ee][+-]?\d+)?)
-  | (?P<hex>\^(?:[Hh][0-9A-Fa-f]+|[Bb][01]+|[0-7]+))
+  | (?P<hex>\^(?:[Hh][0-9A-Fa-f]+|[Bb][01]+|[Dd]\d+|[0-7]+))
   | (?P<str>"[^"]*")
   | (?P<asc>'.)
   | (?P<name>[$#]?[A-Za-z][A-Za-z0-9._]*)
@@ -75,14 +75,18 @@ def tokenize(text: str) -> list[Tok]:
         if kind == "num":
             out.append(Tok("num", s, float(s)))
         elif kind == "hex":
-            # V+ radix constants (Language User's Guide, "Numeric Representation"): ^H hexadecimal, ^B binary,
-            # ^ and digits octal. Right after an operand, '^' is the power operator instead (x^2, a[1]^2).
+            # V+ radix constants (Language User's Guide v17 p. 102, "Numeric Representation"): ^H hexadecimal,
+            # ^B binary (at most 8 bits), ^ and digits octal, ^D a double-precision integer. Right after an
+            # operand, '^' is the power operator instead (x^2, a[1]^2).
             prev = out[-1] if out else None
             if prev is not None and (prev.kind in ("num", "str", "name") or prev.text in (")", "]")):
                 out.append(Tok("op", "^"))
                 pos = m.start() + 1
                 continue
-            digits, base = (s[2:], 16) if s[1] in "Hh" else (s[2:], 2) if s[1] in "Bb" else (s[1:], 8)
+            radix = s[1].upper()
+            digits, base = (s[2:], {"H": 16, "B": 2, "D": 10}[radix]) if radix in "HBD" else (s[1:], 8)
+            if radix == "B" and len(digits) > 8:
+                raise VSyntaxError("a binary constant has at most 8 bits", s)
             out.append(Tok("num", s, float(int(digits, base))))
         elif kind == "asc":
             out.append(Tok("num", s, float(ord(s[1]))))
