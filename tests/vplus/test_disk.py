@@ -61,11 +61,18 @@ def test_reading_a_file_the_user_put_there_and_deleting_it(tmp_path):
 \tFOPEND (dl) "parts\\\\"
 \tREAD (dl) $d
 \tnd = IOSTAT(dl)
+\tFCLOSE (dl)
+\tFOPENW (dl) "longname9.txt"
+\tlong = IOSTAT(dl)
+\tFOPENW (dl) "name.text"
+\tlongext = IOSTAT(dl)
 """).globals
     assert (g["$a"], g["$b"]) == ("a1", "b2")
     assert g["missing"] == E.NONEXISTENT_FILE and g["del"] == 1
     assert not (tmp_path / "disk" / "parts" / "list.dat").exists()
     assert g["nd"] == E.END_OF_FILE          # the folder is empty now: the directory read ends at once
+    assert g["long"] == g["longext"] == E.ILLEGAL_FILE_NAME        # names are 8.3 (User's Guide p. 216)
+    assert sorted(p.name for p in (tmp_path / "disk").iterdir()) == ["parts"]
 
 
 @pytest.mark.parametrize("spec", ["..\\\\secret.txt", "sub\\\\..\\\\..\\\\secret.txt", "/etc/passwd", "link\\\\secret.txt",

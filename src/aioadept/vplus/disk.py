@@ -15,6 +15,8 @@ starts at the folder itself (V+'s absolute path on the unit). A name with ``..``
 (``/etc/passwd``), or a symbolic link that leads out of the folder is refused with IOSTAT ``*Invalid file name*`` and no
 file is touched. Error numbers are in :mod:`aioadept.vplus.errors` (UNCONFIRMED, as noted there).
 
+A file name is 1 to 8 characters with an extension of 0 to 3 (p. 216); a longer one is ``*Invalid file name*``.
+
 Choices where the guide is silent (docs/vplus.md): a record longer than 128 characters is handed over 128 at a
 time; a directory record is ``name.ext size`` (UNCONFIRMED format); ``FOPEN_`` on a LUN that has a file open is
 an error (close it first).
@@ -95,7 +97,7 @@ class DiskLun:
         if self.file is not None or self.mode == "D":
             return E.FILE_IN_USE
         path = self.folder.path(spec.split()[0] if spec.split() else "")
-        if path is None:
+        if path is None or (how != "D" and not _dos_name(path.name)):
             return E.ILLEGAL_FILE_NAME
         if how == "D":
             target = path if path.is_dir() else path.parent
@@ -170,7 +172,7 @@ class DiskLun:
     def delete(self, spec: str) -> int:
         """FDELETE: remove a file of the folder (not one open for write anywhere)."""
         path = self.folder.path(spec.split()[0] if spec.split() else "")
-        if path is None:
+        if path is None or not _dos_name(path.name):
             return E.ILLEGAL_FILE_NAME
         if path in self.folder.writers or any(lun.path == path for lun in _open_luns(self.rt)):
             return E.FILE_IN_USE
@@ -181,6 +183,12 @@ class DiskLun:
         except OSError:
             return E.DEVICE_ERROR
         return 1
+
+
+def _dos_name(name: str) -> bool:
+    """A V+ file name: 1 to 8 characters, an extension of 0 to 3 (User's Guide v17 p. 216)."""
+    base, dot, ext = name.partition(".")
+    return 1 <= len(base) <= 8 and len(ext) <= 3 and "." not in ext
 
 
 def _open_luns(rt: Any) -> list[DiskLun]:
