@@ -631,7 +631,7 @@ def namespace(rt: Runtime) -> dict[str, Any]:
         "_wait_event": wait_event, "_set_event": set_event, "_execute": execute, "_abort": abort, "_kill": kill,
         "_cycle_end": cycle_end, "_reacte": reacte, "_robot": robot, "_brake": brake, "_speed": speed,
         "_accel": accel, "_tool": tool, "_duration": duration, "_config": config,
-        "_disk_open": disk.open_(rt), "_decompose": decompose, "_switch": switch, "_timer_set": timer_set,
+        "_disk_open": lambda T, word, lun, items: disk.open_file(T, word, lun, _render(items)[0] if items else ""), "_decompose": decompose, "_switch": switch, "_timer_set": timer_set,
         "_decode": _decode, "_encode": _encode, "_defined": defined, "_defarr": defarr, "_last": last,
         "_fn": fn, "_compose": compose, "_fmod": math.fmod, "_err": err, "_Goto": _Goto, "_GOTO": _GOTO,
         "_io_attach": iodev.attach(rt), "_io_detach": iodev.detach(rt), "_io_fclose": iodev.fclose(rt),

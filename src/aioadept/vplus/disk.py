@@ -195,34 +195,24 @@ def _open_luns(rt: Any) -> list[DiskLun]:
     return [d for T in rt.tasks.values() for d in T.luns.values() if isinstance(d, DiskLun) and d.path is not None]
 
 
-def open_(rt: Any):
-    """``_disk_open(T, word, lun, items)``: FOPENR, FOPENW, FOPENA, FOPEND, FDELETE on a disk LUN."""
-    def disk_open(T: Any, word: str, lun: Any, items: tuple) -> None:
-        from aioadept.vplus.builtins import _render
-
-        n = int(lun)
-        dev = T.luns.get(n)
-        if not isinstance(dev, DiskLun):
-            T.iostat[n] = E.NOT_ATTACHED
-            return
-        spec = _render(items)[0] if items else ""
-        if word == "FDELETE":
-            T.iostat[n] = dev.delete(spec)
-        else:
-            T.iostat[n] = dev.open(word[-1], spec)
-
-    return disk_open
+def open_file(T: Any, word: str, lun: Any, spec: str) -> None:
+    """FOPENR, FOPENW, FOPENA, FOPEND, FDELETE (``word``) of the file ``spec`` on disk LUN ``lun``: IOSTAT."""
+    n = int(lun)
+    dev = T.luns.get(n)
+    if not isinstance(dev, DiskLun):
+        T.iostat[n] = E.NOT_ATTACHED
+        return
+    T.iostat[n] = dev.delete(spec) if word == "FDELETE" else dev.open(word[-1], spec)
 
 
 def read(T: Any, dev: DiskLun, targets: tuple) -> None:
+    """READ (dlun) $s, ...: the next record into the first target (the others get "")."""
     st, rec = dev.read()
     for i, (c, k) in enumerate(targets):
         c[k] = rec if i == 0 else ""
     T.iostat[dev.lun] = st
 
 
-def write(T: Any, dev: DiskLun, items: tuple) -> None:
-    from aioadept.vplus.builtins import _render
-
-    text, no_eol = _render(items)
-    T.iostat[dev.lun] = dev.write(text if no_eol else text + "\r\n")
+def write(T: Any, dev: DiskLun, text: str) -> None:
+    """WRITE (dlun) ...: ``text`` is the rendered record with its line end (or without, after ``/S``)."""
+    T.iostat[dev.lun] = dev.write(text)

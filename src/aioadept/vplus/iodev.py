@@ -555,7 +555,8 @@ def write(rt: Any):
         if disk is not None:
             from aioadept.vplus import disk as D
 
-            D.write(T, disk, items)
+            text, no_eol = _render(items)
+            D.write(T, disk, text if no_eol else text + "\r\n")
             return
         dev = _lun_of(T, n)
         if dev is None:
