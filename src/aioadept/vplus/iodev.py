@@ -1,5 +1,7 @@
 """V+ I/O instructions on logical units: ATTACH, DETACH, FOPEN, FCLOSE, READ, WRITE, and the TCP device.
 
+A disk LUN (``ATTACH (lun, 4) "DISK"``) is :mod:`aioadept.vplus.disk`'s: READ, WRITE, FCLOSE and DETACH hand it over.
+
 (Over 500 lines because the TCP device is one model: what a READ hands over and in which order, the output
 buffers, no-wait writes and closing one client all share its connection table. Seam for a split: ``Network``'s
 fault injection.)
