@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import logging
+import os
 import signal
 import sys
 
@@ -130,6 +131,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --vplus: FOPEN /LOCAL_PORT VPORT binds HOSTPORT instead (0: ephemeral; repeatable)")
     v.add_argument("--vplus-cycle", type=float, default=0.016, dest="vplus_cycle", metavar="SECONDS",
                    help="with --vplus: the trajectory cycle that WAIT waits for")
+    v.add_argument("--disk", metavar="DIR", default=None,
+                   help="with --vplus: the folder that holds the program's disk files (FOPENR, FOPENW, ...); "
+                        "nothing outside it is reachable; default a new temporary folder")
     return p
 
 
@@ -245,8 +249,10 @@ def parse_args(parser: argparse.ArgumentParser, argv: list[str] | None) -> argpa
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parse_args(parser, argv)
-    if args.vplus is None and (args.run or args.map_port):
-        parser.error("--run and --map-port need --vplus")
+    if args.vplus is None and (args.run or args.map_port or args.disk):
+        parser.error("--run, --map-port and --disk need --vplus")
+    if args.disk is not None and os.path.exists(args.disk) and not os.path.isdir(args.disk):
+        parser.error(f"--disk {args.disk}: not a folder")
     if args.vplus is not None:
         if not args.run:
             parser.error("--vplus needs --run PROGRAM")

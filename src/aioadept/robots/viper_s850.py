@@ -311,9 +311,29 @@ def _matches(c: Configuration, want: Configuration) -> bool:
                                                         (c.wrist, want.wrist)))
 
 
+@dataclass(frozen=True, slots=True)
+class ConfigRequest:
+    """A configuration the next motion must end in: V+ ``LEFTY``/``RIGHTY`` (``shoulder`` -1/+1), ``BELOW``/
+    ``ABOVE`` (``elbow`` -1/+1), ``FLIP``/``NOFLIP`` (``wrist`` -1/+1), ``SINGLE`` (``single``: J6 within
+    -180..180 deg). 0 (or False) leaves that choice to the seed, as without a request.
+
+    Which sign is which V+ word is docs/vplus.md's "Configuration" (UNCONFIRMED for LEFTY/RIGHTY on this arm)."""
+
+    shoulder: int = 0
+    elbow: int = 0
+    wrist: int = 0
+    single: bool = False
+
+    def changes(self, joints_deg: Sequence[float]) -> bool:
+        """True if ``joints_deg`` is not in the requested configuration (a flag on its singularity matches)."""
+        c = configuration(joints_deg)
+        return not _matches(c, Configuration(self.shoulder, self.elbow, self.wrist))
+
+
 def inverse(pose: Pose, current_joints_deg: Sequence[float], tool: Pose = NULL, *,
             limits: JointLimits = VIPER_S850_LIMITS,
-            jump: JumpLimit | None = DEFAULT_JUMP_LIMIT) -> tuple[float, ...]:
+            jump: JumpLimit | None = DEFAULT_JUMP_LIMIT,
+            config: ConfigRequest | None = None) -> tuple[float, ...]:
     """Inverse kinematics: joints (deg) that put the tool at ``pose``, continuing from ``current_joints_deg``.
 
     Choice of solution, as V+ does it and then safer:
@@ -331,6 +351,10 @@ def inverse(pose: Pose, current_joints_deg: Sequence[float], tool: Pose = NULL, 
       than the Cartesian size of the move (seed pose to ``pose``) justifies, the target is refused with
       ``RobotError(JOINT_JUMP)`` and nothing moves. ``jump=None`` turns the check off.
 
+    - ``config`` (V+ ``LEFTY`` ... ``SINGLE``, :class:`ConfigRequest`): each flag it sets replaces the seed's, so the
+      arm changes configuration during this motion; a change asked for is not a jump (the jump check is skipped
+      when the request differs from the seed's configuration). ``single`` keeps J6 within -180..180 deg.
+
     Raises ``RobotError`` with ``OUT_OF_REACH`` when no allowed configuration reaches the pose, ``JOINT_LIMIT``
     when its solution lies outside the joint limits, ``JOINT_JUMP`` as above, ``ILLEGAL_VALUE`` for a pose that
     is not finite.
@@ -344,12 +368,19 @@ def inverse(pose: Pose, current_joints_deg: Sequence[float], tool: Pose = NULL, 
     if not np.isfinite(m).all():
         raise RobotError(ErrorCode.ILLEGAL_VALUE, "location is not finite")
     want = _free_configuration(cur)
+    changing = False
+    lo, hi = limits.min_deg, limits.max_deg
+    if config is not None:
+        # a change asked for (another configuration, SINGLE unwinding J6) is not a jump nobody asked for
+        changing = config.changes(cur) or (config.single and abs(cur[5]) > 180.0 + 1e-9)
+        want = Configuration(config.shoulder or want.shoulder, config.elbow or want.elbow, config.wrist or want.wrist)
+        if config.single:
+            lo, hi = lo[:5] + (max(lo[5], -180.0),), hi[:5] + (min(hi[5], 180.0),)
     sols = _solutions_rad(m, math.radians(cur[3]), want)
 
     best: list[float] | None = None
     best_cost = math.inf
     matched_config = False
-    lo, hi = limits.min_deg, limits.max_deg
     for sol, c in sols:
         if not _matches(c, want):
             continue
@@ -375,7 +406,7 @@ def inverse(pose: Pose, current_joints_deg: Sequence[float], tool: Pose = NULL, 
                 deg = [math.degrees(a) for a in sol]
                 limits.check([d + 360.0 * round((cur[i] - d) / 360.0) for i, d in enumerate(deg)])
         raise RobotError(ErrorCode.JOINT_LIMIT, "no solution within the joint limits")
-    if jump is not None:
+    if jump is not None and not changing:
         _check_jump(best, cur, m, tool, limits, jump)
     return tuple(best)
 

@@ -54,6 +54,7 @@ It raises :class:`aioadept.errors.RobotError` to answer an ``error`` ack.
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from collections.abc import Generator, Hashable, Iterable, Sequence
 from dataclasses import dataclass
@@ -159,6 +160,12 @@ class Controller:
         self.always_speed_pct = 100.0
         self.pending_speed_pct: float | None = None
         self.accel_pct = 100.0
+        self.config_request: kin.ConfigRequest | None = None
+        """V+ LEFTY/RIGHTY/ABOVE/BELOW/FLIP/NOFLIP/SINGLE: the configuration the next motion to a pose ends in
+        (:meth:`request_config`); consumed by the next motion instruction, as a one-shot SPEED."""
+        self.always_duration_s = 0.0
+        self.pending_duration_s: float | None = None
+        """V+ DURATION [ALWAYS]: the least time (s, robot time) of the next (every) motion."""
         self.io = (io or DigitalIO()).scaled(time_scale, instant)  # digital I/O and the hand: the one model
         self.signals = self.io.values  # signal states by number: read them; change them through self.io
         self.now_s = 0.0
@@ -477,9 +484,41 @@ class Controller:
         self.pending_speed_pct = None
         return min(program * self.monitor_speed_pct / 100.0, self.max_speed_pct)
 
+    def request_config(self, *, shoulder: int = 0, elbow: int = 0, wrist: int = 0, single: bool | None = None) -> None:
+        """V+ ``RIGHTY``/``LEFTY`` (shoulder +1/-1), ``ABOVE``/``BELOW`` (elbow +1/-1), ``NOFLIP``/``FLIP`` (wrist
+        +1/-1), ``SINGLE``/``MULTIPLE`` (single True/False): the next motion to a pose ends in that configuration
+        (:class:`aioadept.robots.viper_s850.ConfigRequest`). Requests add up until a motion takes them. The Python
+        sim's skills do not call it (the wire protocol has no configuration skill); the model and V+ do."""
+        r = self.config_request or kin.ConfigRequest()
+        self.config_request = kin.ConfigRequest(shoulder or r.shoulder, elbow or r.elbow, wrist or r.wrist,
+                                                r.single if single is None else single)
+
+    def take_config(self) -> kin.ConfigRequest | None:
+        """The configuration request for this motion, consumed (as the one-shot speed)."""
+        r, self.config_request = self.config_request, None
+        return r
+
+    def set_duration(self, seconds: float, *, always: bool = False) -> None:
+        """V+ ``DURATION s [ALWAYS]``: the next (every) motion takes at least ``s`` seconds at 100 % monitor speed
+        (slower monitor speed stretches it as every motion time); 0 turns it off. Raises ``ValueError`` for a
+        negative or non-finite time."""
+        if not (math.isfinite(seconds) and seconds >= 0):
+            raise ValueError(f"DURATION {seconds!r}: expected a time >= 0 s")
+        if always:
+            self.always_duration_s, self.pending_duration_s = float(seconds), None
+        else:
+            self.pending_duration_s = float(seconds)
+
+    def take_duration_s(self) -> float:
+        """The least duration (robot time) of this motion, consuming a one-shot DURATION."""
+        d = self.always_duration_s if self.pending_duration_s is None else self.pending_duration_s
+        self.pending_duration_s = None
+        return d * 100.0 / self.monitor_speed_pct
+
     def move_joints(self, target_deg: Sequence[float]) -> SkillGen:
         """Generator for skills: check the path, wait for a motion slot, start the motion (V+ ``MOVE``)."""
         speed = self.take_speed_pct()
+        least = self.take_duration_s()
         target = tuple(float(v) for v in target_deg)
         start = self.trajectory.end_deg
         # Both ends inside the limit box: the joint-space segment between them is too (the box is convex).
@@ -491,7 +530,7 @@ class Controller:
             if ready is None or ready <= self.now_s:
                 break
             yield ready
-        self.trajectory.add(target, self.now_s, speed_pct=speed, accel_pct=self.accel_pct)
+        self.trajectory.add(target, self.now_s, speed_pct=speed, accel_pct=self.accel_pct, min_duration_s=least)
         self.io.motion_started(self.now_s)  # a deferred OPEN/CLOSE/RELAX acts as the motion starts
         return None
 
@@ -499,9 +538,10 @@ class Controller:
         """Generator for skills: inverse kinematics from the planned end, then :meth:`move_joints`."""
         try:
             target = kin.inverse(pose, self.trajectory.end_deg, self.tool, limits=self.joint_limits,
-                                 jump=self.jump_limit)
+                                 jump=self.jump_limit, config=self.take_config())
         except RobotError:
-            self.take_speed_pct()  # the failed motion instruction still consumes SPEED
+            self.take_speed_pct()  # the failed motion instruction still consumes SPEED (and DURATION)
+            self.take_duration_s()
             raise
         return (yield from self.move_joints(target))
 
@@ -520,13 +560,18 @@ class Controller:
         """Generator for skills: V+ ``MOVES``. Consume the one-shot speed, check the whole line (refused before
         anything moves), wait for a motion slot as :meth:`move_joints`, start the line."""
         speed = self.take_speed_pct()  # a refused motion instruction consumes SPEED too
+        least = self.take_duration_s()
+        config = self.take_config()
+        if config is not None and config.changes(self.trajectory.end_deg):
+            # V+ changes configuration only in a joint-interpolated motion; a line cannot (UNCONFIRMED code)
+            raise RobotError(ErrorCode.OUT_OF_REACH, "configuration change asked for a straight-line motion")
         path = self.plan_line(pose)
         while True:
             ready = self.trajectory.ready_s()
             if ready is None or ready <= self.now_s:
                 break
             yield ready
-        self.trajectory.add_line(path, self.now_s, speed_pct=speed, accel_pct=self.accel_pct)
+        self.trajectory.add_line(path, self.now_s, speed_pct=speed, accel_pct=self.accel_pct, min_duration_s=least)
         self.io.motion_started(self.now_s)  # a deferred OPEN/CLOSE/RELAX acts as the motion starts, as for MOVE
         return None
 

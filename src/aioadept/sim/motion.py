@@ -166,6 +166,13 @@ def plan_duration(delta_deg: Sequence[float], speed_fraction: float, *, limits: 
     return duration, min(ramp, duration / 2.0)
 
 
+def _at_least(duration_s: float, min_duration_s: float) -> float:
+    """V+ DURATION: a motion shorter than ``min_duration_s`` is slowed to take that long (the same ramps, a lower
+    cruise: "approximately" the duration, as the V+ Language Reference Guide's DURATION page says); a motion that
+    does not move stays 0."""
+    return max(duration_s, min_duration_s) if duration_s > 0 else duration_s
+
+
 class Trajectory:
     """The arm's joint trajectory: where it is at any time, and the motions planned ahead.
 
@@ -258,7 +265,7 @@ class Trajectory:
         self._base_t = tuple(float(v) for v in self._base)
 
     def add(self, target_deg: Sequence[float], t_s: float, *, speed_pct: float,
-            accel_pct: float = 100.0) -> Segment:
+            accel_pct: float = 100.0, min_duration_s: float = 0.0) -> Segment:
         """Plan a joint move from :attr:`end_deg` to ``target_deg``, issued at ``t_s``.
 
         If a motion is still executing, the new one blends into it (starts as it begins to decelerate);
@@ -268,6 +275,7 @@ class Trajectory:
         start = self.end_deg
         delta = np.subtract(target_deg, start)
         duration, ramp = plan_duration(delta, speed_pct / 100.0, limits=self.limits, accel_fraction=accel_pct / 100.0)
+        duration = _at_least(duration, min_duration_s)
         if self.instant:
             duration, ramp = 0.0, 0.0
         else:
@@ -282,7 +290,8 @@ class Trajectory:
         self._segments.append(seg)
         return seg
 
-    def add_line(self, path: LinePath, t_s: float, *, speed_pct: float, accel_pct: float = 100.0) -> Segment:
+    def add_line(self, path: LinePath, t_s: float, *, speed_pct: float, accel_pct: float = 100.0,
+                 min_duration_s: float = 0.0) -> Segment:
         """Plan a straight-line motion along ``path`` (from :func:`plan_line`, which must start at :attr:`end_deg`),
         issued at ``t_s``; blending and start time as :meth:`add`."""
         self._fold(t_s)
@@ -291,6 +300,7 @@ class Trajectory:
         duration, ramp = line_duration(path, speed_pct / 100.0, max_joint_speed_deg_s=self.limits.max_speed_deg_s,
                                        ramp_s=self.limits.ramp_s, cartesian=self.cartesian,
                                        accel_fraction=accel_pct / 100.0)
+        duration = _at_least(duration, min_duration_s)
         if self.instant:
             duration, ramp = 0.0, 0.0
         else:

@@ -20,7 +20,7 @@ from aioadept.errors import RobotError
 from aioadept.protocol import ErrorCode
 from aioadept.vplus import errors as E
 from aioadept.vplus.errors import VPlusError, VPlusHalt
-from aioadept.vplus import iodev, status
+from aioadept.vplus import disk, iodev, status
 from aioadept.vplus.render import _FMT_CACHE, _FMT_RE, _default_number, _fmt_number, _render  # noqa: F401
 from aioadept.vplus.values import _FB, _GOTO, MAX_STRING, _Goto, _LocArray, _Missing, f32  # noqa: F401
 
@@ -184,6 +184,26 @@ def _chr(n: float) -> str:
     if not 0 <= k <= 255:
         raise VPlusError(E.ILLEGAL_VALUE, "*Illegal value* ($CHR outside 0..255)")
     return chr(k)
+
+
+def _truncate(s: str) -> str:
+    """$TRUNCATE(string): the characters before the first ASCII NUL (all of them if there is none)."""
+    if type(s) is not str:
+        raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* ($TRUNCATE needs a string)")
+    return s.split("\0", 1)[0]
+
+
+def _bmask(*bits: float) -> float:
+    """BMASK(bit, ...): a value with each given bit set; bits are numbered 1 (least significant) to 32."""
+    v = 0
+    for b in bits:
+        if b is None:
+            continue
+        k = round(b)
+        if not 1 <= k <= 32:
+            raise VPlusError(E.ILLEGAL_VALUE, f"*Illegal value* (BMASK bit {b:g} outside 1..32)")
+        v |= 1 << (k - 1)
+    return float(v)
 
 
 def _io_error(exc: RobotError) -> VPlusError:
@@ -408,7 +428,15 @@ def namespace(rt: Runtime) -> dict[str, Any]:
             return drive(T, r.depart(n, float(args[0]), straight=(kind == "DEPARTS")))
         if kind == "DELAY":
             return drive(T, r.delay(n, float(args[0])))
+        if kind in ("MOVET", "MOVEST"):
+            return drive(T, r.movet(n, args[0], float(args[1]), straight=(kind == "MOVEST")))
         return drive(T, r.break_())
+
+    def duration(T: Task, v: float, always: bool) -> None:
+        robot_of(T).set_duration(T.num, float(v), always=always)
+
+    def config(T: Task, word: str) -> None:
+        robot_of(T).request_config(T.num, word)
 
     def hand(T: Task, kind: str) -> Generator:
         r = robot_of(T)
@@ -573,7 +601,7 @@ def namespace(rt: Runtime) -> dict[str, Any]:
         "DISTANCE": lambda a, b: L.distance(loc_check(a), loc_check(b)), "SHIFT": shift,
         "RX": L.rx, "RY": L.ry, "RZ": L.rz,
         "SIGN": lambda x: float((x > 0) - (x < 0)), "FRACT": lambda x: x - int(x), "RANDOM": lambda: random.random(),
-        "$TRUNCATE": lambda s: s, "$LEFT": _left, "$RIGHT": _right,
+        "$TRUNCATE": _truncate, "BMASK": _bmask, "NULL": lambda: L.NULL, "$LEFT": _left, "$RIGHT": _right,
         "$TOUPPER": str.upper, "$TOLOWER": str.lower, "SPEED": speed_fn,
         "SWITCH": lambda *a: -1.0 if rt.switches.get("DRY.RUN") else 0.0, "BITS": _bits(rt),
         "$TIME": lambda *a: "", "NORM": lambda t: t, "$DEFAULT": lambda *a: "",
@@ -591,6 +619,8 @@ def namespace(rt: Runtime) -> dict[str, Any]:
         "_wait_event": wait_event, "_set_event": set_event, "_execute": execute, "_abort": abort, "_kill": kill,
         "_cycle_end": cycle_end, "_reacte": reacte, "_robot": robot, "_brake": brake, "_speed": speed,
         "_accel": accel, "_tool": tool, "_decompose": decompose, "_switch": switch, "_timer_set": timer_set,
+        "_duration": duration, "_config": config,
+        "_disk_open": lambda T, word, lun, items: disk.open_file(T, word, lun, _render(items)[0] if items else ""),
         "_decode": _decode, "_encode": _encode, "_defined": defined, "_defarr": defarr, "_last": last,
         "_fn": fn, "_compose": compose, "_fmod": math.fmod, "_err": err, "_Goto": _Goto, "_GOTO": _GOTO,
         "_io_attach": iodev.attach(rt), "_io_detach": iodev.detach(rt), "_io_fclose": iodev.fclose(rt),

@@ -42,6 +42,7 @@ async def run(args: argparse.Namespace, options: Any) -> int:
     from aioadept.vplus import Emulator, RealClock
     from aioadept.vplus.iodev import Network
     from aioadept.vplus.loader import load_files
+    from aioadept.vplus.parse import norm
     from aioadept.vplus.robot import RobotDevice
 
     port_map = parse_port_map(args.map_port)
@@ -53,9 +54,15 @@ async def run(args: argparse.Namespace, options: Any) -> int:
     module = load_files(args.vplus)
     clock = RealClock()
     wall0 = time.time() - clock.now
-    emu = Emulator(module, robot=RobotDevice(ctl), clock=clock, console=console, cycle_s=args.vplus_cycle)
+    emu = Emulator(module, robot=RobotDevice(ctl), clock=clock, console=console, cycle_s=args.vplus_cycle,
+                   disk_dir=getattr(args, "disk", None))
     for p in emu.problems:
         print(f"aioadept sim: {p}", file=sys.stderr, flush=True)
+    run_name = norm(args.run)
+    if run_name not in module.programs:
+        print(f"aioadept sim: --run {args.run}: no such program in {', '.join(args.vplus)}", file=sys.stderr,
+              flush=True)
+        return 2
 
     publisher = None
     state = "none"
@@ -65,7 +72,10 @@ async def run(args: argparse.Namespace, options: Any) -> int:
         publisher = Publisher(options.state_endpoint, bind=True, curve=options.state_curve)
         state = publisher.actual_endpoint
 
+    listening = [False]
+
     def on_listen(vport: int, host: str, port: int) -> None:
+        listening[0] = True
         print(f"READY host={host} port={port} vport={vport} state={state}", flush=True)
 
     emu.rt.devices = Network(args.host, port_map, on_listen, faults=options.faults)
@@ -77,10 +87,13 @@ async def run(args: argparse.Namespace, options: Any) -> int:
     io_cursor = [0]  # each signal change goes out once, in the sample after it
     states = None if publisher is None else asyncio.ensure_future(publish_robot_states(
         publisher, lambda: robot_state_sample(ctl, clock.now, wall0, io_cursor), options.state_rate_hz))
+    status = [0]
+    watcher = asyncio.ensure_future(_watch(emu, args.run, listening, stop, status))
     try:
         emu.execute(0, args.run)
         await emu.serve(stop)
     finally:
+        watcher.cancel()
         for sig in (signal.SIGINT, signal.SIGTERM):
             loop.remove_signal_handler(sig)
         for n in list(emu.rt.tasks):
@@ -90,4 +103,46 @@ async def run(args: argparse.Namespace, options: Any) -> int:
             await asyncio.gather(states, return_exceptions=True)
         if publisher is not None:
             publisher.close()
-    return 0
+    return status[0]
+
+
+async def _watch(emu: Any, run: str, listening: list[bool], stop: asyncio.Event, status: list[int]) -> None:
+    """Never hang silently: when the --run program stops with an error before a socket is open, or no task is
+    left to run, say why on stderr (one line) and stop the emulator; the exit status is 1 unless every task ended
+    normally after the program was serving (a clean ``rs.halt``)."""
+    rt = emu.rt
+    while not stop.is_set():
+        await asyncio.sleep(0.05)
+        main = rt.tasks.get(0)
+        failed = [T for T in rt.tasks.values() if T.state == "error"]
+        if main is not None and main.state == "error" and not listening[0]:
+            why = f"{run} stopped before it opened a socket: {_explain(main.error)}"
+        elif not rt.active():
+            if failed:
+                why = f"V+ task {failed[0].num} stopped: {_explain(failed[0].error)}"
+            elif not listening[0]:
+                why = f"{run} ended before it opened a socket (no V+ task is running)"
+            else:
+                print("aioadept sim: every V+ task has ended", file=sys.stderr, flush=True)
+                stop.set()
+                return
+        else:
+            continue
+        print(f"aioadept sim: {why}", file=sys.stderr, flush=True)
+        status[0] = 1
+        stop.set()
+        return
+
+
+
+def _explain(err: Any) -> str:
+    """A task's error, and for an undefined program the likely cause: its module was not loaded. (V+ reports an
+    undefined program only when the CALL executes, so a program the run never reaches is not an error: the
+    shipped server calls rs.state only with the state stream on.)"""
+    from aioadept.vplus import errors as E
+
+    text = str(err)
+    if getattr(err, "code", None) == E.UNDEFINED_PROGRAM:
+        name = str(err.message).replace("*Undefined program*", "").strip()
+        text += f": no loaded file defines {name} (load its module too)"
+    return text

@@ -226,7 +226,7 @@ class _Gen:
         if k == "call":
             return self.call(e)
         if k == "shift":
-            d = [self.val(x)[0] for x in e[2]]
+            d = ["0.0" if x is None else self.val(x)[0] for x in e[2]]
             return f"{_fname('SHIFT')}({self.val(e[1])[0]}, {', '.join(d)})", "loc"
         raise CompileError(0, f"cannot compile {k}", str(k))  # pragma: no cover
 
@@ -734,8 +734,17 @@ class _Gen:
             self.guarded(line, [f"_reacte(T, {st[1]!r})"])
         elif k in ("MOVE", "MOVES", "DEPART", "DEPARTS", "DELAY"):
             self.guarded(line, [f"yield from _robot(T, {k!r}, {self.val(st[1])[0]})"])
-        elif k in ("APPRO", "APPROS"):
+        elif k in ("APPRO", "APPROS", "MOVET", "MOVEST"):
             self.guarded(line, [f"yield from _robot(T, {k!r}, {self.val(st[1])[0]}, {self.val(st[2])[0]})"])
+        elif k == "DURATION":
+            self.guarded(line, [f"_duration(T, {self.val(st[1])[0]}, {st[2]!r})"])
+        elif k == "CONFIG":
+            self.guarded(line, [f"_config(T, {st[1]!r})"])
+        elif k == "DISKOPEN":
+            args = st[2]
+            if len(args) != 1 or args[0] is None:
+                raise CompileError(line, f"{st[1]} needs (lun)", st[1])
+            self.guarded(line, [f"_disk_open(T, {st[1]!r}, {self.val(args[0])[0]}, ({self.items(st[3])}))"])
         elif k in ("BREAK",):
             self.guarded(line, ["yield from _robot(T, 'BREAK')"])
         elif k == "BRAKE":

@@ -94,11 +94,15 @@ class Emulator:
     """A loaded set of V+ modules with its global data, tasks and (by default) the simulated Viper."""
 
     def __init__(self, module: Module, *, robot: Any = True, clock: Any = None, cycle_s: float = 0.016,
-                 console: Callable[[int, str], None] | None = None) -> None:
+                 console: Callable[[int, str], None] | None = None, disk_dir: str | Path | None = None) -> None:
+        from aioadept.vplus.disk import DiskFolder
+
         self.clock = clock or VirtualClock()
         if robot is True:
             robot = make_robot()
         self.rt = Runtime(module, clock=self.clock, cycle_s=cycle_s, console=console, robot=robot or None)
+        # disk files (FOPENR ...) live in this folder only; None: a new temporary folder (aioadept.vplus.disk)
+        self.rt.disk = DiskFolder(disk_dir)
         ctl = getattr(self.rt.robot, "controller", None)
         if ctl is not None:
             # SIGNAL, SIG(), BITS and the hand act on the sim's I/O model: SIGNAL 8 is its air valve, CLOSEI its
@@ -146,6 +150,11 @@ class Emulator:
     @property
     def robot(self) -> Any:
         return self.rt.robot
+
+    @property
+    def disk_dir(self) -> Path:
+        """The folder that holds the program's disk files (FOPENW ...)."""
+        return self.rt.disk.root
 
     @property
     def controller(self) -> Any:

@@ -23,6 +23,12 @@ NO_DATA = -526                  # "*No data received*" (V+ Language User's Guide
 NOT_ATTACHED = -516             # UNCONFIRMED number
 DEVICE_ERROR = -500             # UNCONFIRMED number
 ROBOT_NOT_ATTACHED = -601       # UNCONFIRMED number
+END_OF_FILE = -504              # UNCONFIRMED number: READ past the last record of a disk file
+FILE_EXISTS = -503              # UNCONFIRMED number: FOPENW of a file that exists
+NONEXISTENT_FILE = -568         # UNCONFIRMED number: FOPENR/FDELETE of a file that does not exist
+ILLEGAL_FILE_NAME = -514        # UNCONFIRMED number: a file name V+ cannot have, or one outside the disk folder
+FILE_IN_USE = -513              # UNCONFIRMED number: a file open for write elsewhere, a LUN with a file open
+NOT_OPEN = -515                 # UNCONFIRMED number: READ/WRITE on a disk LUN with no file open (or the wrong way)
 INTERNAL = -1200
 
 TEXT: dict[int, str] = {
@@ -39,6 +45,12 @@ TEXT: dict[int, str] = {
     NOT_ATTACHED: "*Device not attached*",
     DEVICE_ERROR: "*Device error*",
     ROBOT_NOT_ATTACHED: "*Robot not attached to this program*",
+    END_OF_FILE: "*Unexpected end of file*",
+    FILE_EXISTS: "*File already exists*",
+    NONEXISTENT_FILE: "*Nonexistent file*",
+    ILLEGAL_FILE_NAME: "*Invalid file name*",
+    FILE_IN_USE: "*File already open*",
+    NOT_OPEN: "*File not opened*",
     int(ErrorCode.OUT_OF_REACH): "*Location out of range*",
     int(ErrorCode.JOINT_LIMIT): "*Joint limit*",
     int(ErrorCode.JOINT_JUMP): "*Joint jump*",

@@ -1,5 +1,7 @@
 """V+ I/O instructions on logical units: ATTACH, DETACH, FOPEN, FCLOSE, READ, WRITE, and the TCP device.
 
+A disk LUN (``ATTACH (lun, 4) "DISK"``) is :mod:`aioadept.vplus.disk`'s: READ, WRITE, FCLOSE and DETACH hand it over.
+
 (Over 500 lines because the TCP device is one model: what a READ hands over and in which order, the output
 buffers, no-wait writes and closing one client all share its connection table. Seam for a split: ``Network``'s
 fault injection.)
@@ -353,6 +355,18 @@ def _lun_of(T: Any, lun: Any) -> TcpLun | None:
     return dev if isinstance(dev, TcpLun) else None
 
 
+def _is_disk(dev: Any) -> bool:
+    from aioadept.vplus.disk import DiskLun
+
+    return isinstance(dev, DiskLun)
+
+
+def _disk_of(T: Any, lun: Any) -> Any:
+    """The disk LUN ``lun`` of task ``T`` (aioadept.vplus.disk), or None."""
+    dev = T.luns.get(int(lun)) if lun is not None else None
+    return dev if dev is not None and _is_disk(dev) else None
+
+
 def attach(rt: Any):
     def io_attach(T: Any, refs: tuple, text: tuple) -> Generator:
         if not refs or refs[0] is None:
@@ -372,9 +386,15 @@ def attach(rt: Any):
                 c[k] = float(lun)
         else:
             lun = int(c[k] if c is not None else k)
+        if name == "DISK":
+            from aioadept.vplus.disk import DiskLun
+
+            T.luns[lun] = DiskLun(rt, T, lun)     # files in the emulator's disk folder (aioadept.vplus.disk)
+            T.iostat[lun] = 1
+            return
         if name != "TCP":
             T.iostat[lun] = E.NOT_ATTACHED
-            rt.console(T.num, f"*Device not available* {name!r} (the emulator has TCP only)")
+            rt.console(T.num, f"*Device not available* {name!r} (the emulator has TCP and DISK only)")
             return
         T.luns[lun] = TcpLun(rt, T, lun)
         T.iostat[lun] = 1
@@ -450,6 +470,10 @@ def fopen(rt: Any):
 def fclose(rt: Any):
     def io_fclose(T: Any, refs: tuple, text: tuple) -> Generator:
         lun = _lun_number(refs)
+        disk = _disk_of(T, lun)
+        if disk is not None:
+            T.iostat[lun] = disk.close()
+            return
         dev = _lun_of(T, lun)
         if dev is None:
             T.iostat[lun] = E.NOT_ATTACHED
@@ -475,7 +499,7 @@ def detach(rt: Any):
             return
         lun = _lun_number(refs)
         dev = T.luns.pop(lun, None)
-        if isinstance(dev, TcpLun):
+        if isinstance(dev, TcpLun) or _is_disk(dev):
             dev.close()
         T.iostat[lun] = 1
         return
@@ -487,6 +511,12 @@ def detach(rt: Any):
 def read(rt: Any):
     def io_read(T: Any, lun: Any, handle: tuple | None, mode: float, targets: tuple) -> Generator:
         n = int(lun)
+        disk = _disk_of(T, n)
+        if disk is not None:
+            from aioadept.vplus import disk as D
+
+            D.read(T, disk, targets)
+            return
         dev = _lun_of(T, n)
         if dev is None:
             T.iostat[n] = E.NOT_ATTACHED
@@ -518,6 +548,13 @@ def _no_wait(items: tuple) -> bool:
 def write(rt: Any):
     def io_write(T: Any, lun: Any, handle: Any, items: tuple) -> Generator:
         n = int(lun)
+        disk = _disk_of(T, n)
+        if disk is not None:
+            from aioadept.vplus import disk as D
+
+            text, no_eol = _render(items)
+            D.write(T, disk, text if no_eol else text + "\r\n")
+            return
         dev = _lun_of(T, n)
         if dev is None:
             T.iostat[n] = E.NOT_ATTACHED
@@ -571,6 +608,6 @@ def write(rt: Any):
 
 def release_task(rt: Any, T: Any) -> None:
     for dev in list(T.luns.values()):
-        if isinstance(dev, TcpLun):
+        if isinstance(dev, TcpLun) or _is_disk(dev):
             dev.close()
     T.luns.clear()

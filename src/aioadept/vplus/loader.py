@@ -153,7 +153,9 @@ def _parse_text(text: str, filename: str, module: Module) -> Module:
         if cur is None and section is None:
             if not head or head.startswith(";"):
                 continue
-            m = _PROG_RE.match(head)
+            # a comment after the .PROGRAM line may hold anything, parentheses too (User's Guide, "Program
+            # Organization": ".PROGRAM program_name(parameter_list) ;Comment")
+            m = _PROG_RE.match(strip_comment(head).strip())
             if m:
                 probs: list[LoadProblem] = []
                 cur = Program(norm(m.group(1)), _params(m.group(2), filename, n, probs), filename, n)
@@ -200,7 +202,7 @@ def _parse_text(text: str, filename: str, module: Module) -> Module:
         if up.startswith(".PROGRAM"):
             module.problems.append(LoadProblem(filename, n, ".PROGRAM before .END", head.split()[0], cur.name))
             _finish(cur, module)
-            m = _PROG_RE.match(head)
+            m = _PROG_RE.match(strip_comment(head).strip())
             cur = Program(norm(m.group(1)), _params(m.group(2), filename, n, []), filename, n) if m else None
             continue
         code = strip_comment(line).strip()

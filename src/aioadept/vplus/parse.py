@@ -46,7 +46,7 @@ def norm(name: str) -> str:
 _TOKEN = re.compile(r"""
     (?P<ws>\s+)
   | (?P<num>(?:\d+\.?\d*|\.\d+)(?:[Ee][+-]?\d+)?)
-  | (?P<hex>\^[Hh][0-9A-Fa-f]+|\^[Bb][01]+)
+  | (?P<hex>\^(?:[Hh][0-9A-Fa-f]+|[Bb][01]+|[Dd]\d+|[0-7]+))
   | (?P<str>"[^"]*")
   | (?P<asc>'.)
   | (?P<name>[$#]?[A-Za-z][A-Za-z0-9._]*)
@@ -77,7 +77,19 @@ def tokenize(text: str) -> list[Tok]:
         if kind == "num":
             out.append(Tok("num", s, float(s)))
         elif kind == "hex":
-            out.append(Tok("num", s, float(int(s[2:], 16 if s[1] in "Hh" else 2))))
+            # V+ radix constants (Language User's Guide v17 p. 102, "Numeric Representation"): ^H hexadecimal,
+            # ^B binary (at most 8 bits), ^ and digits octal, ^D a double-precision integer. Right after an
+            # operand, '^' is the power operator instead (x^2, a[1]^2).
+            prev = out[-1] if out else None
+            if prev is not None and (prev.kind in ("num", "str", "name") or prev.text in (")", "]")):
+                out.append(Tok("op", "^"))
+                pos = m.start() + 1
+                continue
+            radix = s[1].upper()
+            digits, base = (s[2:], {"H": 16, "B": 2, "D": 10}[radix]) if radix in "HBD" else (s[1:], 8)
+            if radix == "B" and len(digits) > 8:
+                raise VSyntaxError("a binary constant has at most 8 bits", s)
+            out.append(Tok("num", s, float(int(digits, base))))
         elif kind == "asc":
             out.append(Tok("num", s, float(ord(s[1]))))
         elif kind == "str":
@@ -268,14 +280,19 @@ class Parser:
             up = t.text.upper()
             if up in _CONST:
                 return ("num", _CONST[up])
+            if up == "NULL" and not self.at_op("(", "["):
+                return ("call", "NULL", [])          # the null transformation (TOOL NULL)
             if up == "SHIFT" and self.at_op("("):
+                # SHIFT(a BY x, y, z): an omitted component is 0 (SHIFT(a BY , , 10))
                 self.take()
                 base = self.expr()
                 self.expect_word("BY")
-                d = [self.expr()]
-                while self.at_op(","):
+                d: list = []
+                while True:
+                    d.append(None if self.at_op(",", ")") else self.expr())
+                    if not self.at_op(","):
+                        break
                     self.take()
-                    d.append(self.expr())
                 self.expect_op(")")
                 return ("shift", base, d)
             if up == "SWITCH" and self.at_op("("):
@@ -324,6 +341,7 @@ FUNCTIONS = {
     "LAST", "INRANGE", "TRANS", "INVERSE", "DX", "DY", "DZ", "DISTANCE", "#PPOINT", "SIGN", "FRACT", "RANDOM",
     "$TRUNCATE", "RX", "RY", "RZ", "SQR", "$LEFT", "$RIGHT", "HERE", "#HERE", "SPEED", "$TOUPPER", "$TOLOWER",
     "SWITCH", "BITS", "$TIME", "NORM", "$DEFAULT", "STATE",
+    "BMASK",
 }
 _NOARG_FUNCS = {"HERE", "#HERE", "RANDOM", "TASK"}
 
@@ -352,7 +370,13 @@ INSTRUCTIONS = {
     "HERE", "DECOMPOSE", "TOOL", "SET", "DELAY", "ENABLE", "DISABLE", "TIMER", "SET.EVENT", "ACCEL", "NULL",
     # digital I/O and the hand (aioadept.sim.io)
     "OPEN", "OPENI", "CLOSE", "CLOSEI", "RELAX", "RELAXI", "PARAMETER", "BITS",
+    # motion words of issue 20: minimum motion time, a move with the hand, the configuration of the next motion
+    "DURATION", "MOVET", "MOVEST",
+    "LEFTY", "RIGHTY", "ABOVE", "BELOW", "FLIP", "NOFLIP", "SINGLE", "MULTIPLE",
+    # disk files (aioadept.vplus.disk)
+    "FOPENR", "FOPENW", "FOPENA", "FOPEND", "FDELETE",
 }
+CONFIG_INSTRUCTIONS = ("LEFTY", "RIGHTY", "ABOVE", "BELOW", "FLIP", "NOFLIP", "SINGLE", "MULTIPLE")
 HAND_INSTRUCTIONS = ("OPEN", "OPENI", "CLOSE", "CLOSEI", "RELAX", "RELAXI")
 
 
@@ -632,6 +656,21 @@ def _statement(p: Parser):
         loc = p.expr()
         p.expect_op(",")
         return (w, loc, p.expr())
+    if w in ("MOVET", "MOVEST"):
+        loc = p.expr()
+        p.expect_op(",")
+        return (w, loc, p.expr())
+    if w == "DURATION":
+        e = p.expr()
+        always = p.at_word("ALWAYS")
+        if always:
+            p.take()
+        return ("DURATION", e, always)
+    if w in CONFIG_INSTRUCTIONS:
+        return ("CONFIG", w)
+    if w in ("FOPENR", "FOPENW", "FOPENA", "FOPEND", "FDELETE"):
+        args = _paren_list(p)
+        return ("DISKOPEN", w, args, _outputs(p))
     if w == "SPEED":
         e = p.expr()
         mode = None

@@ -124,6 +124,15 @@ def inrange_reasons(code: int) -> list[str]:
     return out
 
 
+CONFIG_WORDS: dict[str, dict] = {
+    # V+ configuration instructions -> Controller.request_config. RIGHTY is the configuration of the home pose (wrist
+    # centre in front of the J1 axis) and LEFTY the arm reaching over backwards: UNCONFIRMED for the Viper (the
+    # manual defines LEFTY/RIGHTY by a human arm seen from above). ABOVE: the elbow above the line from shoulder to
+    # wrist (as at home); FLIP: the wrist pitch (J5) negative, NOFLIP positive; SINGLE: J6 within -180..180 deg.
+    "RIGHTY": {"shoulder": 1}, "LEFTY": {"shoulder": -1}, "ABOVE": {"elbow": 1}, "BELOW": {"elbow": -1},
+    "NOFLIP": {"wrist": 1}, "FLIP": {"wrist": -1}, "SINGLE": {"single": True}, "MULTIPLE": {"single": False},
+}
+
 # Joint limits wide enough to see which real limit an IK solution breaks.
 _NO_LIMITS = kin.JointLimits(min_deg=(-1e9,) * 6, max_deg=(1e9,) * 6)
 
@@ -275,9 +284,13 @@ class RobotDevice:
         """
         self._check_owner(task)
         ctl = self.controller
+        if isinstance(target, PrecisionPoint):
+            ctl.take_config()       # a precision point's joints are its configuration: a request is moot
         if self.dry_run:
             self._check_target(target)
             ctl.take_speed_pct()
+            ctl.take_duration_s()
+            ctl.take_config()
             if straight:
                 try:
                     ctl.plan_line(self._line_target(target))
@@ -307,6 +320,39 @@ class RobotDevice:
                     wake = next(gen, None)
         except RobotError as exc:
             raise _translate(exc) from exc
+
+    def movet(self, task: TaskId, target: Location, hand: float, *, straight: bool = False) -> MotionGen:
+        """V+ ``MOVET loc, hand`` (``MOVEST`` with ``straight``): the motion of :meth:`move`, and the hand opens
+        (``hand`` non-zero) or closes (zero) as that motion starts, as ``OPEN``/``CLOSE`` before a ``MOVE``
+        (pneumatic hand; UNCONFIRMED which values open it, docs/vplus.md). A motion refused leaves the hand as it
+        was: no deferred action is left over for a later motion."""
+        self._check_owner(task)
+        if not math.isfinite(hand):
+            raise VPlusRobotError.of("illegal_value", "MOVET hand opening")
+        io = self.controller.io
+        io.defer_hand("open" if hand != 0 else "close")
+        try:
+            yield from self.move(task, target, straight=straight)
+        except BaseException:
+            io.pending_hand = None
+            raise
+
+    def set_duration(self, task: TaskId, seconds: float, *, always: bool = False) -> None:
+        """V+ ``DURATION s [ALWAYS]``: the least time of the next (every) motion
+        (:meth:`aioadept.sim.controller.Controller.set_duration`). Any task may set it while no other task has the
+        robot attached (the manual's DURATION page)."""
+        if self.owner is not None and self.owner != task:
+            raise VPlusRobotError.of("attached", f"(task {self.owner})")
+        try:
+            self.controller.set_duration(seconds, always=always)
+        except ValueError:
+            raise VPlusRobotError.of("illegal_value", f"DURATION {seconds:g}") from None
+
+    def request_config(self, task: TaskId, word: str) -> None:
+        """V+ ``LEFTY``, ``RIGHTY``, ``ABOVE``, ``BELOW``, ``FLIP``, ``NOFLIP``, ``SINGLE``, ``MULTIPLE``: the
+        configuration the next motion to a transformation ends in (:data:`CONFIG_WORDS`)."""
+        self._check_owner(task)
+        self.controller.request_config(**CONFIG_WORDS[word])
 
     def _line_target(self, target: Location) -> Pose:
         """The tool pose a straight line goes to: a transformation as it is, a precision point through the forward
@@ -401,7 +447,7 @@ def _translate(exc: RobotError) -> VPlusRobotError:
         return VPlusRobotError(VPLUS_ERRORS["joint_limit"].code, f"{VPLUS_ERRORS['joint_limit'].text} {exc.message}")
     if exc.code == ErrorCode.OUT_OF_REACH:
         text = VPLUS_ERRORS["out_of_range"].text
-        if exc.message.startswith("line "):  # where along a straight line (MOVES) it left the workspace
+        if exc.message.startswith(("line ", "configuration")):  # where along a line it left the workspace; FLIP+MOVES
             text = f"{text} {exc.message}"
         return VPlusRobotError(VPLUS_ERRORS["out_of_range"].code, text)
     return VPlusRobotError(int(exc.code), exc.message)

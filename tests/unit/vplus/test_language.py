@@ -180,8 +180,8 @@ def test_calls_by_name_and_undefined_program():
 
 
 def test_unimplemented_instruction_is_a_load_error_naming_it():
-    emu = emu_of(".PROGRAM p()\n\tDURATION 0.5\n.END\n")
-    assert emu.problems[0].word == "DURATION" and "not implemented" in emu.problems[0].message
+    emu = emu_of(".PROGRAM p()\n\tALTER 0.5\n.END\n")
+    assert emu.problems[0].word == "ALTER" and "not implemented" in emu.problems[0].message
 
 
 def test_robot_instructions_with_the_simulated_arm():
