@@ -1,0 +1,134 @@
+"""The simulated world through the real pieces, on both backends: a sim process (the Python skills, or the V+
+emulator running the shipped vplus/ server) started with a cell file's [world]; a client over TCP closes the hand
+on a part, lifts it, carries it and releases it on the table; the world.state stream (ZeroMQ, Protobuf) shows the
+part grasped and following the tool, then resting where it was put; the feeder's sensor input goes off as the
+part leaves; and a release from high up is an error in the sim's log."""
+
+from __future__ import annotations
+
+import asyncio
+import socket
+from pathlib import Path
+
+import pytest
+
+from aioadept import Break, CloseHand, OpenHand, Sig
+from aioadept.commands import MoveToS
+from aioadept.bus.messages import WORLD_STATE_TOPIC, WorldState
+from aioadept.bus.pubsub import Subscriber
+from aioadept.client import RobotClient
+from aioadept.geometry import Pose
+from aioadept.testing.nodes import running_node
+
+VPLUS = Path(__file__).resolve().parents[2] / "vplus"
+HOME = Pose(480.0, 0.0, 710.0, 0.0, 180.0, 0.0)  # the sim's home tool pose (tool pointing down)
+TABLE_Z = 380.0
+
+WORLD = f"""
+[world]
+table_z_mm = {TABLE_Z}
+[[world.parts]]
+id = 5
+shape = "cylinder"
+size_mm = [30, 40]
+colour = "blue"
+marker = 2
+x_mm = 480.0
+y_mm = 0.0
+[world.feeder]
+x_mm = 480.0
+y_mm = 0.0
+sensor = 1002
+"""
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def sim_args(backend: str, port: int) -> list[str]:
+    if backend == "python":
+        return ["--port", str(port), "--stop-port", "none"]
+    return ["--vplus", str(VPLUS / "rserver.V2"), str(VPLUS / "rsskills.V2"), str(VPLUS / "rsconfig.V2"),
+            "--run", "rs.main", "--map-port", f"1234={port}", "--map-port", "1235=0", "--map-port", "1236=0"]
+
+
+async def next_world(sub: Subscriber) -> WorldState:
+    return WorldState.from_bytes((await asyncio.wait_for(sub.recv(), 5.0))[1])
+
+
+async def world_when(sub: Subscriber, part: int, ok, timeout_s: float = 5.0) -> WorldState:
+    """The first world sample in which ``ok(part state)`` holds (the V+ server's TIMER and the stream's clock
+    need not share their zero, so samples are matched by content, not by an ack's time); TimeoutError if none
+    does within ``timeout_s``."""
+    async with asyncio.timeout(timeout_s):
+        while True:
+            st = await next_world(sub)
+            if ok(st.part(part)):
+                return st
+
+
+@pytest.mark.timeout(90)
+@pytest.mark.parametrize("backend", ["python", "vplus"])
+async def test_a_client_picks_carries_and_places_a_part_and_the_stream_follows(backend, tmp_path):
+    cell = tmp_path / "cell.toml"
+    cell.write_text(WORLD)
+    port = free_port()
+    async with running_node("sim", *sim_args(backend, port), "--world", str(cell), "--time-scale", "5",
+                            "--state-endpoint", "tcp://127.0.0.1:0", "--state-rate-hz", "100",
+                            log_path=tmp_path / "sim.log", ready_timeout_s=60) as sim:
+        async with Subscriber(sim.ready["state"], topics=[WORLD_STATE_TOPIC]) as sub, \
+                RobotClient("127.0.0.1", port) as robot:
+            first = await next_world(sub)
+            part = first.part(5)
+            assert not part.grasped and part.pose.z == pytest.approx(TABLE_Z) and first.sensors_on == (1002,)
+            grip = Pose(480.0, 0.0, TABLE_Z + 20.0, 0.0, 180.0, 0.0)
+            res = await robot.cmdexec(MoveToS(grip), CloseHand(), Sig(1001, 1002))
+            assert Sig.states(res.messages[-1].ack) == (False, False), \
+                "closed on the part (the switch stays off) and the feeder is empty"
+            up = Pose(480.0, 0.0, TABLE_Z + 150.0, 0.0, 180.0, 0.0)
+            res = await robot.cmdexec(MoveToS(up), Break())
+            # it follows the tool up (a timeout here says it never got there)
+            held = (await world_when(sub, 5, lambda p: abs(p.pose.z - (TABLE_Z + 130.0)) < 0.01)).part(5)
+            assert held.grasped and (held.pose.x, held.pose.y) == pytest.approx((480.0, 0.0), abs=0.01)
+            place = Pose(400.0, 150.0, TABLE_Z + 21.5, 0.0, 180.0, 0.0)   # its bottom 1.5 mm above the table
+            res = await robot.cmdexec(MoveToS(place), OpenHand(), Sig(1002))
+            assert Sig.states(res.messages[-1].ack) == (False,)
+            p = (await world_when(sub, 5, lambda p: not p.grasped)).part(5)
+            assert not p.grasped and not p.dropped
+            assert (p.pose.x, p.pose.y, p.pose.z) == pytest.approx((400.0, 150.0, TABLE_Z), abs=0.01)
+            # a release from high up: an error in the sim's log, the part on the table below, marked dropped
+            await robot.cmdexec(MoveToS(Pose(400.0, 150.0, TABLE_Z + 20.0, 0.0, 180.0, 0.0)), CloseHand(),
+                                MoveToS(Pose(400.0, 150.0, TABLE_Z + 100.0, 0.0, 180.0, 0.0)))
+            await robot.cmdexec(OpenHand())
+            seen = []
+            st = await next_world(sub)
+            while not st.part(5).dropped:
+                seen += st.events
+                st = await next_world(sub)           # every sample: each event is sent once
+            seen += st.events
+            drops = [e for e in seen if e.kind == "dropped"]
+            assert len(drops) == 1 and "80.0 mm above the table" in drops[0].text
+            assert st.part(5).pose.z == pytest.approx(TABLE_Z)
+    log = (tmp_path / "sim.log").read_text()
+    assert "dropped: released 80.0 mm above the table" in log, log[-2000:]
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("command", [["sim", "--port", "0", "--world"], ["sim", "--port", "0", "--config"],
+                                     ["demo", "--config"]])
+def test_a_bad_world_value_is_one_line_exit_2_before_anything_starts(command, tmp_path):
+    import subprocess
+    import sys
+
+    cell = tmp_path / "cell.toml"
+    cell.write_text(WORLD.replace('colour = "blue"', 'colour = "blue"\nmarker_mm = 40'))
+    proc = subprocess.run([sys.executable, "-m", "aioadept", *command, str(cell)],
+                          capture_output=True, text=True, timeout=50, cwd=tmp_path)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert lines == [f"aioadept {command[0]}: {cell} [world] parts[0]: marker_mm = 40: the marker does not fit on "
+                     f"the part's top face (at most 21.2 mm)"], proc.stderr
+    assert proc.stdout == "" and not (tmp_path / "runs").exists()
