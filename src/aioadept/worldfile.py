@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from aioadept.configfile import ConfigError, Range, check_ranges, check_section, ranged
-from aioadept.worldmodel import COLOURS, SHAPES, Feeder, Pallet, PartSpec, WorldCamera, WorldConfig
+from aioadept.worldmodel import COLOURS, SHAPES, Feeder, Pallet, PartSpec, WorldCamera, WorldConfig, label_mm
 
 ARUCO_DICTS = {"DICT_4X4_50": 50, "DICT_4X4_100": 100, "DICT_4X4_250": 250, "DICT_5X5_50": 50,
                "DICT_5X5_100": 100, "DICT_6X6_50": 50, "DICT_6X6_250": 250}
@@ -66,7 +66,7 @@ class _PartTable:
     size_mm: list[float] = field(default_factory=lambda: [40.0, 30.0, 20.0])
     colour: str | list[int] = "red"
     marker: int | None = ranged(None, Range(0, 999, integer=True))
-    marker_mm: float = ranged(20.0, Range(0.0, 1000.0, lo_open=True, unit="mm"))
+    marker_mm: float = ranged(15.0, Range(0.0, 1000.0, lo_open=True, unit="mm"))
     x_mm: float = ranged(0.0, _XY)
     y_mm: float = ranged(0.0, _XY)
     yaw_deg: float = ranged(0.0, _ANGLE)
@@ -126,7 +126,8 @@ def _colour(value: Any, where: str) -> tuple[int, int, int]:
     return (int(value[0]), int(value[1]), int(value[2]))
 
 
-def _part(data: Any, where: str, n_ids: int) -> PartSpec:
+def _part(data: Any, where: str, aruco_dict: str) -> PartSpec:
+    n_ids = ARUCO_DICTS[aruco_dict]
     t = _table(_PartTable, data, where)
     if not isinstance(data, dict) or "id" not in data:
         raise ConfigError(f"{where}: id missing (each part needs a unique integer id)")
@@ -145,9 +146,10 @@ def _part(data: Any, where: str, n_ids: int) -> PartSpec:
             raise ConfigError(f"{where}: marker = {t.marker}: expected an id in 0..{n_ids - 1} of the world's "
                               f"aruco_dict")
         fits = min(size[0], size[1]) if t.shape == "box" else size[0] / math.sqrt(2)
-        if t.marker_mm > fits:
-            raise ConfigError(f"{where}: marker_mm = {t.marker_mm:g}: the marker does not fit on the part's top "
-                              f"face (at most {fits:.1f} mm)")
+        if label_mm(t.marker_mm, aruco_dict) > fits:
+            most = t.marker_mm * fits / label_mm(t.marker_mm, aruco_dict)
+            raise ConfigError(f"{where}: marker_mm = {t.marker_mm:g}: the marker and its white margin do not fit "
+                              f"on the part's top face (marker_mm at most {most:.1f})")
     return PartSpec(int(t.id), t.shape, size, _colour(t.colour, where), t.marker, float(t.marker_mm),
                     float(t.x_mm), float(t.y_mm), float(t.yaw_deg))
 
@@ -160,7 +162,7 @@ def world_from_table(data: Any, where: str = "[world]") -> WorldConfig:
         raise ConfigError(f'{where}: aruco_dict = "{w.aruco_dict}": expected one of {", ".join(ARUCO_DICTS)}')
     if not isinstance(w.parts, list):
         raise ConfigError(f"{where}: parts: expected a list of tables ([[world.parts]])")
-    parts = [_part(p, f"{where} parts[{i}]", ARUCO_DICTS[w.aruco_dict]) for i, p in enumerate(w.parts)]
+    parts = [_part(p, f"{where} parts[{i}]", w.aruco_dict) for i, p in enumerate(w.parts)]
     for kind, values in (("id", [p.id for p in parts]), ("marker", [p.marker for p in parts if p.marker is not None])):
         dup = sorted({v for v in values if values.count(v) > 1})
         if dup:

@@ -30,15 +30,16 @@ COLOURS: dict[str, tuple[int, int, int]] = {
 @dataclass(frozen=True, slots=True)
 class PartSpec:
     """One part as the cell file places it: lying flat on the table at (``x_mm``, ``y_mm``), turned ``yaw_deg``
-    about z. ``marker``: the ArUco id printed on its top face (``marker_mm`` square, centred, the marker's x along
-    the part's x), or None."""
+    about z. ``marker``: the ArUco id printed on its top face, or None: a ``marker_mm`` square (black border
+    included) on a white label (:func:`label_mm`), centred, the marker's x axis along the part's x and its y
+    along the part's y (OpenCV's marker frame: the image's top-left corner at (-s/2, +s/2))."""
 
     id: int
     shape: str = "box"
     size_mm: tuple[float, float, float] = (40.0, 30.0, 20.0)
     colour: tuple[int, int, int] = COLOURS["red"]
     marker: int | None = None
-    marker_mm: float = 20.0
+    marker_mm: float = 15.0
     x_mm: float = 0.0
     y_mm: float = 0.0
     yaw_deg: float = 0.0
@@ -188,6 +189,19 @@ class WorldSnapshot:
         raise KeyError(part_id)
 
 
+def marker_bits(aruco_dict: str) -> int:
+    """The data bits per side of an ArUco dictionary named like OpenCV's (``DICT_4X4_50`` -> 4)."""
+    return int(aruco_dict.split("_")[1].split("X")[0])
+
+
+def label_mm(marker_mm: float, aruco_dict: str) -> float:
+    """Side of the white label a marker is printed on: the marker (``marker_mm``, its black border included, the
+    length OpenCV's pose estimation takes) with a white margin of one module on each side, which detection needs
+    around the border."""
+    bits = marker_bits(aruco_dict)
+    return marker_mm * (bits + 4) / (bits + 2)
+
+
 def flat_matrix(x_mm: float, y_mm: float, z_mm: float, heading_deg: float) -> np.ndarray:
     """The 4 x 4 frame of a part lying flat at (x, y, z) turned ``heading_deg`` about z."""
     a = math.radians(heading_deg)
@@ -199,5 +213,5 @@ def flat_matrix(x_mm: float, y_mm: float, z_mm: float, heading_deg: float) -> np
 
 __all__ = [
     "COLOURS", "SHAPES", "Feeder", "Pallet", "PartSpec", "PartState", "WorldCamera", "WorldConfig", "WorldEvent",
-    "WorldSnapshot", "flat_matrix",
+    "WorldSnapshot", "flat_matrix", "label_mm", "marker_bits",
 ]

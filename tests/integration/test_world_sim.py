@@ -129,6 +129,6 @@ def test_a_bad_world_value_is_one_line_exit_2_before_anything_starts(command, tm
                           capture_output=True, text=True, timeout=50, cwd=tmp_path)
     assert proc.returncode == 2, proc.stdout + proc.stderr
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
-    assert lines == [f"aioadept {command[0]}: {cell} [world] parts[0]: marker_mm = 40: the marker does not fit on "
-                     f"the part's top face (at most 21.2 mm)"], proc.stderr
+    assert lines == [f"aioadept {command[0]}: {cell} [world] parts[0]: marker_mm = 40: the marker and its white "
+                     f"margin do not fit on the part's top face (marker_mm at most 15.9)"], proc.stderr
     assert proc.stdout == "" and not (tmp_path / "runs").exists()
