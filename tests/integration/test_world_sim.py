@@ -10,6 +10,7 @@ import asyncio
 import socket
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from aioadept import Break, CloseHand, OpenHand, Sig
@@ -132,3 +133,69 @@ def test_a_bad_world_value_is_one_line_exit_2_before_anything_starts(command, tm
     assert lines == [f"aioadept {command[0]}: {cell} [world] parts[0]: marker_mm = 40: the marker and its white "
                      f"margin do not fit on the part's top face (marker_mm at most 15.9)"], proc.stderr
     assert proc.stdout == "" and not (tmp_path / "runs").exists()
+
+
+WORLD_CAM = WORLD + """
+[world.camera]
+x_mm = 450.0
+y_mm = 50.0
+z_mm = 1000.0
+focal_length_mm = 8.0
+"""
+
+
+def marker_in(image_path: Path, marker: int) -> np.ndarray:
+    import cv2
+
+    image = cv2.imread(str(image_path), cv2.IMREAD_GRAYSCALE)
+    params = cv2.aruco.DetectorParameters()
+    params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+    dictionary = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_4X4_50)
+    corners, ids, _ = cv2.aruco.ArucoDetector(dictionary, params).detectMarkers(image)
+    assert ids is not None and list(ids.ravel()) == [marker], ids
+    return corners[0].reshape(4, 2)
+
+
+@pytest.mark.timeout(90)
+async def test_the_vision_node_sees_the_part_where_the_world_stream_puts_it(tmp_path):
+    """``aioadept vision --source world``: the frame that answers a request shows the part's marker where the
+    published world state puts it, before and after the robot carries the part away."""
+    from aioadept.bus.communicator import Communicator
+    from aioadept.vision.world_camera import WorldView
+    from aioadept.worldfile import load_world
+
+    cell = tmp_path / "cell.toml"
+    cell.write_text(WORLD_CAM)
+    world = load_world(cell)
+    view = WorldView(world)
+    frames = tmp_path / "frames"
+    async with running_node("sim", "--port", "0", "--world", str(cell), "--time-scale", "5",
+                            "--state-endpoint", "tcp://127.0.0.1:0", log_path=tmp_path / "sim.log") as sim:
+        async with running_node("vision", "--source", "world", "--world", str(cell),
+                                "--state-endpoint", sim.ready["state"], "--graph", "noop", "--policy", "after",
+                                "--request-endpoint", "tcp://127.0.0.1:0", "--response-endpoint", "tcp://127.0.0.1:0",
+                                "--save-frames", str(frames), log_path=tmp_path / "vision.log") as vis, \
+                Subscriber(sim.ready["state"], topics=[WORLD_STATE_TOPIC]) as sub, \
+                RobotClient(sim.ready["host"], int(sim.ready["port"])) as robot, \
+                Communicator(vis.ready["request"], vis.ready["response"], timeout_s=5.0) as comm:
+
+            async def seen_where_published() -> np.ndarray:
+                state = await next_world(sub)
+                resp = await comm.request("VisionRequest", {})
+                assert "error" not in resp.attributes and resp.attributes["camera"] == "world", resp.attributes
+                png = frames / f"world_{int(resp.attributes['frame_seq']):06d}.png"
+                async with asyncio.timeout(5.0):  # the recorder renames the PNG into place on its own thread
+                    while not png.exists():
+                        await asyncio.sleep(0.01)
+                found = marker_in(png, 2)
+                want = view.project(view.marker_corners_mm(world.part(5), state.part(5)))
+                assert np.abs(found - want).max() < 1.0, (found, want)
+                return found
+
+            before = await seen_where_published()
+            await robot.cmdexec(MoveToS(Pose(480.0, 0.0, TABLE_Z + 20.0, 0.0, 180.0, 0.0)), CloseHand(),
+                                MoveToS(Pose(400.0, 150.0, TABLE_Z + 20.0, 0.0, 180.0, 0.0)), OpenHand(),
+                                MoveToS(Pose(480.0, 0.0, TABLE_Z + 300.0, 0.0, 180.0, 0.0)), Break())
+            await world_when(sub, 5, lambda p: not p.grasped and abs(p.pose.y - 150.0) < 0.01)
+            after = await seen_where_published()
+            assert np.linalg.norm(after.mean(axis=0) - before.mean(axis=0)) > 100, "the marker moved in the image"

@@ -121,6 +121,9 @@ class CellConfig:
                 raise ConfigError(f"{where}: {exc}") from None
         cfg = cls(**parts)
         v = cfg.vision
+        if "world" in v.sources() and not v.world and (cfg.world is None or cfg.world.camera is None):
+            raise ConfigError(f'{source} [vision]: source = "world" needs a [world] table with [world.camera] (or '
+                              f'world = FILE)')
         if not v.exposure_ms > 0:  # the node takes 0 (a camera's own minimum); a cell's camera must expose
             raise ConfigError(f"{source} [vision]: exposure_ms = {v.exposure_ms!r}: expected a finite number of "
                               f"ms > 0")
@@ -197,8 +200,9 @@ def write_world_file(cfg: CellConfig, folder: Path) -> Path | None:
     return path
 
 
-def vision_argv(cfg: CellConfig) -> list[str]:
-    """The node's command line: the addresses of the cell, then every ``[vision]`` option not at its default."""
+def vision_argv(cfg: CellConfig, world_file: Path | None = None) -> list[str]:
+    """The node's command line: the addresses of the cell, then every ``[vision]`` option not at its default
+    (``world_file``: the cell's world, :func:`write_world_file`, for a ``world`` source without its own file)."""
     v = cfg.vision
     argv = ["vision", "--state-endpoint", cfg.robot.state_endpoint,
             "--request-endpoint", v.request_endpoint, "--response-endpoint", v.response_endpoint,
@@ -221,6 +225,8 @@ def vision_argv(cfg: CellConfig) -> list[str]:
                 argv += [flag, str(item)]
         else:
             argv += [flag, str(value)]
+    if world_file is not None and not v.world and "world" in v.sources():
+        argv += ["--world", str(world_file)]
     return [*argv, *v.vision_args]
 
 
@@ -418,7 +424,7 @@ async def running_cell(cfg: CellConfig, log_dir: Path):
             nodes.append(sim)
         if cfg.vision.start:
             vis = await stack.enter_async_context(
-                NodeProcess("vision", vision_argv(cfg), log_path=log_dir / "vision.log"))
+                NodeProcess("vision", vision_argv(cfg, world_file), log_path=log_dir / "vision.log"))
             # READY gives the MCN's side of each link; the cell keeps the node's side (real ports, explicit roles).
             from aioadept.bus.endpoints import opposite
 
