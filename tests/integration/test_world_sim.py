@@ -199,3 +199,40 @@ async def test_the_vision_node_sees_the_part_where_the_world_stream_puts_it(tmp_
             await world_when(sub, 5, lambda p: not p.grasped and abs(p.pose.y - 150.0) < 0.01)
             after = await seen_where_published()
             assert np.linalg.norm(after.mean(axis=0) - before.mean(axis=0)) > 100, "the marker moved in the image"
+
+
+@pytest.mark.timeout(90)
+async def test_the_recording_draws_the_parts_in_3d_and_the_world_cameras_view(tmp_path):
+    """A run recording following a sim with a world: run.rrd holds the table, each part's shape and its frame
+    over time (following the tool while grasped), the world's events (the drop as an ERROR) and the camera's
+    view; the same entities a live viewer gets."""
+    from aioadept.record.live import RunRecording
+    from aioadept.record.read import read_rrd
+    from aioadept.worldfile import load_world
+
+    cell = tmp_path / "cell.toml"
+    cell.write_text(WORLD_CAM)
+    world = load_world(cell)
+    async with running_node("sim", "--port", "0", "--world", str(cell), "--time-scale", "5",
+                            "--state-endpoint", "tcp://127.0.0.1:0", log_path=tmp_path / "sim.log") as sim:
+        async with RunRecording(tmp_path / "run.rrd", state_endpoint=sim.ready["state"], world=world), \
+                Subscriber(sim.ready["state"], topics=[WORLD_STATE_TOPIC]) as sub, \
+                RobotClient(sim.ready["host"], int(sim.ready["port"])) as robot:
+            await robot.cmdexec(MoveToS(Pose(480.0, 0.0, TABLE_Z + 20.0, 0.0, 180.0, 0.0)), CloseHand(),
+                                MoveToS(Pose(400.0, 150.0, TABLE_Z + 100.0, 0.0, 180.0, 0.0)), OpenHand())
+            await world_when(sub, 5, lambda p: p.dropped)
+            await next_world(sub)  # one more sample: the recording's subscriber has seen the drop too
+    rows = read_rrd(tmp_path / "run.rrd")
+    assert {"/world/table", "/world/feeder", "/world/parts/5", "/world/camera", "/world/camera/image",
+            "/messages/world"} <= set(rows)
+    part = rows["/world/parts/5"]
+    assert any("Cylinders3D:radii" in r for r in part), "the cylinder's shape"
+    zs = [r["Transform3D:translation"][0][2] for r in part if r.get("Transform3D:translation")]
+    # it rose with the tool (up to +80: the grip is 20 mm above its bottom; samples drawn at 25 Hz) and lies on
+    # the table again
+    assert zs[0] == pytest.approx(TABLE_Z, abs=0.01) and zs[-1] == pytest.approx(TABLE_Z, abs=0.01)
+    assert TABLE_Z + 40.0 < max(zs) <= TABLE_Z + 80.01
+    logs = [(r["TextLog:level"][0], r["TextLog:text"][0]) for r in rows["/messages/world"]]
+    assert any(level == "ERROR" and "dropped" in text for level, text in logs), logs
+    images = [r for r in rows["/world/camera/image"] if any(k.startswith("EncodedImage:") for k in r)]
+    assert len(images) >= 2, "the camera's view at the start and at least at the grasp and the drop"
