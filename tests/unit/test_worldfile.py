@@ -96,3 +96,26 @@ def test_a_cell_file_without_world_given_as_world_file(tmp_path):
     f.write_text("[robot]\nport = 1\n")
     with pytest.raises(ConfigError, match="no \\[world\\] table"):
         load_world(f)
+
+
+def test_the_example_world_loads_and_its_camera_sees_every_marker():
+    from pathlib import Path
+
+    import cv2
+
+    from aioadept.sim.world import World
+    from aioadept.vision.world_camera import WorldView
+
+    example = Path(__file__).resolve().parents[2] / "examples" / "world-cell.toml"
+    cfg = CellConfig.from_toml(example)
+    w = cfg.world
+    assert w is not None and w.feeder is not None and w.pallet is not None and w.camera is not None
+    world = World(w)
+    assert world.sensor_on(), "a part lies on the feeder"
+    image = WorldView(w, seed=0).render(world.snapshot(0.0).parts)
+    dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, w.aruco_dict))
+    _, ids, _ = cv2.aruco.ArucoDetector(dictionary).detectMarkers(image)
+    assert sorted(ids.ravel().tolist()) == sorted(p.marker for p in w.parts)
+    # every pallet slot is in the camera's view too
+    uv = WorldView(w).project([(*w.pallet.slot_xy(i)[:2], w.table_z_mm) for i in range(w.pallet.slots)])
+    assert ((uv >= 0) & (uv < [w.camera.width_px, w.camera.height_px])).all()
