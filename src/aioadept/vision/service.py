@@ -30,10 +30,10 @@ def _state_curve(opts: argparse.Namespace) -> Any:
 
 
 def make_sources(opts: argparse.Namespace, pose_at: Any, state_age: Any = None, pose_guess: Any = None, *,
-                 world_parts: Any = None) -> list[Any]:
+                 world_parts: Any = None, world_age: Any = None) -> list[Any]:
     """Camera objects for the ``--source`` specs (unique camera ids). ``pose_at`` / ``state_age`` / ``pose_guess``:
     the robot state follower's (``pose_if_at_rest``), for virtual cameras; ``world_parts``: the world state
-    follower's ``parts`` (None: the parts where the cell file puts them), for the world camera."""
+    follower's ``parts`` (None: the parts where the cell file puts them) and ``state_age_s``, for the world camera."""
     from aioadept.vision.sources import ImageFolderSource, OpenCVSource
     from aioadept.vision.virtual_camera import LensOptics, paper_camera
 
@@ -61,7 +61,8 @@ def make_sources(opts: argparse.Namespace, pose_at: Any, state_age: Any = None, 
 
             parts = world_parts if world_parts is not None else (lambda: None)
             sources.append(WorldCameraSource(WorldView(opts.world_config, seed=opts.seed), parts,
-                                             camera_id=unique("world"), exposure_ms=opts.exposure_ms,
+                                             state_age=world_age, camera_id=unique("world"),
+                                             exposure_ms=opts.exposure_ms,
                                              readout_ms=opts.readout_ms))
         elif kind == "folder" and arg:
             csv_path = Path(arg) / "frames.csv"
@@ -109,7 +110,8 @@ async def serve(opts: argparse.Namespace) -> int:
         sources = make_sources(opts, follower.pose_at if follower else None,
                                follower.state_age_s if follower else None,
                                follower.pose_if_at_rest if follower else None,
-                               world_parts=world_follower.parts if world_follower else None)
+                               world_parts=world_follower.parts if world_follower else None,
+                               world_age=world_follower.state_age_s if world_follower else None)
         acq = Acquisition(sources, buffer_size=opts.buffer_size, fps=opts.fps, trigger=opts.trigger).start()
         # Serve only once every camera has a frame: the first render/read pays one-off costs (imports, caches).
         if not await asyncio.to_thread(acq.wait_ready, 10.0):

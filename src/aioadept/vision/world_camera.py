@@ -263,6 +263,14 @@ class WorldStateFollower:
         st = self.latest
         return None if st is None else st.parts
 
+    def state_age_s(self, t_s: float | None = None) -> float:
+        """How long before ``t_s`` (default: now) the newest sample arrived (0 if at or after it, ``inf`` before
+        the first): stamped on each frame, so the node refuses to answer from a world that stopped updating."""
+        received = self.received_t
+        if received is None:
+            return math.inf
+        return max(0.0, (self._clock() if t_s is None else t_s) - received)
+
     def stop(self) -> None:
         self._stop.set()
         if self._thread is not None:
@@ -280,11 +288,15 @@ class WorldCameraSource(Camera):
     """The world's camera as a frame source: each grab renders the parts of ``parts()`` (the follower's newest
     sample; before one arrives, the parts where the cell file puts them) and delivers the frame after the
     exposure and readout, as :class:`~aioadept.vision.virtual_camera.VirtualCamera` does. The parts shown are
-    those of the newest sample at the exposure's start: with the stream at 100 Hz, at most one period old."""
+    those of the newest sample at the exposure's start: with the stream at 100 Hz, at most one period old.
+    ``state_age(t_s)`` (the follower's :meth:`WorldStateFollower.state_age_s`) is stamped on each frame as its
+    ``pose_age_s``, so a node with ``max_state_age`` refuses frames of a world stream that went silent (or never
+    came); without it (no stream) the frames carry None and the parts stay where the file puts them."""
 
     can_trigger = True
 
     def __init__(self, view: WorldView, parts: Callable[[], Sequence[PartState] | None], *,
+                 state_age: Callable[[float], float] | None = None,
                  camera_id: str = "world", clock: Callable[[], float] = time.time,
                  exposure_ms: float = DEFAULT_EXPOSURE_MS, readout_ms: float | None = None,
                  sleep: Callable[[float], None] | None = time.sleep) -> None:
@@ -296,6 +308,7 @@ class WorldCameraSource(Camera):
         self.readout_ms = float(readout_ms) if readout_ms is not None else \
             gige_readout_ms(view.camera.width_px * view.camera.height_px)
         self._sleep = sleep
+        self._state_age = state_age
         self._seq = 0
         self._rest = parts_at_rest(view.world)
 
@@ -308,7 +321,9 @@ class WorldCameraSource(Camera):
             left = t_s + exposure_s + readout_s - self._clock()
             if left > 0:
                 self._sleep(left)  # the physical exposure + readout time, not a readiness wait
-        frame = Frame(image, t_s, self.camera_id, self._seq, None, exposure_s, readout_s)
+        # the age of the world state shown, as the virtual camera stamps its pose's: the node's max_state_age check
+        age = self._state_age(t_s) if self._state_age is not None else None
+        frame = Frame(image, t_s, self.camera_id, self._seq, age, exposure_s, readout_s)
         self._seq += 1
         return frame
 

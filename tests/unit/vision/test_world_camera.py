@@ -85,3 +85,15 @@ def test_the_source_delivers_mono8_frames_numbered_and_stamped():
 def test_a_world_without_a_camera_is_refused():
     with pytest.raises(ValueError, match="camera"):
         WorldView(WorldConfig())
+
+
+def test_frames_carry_the_age_of_the_world_state_they_show():
+    from aioadept.vision.world_camera import WorldStateFollower
+
+    t = [50.0]
+    follower = WorldStateFollower("tcp://127.0.0.1:1", clock=lambda: t[0])   # never started: nothing received
+    source = WorldCameraSource(WorldView(config(), seed=3), follower.parts, state_age=follower.state_age_s,
+                               clock=lambda: t[0], sleep=None)
+    assert source.grab().pose_age_s == float("inf"), "no world state yet: the node's max_state_age refuses it"
+    follower.received_t = 49.8
+    assert source.grab().pose_age_s == pytest.approx(0.2)
