@@ -18,8 +18,8 @@ The hand is a pneumatic gripper on two valve outputs (:class:`HandConfig`): the 
 off drives it open, the reverse closed, both off relaxes it (no force; it stays where it is). It takes
 ``close_time_s`` to travel fully. Its closed-fully switch (an input, ``closed_switch``) is on only when the
 fingers are fully closed, i.e. closed on nothing: closing on a part (:attr:`Hand.part`, set by a test or by the
-sim's world, :mod:`aioadept.sim.world`) stops the fingers short, and the switch stays off. A missed pick is therefore visible as
-``SIG(closed_switch)`` after ``CLOSEI``.
+sim's world, :mod:`aioadept.sim.world`) stops the fingers short, and the switch stays off. A missed pick is
+therefore visible as ``SIG(closed_switch)`` after ``CLOSEI``.
 """
 
 from __future__ import annotations

@@ -12,7 +12,8 @@ Rules (docs/sim.md, "The world"):
   ``grip_tolerance_mm`` of the part's vertical axis and between its bottom (less the tolerance) and its top (the
   fingertips are beside it), with the tool's z axis pointing down within ``grip_tilt_deg``. The nearest such
   part wins. From then on it is rigidly attached to the tool (the transform at the grasp is kept: no centring)
-  and the closing fingers stop on it, so the closed-fully switch stays off; without a part they close fully ("closed on nothing").
+  and the closing fingers stop on it, so the closed-fully switch stays off; without a part they close fully
+  ("closed on nothing").
 - Opening or relaxing the hand releases the part at the tool's pose. A part whose bottom is within ``snap_mm`` of
   the table top is set on the table (z snapped to the plane, upright, its heading kept). From higher up it falls:
   an error event (``dropped``) is logged and published and the part lies on the table below where it was
