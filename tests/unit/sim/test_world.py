@@ -146,3 +146,12 @@ def test_a_part_follows_the_planned_motion_of_the_tool():
     end = ctl.world_snapshot(t_end + 1.0).part(7).pose
     dist, angle = pose_error(start @ Pose(z=50.0), end)
     assert dist < 1e-6 and angle < 1e-6
+
+
+def test_the_feeder_sensor_may_not_be_the_hands_switch():
+    from aioadept.sim.server import SimOptions
+
+    cfg = WorldConfig(parts=(PartSpec(1),), feeder=Feeder(0.0, 0.0, sensor=1001))
+    with pytest.raises(ValueError, match="feeder sensor 1001 is the hand's closed-fully switch"):
+        SimOptions(world=cfg)
+    assert SimOptions(world=cfg, hand=HandConfig(closed_switch=1005)).make_controller().world is not None
