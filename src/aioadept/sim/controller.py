@@ -41,6 +41,9 @@ Semantics, following the original V+ AdeptServer (FACTS.md):
 - Three stops in a row each get ``done`` once the arm is at rest: a stop never aborts another stop.
 - A connection that goes away loses its queued commands and a skill of its that is still waiting (a move for its
   slot): they never run. Motions it already started go on.
+- With a world (:mod:`aioadept.sim.world`, ``world=``), the hand's valves grasp and release its parts at the
+  tool's pose (:meth:`Controller._hand_drive`) and its feeder sensor drives an input, whichever backend switched
+  them.
 - Values are checked before anything moves: set_speed within [``min_speed_pct``, 100], pose rotations within
   +-360 deg, joint values within +-3600 deg (then the joint limits), positions within +-10 m; a second message
   with an ID still pending on the same connection is refused (``stop`` excepted: it is never refused).
