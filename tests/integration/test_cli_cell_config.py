@@ -61,7 +61,7 @@ def test_a_bad_source_in_the_cell_file_names_the_key_and_the_file(tmp_path):
     proc = run("vision", "--config", str(cfg), cwd=tmp_path)
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [f"aioadept vision: {cfg} [vision]: source: bad source 'webcam': use "
-                                                "virtual, gige:ADDRESS, folder:PATH or opencv:SPEC"]
+                                                "virtual, world, gige:ADDRESS, folder:PATH or opencv:SPEC"]
 
 
 @pytest.mark.timeout(60)

@@ -21,6 +21,7 @@ from aioadept.apps.processes import NodeProcess, watch
 from aioadept.commands import SPEED_MAX, SPEED_MIN
 from aioadept.configfile import Range, ranged
 from aioadept.defaults import ROBOT_HOST, ROBOT_PORT, STATE_ENDPOINT, STOP_PORT_OFFSET
+from aioadept.worldmodel import WorldConfig
 from aioadept.vision.options import VisionOptions
 
 log = logging.getLogger(__name__)
@@ -78,6 +79,8 @@ class CellConfig:
     vision: VisionSection = field(default_factory=VisionSection)
     focus: FocusParams = field(default_factory=FocusParams)
     run: RunSection = field(default_factory=RunSection)
+    world: WorldConfig | None = None
+    """The simulated world (``[world]``: table, parts, feeder, pallet, camera; aioadept.worldfile), or None."""
 
     @classmethod
     def from_toml(cls, path: str | Path) -> CellConfig:
@@ -89,7 +92,8 @@ class CellConfig:
     def from_dict(cls, data: dict[str, Any], *, source: str = "config") -> CellConfig:
         from aioadept.configfile import ConfigError, check_ranges, check_section
 
-        known = {"robot": RobotSection, "vision": VisionSection, "focus": FocusParams, "run": RunSection}
+        known = {"robot": RobotSection, "vision": VisionSection, "focus": FocusParams, "run": RunSection,
+                 "world": WorldConfig}
         unknown = set(data) - set(known)
         if unknown:
             raise ConfigError(f"{source}: unknown section(s) {', '.join(sorted(unknown))}; expected "
@@ -99,6 +103,12 @@ class CellConfig:
             # Unknown keys, wrong types and values out of range as one line naming file, key and what was expected
             # (ConfigError).
             where = f"{source} [{name}]"
+            if typ is WorldConfig:
+                if name in data:
+                    from aioadept.worldfile import world_from_table
+
+                    parts[name] = world_from_table(data[name], where)
+                continue
             if typ is VisionSection:
                 parts[name] = VisionSection.from_table(data.get(name, {}), where)
                 continue
@@ -111,6 +121,9 @@ class CellConfig:
                 raise ConfigError(f"{where}: {exc}") from None
         cfg = cls(**parts)
         v = cfg.vision
+        if "world" in v.sources() and not v.world and (cfg.world is None or cfg.world.camera is None):
+            raise ConfigError(f'{source} [vision]: source = "world" needs a [world] table with [world.camera] (or '
+                              f'world = FILE)')
         if not v.exposure_ms > 0:  # the node takes 0 (a camera's own minimum); a cell's camera must expose
             raise ConfigError(f"{source} [vision]: exposure_ms = {v.exposure_ms!r}: expected a finite number of "
                               f"ms > 0")
@@ -164,15 +177,32 @@ def stop_port_of(cfg: CellConfig) -> int:
     return cfg.robot.stop_port or cfg.robot.port + STOP_PORT_OFFSET
 
 
-def sim_argv(cfg: CellConfig) -> list[str]:
+def sim_argv(cfg: CellConfig, world_file: Path | None = None) -> list[str]:
+    """The sim's command line; ``world_file``: the cell's world as a file (:func:`write_world_file`)."""
     r = cfg.robot
+    world = ["--world", str(world_file)] if world_file is not None else []
     return ["sim", "--host", r.host, "--port", str(r.port), "--stop-port", str(stop_port_of(cfg)),
             "--time-scale", str(r.time_scale),
-            "--monitor-speed", str(r.monitor_speed), "--state-endpoint", r.state_endpoint, *r.sim_args]
+            "--monitor-speed", str(r.monitor_speed), "--state-endpoint", r.state_endpoint, *world, *r.sim_args]
 
 
-def vision_argv(cfg: CellConfig) -> list[str]:
-    """The node's command line: the addresses of the cell, then every ``[vision]`` option not at its default."""
+def write_world_file(cfg: CellConfig, folder: Path) -> Path | None:
+    """Write the cell's world as ``folder/world.json`` for the nodes a starter runs (``--world``); None without a
+    world. The same table the cell file holds (:func:`aioadept.worldfile.world_to_table`)."""
+    if cfg.world is None:
+        return None
+    from aioadept.capture import write_atomic
+    from aioadept.worldfile import world_to_table
+
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / "world.json"
+    write_atomic(path, json.dumps(world_to_table(cfg.world), indent=1))
+    return path
+
+
+def vision_argv(cfg: CellConfig, world_file: Path | None = None) -> list[str]:
+    """The node's command line: the addresses of the cell, then every ``[vision]`` option not at its default
+    (``world_file``: the cell's world, :func:`write_world_file`, for a ``world`` source without its own file)."""
     v = cfg.vision
     argv = ["vision", "--state-endpoint", cfg.robot.state_endpoint,
             "--request-endpoint", v.request_endpoint, "--response-endpoint", v.response_endpoint,
@@ -195,6 +225,8 @@ def vision_argv(cfg: CellConfig) -> list[str]:
                 argv += [flag, str(item)]
         else:
             argv += [flag, str(value)]
+    if world_file is not None and not v.world and "world" in v.sources():
+        argv += ["--world", str(world_file)]
     return [*argv, *v.vision_args]
 
 
@@ -382,15 +414,17 @@ async def running_cell(cfg: CellConfig, log_dir: Path):
     """
     cfg = resolve_ports(cfg)
     nodes: list[NodeProcess] = []
+    world_file = write_world_file(cfg, log_dir) if cfg.robot.start_sim or cfg.vision.start else None
     async with contextlib.AsyncExitStack() as stack:
         if cfg.robot.start_sim:
-            sim = await stack.enter_async_context(NodeProcess("sim", sim_argv(cfg), log_path=log_dir / "sim.log"))
+            sim = await stack.enter_async_context(NodeProcess("sim", sim_argv(cfg, world_file),
+                                                              log_path=log_dir / "sim.log"))
             cfg.robot.port = int(sim.ready.get("port", cfg.robot.port))
             cfg.robot.host = sim.ready.get("host", cfg.robot.host)
             nodes.append(sim)
         if cfg.vision.start:
             vis = await stack.enter_async_context(
-                NodeProcess("vision", vision_argv(cfg), log_path=log_dir / "vision.log"))
+                NodeProcess("vision", vision_argv(cfg, world_file), log_path=log_dir / "vision.log"))
             # READY gives the MCN's side of each link; the cell keeps the node's side (real ports, explicit roles).
             from aioadept.bus.endpoints import opposite
 

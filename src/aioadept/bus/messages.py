@@ -33,7 +33,9 @@ __all__ = [
     "ImageMessage",
     "RobotState",
     "SignalEvent",
+    "WorldState",
     "ROBOT_STATE_TOPIC",
+    "WORLD_STATE_TOPIC",
     "VISION_REQUEST",
     "INT32_MIN",
     "INT32_MAX",
@@ -375,3 +377,62 @@ class RobotState:
             outputs_on=tuple(pb.outputs_on), inputs_on=tuple(pb.inputs_on), soft_on=tuple(pb.soft_on),
             hand=pb.hand, changes=tuple(SignalEvent(c.t_s, c.signal, c.on) for c in pb.changes),
         )
+
+
+# ---------------------------------------------------------------------------------------------------- world state
+
+WORLD_STATE_TOPIC = b"world.state"
+"""Topic frame of the simulated world's stream (docs/sim.md, "The world"), published beside ``robot.state``."""
+
+
+@dataclass(frozen=True, slots=True)
+class WorldState:
+    """One sample of the simulated world (:mod:`aioadept.sim.world`): at server time ``t_s`` (epoch
+    ``wall_time_s``) every part's pose and whether it is held or fell, the world's inputs that are on, and the
+    events since the previous sample (:class:`aioadept.sim.world.WorldEvent`; ``seq`` is not sent: 0 here)."""
+
+    t_s: float
+    wall_time_s: float
+    parts: tuple = ()        # tuple[aioadept.sim.world.PartState, ...]
+    events: tuple = ()       # tuple[aioadept.sim.world.WorldEvent, ...]
+    sensors_on: tuple[int, ...] = ()
+
+    def to_bytes(self) -> bytes:
+        """Serialise as ``aioadept.WorldState``; non-finite times raise :class:`BusEncodeError`."""
+        if not (math.isfinite(self.t_s) and math.isfinite(self.wall_time_s)):
+            raise BusEncodeError("world state times must be finite", value=(self.t_s, self.wall_time_s))
+        pb = aioadept_pb2.WorldState(t_s=float(self.t_s), wall_time_s=float(self.wall_time_s),
+                                     sensors_on=[int(n) for n in self.sensors_on])
+        for p in self.parts:
+            q = p.pose
+            pb.parts.add(id=int(p.id), x=q.x, y=q.y, z=q.z, yaw=q.yaw, pitch=q.pitch, roll=q.roll,
+                         grasped=bool(p.grasped), dropped=bool(p.dropped))
+        for e in self.events:
+            pb.events.add(t_s=float(e.t_s), kind=e.kind, part=int(e.part), signal=int(e.signal), on=bool(e.on),
+                          text=e.text)
+        return pb.SerializeToString()
+
+    @classmethod
+    def from_bytes(cls, data: bytes) -> WorldState:
+        """Parse ``aioadept.WorldState`` bytes; garbage or missing required fields raise :class:`BusError`."""
+        from aioadept.worldmodel import PartState, WorldEvent
+
+        pb = aioadept_pb2.WorldState()
+        try:
+            pb.ParseFromString(data)
+        except DecodeError as exc:
+            raise BusError(f"not an aioadept WorldState ({len(data)} bytes): {exc}") from exc
+        _check_required(pb, data)
+        return cls(
+            t_s=pb.t_s, wall_time_s=pb.wall_time_s,
+            parts=tuple(PartState(p.id, Pose(p.x, p.y, p.z, p.yaw, p.pitch, p.roll), p.grasped, p.dropped)
+                        for p in pb.parts),
+            events=tuple(WorldEvent(0, e.t_s, e.kind, e.part, e.signal, e.on, e.text) for e in pb.events),
+            sensors_on=tuple(pb.sensors_on),
+        )
+
+    def part(self, part_id: int):  # -> aioadept.sim.world.PartState
+        for p in self.parts:
+            if p.id == part_id:
+                return p
+        raise KeyError(part_id)

@@ -122,6 +122,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--hand-time", type=float, default=None, dest="hand_time", metavar="SECONDS",
                    help="V+ HAND.TIME: how long open_hand/close_hand/relax_hand hold (a V+ program's PARAMETER "
                         "HAND.TIME overrides it); default 0.05")
+    p.add_argument("--world", metavar="FILE", default=None,
+                   help="the simulated world (parts, feeder sensor, pallet; docs/sim.md): a cell file's [world] "
+                        "table, or a .json file holding that table (--config reads the cell file's [world] too)")
     p.add_argument("--log-level", default="WARNING", dest="log_level", help="logging level on stderr")
     v = p.add_argument_group("V+ emulator (instead of the Python skill table; docs/vplus.md)")
     v.add_argument("--vplus", nargs="+", metavar="FILE", default=None,
@@ -176,6 +179,8 @@ def options_from_args(args: argparse.Namespace) -> SimOptions:
         extra["joints_deg"] = args.joints
     if args.hand is not None:
         extra["hand"] = args.hand
+    if getattr(args, "world_config", None) is not None:
+        extra["world"] = args.world_config
     if args.hand_time is not None:
         from aioadept.sim.io import MAX_HAND_TIME_S
 
@@ -232,18 +237,29 @@ def parse_args(parser: argparse.ArgumentParser, argv: list[str] | None) -> argpa
     """Defaults < the cell file's ``[robot]`` table (``--config``) < the command line. A bad file: one line, exit 2."""
     argv = list(sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(argv)
-    if not args.config:
-        return args
-    from aioadept.apps.cell import CellConfig
     from aioadept.configfile import report
 
-    try:
-        robot = CellConfig.from_toml(args.config).robot
-    except (OSError, ValueError) as exc:
-        raise SystemExit(report("aioadept sim", exc)) from None
-    parser.set_defaults(**{dest: getattr(robot, key) for key, dest in _ROBOT_TABLE},
-                        stop_port=str(robot.stop_port) if robot.stop_port else "auto")
-    return parser.parse_args([*robot.sim_args, *argv])
+    world = None
+    if args.config:
+        from aioadept.apps.cell import CellConfig
+
+        try:
+            cell = CellConfig.from_toml(args.config)
+        except (OSError, ValueError) as exc:
+            raise SystemExit(report("aioadept sim", exc)) from None
+        robot, world = cell.robot, cell.world
+        parser.set_defaults(**{dest: getattr(robot, key) for key, dest in _ROBOT_TABLE},
+                            stop_port=str(robot.stop_port) if robot.stop_port else "auto")
+        args = parser.parse_args([*robot.sim_args, *argv])
+    if args.world:
+        from aioadept.worldfile import load_world
+
+        try:
+            world = load_world(args.world)
+        except (OSError, ValueError) as exc:
+            raise SystemExit(report("aioadept sim", exc)) from None
+    args.world_config = world
+    return args
 
 
 def main(argv: list[str] | None = None) -> int:

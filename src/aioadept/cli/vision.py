@@ -45,6 +45,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="virtual | gige:ADDRESS (a GigE Vision camera's IPv4 address, opened by address, never by "
                         "discovery; needs the [gige] extra) | folder:PATH | opencv:SPEC (device index, video file or "
                         "URL); repeat for several cameras (default: virtual)")
+    p.add_argument("--world", metavar="FILE",
+                   help="the simulated world the 'world' source renders (its parts and [world.camera]): a cell file's "
+                        "[world] table or the .json a starter writes; the parts follow the sim's world.state stream "
+                        "on --state-endpoint")
     p.add_argument("--state-endpoint",
                    help=with_default("robot state stream to follow (virtual source; 'none': no stream, the virtual "
                                      "camera shows the target at the approach pose)",
@@ -148,6 +152,8 @@ def load_config(path: str) -> dict[str, Any]:
         out = {k: v for k, v in cfg.vision.to_dict().items() if k in table}
         if "state_endpoint" not in out and "state_endpoint" in (data.get("robot") or {}):
             out["state_endpoint"] = cfg.robot.state_endpoint
+        if "world" not in out and cfg.world is not None:
+            out["world"] = str(path)  # the cell file's own [world]
         if cfg.vision.vision_args:
             out["vision_args"] = list(cfg.vision.vision_args)
     else:
@@ -229,6 +235,20 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
     except ValueError as exc:
         parser.error(str(exc))
     merged["curve"] = _curve_server(parser, merged)
+    merged["world_config"] = None
+    if "world" in merged["source"]:
+        if not merged["world"]:
+            parser.error("--source world needs --world FILE (a cell file with [world], or its .json)")
+        from aioadept.configfile import report
+        from aioadept.worldfile import load_world
+
+        try:
+            merged["world_config"] = load_world(merged["world"])
+        except (OSError, ValueError) as exc:
+            raise SystemExit(report("aioadept vision", exc)) from None
+        if merged["world_config"].camera is None:
+            raise SystemExit(report("aioadept vision", ValueError(
+                f"{merged['world']}: the world has no [world.camera] for --source world")))
     return argparse.Namespace(**merged)
 
 

@@ -129,7 +129,7 @@ def open_run_recording(cfg: Any, run_dir: Path, recorder: Any) -> Any:
                            viewer_url=view_url,
                            state_endpoint=None if is_none(cfg.robot.state_endpoint) else cfg.robot.state_endpoint,
                            frames_dir=frames_dir_of(cfg), clock_ref=recorder,
-                           name=run_dir.name, short_switch_interval=True)
+                           name=run_dir.name, short_switch_interval=True, world=getattr(cfg, "world", None))
     except Exception as exc:  # noqa: BLE001 - see the docstring: never fail a run for its recording
         log.warning("no run.rrd for this run: %s", exc)
         return None

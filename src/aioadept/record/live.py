@@ -97,7 +97,8 @@ class RunRecording:
 
     def __init__(self, rrd_path: str | os.PathLike[str] | None, *, viewer_url: str | None = None,
                  state_endpoint: str | None = None, frames_dir: str | os.PathLike[str] | None = None,
-                 clock_ref: Any = None, name: str | None = None, short_switch_interval: bool = False) -> None:
+                 clock_ref: Any = None, name: str | None = None, short_switch_interval: bool = False,
+                 world: Any = None) -> None:
         if rrd_path is None and viewer_url is None:
             raise ValueError("RunRecording: give a file (rrd_path), a viewer (viewer_url), or both")
         import rerun as rr
@@ -131,6 +132,13 @@ class RunRecording:
         if name:
             self.rec.send_recording_name(name)
         self.logger = CellLogger(self.rec, loop_to_epoch_s=self.loop_to_epoch_s)
+        self.world_logger = None
+        """The simulated world's parts (aioadept.record.world), when ``world`` (a WorldConfig) is given: they are
+        drawn from the sim's ``world.state`` stream on ``state_endpoint``."""
+        if world is not None:
+            from aioadept.record.world import WorldLogger
+
+            self.world_logger = WorldLogger(self.rec, world)
         self._q: queue.SimpleQueue[Any] = queue.SimpleQueue()
         self._thread: threading.Thread | None = None
         self._state_task: asyncio.Task[None] | None = None
@@ -304,6 +312,8 @@ class RunRecording:
                 lg.mark(name, value, t)
             elif kind == "state":
                 lg.state(obj.wall_time_s, obj.joints_deg, obj.pose)
+            elif kind == "world" and self.world_logger is not None:
+                self.world_logger.state(obj)
             elif kind == "result":
                 lg.focus_plane(obj.inspection_pose, offset_mm=float(obj.peak_offset_mm))
         except Exception:  # a recording must never take the run down; say it once, then count
@@ -333,21 +343,33 @@ class RunRecording:
 
     # -- robot state stream (on the loop: a SUB socket, decimated before it reaches the queue)
     async def _follow_state(self, endpoint: str) -> None:
-        from aioadept.bus.messages import ROBOT_STATE_TOPIC, RobotState
+        from aioadept.bus.messages import ROBOT_STATE_TOPIC, WORLD_STATE_TOPIC, RobotState, WorldState
         from aioadept.bus.pubsub import Subscriber
 
         min_dt = 1.0 / STATE_RATE_HZ
-        last_t = -1e9
+        last_t = last_world_t = -1e9
         last_motion: bool | None = None
+        topics = [ROBOT_STATE_TOPIC] + ([WORLD_STATE_TOPIC] if self.world_logger is not None else [])
         try:
-            sub = Subscriber(endpoint, topics=[ROBOT_STATE_TOPIC], rcvhwm=16)
+            # (a world sample carries its events once: the queue must not drop them, hence the larger HWM)
+            sub = Subscriber(endpoint, topics=topics, rcvhwm=16 if len(topics) == 1 else 256)
         except Exception as exc:  # noqa: BLE001 - no state stream: the arm is drawn from the acks
             log.warning("recording: cannot follow the robot state at %s (%s); drawing the arm from the acks",
                         endpoint, exc)
             return
         try:
             while True:
-                _topic, payload = await sub.recv()
+                topic, payload = await sub.recv()
+                if topic == WORLD_STATE_TOPIC:
+                    try:
+                        ws = WorldState.from_bytes(payload)
+                    except Exception:  # noqa: BLE001 - a stranger's message on the topic: skip it
+                        continue
+                    # Every sample with events (each is sent once), and at most STATE_RATE_HZ otherwise.
+                    if ws.events or ws.wall_time_s - last_world_t >= min_dt:
+                        last_world_t = ws.wall_time_s
+                        self._q.put(("world", ws))
+                    continue
                 try:
                     st = RobotState.from_bytes(payload)
                 except Exception:  # noqa: BLE001 - a stranger's message on the topic: skip it

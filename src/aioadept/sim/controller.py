@@ -41,6 +41,9 @@ Semantics, following the original V+ AdeptServer (FACTS.md):
 - Three stops in a row each get ``done`` once the arm is at rest: a stop never aborts another stop.
 - A connection that goes away loses its queued commands and a skill of its that is still waiting (a move for its
   slot): they never run. Motions it already started go on.
+- With a world (:mod:`aioadept.sim.world`, ``world=``), the hand's valves grasp and release its parts at the
+  tool's pose (:meth:`Controller._hand_drive`) and its feeder sensor drives an input, whichever backend switched
+  them.
 - Values are checked before anything moves: set_speed within [``min_speed_pct``, 100], pose rotations within
   +-360 deg, joint values within +-3600 deg (then the joint limits), positions within +-10 m; a second message
   with an ID still pending on the same connection is refused (``stop`` excepted: it is never refused).
@@ -54,6 +57,7 @@ It raises :class:`aioadept.errors.RobotError` to answer an ``error`` ack.
 
 from __future__ import annotations
 
+import logging
 import math
 from collections import deque
 from collections.abc import Generator, Hashable, Iterable, Sequence
@@ -74,9 +78,10 @@ from aioadept.protocol import (
     recover_id,
 )
 from aioadept.robots import viper_s850 as kin
-from aioadept.sim.io import DigitalIO, IoSnapshot
+from aioadept.sim.io import DigitalIO, HandState, IoSnapshot
 from aioadept.sim.line import CartesianLimits, LinePath, plan_tool_line
 from aioadept.sim.motion import MotionLimits, Trajectory
+from aioadept.sim.world import World, WorldEvent, WorldSnapshot
 
 # The table's names, re-exported: their old import path.
 from aioadept.sim.skills import (_STOP_RUN, AIR_SIGNAL, MAX_JOINT_DEG, MAX_POSITION_MM, MAX_ROTATION_DEG,  # noqa: F401
@@ -84,6 +89,7 @@ from aioadept.sim.skills import (_STOP_RUN, AIR_SIGNAL, MAX_JOINT_DEG, MAX_POSIT
                                  default_skills)
 
 ConnId = Hashable
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True, slots=True)
@@ -136,7 +142,7 @@ class Controller:
                  version: str | None = None, max_speed_pct: float = 100.0,
                  min_speed_pct: float = MIN_SPEED_PCT,
                  jump_limit: kin.JumpLimit | None = kin.DEFAULT_JUMP_LIMIT, io: DigitalIO | None = None,
-                 cartesian_limits: CartesianLimits | None = None) -> None:
+                 cartesian_limits: CartesianLimits | None = None, world: World | None = None) -> None:
         if not 0 < monitor_speed_pct <= 100:
             raise ValueError(f"monitor_speed_pct: {monitor_speed_pct} outside (0, 100]")
         if not 0 < max_speed_pct <= 100:
@@ -168,6 +174,11 @@ class Controller:
         """V+ DURATION [ALWAYS]: the least time (s, robot time) of the next (every) motion."""
         self.io = (io or DigitalIO()).scaled(time_scale, instant)  # digital I/O and the hand: the one model
         self.signals = self.io.values  # signal states by number: read them; change them through self.io
+        self.world = world
+        """The parts the hand grasps and the feeder sensor drives (aioadept.sim.world), or None: no world."""
+        if world is not None:
+            self.io.on_drive = self._hand_drive
+            self._apply_world_events([e for e in world.events if e.kind == "sensor"], 0.0)
         self.now_s = 0.0
         """The time of the event being processed (a skill reads it as 'now')."""
         if version is None:
@@ -476,6 +487,33 @@ class Controller:
             speed = (self.pending_speed_pct or self.always_speed_pct) * self.monitor_speed_pct / 100.0
         return ControllerState(t_s, joints, self._forward(joints), self.trajectory.in_motion(t_s),
                                float(speed), self.air, self.io.snapshot(t_s))
+
+    # -- the world (aioadept.sim.world) ------------------------------------------------------------------------
+    def _hand_drive(self, drive: HandState, t_s: float) -> None:
+        """The valves drive the hand another way at ``t_s``: the world grasps or releases a part at the TCP."""
+        assert self.world is not None
+        tool = self.here_at(t_s)
+        if drive is HandState.CLOSED:
+            events = self.world.hand_closed(t_s, tool)
+        else:
+            events = self.world.hand_opened(t_s, tool)
+        self.io.hand.part = self.world.held is not None
+        self._apply_world_events(events, t_s)
+
+    def _apply_world_events(self, events: Sequence[WorldEvent], t_s: float) -> None:
+        for ev in events:
+            if ev.kind == "sensor":
+                self.io.set_input(ev.signal, ev.on, t_s)
+            elif ev.error:  # a part fell: an error in the sim's log (and in the world stream), never silent
+                log.error("world: %s (t=%.3f s)", ev.text, ev.t_s)
+            else:
+                log.info("world: %s part %d (t=%.3f s)", ev.kind, ev.part, ev.t_s)
+
+    def world_snapshot(self, t_s: float) -> WorldSnapshot | None:
+        """The world at ``t_s`` (a held part follows the tool there), or None without a world."""
+        if self.world is None:
+            return None
+        return self.world.snapshot(t_s, self.here_at(t_s))
 
     def take_speed_pct(self) -> float:
         """The effective speed (program x monitor, at most ``max_speed_pct``) for the next motion; consumes a

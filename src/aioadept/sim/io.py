@@ -17,16 +17,16 @@ number, so that a state stream can send each change once: :meth:`DigitalIO.chang
 The hand is a pneumatic gripper on two valve outputs (:class:`HandConfig`): the open valve on and the close valve
 off drives it open, the reverse closed, both off relaxes it (no force; it stays where it is). It takes
 ``close_time_s`` to travel fully. Its closed-fully switch (an input, ``closed_switch``) is on only when the
-fingers are fully closed, i.e. closed on nothing: closing on a part (:attr:`Hand.part`, set by a test or, later,
-the sim's world) stops the fingers short, and the switch stays off. A missed pick is therefore visible as
-``SIG(closed_switch)`` after ``CLOSEI``.
+fingers are fully closed, i.e. closed on nothing: closing on a part (:attr:`Hand.part`, set by a test or by the
+sim's world, :mod:`aioadept.sim.world`) stops the fingers short, and the switch stays off. A missed pick is
+therefore visible as ``SIG(closed_switch)`` after ``CLOSEI``.
 """
 
 from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from enum import Enum
 
@@ -230,6 +230,10 @@ class DigitalIO:
         """A deferred OPEN/CLOSE/RELAX waiting for the start of the next motion."""
         self._switch_at: float | None = None        # when the closed-fully switch turns on (a pending event)
         self._now = 0.0
+        self.on_drive: Callable[[HandState, float], None] | None = None
+        """Called when the valves drive the hand another way (open, closed, relaxed), at that time, before the
+        closed-fully switch is updated: the controller's world (aioadept.sim.world) grasps or releases a part
+        there and sets :attr:`Hand.part`."""
 
     # -- reading -------------------------------------------------------------------------------------------
     def scaled(self, time_scale: float, instant: bool) -> DigitalIO:
@@ -363,6 +367,9 @@ class DigitalIO:
         if drive is self.hand.drive:
             return
         self.hand.set_drive(drive, t_s)
+        if self.on_drive is not None:
+            # after set_drive (the travel so far is rebased with the old part flag), before the switch reads it
+            self.on_drive(drive, t_s)
         self._update_switch(t_s)
 
     def _update_switch(self, t_s: float) -> None:

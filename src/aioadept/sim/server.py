@@ -10,7 +10,8 @@ It owns everything with I/O and leaves the behaviour to the pure :class:`aioadep
   either), each line to :meth:`Controller.handle` with the server time it was read;
 - one timer asks :meth:`Controller.step` to run whatever is due next (a break completing, a move getting its slot);
 - acks are encoded with :func:`encode_ack` and written to the connection that sent the command;
-- a :class:`aioadept.bus.pubsub.Publisher` sends :class:`aioadept.bus.messages.RobotState` on ``robot.state``.
+- a :class:`aioadept.bus.pubsub.Publisher` sends :class:`aioadept.bus.messages.RobotState` on ``robot.state``
+  (and, with a world, :class:`aioadept.bus.messages.WorldState` on ``world.state``).
 
 The clock is ``TIMER(-3)``: real seconds since the server started (acks show it with 1 ms resolution). The time
 scale speeds up motions only, never this clock. Fault injection (:class:`Faults`) delays acks, drops a connection
@@ -40,6 +41,7 @@ from aioadept.robots import viper_s850 as kin
 from aioadept.sim.controller import Controller, Outgoing
 from aioadept.sim.io import HAND_TIME_S, DigitalIO, HandConfig
 from aioadept.sim.line import CartesianLimits
+from aioadept.sim.world import World, WorldConfig
 
 log = logging.getLogger(__name__)
 
@@ -140,6 +142,8 @@ class SimOptions:
     """HAND.TIME at start (a V+ program's PARAMETER HAND.TIME changes it)."""
     cartesian_limits: CartesianLimits = field(default_factory=CartesianLimits)
     """What 100 % speed means for a straight line (tool mm/s and deg/s; docs/sim.md)."""
+    world: WorldConfig | None = None
+    """The parts, feeder and pallet of the cell (aioadept.sim.world; the cell file's [world]); None: no world."""
 
     def __post_init__(self) -> None:
         if not self.time_scale > 0:
@@ -164,6 +168,10 @@ class SimOptions:
             raise ValueError("state_rate_hz: must be > 0")
         for addr in self.allow:
             ipaddress.ip_address(addr)  # ValueError for a malformed address
+        feeder = self.world.feeder if self.world is not None else None
+        if feeder is not None and feeder.sensor == self.hand.closed_switch:
+            raise ValueError(f"world feeder sensor {feeder.sensor} is the hand's closed-fully switch; give it "
+                             f"another input")
 
     def make_controller(self) -> Controller:
         """The one robot model these options describe (both sim backends build it here)."""
@@ -171,7 +179,8 @@ class SimOptions:
                           time_scale=self.time_scale, instant=self.instant, max_speed_pct=self.max_speed_pct,
                           jump_limit=self.jump_limit, max_queued_per_conn=self.max_queued,
                           io=DigitalIO(self.hand, hand_time_s=self.hand_time_s),
-                          cartesian_limits=self.cartesian_limits)
+                          cartesian_limits=self.cartesian_limits,
+                          world=None if self.world is None else World(self.world))
 
 
 class _NotAStop(Exception):
@@ -236,6 +245,7 @@ class SimServer:
         self._t0 = 0.0
         self._wall0 = 0.0
         self._io_cursor = [0]  # the state stream sends each signal change once (robot_state_sample)
+        self._world_cursor = [0]  # and each world event once (world_state_sample)
         self._conns: dict[int, _Conn] = {}
         self._handlers: set[asyncio.Task[None]] = set()
         self._timer: asyncio.TimerHandle | None = None
@@ -633,18 +643,26 @@ class SimServer:
         """The state sample for now (what the stream publishes)."""
         return robot_state_sample(self.controller, self.now(), self._wall0, self._io_cursor)
 
+    def world_state(self):  # -> aioadept.bus.messages.WorldState | None
+        """The world sample for now (what the stream publishes on ``world.state``), None without a world."""
+        return world_state_sample(self.controller, self.now(), self._wall0, self._world_cursor)
+
     def _publish_state_now(self) -> None:
-        from aioadept.bus.messages import ROBOT_STATE_TOPIC
+        from aioadept.bus.messages import ROBOT_STATE_TOPIC, WORLD_STATE_TOPIC
 
         assert self._publisher is not None
         try:
             self._publisher.publish_nowait(ROBOT_STATE_TOPIC, self.robot_state().to_bytes())
+            world = self.world_state()
+            if world is not None:
+                self._publisher.publish_nowait(WORLD_STATE_TOPIC, world.to_bytes())
         except Exception:
             log.exception("state publish failed")
 
     async def _publish_state(self) -> None:
         assert self._publisher is not None
-        await publish_robot_states(self._publisher, self.robot_state, self.options.state_rate_hz)
+        await publish_robot_states(self._publisher, self.robot_state, self.options.state_rate_hz,
+                                   world_sample=self.world_state if self.controller.world is not None else None)
 
 
 def robot_state_sample(controller: Controller, now: float, wall0: float,
@@ -670,9 +688,29 @@ def robot_state_sample(controller: Controller, now: float, wall0: float,
                       changes=changes, **extra)
 
 
-async def publish_robot_states(publisher: Any, sample: Callable[[], Any], rate_hz: float) -> None:
-    """Publish ``sample()`` on ``robot.state`` at ``rate_hz`` until cancelled (the sim's state stream)."""
-    from aioadept.bus.messages import ROBOT_STATE_TOPIC
+def world_state_sample(controller: Controller, now: float, wall0: float,
+                       cursor: list[int] | None = None):  # -> aioadept.bus.messages.WorldState | None
+    """The ``world.state`` sample of ``controller``'s world at server time ``now`` (None without a world): every
+    part (a held one where the tool is at ``now``) and the events after ``cursor[0]``, which moves on, so each
+    event goes out once. Shared by both backends, as :func:`robot_state_sample`."""
+    from aioadept.bus.messages import WorldState
+
+    snap = controller.world_snapshot(now)
+    if snap is None:
+        return None
+    events: tuple = ()
+    if cursor is not None:
+        assert controller.world is not None
+        new, cursor[0] = controller.world.events_since(cursor[0])
+        events = tuple(new)
+    return WorldState(now, wall0 + now, snap.parts, events, snap.sensors_on)
+
+
+async def publish_robot_states(publisher: Any, sample: Callable[[], Any], rate_hz: float, *,
+                               world_sample: Callable[[], Any] | None = None) -> None:
+    """Publish ``sample()`` on ``robot.state`` (and ``world_sample()``, if given, on ``world.state``) at
+    ``rate_hz`` until cancelled (the sim's state stream)."""
+    from aioadept.bus.messages import ROBOT_STATE_TOPIC, WORLD_STATE_TOPIC
 
     loop = asyncio.get_running_loop()
     period = 1.0 / rate_hz
@@ -680,6 +718,10 @@ async def publish_robot_states(publisher: Any, sample: Callable[[], Any], rate_h
     while True:
         try:
             publisher.publish_nowait(ROBOT_STATE_TOPIC, sample().to_bytes())
+            if world_sample is not None:
+                world = world_sample()
+                if world is not None:
+                    publisher.publish_nowait(WORLD_STATE_TOPIC, world.to_bytes())
         except Exception:
             log.exception("state publish failed")
         # A fixed schedule, not sleep(period) after the work, so the rate does not drift.

@@ -19,6 +19,7 @@ from aioadept.defaults import REQUEST_ENDPOINT, RESPONSE_ENDPOINT, STATE_ENDPOIN
 
 SOURCES: dict[str, str] = {
     "virtual": "the virtual camera, rendering the calibration object at the robot's tool pose (no argument)",
+    "world": "the fixed camera above the table, rendering the simulated world's parts (no argument; needs world)",
     "gige": "gige:ADDRESS, a GigE Vision camera's IPv4 address (opened by address; needs the [gige] extra)",
     "folder": "folder:PATH, images of a folder (a --save-frames folder replays with its times)",
     "opencv": "opencv:SPEC, an OpenCV capture: device index, video file or URL",
@@ -36,8 +37,9 @@ def check_source(spec: Any) -> str:
     if not isinstance(spec, str):
         raise ValueError(f"expected a source spec string, got {spec!r}")
     kind, sep, arg = spec.partition(":")
-    if kind not in SOURCES or (kind == "virtual" and sep) or (kind != "virtual" and not arg):
-        raise ValueError(f"bad source {spec!r}: use virtual, gige:ADDRESS, folder:PATH or opencv:SPEC")
+    bare = kind in ("virtual", "world")
+    if kind not in SOURCES or (bare and sep) or (not bare and not arg):
+        raise ValueError(f"bad source {spec!r}: use virtual, world, gige:ADDRESS, folder:PATH or opencv:SPEC")
     return spec
 
 
@@ -88,6 +90,9 @@ class VisionOptions:
     max_state_age: float = 0.5
     max_queue: int = 32
     max_request_bytes: int = 1 << 20
+    world: str | None = None
+    """The simulated world the ``world`` source renders: a cell file (its ``[world]`` table) or the ``.json`` a
+    starter writes (aioadept.worldfile); its ``[world.camera]`` places the camera."""
 
     @classmethod
     def from_table(cls, table: Any, where: str) -> VisionOptions:

@@ -29,9 +29,11 @@ def _state_curve(opts: argparse.Namespace) -> Any:
     return CurveClient(load_keypair(secret), load_keypair(server).public)
 
 
-def make_sources(opts: argparse.Namespace, pose_at: Any, state_age: Any = None, pose_guess: Any = None) -> list[Any]:
+def make_sources(opts: argparse.Namespace, pose_at: Any, state_age: Any = None, pose_guess: Any = None, *,
+                 world_parts: Any = None, world_age: Any = None) -> list[Any]:
     """Camera objects for the ``--source`` specs (unique camera ids). ``pose_at`` / ``state_age`` / ``pose_guess``:
-    the robot state follower's (``pose_if_at_rest``), for virtual cameras."""
+    the robot state follower's (``pose_if_at_rest``), for virtual cameras; ``world_parts``: the world state
+    follower's ``parts`` (None: the parts where the cell file puts them) and ``state_age_s``, for the world camera."""
     from aioadept.vision.sources import ImageFolderSource, OpenCVSource
     from aioadept.vision.virtual_camera import LensOptics, paper_camera
 
@@ -54,6 +56,14 @@ def make_sources(opts: argparse.Namespace, pose_at: Any, state_age: Any = None, 
                                         seed=opts.seed, camera_id=unique("virtual"), state_age=state_age,
                                         exposure_ms=opts.exposure_ms, readout_ms=opts.readout_ms,
                                         pose_guess=pose_guess))
+        elif kind == "world":
+            from aioadept.vision.world_camera import WorldCameraSource, WorldView
+
+            parts = world_parts if world_parts is not None else (lambda: None)
+            sources.append(WorldCameraSource(WorldView(opts.world_config, seed=opts.seed), parts,
+                                             state_age=world_age, camera_id=unique("world"),
+                                             exposure_ms=opts.exposure_ms,
+                                             readout_ms=opts.readout_ms))
         elif kind == "folder" and arg:
             csv_path = Path(arg) / "frames.csv"
             # A recorded folder (--save-frames) replays with its times; any other folder loops, stamped live.
@@ -68,7 +78,7 @@ def make_sources(opts: argparse.Namespace, pose_at: Any, state_age: Any = None, 
         elif kind == "opencv" and arg:
             sources.append(OpenCVSource(arg, camera_id=unique(f"opencv:{arg}")))
         else:
-            raise ValueError(f"bad --source {spec!r}: use virtual, gige:ADDRESS, folder:PATH or opencv:SPEC")
+            raise ValueError(f"bad --source {spec!r}: use virtual, world, gige:ADDRESS, folder:PATH or opencv:SPEC")
     return sources
 
 
@@ -89,12 +99,19 @@ async def serve(opts: argparse.Namespace) -> int:
 
     if any(s.split(":", 1)[0] == "virtual" for s in opts.source) and not is_none(opts.state_endpoint):
         follower = RobotStateFollower(opts.state_endpoint, curve=_state_curve(opts)).start()
+    world_follower = None
+    if "world" in opts.source and not is_none(opts.state_endpoint):
+        from aioadept.vision.world_camera import WorldStateFollower
+
+        world_follower = WorldStateFollower(opts.state_endpoint, curve=_state_curve(opts)).start()
     recorder = FrameRecorder(opts.save_frames) if opts.save_frames else None
     acq = node = responder = None
     try:
         sources = make_sources(opts, follower.pose_at if follower else None,
                                follower.state_age_s if follower else None,
-                               follower.pose_if_at_rest if follower else None)
+                               follower.pose_if_at_rest if follower else None,
+                               world_parts=world_follower.parts if world_follower else None,
+                               world_age=world_follower.state_age_s if world_follower else None)
         acq = Acquisition(sources, buffer_size=opts.buffer_size, fps=opts.fps, trigger=opts.trigger).start()
         # Serve only once every camera has a frame: the first render/read pays one-off costs (imports, caches).
         if not await asyncio.to_thread(acq.wait_ready, 10.0):
@@ -151,5 +168,7 @@ async def serve(opts: argparse.Namespace) -> int:
             acq.stop()
         if follower is not None:
             follower.stop()
+        if world_follower is not None:
+            world_follower.stop()
         if recorder is not None:
             recorder.close()

@@ -160,6 +160,32 @@ def disk_kernel(diameter_px: float) -> np.ndarray:
     return (k / k.sum()).astype(np.float32)
 
 
+class NoiseField:
+    """Additive Gaussian sensor noise (``sigma`` grey levels) for ``height`` x ``width`` mono8 frames: one field,
+    drawn once, a little larger than the frame; each frame adds a window of it at a random offset, so a frame
+    costs an addition, not a draw (the virtual cameras' noise: :class:`VirtualCamera`, the world camera).
+    Not thread-safe (the generator): callers hold their own lock."""
+
+    PAD = 64
+
+    def __init__(self, height: int, width: int, sigma: float, *, seed: int | None = None,
+                 rng: np.random.Generator | None = None) -> None:
+        self.height, self.width, self.sigma = int(height), int(width), float(sigma)
+        self.rng = rng if rng is not None else np.random.default_rng(seed)
+        self.field: np.ndarray | None = None
+        if self.sigma > 0:
+            shape = (self.height + self.PAD, self.width + self.PAD)
+            self.field = np.round(self.rng.standard_normal(shape, dtype=np.float32) * self.sigma).astype(np.int16)
+
+    def add(self, frame: np.ndarray) -> np.ndarray:
+        """``frame`` (mono8, height x width) plus a window of the field, saturated to 0..255."""
+        if self.field is None:
+            return frame
+        dy, dx = (int(v) for v in self.rng.integers(0, self.PAD, size=2))
+        window = self.field[dy:dy + self.height, dx:dx + self.width]
+        return cv2.add(frame, window, dtype=cv2.CV_8U)
+
+
 # ------------------------------------------------------------------------------------------ paper geometry
 def paper_approach_pose(forward: Callable[[Sequence[float]], Pose] | None = None) -> Pose:
     """The approach pose of the paper's focus application: where ``init_move`` leaves the robot.
@@ -268,12 +294,7 @@ class VirtualCamera(Camera):
         self._kernels: dict[int, np.ndarray] = {}
         rng = np.random.default_rng(seed)
         self._rng = rng
-        self._noise_pad = 64
-        if self.noise_sigma > 0:
-            shape = (optics.height_px + self._noise_pad, optics.width_px + self._noise_pad)
-            self._noise = np.round(rng.standard_normal(shape, dtype=np.float32) * self.noise_sigma).astype(np.int16)
-        else:
-            self._noise = None
+        self._noise = NoiseField(optics.height_px, optics.width_px, self.noise_sigma, rng=rng)
         self._lock = threading.Lock()
 
     # --------------------------------------------------------------------------------------- geometry
@@ -337,12 +358,8 @@ class VirtualCamera(Camera):
                 roi = cv2.warpPerspective(self._texture, h, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR,
                                           borderMode=cv2.BORDER_CONSTANT, borderValue=self.background)
                 frame[y0:y1, x0:x1] = self._blur(roi, diameter)
-        if self._noise is not None:
-            with self._lock:  # the Generator is not thread-safe
-                dy, dx = (int(v) for v in self._rng.integers(0, self._noise_pad, size=2))
-            window = self._noise[dy:dy + o.height_px, dx:dx + o.width_px]
-            frame = cv2.add(frame, window, dtype=cv2.CV_8U)
-        return frame
+        with self._lock:  # the Generator is not thread-safe
+            return self._noise.add(frame)
 
     can_trigger = True
 

@@ -38,7 +38,7 @@ async def run(args: argparse.Namespace, options: Any) -> int:
     """Serve until SIGINT/SIGTERM. ``options`` (:class:`aioadept.sim.server.SimOptions`, from the same command
     line: ``aioadept.cli.sim.options_from_args``) gives the robot, the state stream and the faults exactly as for
     the Python backend."""
-    from aioadept.sim.server import publish_robot_states, robot_state_sample
+    from aioadept.sim.server import publish_robot_states, robot_state_sample, world_state_sample
     from aioadept.vplus import Emulator, RealClock
     from aioadept.vplus.iodev import Network
     from aioadept.vplus.loader import load_files
@@ -85,8 +85,11 @@ async def run(args: argparse.Namespace, options: Any) -> int:
         loop.add_signal_handler(sig, stop.set)
     # the emulator's clock is the controller's time: the stream samples the arm at that time
     io_cursor = [0]  # each signal change goes out once, in the sample after it
+    world_cursor = [0]  # each world event too
+    world_sample = None if ctl.world is None else (lambda: world_state_sample(ctl, clock.now, wall0, world_cursor))
     states = None if publisher is None else asyncio.ensure_future(publish_robot_states(
-        publisher, lambda: robot_state_sample(ctl, clock.now, wall0, io_cursor), options.state_rate_hz))
+        publisher, lambda: robot_state_sample(ctl, clock.now, wall0, io_cursor), options.state_rate_hz,
+        world_sample=world_sample))
     status = [0]
     watcher = asyncio.ensure_future(_watch(emu, args.run, listening, stop, status))
     try:

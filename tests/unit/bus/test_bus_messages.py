@@ -207,3 +207,27 @@ def test_image_array_errors():
         ImageMessage(b"\x00" * 5, format="mono8:2x2").to_array()
     with pytest.raises(BusError):
         ImageMessage(b"not an image", format="png").to_array()
+
+
+# ---------------------------------------------------------------------------------------------------- world state
+
+def test_world_state_round_trips_parts_events_and_sensors():
+    from aioadept.bus.messages import WorldState
+    from aioadept.worldmodel import PartState, WorldEvent
+
+    st = WorldState(12.5, 1.7e9, (PartState(1, Pose(1.0, 2.0, 3.0, 0.0, 0.0, 30.0), grasped=True),
+                                  PartState(2, Pose(-5.0, 0.5, 0.0), dropped=True)),
+                    (WorldEvent(0, 12.4, "dropped", part=2, text="part 2 dropped"),
+                     WorldEvent(0, 12.45, "sensor", signal=1002, on=True)), (1002,))
+    back = WorldState.from_bytes(st.to_bytes())
+    assert back == st
+    assert back.part(1).grasped and back.part(2).dropped and back.events[0].error
+
+
+def test_world_state_garbage_and_bad_times_are_bus_errors():
+    from aioadept.bus.messages import WorldState
+
+    with pytest.raises(BusError):
+        WorldState.from_bytes(b"\x08\x01")  # a varint field 1: not the double t_s, and wall_time_s missing
+    with pytest.raises(BusEncodeError):
+        WorldState(float("nan"), 0.0).to_bytes()
