@@ -67,7 +67,8 @@ class RunSection:
     analyze: bool = True
     name: str = ""
     record: bool = True
-    """Write ``run.rrd`` (Rerun) into every run folder when the [viewer] extra is installed (docs/record.md)."""
+    """Write ``run.rrd`` (Rerun) and ``run.mcap`` into every run folder when the [viewer] / [mcap] extras are
+    installed (docs/record.md)."""
     view_url: str = ""
     """gRPC address of a live viewer each run streams to (set by ``--view``); empty: none."""
 
@@ -230,7 +231,7 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
     from aioadept.capture import Recorder
     from aioadept.client import RobotClient
 
-    from aioadept.record.hook import MarkTee, open_run_recording
+    from aioadept.record.hook import MarkTee, open_run_recording, write_run_mcap_of
 
     params = params or cfg.focus
     recorder = Recorder()
@@ -279,6 +280,10 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
                 await asyncio.shield(rrd.aclose())  # flushed and closed even when the run was cancelled
                 if rrd.error is not None and rrd.rrd_path is not None:  # e.g. a full disk: named with the others
                     save_error = merged_save_error(save_error, run_dir, {rrd.rrd_path.name: rrd.error})
+            # run.mcap after run.rrd: from the same records as robot.csv/vision.csv, off the loop (it reads frames).
+            mcap_error = await asyncio.shield(asyncio.to_thread(write_run_mcap_of, cfg, run_dir, recorder, meta))
+            if mcap_error is not None:
+                save_error = merged_save_error(save_error, run_dir, {"run.mcap": mcap_error})
     return RunOutcome(run_dir, result, error, save_error)
 
 
