@@ -20,8 +20,9 @@ pytest.importorskip("foxglove_schemas_protobuf")
 from mcap.reader import make_reader  # noqa: E402
 from mcap_protobuf.decoder import DecoderFactory  # noqa: E402
 
-from aioadept.bus.messages import EventMessage  # noqa: E402
+from aioadept.bus.messages import EventMessage, RobotState  # noqa: E402
 from aioadept.geometry import Pose  # noqa: E402
+from aioadept.robots import viper_s850 as kin  # noqa: E402
 from aioadept.robots.viper_s850_urdf import FLANGE_LINK, urdf  # noqa: E402
 
 BIN = Path(sys.executable).parent
@@ -39,6 +40,12 @@ def _demo(out: Path, *extra: str) -> Path:
 def _rows(path: Path) -> list[dict[str, str]]:
     with path.open(newline="") as f:
         return list(csv.DictReader(f))
+
+
+def _metres(m_mm: np.ndarray) -> np.ndarray:
+    m = m_mm.copy()
+    m[:3, 3] /= 1000.0
+    return m
 
 
 def _quat_matrix(q) -> np.ndarray:
@@ -73,6 +80,7 @@ def test_run_mcap_holds_every_message_of_robot_csv_and_vision_csv(demo_run):
         "/tf": ("foxglove.FrameTransform", "protobuf"),
         "/vision/request": ("epypes.Event", "protobuf"), "/vision/response": ("epypes.Event", "protobuf"),
         "/camera/image": ("foxglove.CompressedImage", "protobuf"),
+        "/robot/state": ("aioadept.RobotState", "protobuf"),
     }
     assert counts["/robot/command"] == len(robot)
     assert counts["/robot/ack"] == sum(1 for r in robot if r["t_recv_s"])
@@ -81,6 +89,8 @@ def test_run_mcap_holds_every_message_of_robot_csv_and_vision_csv(demo_run):
     assert counts["/camera/image"] == sum(1 for v in vision if v["frame_seq"] and not v["error"])
     assert counts["/robot_description"] == 1
     assert counts["/tf"] > 0 and counts["/tf"] % 6 == 0  # six links per arm pose
+    # the sim's state stream (100 Hz) over the run: every sample, decimated to 25 Hz for /tf
+    assert counts["/robot/state"] > counts["/tf"] / 6
     assert summary.statistics.message_count == sum(counts.values())
     assert [a.name for a in attachments] == ["viper_s850.urdf"]
     assert attachments[0].data.decode() == urdf()
@@ -95,7 +105,8 @@ def test_the_decoded_messages_are_the_run_ids_sharpness_frames_and_arm(demo_run)
     decoded: dict[str, list] = {}
     with (demo_run / "run.mcap").open("rb") as f:
         for _s, channel, message, proto in make_reader(f, decoder_factories=[DecoderFactory()]) \
-                .iter_decoded_messages(topics=["/robot/command", "/vision/response", "/camera/image", "/tf"]):
+                .iter_decoded_messages(topics=["/robot/command", "/vision/response", "/camera/image", "/tf",
+                                               "/robot/state"]):
             decoded.setdefault(channel.topic, []).append((message.log_time, proto))
     # commands in send order, each naming its id and skill, stamped at its send time
     cmd = decoded["/robot/command"]
@@ -123,6 +134,9 @@ def test_the_decoded_messages_are_the_run_ids_sharpness_frames_and_arm(demo_run)
         step[:3, :3] = _quat_matrix(t.rotation)
         step[:3, 3] = (t.translation.x, t.translation.y, t.translation.z)
         m = m @ step
+    # ... which is the flange of the last state sample's joints (the raw bytes read by the bus's own decoder)
+    last_state = RobotState.from_bytes(decoded["/robot/state"][-1][1].SerializeToString())
+    np.testing.assert_allclose(m, _metres(kin.flange_matrix(last_state.joints_deg)), atol=1e-9)
     last = [r for r in robot if r["status"] == "done" and r["pose_x_mm"]][-1]
     pose = Pose(*(float(last[k]) for k in ("pose_x_mm", "pose_y_mm", "pose_z_mm", "pose_yaw_deg",
                                              "pose_pitch_deg", "pose_roll_deg")))

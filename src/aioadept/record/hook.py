@@ -18,7 +18,7 @@ from typing import Any
 from aioadept.record import VIEWER_INSTALL_HINT, ViewerUnavailable, rerun_available
 
 __all__ = ["add_view_options", "frames_dir_of", "keep_frames", "open_run_recording", "run_with_viewer", "start_viewer",
-           "wait_for_viewer", "write_run_mcap_of"]
+           "mcap_wanted", "open_state_tap", "wait_for_viewer", "write_run_mcap_of"]
 
 log = logging.getLogger(__name__)
 
@@ -138,18 +138,42 @@ def open_run_recording(cfg: Any, run_dir: Path, recorder: Any) -> Any:
     return rec.start()
 
 
-def write_run_mcap_of(cfg: Any, run_dir: Path, recorder: Any, meta: dict[str, Any]) -> str | None:
-    """Write ``run.mcap`` of the run ``recorder`` (a :class:`aioadept.capture.Recorder`) recorded into ``run_dir``;
-    None when written or not asked for (``cfg.run.record`` off, or the ``[mcap]`` extra missing: as with run.rrd,
-    a missing convenience never fails a run), else why it was not written. Blocking: call it in a thread."""
-    from aioadept.record.mcapfile import MCAP_INSTALL_HINT, mcap_available, write_run_mcap
+def mcap_wanted(cfg: Any) -> bool:
+    """True when runs of ``cfg`` (a CellConfig) get a ``run.mcap``: ``cfg.run.record`` on and the ``[mcap]`` extra
+    installed (without it the run goes on without the file: as with run.rrd, a convenience never fails a run)."""
+    from aioadept.record.mcapfile import MCAP_INSTALL_HINT, mcap_available
 
     if not getattr(cfg.run, "record", True):
-        return None
+        return False
     if not mcap_available():
         log.debug("no run.mcap (%s)", MCAP_INSTALL_HINT)
+        return False
+    return True
+
+
+def open_state_tap(cfg: Any) -> Any:
+    """A started :class:`~aioadept.record.mcapfile.StateTap` on the robot's state stream for ``run.mcap``, or None
+    (no run.mcap, or no state endpoint). Call it inside the event loop."""
+    from aioadept.bus.endpoints import is_none
+
+    if not mcap_wanted(cfg) or is_none(cfg.robot.state_endpoint):
         return None
-    return write_run_mcap(recorder.snapshot(metadata=meta), run_dir / "run.mcap", frames_dir=frames_dir_of(cfg))
+    from aioadept.record.mcapfile import StateTap
+
+    return StateTap(cfg.robot.state_endpoint).start()
+
+
+def write_run_mcap_of(cfg: Any, run_dir: Path, recorder: Any, meta: dict[str, Any],
+                      state: list[bytes] | None = None) -> str | None:
+    """Write ``run.mcap`` of the run ``recorder`` (a :class:`aioadept.capture.Recorder`) recorded into ``run_dir``,
+    with the ``state`` payloads an :func:`open_state_tap` kept; None when written or not wanted
+    (:func:`mcap_wanted`), else why it was not written. Blocking: call it in a thread."""
+    if not mcap_wanted(cfg):
+        return None
+    from aioadept.record.mcapfile import write_run_mcap
+
+    return write_run_mcap(recorder.snapshot(metadata=meta), run_dir / "run.mcap", frames_dir=frames_dir_of(cfg),
+                          state=state)
 
 
 class MarkTee:
