@@ -51,7 +51,10 @@ __all__ = [
     "ZenohSocket",
     "close_session",
     "configure",
+    "announce_as",
+    "announce_ready",
     "declare_node",
+    "endpoint_for",
     "is_zenoh",
     "key_of",
     "node_key",
@@ -224,6 +227,23 @@ def close_session() -> None:
             s.close()
         except Exception as exc:
             log.debug("Zenoh session close: %r", exc)
+
+
+_announce: tuple[str, str] | None = None
+
+
+def announce_as(cell: str, node: str) -> None:
+    """Have :func:`announce_ready` declare this process as node ``aioadept/<cell>/<node>`` (set by a node's
+    ``--transport zenoh``; imports no Zenoh)."""
+    global _announce
+    _announce = (check_key(cell), check_key(node))
+
+
+def announce_ready() -> None:
+    """Declare the liveliness token set by :func:`announce_as`, if any: a node calls this as it prints READY, so
+    a watcher sees it the moment it serves. A no-op on ZeroMQ."""
+    if _announce is not None:
+        declare_node(*_announce)
 
 
 def declare_node(cell: str, node: str) -> Any:

@@ -13,7 +13,8 @@ import signal
 import sys
 
 from aioadept import defaults
-from aioadept.cli.options import ArgumentParser, DefaultsHelpFormatter, description
+from aioadept.cli.options import (ArgumentParser, DefaultsHelpFormatter, add_node_transport_options,
+                                  apply_node_transport, description)
 from aioadept.geometry import NULL, Pose
 from aioadept.robots import viper_s850 as kin
 from aioadept.sim.line import CartesianLimits
@@ -130,6 +131,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --vplus: FOPEN /LOCAL_PORT VPORT binds HOSTPORT instead (0: ephemeral; repeatable)")
     v.add_argument("--vplus-cycle", type=float, default=0.016, dest="vplus_cycle", metavar="SECONDS",
                    help="with --vplus: the trajectory cycle that WAIT waits for")
+    add_node_transport_options(p)
     return p
 
 
@@ -198,6 +200,9 @@ async def run(options: SimOptions) -> int:
         async with SimServer(options) as sim:
             state = sim.state_endpoint or "none"
             stop_port = sim.stop_port if sim.stop_port is not None else "none"
+            from aioadept.bus.zenoh import announce_ready
+
+            announce_ready()  # --transport zenoh: the node's liveliness token (no-op on ZeroMQ)
             print(f"READY host={sim.host} port={sim.port} state={state} stop_port={stop_port}", flush=True)
             await stop.wait()
     finally:
@@ -273,6 +278,7 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
                         format="%(asctime)s %(name)s %(levelname)s %(message)s")
     try:
+        apply_node_transport(vars(args), "sim", {"state_endpoint": (DEFAULT_STATE_ENDPOINT, "sim", "state")})
         options = options_from_args(args)
     except ValueError as exc:
         parser.error(str(exc))
