@@ -53,16 +53,18 @@ class BusEndpoints:
         return self.name
 
 
-_zenoh_ready = False
+_router: str | None = None
 
 
-def start_zenoh_router() -> None:
-    """Configure this process's Zenoh session as a loopback router (once per process)."""
-    global _zenoh_ready
-    if _zenoh_ready:
-        return
-    from aioadept.bus import zenoh as zb
+def start_zenoh_router() -> str:
+    """Configure this process's Zenoh session as a loopback router (once per process); returns where it listens
+    (``tcp/127.0.0.1:PORT``), for node processes to ``--zenoh-connect`` to."""
+    global _router
+    if _router is None:
+        from aioadept.bus import zenoh as zb
 
-    zb.configure(zb.ZenohOptions.router(f"tcp/127.0.0.1:{free_port()}"))
-    zb.session()
-    _zenoh_ready = True
+        router = f"tcp/127.0.0.1:{free_port()}"
+        zb.configure(zb.ZenohOptions.router(router))
+        zb.session()
+        _router = router
+    return _router

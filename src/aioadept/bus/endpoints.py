@@ -117,6 +117,8 @@ def peer(text: str, default_bind: bool) -> str:
     """The explicit endpoint the *other* side of the link uses, given this side's ``text`` and role default: if
     this side binds X, the peer gets ``>X``; if it connects to X, the peer gets ``@X``."""
     ep = parse_endpoint(text)
+    if ep.zenoh:
+        return ep.address  # a key has no sides
     return (">" if ep.binds(default_bind) else "@") + ep.address
 
 
@@ -124,10 +126,15 @@ def opposite(text: str) -> str:
     """The same link seen from the other side: ``@X`` <-> ``>X``; a bare address stays bare (the role defaults of
     the two sides are complementary, so a bare address names the same link from either side)."""
     ep = parse_endpoint(text)
+    if ep.zenoh:
+        return ep.address
     return {"bind": ">", "connect": "@", None: ""}[ep.mode] + ep.address
 
 
 def peer_actual(text: str, default_bind: bool, actual: str) -> str:
     """:func:`peer` for a socket opened on ``text`` whose endpoint in use is ``actual`` (the real port after binding
     to port 0): the peer connects to ``actual`` if this side bound, else binds it."""
-    return (">" if parse_endpoint(text).binds(default_bind) else "@") + actual
+    ep = parse_endpoint(text)
+    if ep.zenoh:
+        return actual
+    return (">" if ep.binds(default_bind) else "@") + actual
