@@ -35,7 +35,7 @@ def router() -> str:
 
 @pytest.mark.timeout(90)
 async def test_a_killed_vision_node_is_seen_gone_within_1_s_and_seen_again_within_1_s_of_its_restart(router, tmp_path):
-    from aioadept.bus.zenoh import NodeWatcher
+    from aioadept.bus.presence import NodeWatcher
 
     argv = ("--transport", "zenoh", "--zenoh-connect", router, "--cell", CELL, "--state-endpoint", "none",
             "--graph", "noop")
@@ -71,8 +71,9 @@ async def test_a_killed_vision_node_is_seen_gone_within_1_s_and_seen_again_withi
 @pytest.mark.timeout(20)
 async def test_the_watcher_reports_appear_and_vanish_events_in_order(router):
     from aioadept.bus import zenoh as zb
+    from aioadept.bus.presence import NodeWatcher
 
-    async with zb.NodeWatcher("evtest") as watcher:
+    async with NodeWatcher("evtest") as watcher:
         token = zb.session().liveliness().declare_token("aioadept/evtest/cam1")
         token.undeclare()
         events = [await asyncio.wait_for(anext(aiter(watcher)), 2.0) for _ in range(2)]

@@ -19,9 +19,8 @@ same frames, same Protobuf payloads, same request/response pairing (docs/bus.md,
   gossip OFF, so nothing is discovered or announced beyond the endpoints written down (``tcp/127.0.0.1:PORT`` in
   the defaults and tests). A process either listens (``mode="router"``: it routes between the others) or connects
   to one that does (``mode="client"``).
-- Presence: :func:`declare_node` declares a liveliness token ``aioadept/<cell>/<node>``; :class:`NodeWatcher`
-  reports each node appearing and vanishing as Zenoh's liveliness says it (a killed process's token goes with its
-  TCP link, no timeout to wait for).
+- Presence: :func:`declare_node` declares a liveliness token ``aioadept/<cell>/<node>``;
+  :class:`aioadept.bus.presence.NodeWatcher` reports each node appearing and vanishing.
 """
 
 from __future__ import annotations
@@ -45,8 +44,6 @@ __all__ = [
     "DEFAULT_ROUTER",
     "PREFIX",
     "MODES",
-    "NodeWatcher",
-    "PresenceEvent",
     "ZenohOptions",
     "ZenohSocket",
     "close_session",
@@ -365,25 +362,27 @@ class ZenohSocket:
             return
         if self.closed or not self._accepts(frames):
             return
-        with self._cond:
-            if len(self._queue) == self._queue.maxlen:
-                self.dropped += 1
-            self._queue.append(frames)
-            self._cond.notify()
-            loop = self._loop
-            wake = loop is not None and not self._scheduled
-            if wake:
-                self._scheduled = True
-        if wake:
+        queue = self._queue
+        if len(queue) == queue.maxlen:
+            self.dropped += 1
+        queue.append(frames)  # one atomic step under the GIL: no lock on the hot path
+        if self.flavour == "thread":
+            with self._cond:
+                self._cond.notify()
+            return
+        loop = self._loop
+        if loop is not None and not self._scheduled:
+            # At most one wake-up queued: _wake clears the flag before it drains, so a message appended after the
+            # drain started schedules a new one (a rare double wake-up is harmless).
+            self._scheduled = True
             try:
-                loop.call_soon_threadsafe(self._wake)  # type: ignore[union-attr]
+                loop.call_soon_threadsafe(self._wake)
             except RuntimeError:  # the loop is closed: nobody reads any more
                 pass
 
     def _wake(self) -> None:
         # On the loop's thread.
-        with self._cond:
-            self._scheduled = False
+        self._scheduled = False
         waiter, self._waiter = self._waiter, None
         if waiter is not None and not waiter.done():
             waiter.set_result(None)
@@ -400,8 +399,10 @@ class ZenohSocket:
             loop.call_soon(self._wake)
 
     def _pop(self) -> list[bytes] | None:
-        with self._cond:
-            return self._queue.popleft() if self._queue else None
+        try:
+            return self._queue.popleft()
+        except IndexError:
+            return None
 
     def recv_multipart(self, flags: int = 0) -> Any:
         if self.flavour == "asyncio":
@@ -409,6 +410,13 @@ class ZenohSocket:
         return self._recv_sync(block=not flags & zmq.NOBLOCK)
 
     def _recv_sync(self, *, block: bool, timeout_s: float | None = None) -> list[bytes]:
+        if not block:
+            try:
+                return self._queue.popleft()
+            except IndexError:
+                if self.closed:
+                    raise zmq.ZMQError(zmq.ENOTSOCK, "Zenoh socket closed") from None
+                raise zmq.Again() from None
         with self._cond:
             while not self._queue:
                 if self.closed:
@@ -430,9 +438,8 @@ class ZenohSocket:
             if self.closed:
                 raise zmq.ZMQError(zmq.ENOTSOCK, "Zenoh socket closed")
             self._waiter = loop.create_future()
-            with self._cond:
-                if self._queue:  # arrived between the pop and the waiter
-                    continue
+            if self._queue:  # arrived between the pop and the waiter
+                continue
             try:
                 await self._waiter
             finally:
@@ -473,83 +480,3 @@ def make_zenoh_socket(kind: int, endpoint: str, *, flavour: str = "plain", hwm: 
         raise BusError(f"socket options {sorted(unknown)} have no meaning on the Zenoh transport")
     return ZenohSocket(kind, key_of(endpoint), flavour=flavour, hwm=hwm, topics=topics,
                        max_bytes=None if max_bytes is None or max_bytes < 0 else max_bytes)
-
-
-# ------------------------------------------------------------------------------------------------- presence
-
-
-@dataclass(frozen=True, slots=True)
-class PresenceEvent:
-    """Node ``node`` of cell ``cell`` appeared (``alive``) or vanished; ``key`` is its liveliness key."""
-
-    cell: str
-    node: str
-    alive: bool
-    key: str
-
-
-@dataclass
-class NodeWatcher:
-    """Watch the nodes of ``cell`` (``"*"``: every cell) come and go, as Zenoh liveliness reports them.
-
-    ``async with NodeWatcher("demo") as w: async for ev in w: ...`` yields :class:`PresenceEvent` s, starting with
-    every node already alive; ``w.alive`` is the set of live node names, ``await w.wait_for(node, alive, timeout_s)``
-    waits for one change (raises TimeoutError).
-    """
-
-    cell: str = "*"
-    alive: set[str] = field(default_factory=set)
-
-    def __post_init__(self) -> None:
-        self._queue: asyncio.Queue[PresenceEvent] = asyncio.Queue()
-        self._loop: asyncio.AbstractEventLoop | None = None
-        self._sub: Any = None
-        self._changed: asyncio.Event | None = None
-
-    async def __aenter__(self) -> NodeWatcher:
-        zenoh = _zenoh()
-        self._loop = asyncio.get_running_loop()
-        self._changed = asyncio.Event()
-        key = check_key(f"{ROOT}/{self.cell}/*", wildcards=True)
-        self._sub = session().liveliness().declare_subscriber(
-            key, zenoh.handlers.Callback(self._on_sample, indirect=False), history=True)
-        return self
-
-    async def __aexit__(self, *exc: object) -> None:
-        sub, self._sub = self._sub, None
-        if sub is not None:
-            sub.undeclare()
-
-    def _on_sample(self, sample: Any) -> None:  # a Zenoh thread
-        key = str(sample.key_expr)
-        parts = key.split("/")
-        if len(parts) != 3:
-            return
-        alive = sample.kind == _zenoh().SampleKind.PUT
-        ev = PresenceEvent(parts[1], parts[2], alive, key)
-        try:
-            assert self._loop is not None
-            self._loop.call_soon_threadsafe(self._deliver, ev)
-        except RuntimeError:
-            pass
-
-    def _deliver(self, ev: PresenceEvent) -> None:
-        (self.alive.add if ev.alive else self.alive.discard)(ev.node)
-        self._queue.put_nowait(ev)
-        assert self._changed is not None
-        self._changed.set()
-
-    async def wait_for(self, node: str, alive: bool, timeout_s: float) -> None:
-        """Wait until ``node`` is alive (``alive=True``) or gone; TimeoutError after ``timeout_s``."""
-        assert self._changed is not None
-        async with asyncio.timeout(timeout_s):
-            while (node in self.alive) != alive:
-                self._changed.clear()
-                await self._changed.wait()
-
-    def __aiter__(self) -> AsyncIterator[PresenceEvent]:
-        return self._iterate()
-
-    async def _iterate(self) -> AsyncIterator[PresenceEvent]:
-        while True:
-            yield await self._queue.get()
