@@ -14,7 +14,8 @@ import time
 
 import pytest
 
-from aioadept.apps.cell import CellConfig, sim_argv, vision_argv, with_transport
+from aioadept.apps.cell import CellConfig, sim_argv, vision_argv
+from aioadept.apps.cellbus import with_transport
 from aioadept.bus import Communicator, Publisher
 from aioadept.errors import BusError
 from aioadept.apps.processes import NodeProcess

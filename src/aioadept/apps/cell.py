@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from aioadept.apps.cellbus import BusSection, transport_argv, with_transport, zenoh_session
 from aioadept.apps.focus import FocusParams, FocusResult, ufloop
 from aioadept.apps.processes import NodeProcess, watch
 from aioadept.commands import SPEED_MAX, SPEED_MIN
@@ -70,52 +71,6 @@ class RunSection:
     """Write ``run.rrd`` (Rerun) into every run folder when the [viewer] extra is installed (docs/record.md)."""
     view_url: str = ""
     """gRPC address of a live viewer each run streams to (set by ``--view``); empty: none."""
-
-
-@dataclass(slots=True)
-class BusSection:
-    """The cell file's ``[bus]`` table: which transport carries the vision requests and the robot state
-    (docs/bus.md). ZeroMQ (the default) uses the endpoints of ``[robot]`` and ``[vision]`` as written; with
-    ``transport = "zenoh"`` every endpoint left as a ZeroMQ address becomes the cell's key expression
-    ``aioadept/<cell>/<node>/<topic>``, and the processes meet at ``zenoh_router``."""
-
-    transport: str = "zeromq"
-    """``zeromq`` or ``zenoh`` (the [zenoh] extra)."""
-    cell: str = "demo"
-    """The cell's name in the Zenoh key expressions (one key chunk)."""
-    zenoh_router: str = "tcp/127.0.0.1:7447"
-    """``tcp/HOST:PORT`` of the Zenoh router (port 0 with ``start_router``: a free one)."""
-    start_router: bool = True
-    """The starter (``aioadept demo``/``focus``) is the router, listening on ``zenoh_router``; false: connect to a
-    router that runs elsewhere."""
-
-    def check(self, where: str) -> None:
-        """ValueError naming the key for a value out of its choices."""
-        from aioadept.cli.options import TRANSPORTS
-
-        if self.transport not in TRANSPORTS:
-            raise ValueError(f"transport = {self.transport!r}: expected one of {', '.join(TRANSPORTS)}")
-        from aioadept.bus import zenoh as zb
-        from aioadept.errors import BusError
-
-        try:
-            if "/" in self.cell:
-                raise BusError(f"cell = {self.cell!r}: one key chunk (letters, digits, '_', '.', '-'), no '/'")
-            zb.check_key(self.cell)
-        except BusError as exc:
-            raise ValueError(f"cell: {exc}") from None
-        host_port = self.zenoh_router.rpartition(":")
-        try:
-            if host_port[2] == "0" and self.start_router:
-                zb.check_locator(host_port[0] + ":1")  # a free port is picked at start
-            else:
-                zb.check_locator(self.zenoh_router)
-        except BusError as exc:
-            raise ValueError(f"zenoh_router: {exc}") from None
-
-    @property
-    def zenoh(self) -> bool:
-        return self.transport == "zenoh"
 
 
 @dataclass(slots=True)
@@ -194,56 +149,12 @@ def _with_free_port(endpoint: str) -> str:
     return endpoint
 
 
-def with_transport(cfg: CellConfig) -> CellConfig:
-    """``cfg`` with ``[bus] transport = "zenoh"`` applied: every endpoint that is a ZeroMQ address becomes the
-    cell's key (``zenoh:aioadept/<cell>/sim/state``, ``.../vision/request``, ``.../vision/response``); a
-    ``zenoh:`` endpoint or ``none`` is kept. The same ``cfg`` on ZeroMQ."""
-    if not cfg.bus.zenoh:
-        return cfg
-    from aioadept.bus.endpoints import is_none
-    from aioadept.bus.zenoh import endpoint_for, is_zenoh
-
-    cfg = dataclasses.replace(cfg, robot=dataclasses.replace(cfg.robot), vision=dataclasses.replace(cfg.vision),
-                              bus=dataclasses.replace(cfg.bus))
-    if cfg.bus.start_router and cfg.bus.zenoh_router.endswith(":0"):
-        host = cfg.bus.zenoh_router[len("tcp/"):].rpartition(":")[0]
-        cfg.bus.zenoh_router = f"tcp/{host}:{free_port(host)}"
-    for section, name, owner, topic in ((cfg.robot, "state_endpoint", "sim", "state"),
-                                        (cfg.vision, "request_endpoint", "vision", "request"),
-                                        (cfg.vision, "response_endpoint", "vision", "response")):
-        value = getattr(section, name)
-        if not is_none(value) and not is_zenoh(value):
-            setattr(section, name, endpoint_for(cfg.bus.cell, owner, topic))
-    return cfg
-
-
-def transport_argv(cfg: CellConfig) -> list[str]:
-    """The ``--transport`` options a node of ``cfg`` is started with (none on ZeroMQ)."""
-    if not cfg.bus.zenoh:
-        return []
-    return ["--transport", "zenoh", "--cell", cfg.bus.cell, "--zenoh-connect", cfg.bus.zenoh_router]
-
-
-@contextlib.contextmanager
-def zenoh_session(cfg: CellConfig, node: str = "app"):
-    """For a Zenoh cell: this process's session (the router when ``start_router``, else a client of it), declared
-    as node ``node``, closed on exit. Nothing on ZeroMQ."""
-    if not cfg.bus.zenoh:
-        yield
-        return
-    from aioadept.bus import zenoh as zb
-
-    zb.configure(zb.ZenohOptions.router(cfg.bus.zenoh_router) if cfg.bus.start_router
-                 else zb.ZenohOptions.client(cfg.bus.zenoh_router))
-    try:
-        zb.declare_node(cfg.bus.cell, node)
-        yield
-    finally:
-        zb.close_session()
-
-
 def resolve_ports(cfg: CellConfig) -> CellConfig:
-    """Replace port 0 by free ports for the nodes this machine starts (and apply the cell's transport)."""
+    """Replace port 0 by free ports for the nodes this machine starts (and the Zenoh router's port 0 when this
+    machine starts it), and apply the cell's transport (:func:`aioadept.apps.cellbus.with_transport`)."""
+    if cfg.bus.zenoh and cfg.bus.start_router and cfg.bus.zenoh_router.endswith(":0"):
+        host = cfg.bus.zenoh_router[len("tcp/"):].rpartition(":")[0]
+        cfg = dataclasses.replace(cfg, bus=dataclasses.replace(cfg.bus, zenoh_router=f"tcp/{host}:{free_port(host)}"))
     cfg = with_transport(cfg)
     cfg = dataclasses.replace(cfg, robot=dataclasses.replace(cfg.robot), vision=dataclasses.replace(cfg.vision))
     if cfg.robot.start_sim:

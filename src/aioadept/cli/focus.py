@@ -82,10 +82,10 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(cfg: CellConfig, run_dir: Path) -> int:
-    from aioadept.apps.cell import with_transport, zenoh_session
+    from aioadept.apps.cell import resolve_ports, zenoh_session
     from aioadept.errors import BusError
 
-    cfg = with_transport(cfg)  # [bus] transport = "zenoh": the cell's keys, and this process joins its router
+    cfg = resolve_ports(cfg)  # [bus] transport = "zenoh": the cell's keys, and this process joins its router
     try:
         with zenoh_session(cfg):
             return run_once(lambda intr: run_focus_once(cfg, run_dir, interrupter=intr), run_dir,

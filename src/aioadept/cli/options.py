@@ -161,8 +161,7 @@ def add_robot_option(p: argparse.ArgumentParser) -> None:
     p.add_argument("--robot", help=ROBOT_HELP)
 
 
-TRANSPORTS = ("zeromq", "zenoh")
-"""The bus transports (``--transport``, the cell file's ``[bus] transport``): ZeroMQ is the default and the paper's."""
+TRANSPORTS = defaults.TRANSPORTS
 
 _ZENOH_OPTIONS = ("cell", "zenoh_connect", "zenoh_listen")
 
