@@ -12,7 +12,7 @@ same frames, same Protobuf payloads, same request/response pairing (docs/bus.md,
   Zenoh queries: the pairing contract (re-publication with the same id, the responder's answer cache, drop-oldest
   with an error answer, ``t_deadline``, the paper-style send()/recv()) is written once, above the transport, and
   keeps its tests on both.
-- Zenoh calls back on its own threads. A callback only appends to a bounded deque (overflow: the oldest message is
+- Zenoh calls back on a thread of its own. A callback only appends to a bounded deque (overflow: the oldest message is
   dropped and counted, so a stalled reader keeps the newest state) and wakes the loop with one
   ``call_soon_threadsafe``; it never blocks and never touches asyncio objects.
 - One Zenoh session per process, opened on first use with :func:`configure`'s options: multicast scouting and
@@ -295,8 +295,11 @@ class ZenohSocket:
             if self.kind == zmq.PUB:
                 self._entity = s.declare_publisher(self.key, express=True)
             else:
+                # indirect (Zenoh's default): the callback runs on a Python thread of its own, not on Zenoh's
+                # network thread; taking the GIL on the network thread stalled Zenoh's own I/O behind our event loop
+                # (request/response p50 about 1.4x slower in benchmarks/bench_bus.py).
                 self._entity = s.declare_subscriber(self.key, zenoh.handlers.Callback(self._on_sample,
-                                                                                      indirect=False))
+                                                                                      indirect=True))
         except Exception as exc:
             self.closed = True
             raise BusError(f"cannot declare a Zenoh {'publisher' if self.kind == zmq.PUB else 'subscriber'} on "
