@@ -139,6 +139,11 @@ class ZenohOptions:
     mode: Literal["router", "client", "peer"] = "client"
     connect: tuple[str, ...] = (DEFAULT_ROUTER,)
     listen: tuple[str, ...] = ()
+    lowlatency: bool = True
+    """Zenoh's low-latency unicast transport (no batching, no TX queue, no QoS priorities): request/response p50
+    about half of the default's here. Every process of a cell must agree: a Zenoh router or peer of another kind
+    (``zenohd``, ROS 2's rmw_zenoh) needs ``transport/unicast/lowlatency: true`` and ``qos/enabled: false``, or
+    every aioadept process ``lowlatency=False``."""
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -151,12 +156,12 @@ class ZenohOptions:
             raise BusError("a Zenoh client needs a router to connect to (tcp/127.0.0.1:PORT)")
 
     @classmethod
-    def router(cls, listen: str = DEFAULT_ROUTER) -> ZenohOptions:
-        return cls(mode="router", connect=(), listen=(listen,))
+    def router(cls, listen: str = DEFAULT_ROUTER, *, lowlatency: bool = True) -> ZenohOptions:
+        return cls(mode="router", connect=(), listen=(listen,), lowlatency=lowlatency)
 
     @classmethod
-    def client(cls, connect: str = DEFAULT_ROUTER) -> ZenohOptions:
-        return cls(mode="client", connect=(connect,), listen=())
+    def client(cls, connect: str = DEFAULT_ROUTER, *, lowlatency: bool = True) -> ZenohOptions:
+        return cls(mode="client", connect=(connect,), listen=(), lowlatency=lowlatency)
 
     def config(self) -> Any:
         """The ``zenoh.Config``: these endpoints, no multicast scouting, no gossip."""
@@ -167,6 +172,9 @@ class ZenohOptions:
         cfg.insert_json5("listen/endpoints", json.dumps(list(self.listen)))
         cfg.insert_json5("scouting/multicast/enabled", "false")
         cfg.insert_json5("scouting/gossip/enabled", "false")
+        if self.lowlatency:
+            cfg.insert_json5("transport/unicast/lowlatency", "true")
+            cfg.insert_json5("transport/unicast/qos/enabled", "false")  # lowlatency requires it off
         if self.mode == "client":
             # Keep retrying a router that restarts instead of leaving the node deaf for the rest of its life.
             cfg.insert_json5("connect/timeout_ms", "5000")
