@@ -147,3 +147,26 @@ def test_node_transport_mistakes_are_one_line(argv, text):
     proc = subprocess.run([sys.executable, "-m", "aioadept", "sim", "--port", "0", *argv], capture_output=True,
                           text=True, timeout=60)
     assert proc.returncode == 2 and text in proc.stderr and "Traceback" not in proc.stderr
+
+
+@pytest.mark.timeout(60)
+async def test_the_v_plus_backend_publishes_its_state_on_the_cells_key_and_declares_itself(router):
+    from pathlib import Path
+
+    from aioadept.bus import Subscriber
+    from aioadept.bus.messages import ROBOT_STATE_TOPIC, RobotState
+    from aioadept.bus.presence import NodeWatcher
+
+    vplus = Path(__file__).resolve().parents[2] / "vplus"
+    files = [str(vplus / f) for f in ("rsconfig.V2", "rserver.V2", "rsskills.V2", "rsstate.V2")]
+    async with NodeWatcher("vptest") as watcher:
+        async with running_node("sim", "--vplus", *files, "--run", "rs.main", "--map-port", "1234=0",
+                                "--map-port", "1235=0", "--transport", "zenoh", "--zenoh-connect", router,
+                                "--cell", "vptest", expect_clean_exit=False) as node:
+            assert node.ready["state"] == "zenoh:aioadept/vptest/sim/state"
+            await watcher.wait_for("sim", True, timeout_s=1.0)
+            async with Subscriber(node.ready["state"], topics=[ROBOT_STATE_TOPIC]) as sub:
+                topic, payload = await asyncio.wait_for(sub.recv(), 10)
+            assert topic == ROBOT_STATE_TOPIC
+            assert len(RobotState.from_bytes(payload).joints_deg) == 6
+        await watcher.wait_for("sim", False, timeout_s=1.0)

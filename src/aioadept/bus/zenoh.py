@@ -246,9 +246,13 @@ def announce_as(cell: str, node: str) -> None:
 
 def announce_ready() -> None:
     """Declare the liveliness token set by :func:`announce_as`, if any: a node calls this as it prints READY, so
-    a watcher sees it the moment it serves. A no-op on ZeroMQ."""
+    a watcher sees it the moment it serves. Once: later calls (a V+ server opening its second port) do nothing. A
+    no-op on ZeroMQ."""
+    global _announce
     if _announce is not None:
-        declare_node(*_announce)
+        cell, node = _announce
+        _announce = None
+        declare_node(cell, node)
 
 
 def declare_node(cell: str, node: str) -> Any:

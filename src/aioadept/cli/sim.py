@@ -263,6 +263,7 @@ def main(argv: list[str] | None = None) -> int:
 
         try:
             vplus_cli.parse_port_map(args.map_port)
+            apply_node_transport(vars(args), "sim", {"state_endpoint": (DEFAULT_STATE_ENDPOINT, "sim", "state")})
             options = options_from_args(args)     # the same robot, state stream and faults as the Python backend
         except ValueError as exc:
             parser.error(str(exc))

@@ -66,6 +66,9 @@ async def run(args: argparse.Namespace, options: Any) -> int:
         state = publisher.actual_endpoint
 
     def on_listen(vport: int, host: str, port: int) -> None:
+        from aioadept.bus.zenoh import announce_ready
+
+        announce_ready()  # --transport zenoh: the node's liveliness token (no-op on ZeroMQ)
         print(f"READY host={host} port={port} vport={vport} state={state}", flush=True)
 
     emu.rt.devices = Network(args.host, port_map, on_listen, faults=options.faults)
