@@ -81,6 +81,7 @@ async def test_the_watcher_reports_appear_and_vanish_events_in_order(router):
     assert [(e.cell, e.node, e.alive) for e in events] == [("evtest", "cam1", True), ("evtest", "cam1", False)]
 
 
+@pytest.mark.timeout(10)
 def test_the_session_config_has_no_multicast_scouting_no_gossip_and_loopback_endpoints():
     from aioadept.bus.zenoh import DEFAULT_ROUTER, ZenohOptions
 
@@ -97,6 +98,7 @@ def test_the_session_config_has_no_multicast_scouting_no_gossip_and_loopback_end
         ZenohOptions(mode="router", connect=(), listen=())
 
 
+@pytest.mark.timeout(10)
 async def test_curve_and_bad_keys_are_refused_with_the_reason(router):
     from aioadept.bus.security import CurveClient, CurveKeyPair
 
@@ -109,6 +111,7 @@ async def test_curve_and_bad_keys_are_refused_with_the_reason(router):
         Publisher("zenoh:aioadept//y")
 
 
+@pytest.mark.timeout(10)
 def test_a_zenoh_cell_puts_every_stream_on_the_cells_keys_and_starts_its_nodes_with_the_router():
     cfg = CellConfig.from_dict({"bus": {"transport": "zenoh", "cell": "c7", "zenoh_router": "tcp/127.0.0.1:7500"},
                                 "robot": {"state_endpoint": "tcp://127.0.0.1:5560"}})
@@ -122,6 +125,7 @@ def test_a_zenoh_cell_puts_every_stream_on_the_cells_keys_and_starts_its_nodes_w
     assert "--transport" not in sim_argv(CellConfig()) + vision_argv(CellConfig())
 
 
+@pytest.mark.timeout(30)
 @pytest.mark.parametrize("table, key", [
     ('transport = "nanomsg"', "transport"),
     ('transport = "zenoh"\ncell = "a/b"', "cell"),
@@ -132,12 +136,13 @@ def test_a_bad_bus_table_is_one_line_naming_the_file_and_the_key(tmp_path, table
     path = tmp_path / "cell.toml"
     path.write_text(f"[bus]\n{table}\n")
     proc = subprocess.run([sys.executable, "-m", "aioadept", "demo", "--config", str(path)], capture_output=True,
-                          text=True, timeout=60)
+                          text=True, timeout=25)
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and str(path) in lines[0] and key in lines[0] and "Traceback" not in proc.stderr
 
 
+@pytest.mark.timeout(30)
 @pytest.mark.parametrize("argv, text", [
     (["--cell", "x"], "--cell needs --transport zenoh"),
     (["--transport", "zenoh", "--zenoh-connect", "tcp/127.0.0.1"], "tcp/HOST:PORT"),
@@ -145,7 +150,7 @@ def test_a_bad_bus_table_is_one_line_naming_the_file_and_the_key(tmp_path, table
 ])
 def test_node_transport_mistakes_are_one_line(argv, text):
     proc = subprocess.run([sys.executable, "-m", "aioadept", "sim", "--port", "0", *argv], capture_output=True,
-                          text=True, timeout=60)
+                          text=True, timeout=25)
     assert proc.returncode == 2 and text in proc.stderr and "Traceback" not in proc.stderr
 
 

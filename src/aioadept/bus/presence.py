@@ -52,7 +52,7 @@ class NodeWatcher:
         self._changed = asyncio.Event()
         key = check_key(f"{ROOT}/{self.cell}/*", wildcards=True)
         self._sub = session().liveliness().declare_subscriber(
-            key, zenoh.handlers.Callback(self._on_sample, indirect=False), history=True)
+            key, zenoh.handlers.Callback(self._on_sample), history=True)
         return self
 
     async def __aexit__(self, *exc: object) -> None:
