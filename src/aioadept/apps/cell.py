@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from aioadept.apps.cellbus import BusSection, transport_argv, with_transport, zenoh_session
 from aioadept.apps.focus import FocusParams, FocusResult, ufloop
 from aioadept.apps.processes import NodeProcess, watch
 from aioadept.commands import SPEED_MAX, SPEED_MIN
@@ -82,6 +83,7 @@ class CellConfig:
     run: RunSection = field(default_factory=RunSection)
     world: WorldConfig | None = None
     """The simulated world (``[world]``: table, parts, feeder, pallet, camera; aioadept.worldfile), or None."""
+    bus: BusSection = field(default_factory=BusSection)
 
     @classmethod
     def from_toml(cls, path: str | Path) -> CellConfig:
@@ -94,7 +96,7 @@ class CellConfig:
         from aioadept.configfile import ConfigError, check_ranges, check_section
 
         known = {"robot": RobotSection, "vision": VisionSection, "focus": FocusParams, "run": RunSection,
-                 "world": WorldConfig}
+                 "world": WorldConfig, "bus": BusSection}
         unknown = set(data) - set(known)
         if unknown:
             raise ConfigError(f"{source}: unknown section(s) {', '.join(sorted(unknown))}; expected "
@@ -116,6 +118,8 @@ class CellConfig:
             try:
                 parts[name] = typ(**check_section(typ, data.get(name, {}), where))  # FocusParams checks its ranges
                 check_ranges(parts[name])
+                if typ is BusSection:
+                    parts[name].check(where)
             except ConfigError:
                 raise
             except ValueError as exc:
@@ -159,7 +163,12 @@ def _with_free_port(endpoint: str) -> str:
 
 
 def resolve_ports(cfg: CellConfig) -> CellConfig:
-    """Replace port 0 by free ports for the nodes this machine starts."""
+    """Replace port 0 by free ports for the nodes this machine starts (and the Zenoh router's port 0 when this
+    machine starts it), and apply the cell's transport (:func:`aioadept.apps.cellbus.with_transport`)."""
+    if cfg.bus.zenoh and cfg.bus.start_router and cfg.bus.zenoh_router.endswith(":0"):
+        host = cfg.bus.zenoh_router[len("tcp/"):].rpartition(":")[0]
+        cfg = dataclasses.replace(cfg, bus=dataclasses.replace(cfg.bus, zenoh_router=f"tcp/{host}:{free_port(host)}"))
+    cfg = with_transport(cfg)
     cfg = dataclasses.replace(cfg, robot=dataclasses.replace(cfg.robot), vision=dataclasses.replace(cfg.vision))
     if cfg.robot.start_sim:
         if cfg.robot.port == 0:
@@ -184,7 +193,8 @@ def sim_argv(cfg: CellConfig, world_file: Path | None = None) -> list[str]:
     world = ["--world", str(world_file)] if world_file is not None else []
     return ["sim", "--host", r.host, "--port", str(r.port), "--stop-port", str(stop_port_of(cfg)),
             "--time-scale", str(r.time_scale),
-            "--monitor-speed", str(r.monitor_speed), "--state-endpoint", r.state_endpoint, *world, *r.sim_args]
+            "--monitor-speed", str(r.monitor_speed), "--state-endpoint", r.state_endpoint, *world,
+            *transport_argv(cfg), *r.sim_args]
 
 
 def write_world_file(cfg: CellConfig, folder: Path) -> Path | None:
@@ -228,7 +238,7 @@ def vision_argv(cfg: CellConfig, world_file: Path | None = None) -> list[str]:
             argv += [flag, str(value)]
     if world_file is not None and not v.world and "world" in v.sources():
         argv += ["--world", str(world_file)]
-    return [*argv, *v.vision_args]
+    return [*argv, *transport_argv(cfg), *v.vision_args]
 
 
 def new_run_dir(cfg: CellConfig, base: Path | None = None) -> Path:
@@ -426,6 +436,9 @@ async def running_cell(cfg: CellConfig, log_dir: Path):
     nodes: list[NodeProcess] = []
     world_file = write_world_file(cfg, log_dir) if cfg.robot.start_sim or cfg.vision.start else None
     async with contextlib.AsyncExitStack() as stack:
+        # Zenoh: this process is the cell's router (or a client of it) before any node connects to it; the
+        # session closes after the nodes have stopped.
+        stack.enter_context(zenoh_session(cfg))
         if cfg.robot.start_sim:
             sim = await stack.enter_async_context(NodeProcess("sim", sim_argv(cfg, world_file),
                                                               log_path=log_dir / "sim.log"))

@@ -129,6 +129,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--curve-allow", action="append", metavar="FILE",
                    help="CURVE: public certificate (NAME.key) of a requester allowed in (repeatable; without any, "
                         "every requester that knows the node's public key is accepted)")
+    from aioadept.cli.options import add_node_transport_options
+
+    add_node_transport_options(p)
     return p
 
 
@@ -169,6 +172,7 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
     parser = build_parser()
     args = parser.parse_args(argv)
     merged = dict(DEFAULTS)
+    merged.update(transport="zeromq", cell=None, zenoh_connect=None, zenoh_listen=None)
     if args.config:
         try:
             merged.update(load_config(args.config))
@@ -218,6 +222,15 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
         value = merged[key]
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             parser.error(f"{key.replace('_', '-')} must be an integer >= 1, got {value!r}")
+    from aioadept.cli.options import apply_node_transport
+
+    try:
+        apply_node_transport(merged, "vision", {
+            "request_endpoint": (defaults.REQUEST_ENDPOINT, "vision", "request"),
+            "response_endpoint": (defaults.RESPONSE_ENDPOINT, "vision", "response"),
+            "state_endpoint": (defaults.STATE_ENDPOINT, "sim", "state")})
+    except ValueError as exc:
+        parser.error(str(exc))
     from aioadept.bus.endpoints import is_none, parse_endpoint
     from aioadept.errors import BusError
 

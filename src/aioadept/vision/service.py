@@ -136,6 +136,9 @@ async def serve(opts: argparse.Namespace) -> int:
         # --request-endpoint/--response-endpoint). node_request=/node_response=: the same links as this node uses
         # them (real ports), so neither side has to be guessed.
         mcn_req, mcn_resp = responder.peer_request_endpoint, responder.peer_response_endpoint
+        from aioadept.bus.zenoh import announce_ready
+
+        announce_ready()  # --transport zenoh: the node's liveliness token, as it starts serving (no-op on ZeroMQ)
         print(f"READY request={mcn_req} response={mcn_resp} node_request={opposite(mcn_req)} "
               f"node_response={opposite(mcn_resp)} "
               f"cameras={cams} fps={opts.fps:g} policy={opts.policy} graph={opts.graph} "
