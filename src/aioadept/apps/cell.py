@@ -78,6 +78,9 @@ class CellConfig:
     vision: VisionSection = field(default_factory=VisionSection)
     focus: FocusParams = field(default_factory=FocusParams)
     run: RunSection = field(default_factory=RunSection)
+    calibration: Any = None
+    """The camera-to-robot calibration (``[calibration]``: :class:`aioadept.vision.calibration.CameraCalibration`,
+    written by ``aioadept calibrate``), or None."""
 
     @classmethod
     def from_toml(cls, path: str | Path) -> CellConfig:
@@ -90,11 +93,15 @@ class CellConfig:
         from aioadept.configfile import ConfigError, check_ranges, check_section
 
         known = {"robot": RobotSection, "vision": VisionSection, "focus": FocusParams, "run": RunSection}
-        unknown = set(data) - set(known)
+        unknown = set(data) - set(known) - {"calibration"}
         if unknown:
             raise ConfigError(f"{source}: unknown section(s) {', '.join(sorted(unknown))}; expected "
-                              f"{', '.join(known)}")
-        parts = {}
+                              f"{', '.join([*known, 'calibration'])}")
+        parts: dict[str, Any] = {}
+        if "calibration" in data:
+            from aioadept.vision.calibration import CameraCalibration
+
+            parts["calibration"] = CameraCalibration.from_table(data["calibration"], f"{source} [calibration]")
         for name, typ in known.items():
             # Unknown keys, wrong types and values out of range as one line naming file, key and what was expected
             # (ConfigError).
