@@ -118,6 +118,11 @@ class CellConfig:
                 raise ConfigError(f"{where}: {exc}") from None
         cfg = cls(**parts)
         v = cfg.vision
+        if cfg.calibration is not None and v.graph == "locate" and not v.calibration and Path(source).is_file():
+            v.calibration = source  # the node a starter runs reads this file's [calibration] (vision_argv)
+        if v.graph == "locate" and not v.calibration:
+            raise ConfigError(f'{source} [vision]: graph = "locate" needs a [calibration] table (aioadept calibrate '
+                              f'writes one) or calibration = FILE')
         if not v.exposure_ms > 0:  # the node takes 0 (a camera's own minimum); a cell's camera must expose
             raise ConfigError(f"{source} [vision]: exposure_ms = {v.exposure_ms!r}: expected a finite number of "
                               f"ms > 0")

@@ -88,3 +88,20 @@ def test_calibration_refuses_too_few_views_and_views_that_do_not_turn_the_tool()
         calibrate_eye_to_hand(views(2, seed=1), TRUTH.K, TRUTH.dist_coeffs, 40.0)
     with pytest.raises(ValueError, match="turn the tool too little"):
         calibrate_eye_to_hand(views(5, seed=1, turn=False), TRUTH.K, TRUTH.dist_coeffs, 40.0)
+
+
+def test_a_cell_file_with_the_locator_names_its_own_calibration_for_the_node(tmp_path):
+    from aioadept.apps.cell import CellConfig, vision_argv
+
+    cell = tmp_path / "cell.toml"
+    cell.write_text('[vision]\ngraph = "locate"\n', encoding="utf-8")
+    with pytest.raises(ConfigError, match='graph = "locate" needs a \\[calibration\\] table'):
+        CellConfig.from_toml(cell)
+    write_calibration(cell, TRUTH)
+    cfg = CellConfig.from_toml(cell)
+    assert cfg.calibration == TRUTH
+    argv = vision_argv(cfg)
+    assert argv[argv.index("--calibration") + 1] == str(cell)
+    (tmp_path / "bad.toml").write_text("[calibration]\nwidth_px = 2.5\n", encoding="utf-8")
+    with pytest.raises(ConfigError, match="bad.toml \\[calibration\\]: width_px"):
+        CellConfig.from_toml(tmp_path / "bad.toml")
