@@ -11,11 +11,10 @@ import sys
 import time
 import tomllib
 
-import numpy as np
 import pytest
 
 from aioadept.bus.communicator import Communicator
-from aioadept.geometry import Pose, decompose, pose_error, trans
+from aioadept.geometry import Pose, pose_error, trans
 from aioadept.testing.sim import running_sim
 from aioadept.vision.calibration import CameraCalibration
 from aioadept.vision.sources import Camera, Frame

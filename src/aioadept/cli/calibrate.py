@@ -67,7 +67,7 @@ def main(argv: list[str] | None = None) -> int:
     is); 2 bad options or configuration (nothing was moved); 130 interrupted."""
     args = build_parser().parse_args(argv)
     configure_logging(args.verbose)
-    from aioadept.apps.calibrate import CalibrationError, calibrate, calibration_poses, check_poses
+    from aioadept.apps.calibrate import CalibrationError, calibration_poses, check_poses
     from aioadept.apps.cell import CellConfig
     from aioadept.geometry import Pose
     from aioadept.vision.calibration import CameraCalibration
