@@ -103,21 +103,54 @@ async def test_a_wrong_marker_id_fails_with_too_few_views_and_a_low_pose_moves_n
             assert pose_error(await robot.here(), start)[0] < 1e-6  # refused before any motion
 
 
+def cli_args(sim, responder, *more: str) -> list[str]:
+    return [sys.executable, "-m", "aioadept", "calibrate", "--robot", f"{sim.host}:{sim.port}",
+            "--request-endpoint", responder.peer_request_endpoint, "--response-endpoint",
+            responder.peer_response_endpoint, "--marker", str(MARKER), "--centre", "450,0,300", *more]
+
+
 @pytest.mark.timeout(90)
 async def test_aioadept_calibrate_writes_the_table_into_the_cell_file(tmp_path):
-    from aioadept.cli.calibrate import main
-
     cell_file = tmp_path / "cell.toml"
     cell_file.write_text("[focus]\nmax_steps = 12\n", encoding="utf-8")
     async with cell() as (sim, responder):
-        code = await asyncio.to_thread(main, [
-            "--robot", f"{sim.host}:{sim.port}", "--request-endpoint", responder.peer_request_endpoint,
-            "--response-endpoint", responder.peer_response_endpoint, "--views", "8", "--marker", str(MARKER),
-            "--speed", "50", "--centre", "450,0,300", "--write", str(cell_file)])
-    assert code == 0
+        proc = await asyncio.create_subprocess_exec(
+            *cli_args(sim, responder, "--views", "8", "--speed", "50", "--write", str(cell_file)),
+            stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE)
+        out, err = await proc.communicate()
+    assert proc.returncode == 0, err.decode()
+    printed = tomllib.loads(out.decode())["calibration"]
     data = tomllib.loads(cell_file.read_text(encoding="utf-8"))
-    assert data["focus"] == {"max_steps": 12} and data["calibration"]["views"] == 8
+    assert data["focus"] == {"max_steps": 12} and data["calibration"] == printed and printed["views"] == 8
     check(CameraCalibration.from_table(data["calibration"]))
+
+
+@pytest.mark.timeout(90)
+async def test_ctrl_c_stops_the_arm_mid_motion_and_moves_nothing_more(tmp_path):
+    import signal
+
+    async with cell() as (sim, responder):
+        sim.controller  # noqa: B018
+        proc = await asyncio.create_subprocess_exec(
+            *cli_args(sim, responder, "--views", "6", "--speed", "100", "--write", str(tmp_path / "c.toml")),
+            stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE)
+        # time_scale 20 in cell(): wait for the first view's answer, then interrupt the second motion
+        deadline = time.monotonic() + 30
+        while responder.handled < 1 and time.monotonic() < deadline:
+            await asyncio.sleep(0.005)
+        assert responder.handled >= 1
+        proc.send_signal(signal.SIGINT)
+        out, err = await proc.communicate()
+        served = responder.handled
+        t = sim.now()
+        moving = sim.controller.trajectory.in_motion(t)
+        here = sim.controller.here_at(t)
+        await asyncio.sleep(0.3)
+        later = sim.controller.here_at(sim.now())
+    assert proc.returncode == 130, err.decode()
+    assert not moving and pose_error(here, later)[0] < 1e-6  # at rest, and nothing moved it after the exit
+    assert served <= 2 and not (tmp_path / "c.toml").exists()  # no more views, nothing written
+    assert "interrupt" in err.decode().lower()
 
 
 @pytest.mark.timeout(60)

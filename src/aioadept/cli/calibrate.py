@@ -4,20 +4,20 @@ the tool, and print (or write into a cell file) the ``[calibration]`` table the 
 Nothing is started here, only connected to: a robot server (the sim or a real controller) and a vision node serving
 the part locator (``aioadept vision --graph locate``). The robot moves ``move_to`` + ``break`` through ``--views``
 poses around ``--centre`` (tool pointing down), and the node is asked for the marker's corners at each. Every pose
-is checked before the first motion (none below the table + 100 mm); after any error nothing more is moved.
+is checked before the first motion (none below the table + 100 mm); after any error nothing more is moved, and
+Ctrl-C (SIGTERM, SIGHUP) stops the arm where it is, as in ``aioadept focus``.
 """
 
 from __future__ import annotations
 
 import argparse
-import asyncio
 import logging
 import sys
 from pathlib import Path
 
 from aioadept import defaults
-from aioadept.cli.options import (ArgumentParser, add_robot_option, add_verbose, configure_logging, description,
-                                  parse_robot_address, report, with_default)
+from aioadept.cli.options import (ArgumentParser, add_robot_option, add_verbose, description, parse_robot_address,
+                                  report, with_default)
 from aioadept.configfile import Range
 
 log = logging.getLogger("aioadept.calibrate")
@@ -66,7 +66,9 @@ def main(argv: list[str] | None = None) -> int:
     """Exit codes: 0 calibrated (printed, and written with --write); 1 the run failed (the robot is left where it
     is); 2 bad options or configuration (nothing was moved); 130 interrupted."""
     args = build_parser().parse_args(argv)
-    configure_logging(args.verbose)
+    # stdout carries the TOML table only (pipe it into a file); log lines go to stderr
+    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO, stream=sys.stderr,
+                        format="%(levelname)s %(name)s: %(message)s")
     from aioadept.apps.calibrate import CalibrationError, calibration_poses, check_poses
     from aioadept.apps.cell import CellConfig
     from aioadept.geometry import Pose
@@ -103,16 +105,22 @@ def main(argv: list[str] | None = None) -> int:
         if isinstance(exc, AdeptError):
             return report(PROG, exc, verbose=args.verbose)
         raise
+    from aioadept.apps.interrupt import run_interruptible
+
+    runs: list = []
     try:
-        run = asyncio.run(_run(host, port, request, response, poses, nominal, args, cfg))
-    except KeyboardInterrupt:
-        print(f"{PROG}: interrupted; the robot was not moved further", file=sys.stderr)
-        return 130
+        # Ctrl-C, SIGTERM, SIGHUP: stop the arm first (written in the signal callback, its ack awaited), start no
+        # motion, exit 130 (1 if the stop was not confirmed), as the focus app does.
+        code = run_interruptible(lambda intr: _run(intr, runs, host, port, request, response, poses, nominal, args,
+                                                   cfg), prog=PROG)
     except Exception as exc:  # the run failed: one line, the robot stays where it is
         if args.verbose:
             raise
         print(f"{PROG}: {exc}", file=sys.stderr)
         return 1
+    if code != 0 or not runs:
+        return code or 1
+    run = runs[0]
     cal = run.calibration
     print(cal.to_toml(), end="")
     log.info("%d views (%d skipped), rms %.3f px; camera at (%.1f, %.1f, %.1f) mm", len(run.views),
@@ -128,16 +136,17 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-async def _run(host, port, request, response, poses, nominal, args, cfg):  # noqa: ANN001, ANN202
+async def _run(intr, runs, host, port, request, response, poses, nominal, args, cfg) -> int:  # noqa: ANN001
     from aioadept.apps.calibrate import calibrate
     from aioadept.bus.communicator import Communicator
     from aioadept.client.robot import RobotClient
 
     async with RobotClient(host, port, connect_timeout_s=cfg.robot.connect_timeout_s,
-                           ack_timeout_s=cfg.robot.ack_timeout_s) as robot, \
+                           ack_timeout_s=cfg.robot.ack_timeout_s) as robot, intr.guard(robot), \
             Communicator(request, response, timeout_s=args.vision_timeout) as comm:
-        return await calibrate(robot, comm, poses, nominal, marker=args.marker, marker_mm=args.marker_mm,
-                               speed=args.speed, vision_timeout_s=args.vision_timeout)
+        runs.append(await calibrate(robot, comm, poses, nominal, marker=args.marker, marker_mm=args.marker_mm,
+                                    speed=args.speed, vision_timeout_s=args.vision_timeout))
+    return 0
 
 
 if __name__ == "__main__":  # pragma: no cover
