@@ -84,6 +84,9 @@ class CellConfig:
     world: WorldConfig | None = None
     """The simulated world (``[world]``: table, parts, feeder, pallet, camera; aioadept.worldfile), or None."""
     bus: BusSection = field(default_factory=BusSection)
+    calibration: Any = None
+    """The camera-to-robot calibration (``[calibration]``: :class:`aioadept.vision.calibration.CameraCalibration`,
+    written by ``aioadept calibrate``), or None."""
 
     @classmethod
     def from_toml(cls, path: str | Path) -> CellConfig:
@@ -97,11 +100,15 @@ class CellConfig:
 
         known = {"robot": RobotSection, "vision": VisionSection, "focus": FocusParams, "run": RunSection,
                  "world": WorldConfig, "bus": BusSection}
-        unknown = set(data) - set(known)
+        unknown = set(data) - set(known) - {"calibration"}
         if unknown:
             raise ConfigError(f"{source}: unknown section(s) {', '.join(sorted(unknown))}; expected "
-                              f"{', '.join(known)}")
-        parts = {}
+                              f"{', '.join([*known, 'calibration'])}")
+        parts: dict[str, Any] = {}
+        if "calibration" in data:
+            from aioadept.vision.calibration import CameraCalibration
+
+            parts["calibration"] = CameraCalibration.from_table(data["calibration"], f"{source} [calibration]")
         for name, typ in known.items():
             # Unknown keys, wrong types and values out of range as one line naming file, key and what was expected
             # (ConfigError).
@@ -129,6 +136,11 @@ class CellConfig:
         if "world" in v.sources() and not v.world and (cfg.world is None or cfg.world.camera is None):
             raise ConfigError(f'{source} [vision]: source = "world" needs a [world] table with [world.camera] (or '
                               f'world = FILE)')
+        if cfg.calibration is not None and v.graph == "locate" and not v.calibration and Path(source).is_file():
+            v.calibration = source  # the node a starter runs reads this file's [calibration] (vision_argv)
+        if v.graph == "locate" and not v.calibration:
+            raise ConfigError(f'{source} [vision]: graph = "locate" needs a [calibration] table (aioadept calibrate '
+                              f'writes one) or calibration = FILE')
         if not v.exposure_ms > 0:  # the node takes 0 (a camera's own minimum); a cell's camera must expose
             raise ConfigError(f"{source} [vision]: exposure_ms = {v.exposure_ms!r}: expected a finite number of "
                               f"ms > 0")

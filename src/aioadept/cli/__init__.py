@@ -22,6 +22,8 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "demo": ("aioadept.cli.demo", "start the whole simulated cell and run focus calibration"),
     "analyze": ("aioadept.cli.analyze", "analyse run folders: the paper's timing metrics and plots"),
     "experiment": ("aioadept.cli.experiment", "repeat the demo over a parameter grid, then analyse"),
+    "calibrate": ("aioadept.cli.calibrate", "estimate the fixed camera's pose in the robot base frame (marker on "
+                                            "the tool)"),
 }
 
 
