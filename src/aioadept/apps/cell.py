@@ -114,6 +114,12 @@ class CellConfig:
         if not v.exposure_ms > 0:  # the node takes 0 (a camera's own minimum); a cell's camera must expose
             raise ConfigError(f"{source} [vision]: exposure_ms = {v.exposure_ms!r}: expected a finite number of "
                               f"ms > 0")
+        from aioadept.apps.sweep import check_sweep
+
+        try:
+            check_sweep(cfg.focus, v.exposure_ms)
+        except ValueError as exc:
+            raise ConfigError(f"{source} [focus]: {exc}") from None
         from aioadept.bus.endpoints import is_none, parse_endpoint
         from aioadept.errors import BusError
 
@@ -250,10 +256,13 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
             async with Communicator(opposite(cfg.vision.request_endpoint), opposite(cfg.vision.response_endpoint),
                                     timeout_s=params.vision_timeout_s, observers=observers) as comm, \
                     _guarded(interrupter, rc):
-                result = await ufloop(rc, comm, params.delta_z_mm, params.approach_speed,
-                                      max_steps=params.max_steps, vision_timeout_s=params.vision_timeout_s,
-                                      retract_speed=params.retract_speed,
-                                      recorder=recorder if rrd is None else MarkTee(recorder, rrd))
+                marks = recorder if rrd is None else MarkTee(recorder, rrd)
+                if params.mode == "sweep":
+                    result = await _sweep(cfg, rc, comm, params, marks)
+                else:
+                    result = await ufloop(rc, comm, params.delta_z_mm, params.approach_speed,
+                                          max_steps=params.max_steps, vision_timeout_s=params.vision_timeout_s,
+                                          retract_speed=params.retract_speed, recorder=marks)
     except BaseException as exc:
         if isinstance(exc, (asyncio.CancelledError, KeyboardInterrupt)):
             error = "interrupted"
@@ -268,7 +277,7 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
         if connected:  # (else the run folder is gone, above, and the connect error propagates)
             meta = {
                 "app": "focus", "aioadept_version": __version__, "started_utc": started,
-                "approach_speed": params.approach_speed, "delta_z_mm": params.delta_z_mm,
+                "mode": params.mode, "approach_speed": params.approach_speed, "delta_z_mm": params.delta_z_mm,
                 "max_steps": params.max_steps, "cell": cfg.to_dict(), "error": error,
                 "result": None if result is None else focus_result_dict(result),
             }
@@ -280,6 +289,22 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
                 if rrd.error is not None and rrd.rrd_path is not None:  # e.g. a full disk: named with the others
                     save_error = merged_save_error(save_error, run_dir, {rrd.rrd_path.name: rrd.error})
     return RunOutcome(run_dir, result, error, save_error)
+
+
+async def _sweep(cfg: CellConfig, rc: Any, comm: Any, params: FocusParams, marks: Any) -> FocusResult:
+    """:func:`aioadept.apps.sweep.sweep_focus` with the cell's camera exposure and robot state stream (the sim's,
+    or ``aioadept state`` relaying a controller's; none: the frames are placed by the planned profile)."""
+    from aioadept.apps.sweep import sweep_focus
+    from aioadept.bus.endpoints import is_none
+
+    endpoint = None if is_none(cfg.robot.state_endpoint) else cfg.robot.state_endpoint  # as the vision node's
+    curve = None
+    if endpoint is not None and (cfg.vision.state_curve_secret or cfg.vision.state_curve_server):
+        from aioadept.vision.service import _state_curve
+
+        curve = _state_curve(cfg.vision)
+    return await sweep_focus(rc, comm, params, exposure_ms=cfg.vision.exposure_ms, state_endpoint=endpoint,
+                             state_curve=curve, vision_timeout_s=params.vision_timeout_s, recorder=marks)
 
 
 def merged_save_error(err: OSError | None, run_dir: Path, not_written: dict[str, str]) -> OSError:
@@ -339,12 +364,17 @@ async def _guarded(interrupter: Any, robot: Any):  # noqa: ANN202
 
 
 def focus_result_dict(r: FocusResult) -> dict[str, Any]:
-    return {
+    """focus.json: the result; both modes write ``mode`` and ``search_s``, a sweep its fit and frames too."""
+    out: dict[str, Any] = {
         "inspection_pose": dataclasses.asdict(r.inspection_pose),
         "approach_pose": dataclasses.asdict(r.approach_pose),
         "sharpness": list(r.sharpness), "peak_index": r.peak_index, "delta_z_mm": r.delta_z_mm,
-        "peak_offset_mm": r.peak_offset_mm, "steps": r.steps,
+        "peak_offset_mm": r.peak_offset_mm, "steps": r.steps, "mode": r.mode, "search_s": r.search_s,
     }
+    if r.mode == "sweep":
+        out.update({"peak_sigma_mm": r.peak_sigma_mm, "pose_source": r.pose_source, "frames": list(r.frames),
+                    "sweep": r.sweep})
+    return out
 
 
 class Cell:

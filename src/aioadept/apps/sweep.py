@@ -1,0 +1,627 @@
+"""Focus calibration in one sweep (``aioadept focus --mode sweep``): a continuous straight line along the tool axis,
+frames triggered at a fixed interval while the tool moves, each frame placed on the line by the robot state at its
+mid-exposure, and a fit of sharpness against position.
+
+Where it sits: beside the paper's stepwise loop (:func:`aioadept.apps.paper.ufloop`, still the default and the
+reference), with the same robot and vision protocols and the same :class:`~aioadept.apps.paper.FocusResult`. Data
+path::
+
+    init_move -> approach pose A
+    MoveToS(A:TRANS(0,0,to)) at speed v   ||  every frame_interval_s: VisionRequest -> (frame_t, exposure, sharpness)
+    robot.state samples (wall time, pose)  ->  offset along A's z at each frame's mid-exposure (clocks aligned)
+    fit_peak(offsets, sharpness) -> peak +- sigma; not bracketed: extend; sigma too large: slower, narrower sweep
+    MoveToS(A:TRANS(0,0,peak))
+
+The pure parts (:func:`plan_sweep`, :func:`fit_peak`, :class:`StateTrack`, :func:`clock_offset`,
+:func:`profile_offset`) take numbers and return numbers; :func:`sweep_focus` is the coroutine that runs a sweep.
+docs/focus.md explains the method, its assumptions and when the stepwise loop is the better choice.
+
+Safety as in :mod:`aioadept.apps.paper`: after a stop, a cancellation, a lost connection or an ack timeout no motion
+is started; only a failure this module detects itself with the robot at rest (no peak found, no frames) retracts to
+the approach pose.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import bisect
+import logging
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from aioadept.apps.paper import FocusError, FocusResult, Robot, Vision, _retract, init_move
+from aioadept.commands import Break, MoveToS, SetSpeed
+from aioadept.configfile import Range
+from aioadept.errors import CommandAborted, CommandError, VisionError
+from aioadept.geometry import Pose
+
+log = logging.getLogger("aioadept.apps.sweep")
+
+MODES = ("stepwise", "sweep")
+"""``[focus] mode``: the paper's stepwise loop (default) or one sweep."""
+
+SWEEP_RANGES: dict[str, Range] = {
+    "sweep_range_mm": Range(1.0, 200.0, unit="mm"),
+    "depth_of_field_mm": Range(0.0, 100.0, lo_open=True, unit="mm"),
+    "max_blur_fraction": Range(0.0, 1.0, lo_open=True),
+    "sweep_max_speed_mm_s": Range(0.0, 2000.0, lo_open=True, unit="mm/s"),
+    "line_speed_mm_s": Range(1.0, 10000.0, unit="mm/s"),
+    "frame_interval_s": Range(0.001, 1.0, unit="s"),
+    "max_peak_sigma_mm": Range(0.0, 10.0, lo_open=True, unit="mm"),
+    "fine_range_mm": Range(1.0, 100.0, unit="mm"),
+    "fine_speed_factor": Range(0.0, 1.0, lo_open=True),
+    "max_sweeps": Range(1, 10, integer=True),
+}
+"""The sweep's ``[focus]`` values, written once (``FocusParams`` fields carry them; ``--help`` and the cell file
+check read them here). ``depth_of_field_mm`` x ``max_blur_fraction`` is the longest travel allowed during one
+exposure; ``line_speed_mm_s`` is what 100 % program speed means for a straight line on the robot (the sim's
+``--cartesian-speed``, 2000 by default)."""
+
+FIT_LEVEL = 0.35
+"""The fit uses the frames around the highest one whose sharpness is above ``min + FIT_LEVEL * (max - min)``: the
+top two thirds of the peak. Lower takes in the tails, where 1/sharpness is no longer a low-order polynomial; higher
+leaves too few frames at the sweep's speed (docs/focus.md has the measurements)."""
+MIN_FIT_POINTS = 5
+IN_FLIGHT = 2
+"""Vision requests outstanding at once during a sweep (see :func:`_one_sweep`)."""
+
+
+# ------------------------------------------------------------------------------------------------ planning
+@dataclass(frozen=True, slots=True)
+class SweepPlan:
+    """One straight-line sweep from ``from_mm`` to ``to_mm`` (offsets along the approach pose's tool z) at
+    ``speed_pct`` (program speed), which is ``speed_mm_s`` with ``blur_mm`` of travel during one exposure."""
+
+    from_mm: float
+    to_mm: float
+    speed_pct: int
+    speed_mm_s: float
+    blur_mm: float
+    kind: str = "coarse"
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"from_mm": self.from_mm, "to_mm": self.to_mm, "speed_pct": self.speed_pct,
+                "speed_mm_s": self.speed_mm_s, "blur_mm": self.blur_mm, "kind": self.kind}
+
+
+def sweep_speed(params: Any, exposure_ms: float, *, factor: float = 1.0) -> tuple[int, float]:
+    """(program speed %, tool speed mm/s) of a sweep: the fastest whole percent whose travel during one exposure
+    stays within ``max_blur_fraction`` of ``depth_of_field_mm`` and below ``sweep_max_speed_mm_s`` (times
+    ``factor``, for the slower fine sweep). ValueError, naming the keys, when even 1 % blurs more than allowed."""
+    if not exposure_ms > 0:
+        raise ValueError(f"exposure_ms = {exposure_ms!r}: a sweep needs the camera's exposure (> 0 ms)")
+    v_blur = params.max_blur_fraction * params.depth_of_field_mm / (exposure_ms / 1e3)
+    v = min(v_blur, params.sweep_max_speed_mm_s) * factor
+    pct = min(100, math.floor(v / params.line_speed_mm_s * 100.0 + 1e-9))
+    if pct < 1:
+        raise ValueError(
+            f"max_blur_fraction = {params.max_blur_fraction:g} of depth_of_field_mm = {params.depth_of_field_mm:g} "
+            f"with exposure_ms = {exposure_ms:g} allows {v:.3g} mm/s, below 1 % of line_speed_mm_s = "
+            f"{params.line_speed_mm_s:g}: shorten the exposure or use mode = \"stepwise\"")
+    return pct, pct / 100.0 * params.line_speed_mm_s
+
+
+def plan_sweep(params: Any, exposure_ms: float, from_mm: float, to_mm: float, *, kind: str = "coarse",
+               factor: float = 1.0) -> SweepPlan:
+    """The :class:`SweepPlan` from ``from_mm`` to ``to_mm`` (see :func:`sweep_speed`)."""
+    pct, v = sweep_speed(params, exposure_ms, factor=factor)
+    return SweepPlan(float(from_mm), float(to_mm), pct, v, v * exposure_ms / 1e3, kind)
+
+
+def check_sweep(params: Any, exposure_ms: float) -> None:
+    """ValueError (one line, naming the keys) unless a sweep with these values can run: called before anything
+    starts, so ``--mode sweep`` with an exposure too long for the blur budget exits 2 with nothing moved."""
+    if params.mode == "sweep":
+        sweep_speed(params, exposure_ms)
+        sweep_speed(params, exposure_ms, factor=params.fine_speed_factor)
+
+
+# ------------------------------------------------------------------------------------------------ the fit
+@dataclass(frozen=True, slots=True)
+class PeakFit:
+    """The fitted focal plane: ``peak_mm`` +- ``sigma_mm`` (jackknife standard error), from ``n_points`` frames
+    between ``window_mm``; ``bracketed`` is False when the window touches an end of the data (the sharpness had
+    not fallen on that side: ``side`` says which, -1 or +1); ``ok`` when a peak was found inside the window."""
+
+    peak_mm: float
+    sigma_mm: float
+    n_points: int
+    window_mm: tuple[float, float]
+    bracketed: bool
+    side: int = 0
+    model: str = ""
+    ok: bool = True
+    why: str = ""
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"peak_mm": _finite(self.peak_mm), "sigma_mm": _finite(self.sigma_mm), "n_points": self.n_points,
+                "window_mm": list(self.window_mm), "bracketed": self.bracketed, "side": self.side,
+                "model": self.model, "ok": self.ok, "why": self.why}
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+def _vertex(z: np.ndarray, y: np.ndarray, lo: float, hi: float) -> float:
+    """Position of the minimum of the least-squares polynomial (cubic from 7 points, else quadratic) through
+    ``(z, y)`` inside ``[lo, hi]``; NaN when it has none there."""
+    deg = 3 if len(z) >= 7 else 2
+    m = float(z.mean())
+    c = np.polyfit(z - m, y, deg)
+    d1 = np.polyder(c)
+    roots = np.roots(d1)
+    best = math.nan
+    for r in roots:
+        if abs(r.imag) > 1e-9:
+            continue
+        x = float(r.real)
+        if lo - m <= x <= hi - m and np.polyval(np.polyder(d1), x) > 0:
+            if math.isnan(best) or np.polyval(c, x) < np.polyval(c, best - m):
+                best = x + m
+    return best
+
+
+def fit_peak(offsets_mm: Sequence[float], sharpness: Sequence[float], *, level: float = FIT_LEVEL) -> PeakFit:
+    """Fit the sharpness peak of frames at ``offsets_mm`` (any order).
+
+    Model: the reciprocal sharpness ``1/s`` as a cubic polynomial of the offset (a quadratic below 7 frames) over
+    the frames around the sharpest one down to :data:`FIT_LEVEL` of the peak's height; the plane is its minimum.
+    Why: the sharpness measure falls roughly as the blur diameter grows, and the blur diameter
+    (``hypot(k|z - z0|, floor)``) is a valley with a parabolic bottom and straight flanks, so 1/s is close to a
+    low-order polynomial over the whole top of the peak; the cubic term takes up the skew of the real curve (the
+    object's image grows by ~0.3 % per mm as it approaches the camera), which biases a symmetric model (a Gaussian,
+    a parabola in log s) by ~0.07 mm. Uncertainty: the jackknife standard error of the vertex (leave one frame out,
+    refit), which needs no noise model and grows when a single frame decides the answer.
+    """
+    z = np.asarray(offsets_mm, float)
+    s = np.asarray(sharpness, float)
+    keep = np.isfinite(z) & np.isfinite(s) & (s > 0)
+    z, s = z[keep], s[keep]
+    order = np.argsort(z, kind="stable")
+    z, s = z[order], s[order]
+    n = len(z)
+    if n < MIN_FIT_POINTS:
+        return PeakFit(math.nan, math.inf, n, (math.nan, math.nan), False, 0, "", False,
+                       f"{n} frames with a sharpness (at least {MIN_FIT_POINTS} needed)")
+    i = int(np.argmax(s))
+    thr = float(s.min()) + level * float(s[i] - s.min())
+    a = i
+    while a > 0 and s[a - 1] >= thr:
+        a -= 1
+    b = i
+    while b < n - 1 and s[b + 1] >= thr:
+        b += 1
+    side = -1 if a == 0 else (1 if b == n - 1 else 0)
+    bracketed = side == 0
+    zz, yy = z[a:b + 1], 1.0 / s[a:b + 1]
+    window = (float(zz[0]), float(zz[-1]))
+    if len(zz) < MIN_FIT_POINTS:
+        return PeakFit(float(z[i]), math.inf, len(zz), window, bracketed, side, "", False,
+                       f"{len(zz)} frames on the peak (at least {MIN_FIT_POINTS} needed): sweep slower")
+    model = f"1/sharpness = {'cubic' if len(zz) >= 7 else 'quadratic'} in z"
+    peak = _vertex(zz, yy, window[0], window[1])
+    if math.isnan(peak):
+        return PeakFit(float(z[i]), math.inf, len(zz), window, bracketed, side, model, False,
+                       "the fitted curve has no minimum inside the window")
+    loo = []
+    for k in range(len(zz)):
+        mask = np.arange(len(zz)) != k
+        loo.append(_vertex(zz[mask], yy[mask], window[0], window[1]))
+    loo_a = np.asarray(loo)
+    if not np.all(np.isfinite(loo_a)):
+        sigma = math.inf
+    else:
+        m = len(loo_a)
+        sigma = float(math.sqrt((m - 1) / m * float(np.sum((loo_a - loo_a.mean()) ** 2))))
+    return PeakFit(float(peak), sigma, len(zz), window, bracketed, side, model, True, "")
+
+
+# ------------------------------------------------------------------------------------------------ positions
+def axis_offset_mm(approach: Pose, pose: Pose) -> float:
+    """Signed distance (mm) of ``pose`` from ``approach`` along the approach pose's tool z axis."""
+    a = approach.to_matrix()
+    return float(np.dot(pose.to_matrix()[:3, 3] - a[:3, 3], a[:3, 2]))
+
+
+def clock_offset(lo: float, hi: float) -> float:
+    """The offset (remote minus local clock, s) closest to 0 within the bounds ``[lo, hi]`` the traffic allows:
+    0 when the clocks agree as far as can be measured (one machine, or NTP), else the nearer bound. With no
+    consistent value (``lo > hi``: the clocks drifted during the run) the middle of the two."""
+    if lo > hi:
+        return (lo + hi) / 2.0
+    return min(max(0.0, lo), hi)
+
+
+class StateTrack:
+    """Robot state samples (the sender's wall time, the local receive time, the pose's offset along the axis) and
+    the position at any local time, interpolated linearly between the two samples around it.
+
+    The sender's clock is mapped to the local one by the smallest delay seen (:mod:`aioadept.client.statestream`
+    uses the same rule): ``local = wall + min(receive - wall)``; the fastest sample bounds the transport delay. A
+    virtual camera that stamps samples on receipt sees the same timeline.
+    """
+
+    def __init__(self) -> None:
+        self.wall: list[float] = []
+        self.recv: list[float] = []
+        self.offset_mm: list[float] = []
+
+    def add(self, wall_s: float, recv_s: float, offset_mm: float) -> None:
+        if self.wall and wall_s <= self.wall[-1]:
+            return
+        self.wall.append(float(wall_s))
+        self.recv.append(float(recv_s))
+        self.offset_mm.append(float(offset_mm))
+
+    def __len__(self) -> int:
+        return len(self.wall)
+
+    @property
+    def delay_s(self) -> float:
+        return min(r - w for r, w in zip(self.recv, self.wall)) if self.wall else 0.0
+
+    def covers(self, t_local: float) -> bool:
+        return bool(self.wall) and self.wall[-1] + self.delay_s >= t_local
+
+    def at(self, t_local: float) -> float:
+        """Offset (mm) at local epoch time ``t_local``; NaN outside the samples."""
+        if not self.wall:
+            return math.nan
+        t = t_local - self.delay_s
+        i = bisect.bisect_right(self.wall, t)
+        if i == 0 or i == len(self.wall):
+            return self.offset_mm[0] if i == 0 and t == self.wall[0] else math.nan
+        t0, t1 = self.wall[i - 1], self.wall[i]
+        a = (t - t0) / (t1 - t0)
+        return self.offset_mm[i - 1] + a * (self.offset_mm[i] - self.offset_mm[i - 1])
+
+
+def profile_offset(t: float, t0: float, t1: float, from_mm: float, to_mm: float, ramp_s: float) -> float:
+    """Offset (mm) at time ``t`` of a trapezoidal straight line from ``from_mm`` (starting at ``t0``) to ``to_mm``
+    (at rest at ``t1``) with ramps of ``ramp_s`` (clipped to half the motion): the planned profile, for a robot
+    without a state stream."""
+    T = t1 - t0
+    if T <= 0:
+        return to_mm if t >= t1 else from_mm
+    ta = min(ramp_s, T / 2.0)
+    tau = min(max(t - t0, 0.0), T)
+    vp = 1.0 / (T - ta)
+    if tau < ta:
+        p = 0.5 * vp * tau * tau / ta
+    elif tau <= T - ta:
+        p = vp * (tau - 0.5 * ta)
+    else:
+        p = 1.0 - 0.5 * vp * (T - tau) ** 2 / ta
+    return from_mm + p * (to_mm - from_mm)
+
+
+# ------------------------------------------------------------------------------------------------ the coroutine
+@dataclass
+class SweepFrame:
+    """One frame of a sweep: its mid-exposure (local epoch s), sharpness and, once known, its offset (mm)."""
+
+    sweep: int
+    t_mid_s: float
+    sharpness: float
+    offset_mm: float = math.nan
+    t_send_s: float = 0.0
+    t_recv_s: float = 0.0
+    frame_t_s: float = 0.0
+    exposure_s: float = 0.0
+    readout_s: float = 0.0
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"sweep": self.sweep, "t_mid_s": self.t_mid_s, "offset_mm": _finite(self.offset_mm),
+                "sharpness": self.sharpness}
+
+
+@dataclass
+class SweepRun:
+    """What :func:`sweep_focus` collected (returned inside :class:`FocusResult` as plain data)."""
+
+    frames: list[SweepFrame] = field(default_factory=list)
+    plans: list[SweepPlan] = field(default_factory=list)
+    fits: list[PeakFit] = field(default_factory=list)
+    t_motion0_s: float | None = None
+    """Local epoch time the first sweep motion was written (search_s starts there)."""
+    vision_offset_s: float = 0.0
+    vision_offset_bounds_s: tuple[float, float] = (-math.inf, math.inf)
+    errors: int = 0
+
+
+class StateFeed:
+    """A robot state subscription filling a :class:`StateTrack` (offsets from ``approach``), in a task of its own.
+
+    ``await feed.start(endpoint)`` subscribes and waits up to ``wait_s`` for a first sample; False when none came
+    (no stream at that address): the caller then uses the planned profile."""
+
+    def __init__(self, approach: Pose, *, curve: Any = None) -> None:
+        self.approach = approach
+        self.track = StateTrack()
+        self.curve = curve
+        self._sub: Any = None
+        self._task: asyncio.Task[None] | None = None
+        self._first = asyncio.Event()
+
+    async def start(self, endpoint: str, *, wait_s: float = 1.0) -> bool:
+        from aioadept.bus.messages import ROBOT_STATE_TOPIC
+        from aioadept.bus.pubsub import Subscriber
+
+        self._sub = Subscriber(endpoint, topics=(ROBOT_STATE_TOPIC,), curve=self.curve)
+        self._task = asyncio.create_task(self._run())
+        try:
+            async with asyncio.timeout(wait_s):
+                await self._first.wait()
+        except TimeoutError:
+            return False
+        return True
+
+    async def _run(self) -> None:
+        from aioadept.bus.messages import RobotState
+
+        while True:
+            _topic, payload = await self._sub.recv()
+            now = time.time()
+            try:
+                st = RobotState.from_bytes(payload)
+            except Exception:  # a stranger's message must not end the feed
+                continue
+            self.track.add(st.wall_time_s, now, axis_offset_mm(self.approach, st.pose))
+            self._first.set()
+
+    async def wait_covering(self, t_local: float, timeout_s: float = 0.5) -> bool:
+        deadline = time.monotonic() + timeout_s
+        while not self.track.covers(t_local):
+            if time.monotonic() > deadline:
+                return False
+            await asyncio.sleep(0.002)
+        return True
+
+    async def aclose(self) -> None:
+        if self._task is not None:
+            self._task.cancel()
+            await asyncio.gather(self._task, return_exceptions=True)
+        if self._sub is not None:
+            self._sub.close()
+
+
+async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: float,
+                      state_endpoint: str | None = None, state_curve: Any = None,
+                      vision_timeout_s: float | None = None, recorder: Any = None, do_init_move: bool = True,
+                      stop_event: asyncio.Event | None = None, ramp_s: float = 0.1) -> FocusResult:
+    """Find the focal plane with sweeps (module docstring) and move there; return the :class:`FocusResult`
+    (``mode="sweep"``, ``fitted_offset_mm``, ``peak_sigma_mm``, ``search_s``, the frames, which pose source).
+
+    ``params``: :class:`~aioadept.apps.focus.FocusParams`; ``exposure_ms``: the camera's (sets the speed);
+    ``state_endpoint``: the robot state stream (None or silent: the planned profile and the ack times place the
+    frames instead; ``ramp_s`` is the robot's ramp time the profile assumes). Raises :class:`FocusError` (no peak
+    within ``max_sweeps`` sweeps, no usable frames: after a retract to the approach pose) or the robot's own error.
+    """
+    check_sweep(params, exposure_ms)
+    approach = (await init_move(rc)).pose if do_init_move else None
+    if approach is None:
+        from aioadept.commands import Here
+
+        approach = (await rc.cmdexec(Here())).pose
+    run = SweepRun()
+    feed: StateFeed | None = None
+    source = "planned-profile"
+    if state_endpoint:
+        feed = StateFeed(approach, curve=state_curve)
+        try:
+            if await feed.start(state_endpoint):
+                source = "state-stream"
+            else:
+                log.warning("no robot state on %s within 1 s: frames placed by the planned profile", state_endpoint)
+        except Exception as exc:  # a bad address must not stop a calibration that can do without it
+            log.warning("robot state stream %s: %s; frames placed by the planned profile", state_endpoint, exc)
+    t_known: float | None = None
+    here_mm = 0.0
+    fit: PeakFit | None = None
+    try:
+        plan = plan_sweep(params, exposure_ms, 0.0, params.sweep_range_mm)
+        while True:
+            if stop_event is not None and stop_event.is_set():
+                raise asyncio.CancelledError
+            run.plans.append(plan)
+            if recorder is not None:
+                recorder.mark("sweep", len(run.plans) - 1)
+            known = await _one_sweep(rc, comm, approach, plan, len(run.plans) - 1, run, feed, source,
+                                     params.frame_interval_s, vision_timeout_s, ramp_s, params)
+            here_mm = plan.to_mm
+            fit = fit_peak([f.offset_mm for f in run.frames], [f.sharpness for f in run.frames])
+            run.fits.append(fit)
+            if known is not None and fit.ok and fit.bracketed and fit.sigma_mm <= params.max_peak_sigma_mm:
+                t_known = known  # decided while the robot was still moving (state stream)
+            log.info("sweep %d %.1f..%.1f mm at %d %% (%.0f mm/s): %s", len(run.plans) - 1, plan.from_mm,
+                     plan.to_mm, plan.speed_pct, plan.speed_mm_s, fit)
+            if fit.ok and fit.bracketed and fit.sigma_mm <= params.max_peak_sigma_mm:
+                if t_known is None:
+                    t_known = time.time()
+                break
+            if len(run.plans) >= params.max_sweeps:
+                why = fit.why or (f"peak not bracketed (sharpness still rising at the {'far' if fit.side > 0 else 'near'}"
+                                  f" end)" if not fit.bracketed else
+                                  f"peak uncertainty {fit.sigma_mm:.3f} mm above max_peak_sigma_mm "
+                                  f"{params.max_peak_sigma_mm:g}")
+                raise FocusError(f"no focal plane after {len(run.plans)} sweep(s): {why}",
+                                 sharpness=[f.sharpness for f in run.frames])
+            plan = _next_plan(params, exposure_ms, fit, here_mm)
+        peak = fit.peak_mm
+        target = approach @ Pose(z=peak)
+        if recorder is not None:
+            recorder.mark("retract", len(run.frames))
+        pose = (await rc.cmdexec(SetSpeed(params.approach_speed), MoveToS(target))).pose
+    except BaseException as exc:
+        stopped = stop_event is not None and stop_event.is_set()
+        ours = isinstance(exc, (FocusError, CommandError)) and not isinstance(exc, CommandAborted)
+        retracted = await _retract(rc, approach, params.retract_speed) if ours and not stopped else False
+        if isinstance(exc, FocusError):
+            raise FocusError(str(exc), sharpness=exc.sharpness, retracted=retracted) from exc.__cause__
+        raise
+    finally:
+        if feed is not None:
+            await feed.aclose()
+    frames = sorted(run.frames, key=lambda f: f.t_mid_s)
+    best = max(range(len(frames)), key=lambda k: frames[k].sharpness) if frames else 0
+    return FocusResult(
+        pose, approach, tuple(f.sharpness for f in frames), best, params.delta_z_mm,
+        tuple(f.frame_t_s for f in frames), mode="sweep", fitted_offset_mm=peak, peak_sigma_mm=fit.sigma_mm,
+        search_s=(t_known - run.t_motion0_s) if run.t_motion0_s is not None and t_known is not None else None,
+        frames=tuple(f.as_dict() for f in frames), pose_source=source,
+        sweep={"plans": [p.as_dict() for p in run.plans], "fits": [f.as_dict() for f in run.fits],
+               "vision_clock_offset_s": run.vision_offset_s,
+               "vision_clock_offset_bounds_s": [_finite(b) for b in run.vision_offset_bounds_s],
+               "state_delay_s": feed.track.delay_s if feed is not None and len(feed.track) else None,
+               "frame_errors": run.errors, "exposure_ms": exposure_ms})
+
+
+def _next_plan(params: Any, exposure_ms: float, fit: PeakFit, here_mm: float) -> SweepPlan:
+    """After a sweep ending at ``here_mm``: extend past the end where the peak was not bracketed (or nothing was
+    fitted), else a slower sweep over ``fine_range_mm`` around the fitted peak, run from the side the robot is
+    on through the whole window."""
+    if not fit.bracketed or not math.isfinite(fit.peak_mm):
+        ext = params.sweep_range_mm / 2.0
+        if fit.side < 0:  # still rising at the near end: the plane is behind the start
+            lo = min(fit.window_mm[0], here_mm) if math.isfinite(fit.window_mm[0]) else here_mm
+            return plan_sweep(params, exposure_ms, here_mm, lo - ext, kind="extend")
+        hi = max(fit.window_mm[1], here_mm) if math.isfinite(fit.window_mm[1]) else here_mm
+        return plan_sweep(params, exposure_ms, here_mm, hi + ext, kind="extend")
+    half = params.fine_range_mm / 2.0
+    centre = fit.peak_mm
+    a, b = (centre + half, centre - half) if here_mm >= centre else (centre - half, centre + half)
+    return plan_sweep(params, exposure_ms, a, b, kind="fine", factor=params.fine_speed_factor)
+
+
+async def _one_sweep(rc: Robot, comm: Vision, approach: Pose, plan: SweepPlan, index: int, run: SweepRun,
+                     feed: StateFeed | None, source: str, interval_s: float, vision_timeout_s: float | None,
+                     ramp_s: float, params: Any) -> float | None:
+    """Run one sweep: go to its start if the robot is not there, then the line with frames triggered every
+    ``interval_s``. Returns the local time the peak became known during the sweep (state stream only), else None."""
+    start = approach @ Pose(z=plan.from_mm)
+    to = approach @ Pose(z=plan.to_mm)
+    here = (await rc.cmdexec(_here())).pose
+    if abs(axis_offset_mm(approach, here) - plan.from_mm) > 0.05:
+        await rc.cmdexec(SetSpeed(params.approach_speed), MoveToS(start))
+    loop = asyncio.get_running_loop()
+    epoch_minus_loop = time.time() - loop.time()
+    if run.t_motion0_s is None:
+        run.t_motion0_s = time.time()
+    motion = asyncio.ensure_future(rc.cmdexec_joined(SetSpeed(plan.speed_pct), MoveToS(to, break_move=False),
+                                                     Break()))
+    frames: list[SweepFrame] = []
+    pending: set[asyncio.Task[Any]] = set()
+    known: list[float] = []
+
+    async def one_frame(t_send: float) -> None:
+        try:
+            resp = await comm.request("VisionRequest", {}, timeout_s=vision_timeout_s)
+        except TimeoutError as exc:
+            raise FocusError(f"sweep {index}: no answer from the vision node ({exc})") from exc
+        t_recv = time.time()
+        attrs = dict(resp.attributes)
+        if attrs.get("error") or "sharpness" not in attrs or "frame_t" not in attrs:
+            run.errors += 1
+            log.debug("sweep frame refused: %s", attrs.get("error"))
+            return
+        exp_s = float(attrs.get("exposure_ms", 0.0)) / 1e3
+        ro_s = float(attrs.get("readout_ms", 0.0)) / 1e3
+        ft = float(attrs["frame_t"])
+        f = SweepFrame(index, math.nan, float(attrs["sharpness"]), t_send_s=t_send, t_recv_s=t_recv, frame_t_s=ft,
+                  exposure_s=exp_s, readout_s=ro_s)
+        frames.append(f)
+        if feed is not None and source == "state-stream" and not known:
+            # Online: place what we have and see whether the peak is known already (the robot still moving).
+            _place_vision_clock(run, frames)
+            for g in frames:
+                if math.isnan(g.offset_mm) and feed.track.covers(g.t_mid_s):
+                    g.offset_mm = feed.track.at(g.t_mid_s)
+            placed = [g for g in [*run.frames, *frames] if math.isfinite(g.offset_mm)]
+            fit = fit_peak([g.offset_mm for g in placed], [g.sharpness for g in placed])
+            if fit.ok and fit.bracketed and fit.sigma_mm <= params.max_peak_sigma_mm:
+                known.append(time.time())
+
+    try:
+        next_t = loop.time()
+        while not motion.done():
+            # At most IN_FLIGHT requests outstanding: one exposing, one waiting to trigger the moment the camera is
+            # free. A deeper queue at a node slower than the interval would only hold frames of the arm at rest.
+            if len(pending) < IN_FLIGHT:
+                task = asyncio.create_task(one_frame(time.time()))
+                pending.add(task)
+                task.add_done_callback(pending.discard)
+            next_t += interval_s
+            delay = next_t - loop.time()
+            if delay < 0:  # fell behind (a loaded machine): keep the interval, skip the ticks missed
+                next_t += math.ceil(-delay / interval_s) * interval_s
+                delay = next_t - loop.time()
+            await asyncio.wait({motion}, timeout=delay)
+        result = motion.result()
+        if pending:
+            await asyncio.gather(*pending)
+    finally:
+        for task in pending:
+            task.cancel()
+        if not motion.done():
+            motion.cancel()
+        await asyncio.gather(motion, *pending, return_exceptions=True)
+    _place_vision_clock(run, frames)
+    if feed is not None and source == "state-stream":
+        for f in frames:
+            if math.isnan(f.offset_mm) and await feed.wait_covering(f.t_mid_s):
+                f.offset_mm = feed.track.at(f.t_mid_s)
+    else:
+        _place_by_profile(frames, result, plan, ramp_s, epoch_minus_loop)
+    run.frames.extend(frames)
+    return known[0] if known else None
+
+
+def _here() -> Any:
+    from aioadept.commands import Here
+
+    return Here()
+
+
+def _place_vision_clock(run: SweepRun, frames: list[SweepFrame]) -> None:
+    """Bound the vision node's clock offset by every frame so far (the exposure starts after its request was sent,
+    and the frame is read out before its answer arrives) and set each frame's mid-exposure in local time."""
+    lo, hi = run.vision_offset_bounds_s
+    for f in frames:
+        hi = min(hi, f.frame_t_s - f.t_send_s)
+        lo = max(lo, f.frame_t_s + f.exposure_s + f.readout_s - f.t_recv_s)
+    run.vision_offset_bounds_s = (lo, hi)
+    run.vision_offset_s = clock_offset(lo, hi)
+    for f in frames:
+        f.t_mid_s = f.frame_t_s + f.exposure_s / 2.0 - run.vision_offset_s
+
+
+def _place_by_profile(frames: list[SweepFrame], result: Any, plan: SweepPlan, ramp_s: float,
+                      epoch_minus_loop: float) -> None:
+    """Without a state stream: the planned trapezoid between the motion's start and its end, both from the acks.
+    The server clock is mapped to the local one by the bounds every ack gives (sent before it started, received
+    after it was done), the value nearest their middle."""
+    msgs = list(result.messages)
+    lo, hi = -math.inf, math.inf
+    for m in msgs:
+        send, recv = m.t_send_s + epoch_minus_loop, m.t_recv_s + epoch_minus_loop
+        hi = min(hi, m.ack.t_start_s - send)
+        lo = max(lo, m.ack.t_done_s - recv)
+    off = (lo + hi) / 2.0
+    move = next(m for m in msgs if m.skill == "move_to_s")
+    brk = msgs[-1]
+    t0 = move.ack.t_done_s - off  # a motion skill returns as its motion starts (V+ forward processing)
+    t1 = brk.ack.t_done_s - off   # break returns when the robot is at rest
+    planned = abs(plan.to_mm - plan.from_mm) / plan.speed_mm_s + ramp_s
+    ramp = ramp_s * (t1 - t0) / planned if planned > 0 else ramp_s  # a sim's time scale shortens the ramps too
+    for f in frames:
+        f.offset_mm = profile_offset(f.t_mid_s, t0, t1, plan.from_mm, plan.to_mm, ramp)
+
+
+__all__ = ["MODES", "SWEEP_RANGES", "PeakFit", "StateTrack", "SweepPlan", "check_sweep", "clock_offset",
+           "fit_peak", "plan_sweep", "profile_offset", "sweep_focus", "sweep_speed"]
