@@ -86,7 +86,7 @@ class FocusParams:
     """The first sweep runs from the approach pose this far along tool +z."""
     depth_of_field_mm: float = ranged(3.0, SWEEP_RANGES["depth_of_field_mm"])
     """The camera's depth of field (the virtual camera's at f/2.8: blur circle <= 2 px over about 3 mm)."""
-    max_blur_fraction: float = ranged(0.25, SWEEP_RANGES["max_blur_fraction"])
+    max_blur_fraction: float = ranged(0.34, SWEEP_RANGES["max_blur_fraction"])
     """Travel during one exposure, as a fraction of the depth of field: it sets the sweep's speed."""
     sweep_max_speed_mm_s: float = ranged(500.0, SWEEP_RANGES["sweep_max_speed_mm_s"])
     line_speed_mm_s: float = ranged(2000.0, SWEEP_RANGES["line_speed_mm_s"])
