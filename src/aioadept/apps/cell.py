@@ -117,7 +117,7 @@ class CellConfig:
         from aioadept.apps.sweep import check_sweep
 
         try:
-            check_sweep(cfg.focus, v.exposure_ms)
+            check_sweep(cfg.focus, v.exposure_ms, sim_time_scale(cfg))
         except ValueError as exc:
             raise ConfigError(f"{source} [focus]: {exc}") from None
         from aioadept.bus.endpoints import is_none, parse_endpoint
@@ -304,7 +304,14 @@ async def _sweep(cfg: CellConfig, rc: Any, comm: Any, params: FocusParams, marks
 
         curve = _state_curve(cfg.vision)
     return await sweep_focus(rc, comm, params, exposure_ms=cfg.vision.exposure_ms, state_endpoint=endpoint,
-                             state_curve=curve, vision_timeout_s=params.vision_timeout_s, recorder=marks)
+                             state_curve=curve, vision_timeout_s=params.vision_timeout_s, recorder=marks,
+                             time_scale=sim_time_scale(cfg))
+
+
+def sim_time_scale(cfg: CellConfig) -> float:
+    """The robot's speed-up: the sim's ``time_scale`` when this cell starts it, else 1 (a real controller, or a
+    server started elsewhere at its own scale)."""
+    return cfg.robot.time_scale if cfg.robot.start_sim else 1.0
 
 
 def merged_save_error(err: OSError | None, run_dir: Path, not_written: dict[str, str]) -> OSError:

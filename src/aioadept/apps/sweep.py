@@ -90,36 +90,40 @@ class SweepPlan:
                 "speed_mm_s": self.speed_mm_s, "blur_mm": self.blur_mm, "kind": self.kind}
 
 
-def sweep_speed(params: Any, exposure_ms: float, *, factor: float = 1.0) -> tuple[int, float]:
-    """(program speed %, tool speed mm/s) of a sweep: the fastest whole percent whose travel during one exposure
-    stays within ``max_blur_fraction`` of ``depth_of_field_mm`` and below ``sweep_max_speed_mm_s`` (times
-    ``factor``, for the slower fine sweep). ValueError, naming the keys, when even 1 % blurs more than allowed."""
+def sweep_speed(params: Any, exposure_ms: float, *, factor: float = 1.0, time_scale: float = 1.0) -> tuple[int, float]:
+    """(program speed %, tool speed mm/s in real time) of a sweep: the fastest whole percent whose travel during
+    one exposure stays within ``max_blur_fraction`` of ``depth_of_field_mm`` and below ``sweep_max_speed_mm_s``
+    (times ``factor``, for the slower fine sweep). ``time_scale``: a simulated robot's speed-up (its motions run
+    that many times faster than the program speed says; the blur happens in real time). ValueError, naming the
+    keys, when even 1 % blurs more than allowed."""
     if not exposure_ms > 0:
         raise ValueError(f"exposure_ms = {exposure_ms!r}: a sweep needs the camera's exposure (> 0 ms)")
     v_blur = params.max_blur_fraction * params.depth_of_field_mm / (exposure_ms / 1e3)
     v = min(v_blur, params.sweep_max_speed_mm_s) * factor
-    pct = min(100, math.floor(v / params.line_speed_mm_s * 100.0 + 1e-9))
+    per_pct = params.line_speed_mm_s * time_scale / 100.0
+    pct = min(100, math.floor(v / per_pct + 1e-9))
     if pct < 1:
+        scaled = f" at time_scale {time_scale:g}" if time_scale != 1.0 else ""
         raise ValueError(
             f"max_blur_fraction = {params.max_blur_fraction:g} of depth_of_field_mm = {params.depth_of_field_mm:g} "
             f"with exposure_ms = {exposure_ms:g} allows {v:.3g} mm/s, below 1 % of line_speed_mm_s = "
-            f"{params.line_speed_mm_s:g}: shorten the exposure or use mode = \"stepwise\"")
-    return pct, pct / 100.0 * params.line_speed_mm_s
+            f"{params.line_speed_mm_s:g}{scaled}: shorten the exposure or use mode = \"stepwise\"")
+    return pct, pct * per_pct
 
 
 def plan_sweep(params: Any, exposure_ms: float, from_mm: float, to_mm: float, *, kind: str = "coarse",
-               factor: float = 1.0) -> SweepPlan:
+               factor: float = 1.0, time_scale: float = 1.0) -> SweepPlan:
     """The :class:`SweepPlan` from ``from_mm`` to ``to_mm`` (see :func:`sweep_speed`)."""
-    pct, v = sweep_speed(params, exposure_ms, factor=factor)
+    pct, v = sweep_speed(params, exposure_ms, factor=factor, time_scale=time_scale)
     return SweepPlan(float(from_mm), float(to_mm), pct, v, v * exposure_ms / 1e3, kind)
 
 
-def check_sweep(params: Any, exposure_ms: float) -> None:
+def check_sweep(params: Any, exposure_ms: float, time_scale: float = 1.0) -> None:
     """ValueError (one line, naming the keys) unless a sweep with these values can run: called before anything
     starts, so ``--mode sweep`` with an exposure too long for the blur budget exits 2 with nothing moved."""
     if params.mode == "sweep":
-        sweep_speed(params, exposure_ms)
-        sweep_speed(params, exposure_ms, factor=params.fine_speed_factor)
+        sweep_speed(params, exposure_ms, time_scale=time_scale)
+        sweep_speed(params, exposure_ms, factor=params.fine_speed_factor, time_scale=time_scale)
 
 
 # ------------------------------------------------------------------------------------------------ the fit
@@ -436,16 +440,18 @@ class StateFeed:
 async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: float,
                       state_endpoint: str | None = None, state_curve: Any = None,
                       vision_timeout_s: float | None = None, recorder: Any = None, do_init_move: bool = True,
-                      stop_event: asyncio.Event | None = None, ramp_s: float = 0.1) -> FocusResult:
+                      stop_event: asyncio.Event | None = None, ramp_s: float = 0.1,
+                      time_scale: float = 1.0) -> FocusResult:
     """Find the focal plane with sweeps (module docstring) and move there; return the :class:`FocusResult`
     (``mode="sweep"``, ``fitted_offset_mm``, ``peak_sigma_mm``, ``search_s``, the frames, which pose source).
 
     ``params``: :class:`~aioadept.apps.focus.FocusParams`; ``exposure_ms``: the camera's (sets the speed);
     ``state_endpoint``: the robot state stream (None or silent: the planned profile and the ack times place the
-    frames instead; ``ramp_s`` is the robot's ramp time the profile assumes). Raises :class:`FocusError` (no peak
+    frames instead; ``ramp_s`` is the robot's ramp time the profile assumes); ``time_scale``: a simulated robot's
+    speed-up (:func:`sweep_speed`). Raises :class:`FocusError` (no peak
     within ``max_sweeps`` sweeps, no usable frames: after a retract to the approach pose) or the robot's own error.
     """
-    check_sweep(params, exposure_ms)
+    check_sweep(params, exposure_ms, time_scale)
     approach = (await init_move(rc)).pose if do_init_move else None
     if approach is None:
         from aioadept.commands import Here
@@ -467,7 +473,7 @@ async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: floa
     here_mm = 0.0
     fit: PeakFit | None = None
     try:
-        plan = plan_sweep(params, exposure_ms, 0.0, params.sweep_range_mm)
+        plan = plan_sweep(params, exposure_ms, 0.0, params.sweep_range_mm, time_scale=time_scale)
         while True:
             if stop_event is not None and stop_event.is_set():
                 raise asyncio.CancelledError
@@ -494,7 +500,7 @@ async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: floa
                                   f"{params.max_peak_sigma_mm:g}")
                 raise FocusError(f"no focal plane after {len(run.plans)} sweep(s): {why}",
                                  sharpness=[f.sharpness for f in run.frames])
-            plan = _next_plan(params, exposure_ms, fit, here_mm)
+            plan = _next_plan(params, exposure_ms, fit, here_mm, time_scale)
         peak = fit.peak_mm
         target = approach @ Pose(z=peak)
         if recorder is not None:
@@ -524,7 +530,7 @@ async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: floa
                "frame_errors": run.errors, "exposure_ms": exposure_ms})
 
 
-def _next_plan(params: Any, exposure_ms: float, fit: PeakFit, here_mm: float) -> SweepPlan:
+def _next_plan(params: Any, exposure_ms: float, fit: PeakFit, here_mm: float, time_scale: float) -> SweepPlan:
     """After a sweep ending at ``here_mm``: extend past the end where the peak was not bracketed (or nothing was
     fitted), else a slower sweep over ``fine_range_mm`` around the fitted peak, run from the side the robot is
     on through the whole window."""
@@ -532,13 +538,14 @@ def _next_plan(params: Any, exposure_ms: float, fit: PeakFit, here_mm: float) ->
         ext = params.sweep_range_mm / 2.0
         if fit.side < 0:  # still rising at the near end: the plane is behind the start
             lo = min(fit.window_mm[0], here_mm) if math.isfinite(fit.window_mm[0]) else here_mm
-            return plan_sweep(params, exposure_ms, here_mm, lo - ext, kind="extend")
+            return plan_sweep(params, exposure_ms, here_mm, lo - ext, kind="extend", time_scale=time_scale)
         hi = max(fit.window_mm[1], here_mm) if math.isfinite(fit.window_mm[1]) else here_mm
-        return plan_sweep(params, exposure_ms, here_mm, hi + ext, kind="extend")
+        return plan_sweep(params, exposure_ms, here_mm, hi + ext, kind="extend", time_scale=time_scale)
     half = params.fine_range_mm / 2.0
     centre = fit.peak_mm
     a, b = (centre + half, centre - half) if here_mm >= centre else (centre - half, centre + half)
-    return plan_sweep(params, exposure_ms, a, b, kind="fine", factor=params.fine_speed_factor)
+    return plan_sweep(params, exposure_ms, a, b, kind="fine", factor=params.fine_speed_factor,
+                      time_scale=time_scale)
 
 
 async def _one_sweep(rc: Robot, comm: Vision, approach: Pose, plan: SweepPlan, index: int, run: SweepRun,
@@ -660,7 +667,9 @@ def _place_by_profile(frames: list[SweepFrame], result: Any, plan: SweepPlan, ra
     t0 = move.ack.t_done_s - off  # a motion skill returns as its motion starts (V+ forward processing)
     t1 = brk.ack.t_done_s - off   # break returns when the robot is at rest
     planned = abs(plan.to_mm - plan.from_mm) / plan.speed_mm_s + ramp_s
-    ramp = ramp_s * (t1 - t0) / planned if planned > 0 else ramp_s  # a sim's time scale shortens the ramps too
+    # The measured duration against the planned one: a robot slower or faster than planned (a sim's time scale
+    # shortens the ramps too) stretches the profile as a whole.
+    ramp = ramp_s * (t1 - t0) / planned if planned > 0 else ramp_s
     for f in frames:
         f.offset_mm = profile_offset(f.t_mid_s, t0, t1, plan.from_mm, plan.to_mm, ramp)
 

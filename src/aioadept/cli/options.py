@@ -142,9 +142,10 @@ def apply_overrides(cfg: "CellConfig", args: argparse.Namespace) -> "CellConfig"
     if mode is not None:
         changes["mode"] = mode
     cfg.focus = dataclasses.replace(cfg.focus, **changes)
+    from aioadept.apps.cell import sim_time_scale
     from aioadept.apps.sweep import check_sweep
 
-    check_sweep(cfg.focus, cfg.vision.exposure_ms)  # a sweep the exposure cannot allow: one line, nothing started
+    check_sweep(cfg.focus, cfg.vision.exposure_ms, sim_time_scale(cfg))  # a sweep the exposure cannot allow: one line, nothing started
     if args.out:
         cfg.run.out_dir = args.out
     if args.no_analyze:
