@@ -402,7 +402,10 @@ class VirtualCamera(Camera):
         pose = self._pose_source(t_mid) if self._pose_source is not None else None
         # Asked after pose_source, which may have waited for a sample covering t_mid.
         age = self._state_age(t_mid) if self._state_age is not None else None
-        exposure_poses = self._exposure_poses(t_s, exposure_s, pose, age)
+        # A guess the covering pose confirms means the tool stood still from the at-rest sample (before the
+        # exposure) to mid-exposure: no motion blur, and no further pose to ask for.
+        confirmed = guess is not None and same_pose(pose, guess)
+        exposure_poses = () if confirmed else self._exposure_poses(t_s, exposure_s, pose, age)
         if image is None or not same_pose(pose, guess) or exposure_poses:
             if image is not None:
                 self.rerenders += 1  # the robot moved after the at-rest sample: never keep that frame
