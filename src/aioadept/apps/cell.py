@@ -282,6 +282,8 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
                 "result": None if result is None else focus_result_dict(result),
             }
             save_error = save_run(recorder, run_dir, meta)
+            if result is not None and result.mode == "sweep" and cfg.run.analyze:
+                save_error = _sweep_figure(meta["result"], run_dir, save_error)
             if save_error is not None and result is None:
                 log.error("%s", save_error)  # the run's own error propagates; this one must not vanish either
             if rrd is not None:
@@ -312,6 +314,24 @@ def sim_time_scale(cfg: CellConfig) -> float:
     """The robot's speed-up: the sim's ``time_scale`` when this cell starts it, else 1 (a real controller, or a
     server started elsewhere at its own scale)."""
     return cfg.robot.time_scale if cfg.robot.start_sim else 1.0
+
+
+SWEEP_FIGURE = "fig09b_sweep.png"
+
+
+def _sweep_figure(result: dict[str, Any], run_dir: Path, save_error: OSError | None) -> OSError | None:
+    """The sweep's figure (sharpness against position, the fit, the plane +- sigma) beside focus.json; skipped
+    without matplotlib (the [analysis] extra), named with the files not written when the disk refuses it."""
+    try:
+        from aioadept.analysis.plots import plot_sweep
+    except ImportError:
+        log.info("no %s: matplotlib is not installed (the [analysis] extra)", SWEEP_FIGURE)
+        return save_error
+    try:
+        plot_sweep(result, run_dir / SWEEP_FIGURE, title=f"Focus sweep: sharpness along tool z\n{run_dir.name}")
+    except OSError as exc:
+        return merged_save_error(save_error, run_dir, {SWEEP_FIGURE: exc.strerror or str(exc)})
+    return save_error
 
 
 def merged_save_error(err: OSError | None, run_dir: Path, not_written: dict[str, str]) -> OSError:
