@@ -113,5 +113,7 @@ async def test_without_a_state_stream_the_planned_profile_places_the_frames(tmp_
         r = await sweep_focus(rc, comm, params, exposure_ms=5.0, state_endpoint=None, time_scale=5.0)
     assert r.pose_source == "planned-profile"
     assert r.sweep["state_delay_s"] is None
-    # Ack times of 1 ms and the V+ emulator's 16 ms cycle: a looser bound than with the stream.
-    assert abs(r.peak_offset_mm - 21.3) <= 0.5
+    # Ack times of 1 ms (0.2 mm at 200 mm/s) and the V+ emulator's 16 ms cycle: a looser bound than with the
+    # stream, and the stated uncertainty includes the timing.
+    assert r.sweep["timing_sigma_mm"] > 0.05 and r.peak_sigma_mm >= r.sweep["timing_sigma_mm"]
+    assert abs(r.peak_offset_mm - 21.3) <= max(0.5, 3 * r.peak_sigma_mm)

@@ -31,7 +31,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
 
 from aioadept.apps.paper import FocusError, FocusResult, Robot, Vision, _retract, init_move
 from aioadept.apps.sweep_model import (PeakFit, StateTrack, _finite, axis_offset_mm, blur_model, clock_offset,
@@ -153,6 +152,9 @@ class SweepRun:
     vision_offset_s: float = 0.0
     vision_offset_bounds_s: tuple[float, float] = (-math.inf, math.inf)
     errors: int = 0
+    timing_sigma_mm: float = 0.0
+    """Planned profile only: how far a frame's position may be off through the ack times (added to the fit's
+    uncertainty in the result; another sweep cannot reduce it)."""
 
 
 class StateFeed:
@@ -274,7 +276,8 @@ async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: floa
                                   f"{params.max_peak_sigma_mm:g}")
                 raise FocusError(f"no focal plane after {len(run.plans)} sweep(s): {why}",
                                  sharpness=[f.sharpness for f in run.frames])
-            plan = _next_plan(params, exposure_ms, fit, here_mm, time_scale)
+            plan = _next_plan(params, exposure_ms, fit, here_mm, time_scale,
+                              forward_only=source == "planned-profile")
         peak = fit.peak_mm
         target = approach @ Pose(z=peak)
         if recorder is not None:
@@ -294,17 +297,20 @@ async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: floa
     best = max(range(len(frames)), key=lambda k: frames[k].sharpness) if frames else 0
     return FocusResult(
         pose, approach, tuple(f.sharpness for f in frames), best, params.delta_z_mm,
-        tuple(f.frame_t_s for f in frames), mode="sweep", fitted_offset_mm=peak, peak_sigma_mm=fit.sigma_mm,
+        tuple(f.frame_t_s for f in frames), mode="sweep", fitted_offset_mm=peak,
+        peak_sigma_mm=math.hypot(fit.sigma_mm, run.timing_sigma_mm),
         search_s=(t_known - run.t_motion0_s) if run.t_motion0_s is not None and t_known is not None else None,
         frames=tuple(f.as_dict() for f in frames), pose_source=source,
         sweep={"plans": [p.as_dict() for p in run.plans], "fits": [f.as_dict() for f in run.fits],
                "vision_clock_offset_s": run.vision_offset_s,
                "vision_clock_offset_bounds_s": [_finite(b) for b in run.vision_offset_bounds_s],
                "state_delay_s": feed.track.delay_s if feed is not None and len(feed.track) else None,
-               "frame_errors": run.errors, "exposure_ms": exposure_ms})
+               "frame_errors": run.errors, "exposure_ms": exposure_ms,
+               "timing_sigma_mm": run.timing_sigma_mm})
 
 
-def _next_plan(params: Any, exposure_ms: float, fit: PeakFit, here_mm: float, time_scale: float) -> SweepPlan:
+def _next_plan(params: Any, exposure_ms: float, fit: PeakFit, here_mm: float, time_scale: float, *,
+               forward_only: bool = False) -> SweepPlan:
     """After a sweep ending at ``here_mm``: extend past the end where the peak was not bracketed (or nothing was
     fitted), else a slower sweep over ``fine_range_mm`` around the fitted peak, run from the side the robot is
     on through the whole window."""
@@ -318,6 +324,8 @@ def _next_plan(params: Any, exposure_ms: float, fit: PeakFit, here_mm: float, ti
     half = params.fine_range_mm / 2.0
     centre = fit.peak_mm
     a, b = (centre + half, centre - half) if here_mm >= centre else (centre - half, centre + half)
+    if forward_only:  # placed by the profile: a time offset shifts a sweep along its direction; keep one direction
+        a, b = centre - half, centre + half
     return plan_sweep(params, exposure_ms, a, b, kind="fine", factor=params.fine_speed_factor,
                       time_scale=time_scale)
 
@@ -400,7 +408,7 @@ async def _one_sweep(rc: Robot, comm: Vision, approach: Pose, plan: SweepPlan, i
             if math.isnan(f.offset_mm) and await feed.wait_covering(f.t_mid_s):
                 f.offset_mm = feed.track.at(f.t_mid_s)
     else:
-        _place_by_profile(frames, result, plan, ramp_s, epoch_minus_loop)
+        _place_by_profile(run, frames, result, plan, ramp_s, epoch_minus_loop)
     run.frames.extend(frames)
     return known[0] if known else None
 
@@ -424,7 +432,7 @@ def _place_vision_clock(run: SweepRun, frames: list[SweepFrame]) -> None:
         f.t_mid_s = f.frame_t_s + f.exposure_s / 2.0 - run.vision_offset_s
 
 
-def _place_by_profile(frames: list[SweepFrame], result: Any, plan: SweepPlan, ramp_s: float,
+def _place_by_profile(run: SweepRun, frames: list[SweepFrame], result: Any, plan: SweepPlan, ramp_s: float,
                       epoch_minus_loop: float) -> None:
     """Without a state stream: the planned trapezoid between the motion's start and its end, both from the acks.
     The server clock is mapped to the local one by the bounds every ack gives (sent before it started, received
@@ -436,6 +444,8 @@ def _place_by_profile(frames: list[SweepFrame], result: Any, plan: SweepPlan, ra
         hi = min(hi, m.ack.t_start_s - send)
         lo = max(lo, m.ack.t_done_s - recv)
     off = (lo + hi) / 2.0
+    # How far off the placement may be in time: half the bounds' width and half the server clock's 1 ms tick.
+    run.timing_sigma_mm = max(run.timing_sigma_mm, plan.speed_mm_s * ((hi - lo) / 2.0 + 0.0005))
     move = next(m for m in msgs if m.skill == "move_to_s")
     brk = msgs[-1]
     t0 = move.ack.t_done_s - off  # a motion skill returns as its motion starts (V+ forward processing)
