@@ -1,7 +1,7 @@
 """The pure parts of the focus sweep (:mod:`aioadept.apps.sweep`): where each frame was, and the fit.
 
-- Positions: the robot state samples as a :class:`StateTrack` (the sender's clock mapped to ours by the smallest
-  delay), the vision node's clock bounded by the traffic (:func:`clock_offset`), and without a state stream the
+- Positions: the robot state samples as a :class:`StateTrack` (the sender's clock mapped to ours within what the
+  traffic allows, :func:`clock_offset`), the vision node's clock bounded by the traffic (:func:`clock_offset`), and without a state stream the
   planned trapezoid between the acks (:func:`profile_offset`).
 - The fit: sharpness against position in, the focal plane and its uncertainty out (:func:`fit_peak`). Pure numpy
   (the focus app is in the core, without scipy): a model, a Levenberg-Marquardt least squares, and the covariance
@@ -200,9 +200,11 @@ class StateTrack:
     """Robot state samples (the sender's wall time, the local receive time, the pose's offset along the axis) and
     the position at any local time, interpolated linearly between the two samples around it.
 
-    The sender's clock is mapped to the local one by the smallest delay seen (:mod:`aioadept.client.statestream`
-    uses the same rule): ``local = wall + min(receive - wall)``; the fastest sample bounds the transport delay. A
-    virtual camera that stamps samples on receipt sees the same timeline.
+    The sender's wall clock is mapped to ours by :func:`clock_offset` within the one bound the samples give (each
+    arrived after it was taken: ``local = wall + offset`` with ``offset <= min(receive - wall)``): 0 when the
+    clocks agree as far as can be measured (one machine), else that bound. Not the smallest delay itself: that
+    includes the fastest transport (~0.3 ms here), which would place every frame of a 200 mm/s sweep 0.06 mm
+    short; the virtual camera's follower maps the samples by the same rule.
     """
 
     def __init__(self) -> None:
@@ -222,16 +224,22 @@ class StateTrack:
 
     @property
     def delay_s(self) -> float:
+        """The smallest receive time minus the sender's time seen (the fastest transport, on one clock)."""
         return min(r - w for r, w in zip(self.recv, self.wall)) if self.wall else 0.0
 
+    @property
+    def offset_s(self) -> float:
+        """Local minus sender clock (:func:`clock_offset` within ``offset <= delay_s``)."""
+        return clock_offset(-math.inf, self.delay_s)
+
     def covers(self, t_local: float) -> bool:
-        return bool(self.wall) and self.wall[-1] + self.delay_s >= t_local
+        return bool(self.wall) and self.wall[-1] + self.offset_s >= t_local
 
     def at(self, t_local: float) -> float:
         """Offset (mm) at local epoch time ``t_local``; NaN outside the samples."""
         if not self.wall:
             return math.nan
-        t = t_local - self.delay_s
+        t = t_local - self.offset_s
         i = bisect.bisect_right(self.wall, t)
         if i == 0 or i == len(self.wall):
             return self.offset_mm[0] if i == 0 and t == self.wall[0] else math.nan

@@ -572,9 +572,9 @@ class RobotStateFollower:
 
     One owned non-daemon thread reading a :class:`aioadept.bus.pubsub.SyncSubscriber`. :meth:`start` connects,
     :meth:`stop` sets the stop flag, joins the thread and closes the socket; also a context manager. Samples are
-    stamped on the frame clock (``time.time()``): the state's own ``wall_time_s`` plus the smallest delay between
-    it and the receipt seen so far (never later than the receipt), so the camera and the history share one clock
-    even if the sim's clock is offset, and a sample delayed on its way is still placed at its own time.
+    stamped on the frame clock (``time.time()``): the state's own ``wall_time_s``, shifted back only when samples
+    arrive before they were taken (the sim's clock ahead of ours), so a sample delayed on its way is still placed
+    at its own time and the stamp is never later than the receipt.
     """
 
     def __init__(self, endpoint: str, *, history: PoseHistory | None = None, topic: bytes = b"robot.state",
@@ -643,15 +643,16 @@ class RobotStateFollower:
                 except Exception as exc:  # a bad sample must not kill the camera
                     log.warning("robot state: undecodable message (%s)", exc)
                     continue
-                # The sample's own time on our clock: its wall time plus the smallest delay seen so far (the
-                # fastest sample bounds the transport delay, as aioadept.client.statestream maps a controller's
-                # clock). Stamping on receipt instead made the shown pose lag the robot by each sample's own delay,
-                # a jitter of up to a millisecond when this process is busy rendering: 0.2 mm at a focus sweep's
+                # The sample's own time on our clock: its wall time, shifted only if our clock is behind the sim's
+                # (a sample received before it was taken), by the largest such lead seen: the offset nearest 0 that
+                # the traffic allows (aioadept.apps.sweep_model.clock_offset; the focus sweep maps the samples by
+                # the same rule). Stamping on receipt instead made the shown pose lag the robot by each sample's
+                # own delay, up to a millisecond when this process is busy rendering: 0.2 mm at a focus sweep's
                 # 200 mm/s. Never later than the receipt.
                 delay = t_s - state.wall_time_s
                 if self.min_delay_s is None or delay < self.min_delay_s:
                     self.min_delay_s = delay
-                self.history.add(min(t_s, state.wall_time_s + self.min_delay_s), state.pose, state.in_motion)
+                self.history.add(state.wall_time_s + min(0.0, self.min_delay_s), state.pose, state.in_motion)
                 self.last_state = state
                 self.received += 1
 

@@ -96,17 +96,21 @@ def test_clock_offset_is_zero_when_the_clocks_agree_else_the_nearer_bound():
     assert clock_offset(0.003, 0.001) == pytest.approx(0.002)  # inconsistent bounds: their middle
 
 
-def test_state_track_interpolates_with_the_smallest_delay():
+def test_state_track_interpolates_on_one_clock_and_shifts_a_sender_ahead():
     tr = StateTrack()
-    for k in range(5):  # the sender's clock; received 2 ms (and once 1 ms) later
+    for k in range(5):  # received 2 ms (and once 1 ms) after the sender's time: one clock, offset 0
         tr.add(100.0 + 0.01 * k, 100.0 + 0.01 * k + (0.001 if k == 2 else 0.002), 2.0 * k)
-    assert tr.delay_s == pytest.approx(0.001)
-    # Local time 100.016 is sender time 100.015: halfway between 2 mm and 4 mm.
-    assert tr.at(100.016) == pytest.approx(3.0)
+    assert tr.delay_s == pytest.approx(0.001) and tr.offset_s == 0.0
+    assert tr.at(100.015) == pytest.approx(3.0)  # halfway between 2 mm and 4 mm
     assert math.isnan(tr.at(99.0)) and math.isnan(tr.at(101.0))
-    assert tr.covers(100.041) and not tr.covers(100.042)
+    assert tr.covers(100.04) and not tr.covers(100.041)
     tr.add(100.0, 100.1, 99.0)  # out of order: ignored
     assert len(tr) == 5
+    ahead = StateTrack()  # the sender's clock 50 ms ahead: samples "arrive before they were taken"
+    for k in range(5):
+        ahead.add(100.05 + 0.01 * k, 100.0 + 0.01 * k + 0.002, 2.0 * k)
+    assert ahead.offset_s == pytest.approx(-0.048)
+    assert ahead.at(100.017) == pytest.approx(3.0)
 
 
 def test_planned_profile_is_a_trapezoid_between_the_acks():
