@@ -114,12 +114,6 @@ class CellConfig:
         if not v.exposure_ms > 0:  # the node takes 0 (a camera's own minimum); a cell's camera must expose
             raise ConfigError(f"{source} [vision]: exposure_ms = {v.exposure_ms!r}: expected a finite number of "
                               f"ms > 0")
-        from aioadept.apps.sweep import check_sweep
-
-        try:
-            check_sweep(cfg.focus, v.exposure_ms, sim_time_scale(cfg))
-        except ValueError as exc:
-            raise ConfigError(f"{source} [focus]: {exc}") from None
         from aioadept.bus.endpoints import is_none, parse_endpoint
         from aioadept.errors import BusError
 

@@ -145,7 +145,9 @@ def apply_overrides(cfg: "CellConfig", args: argparse.Namespace) -> "CellConfig"
     from aioadept.apps.cell import sim_time_scale
     from aioadept.apps.sweep import check_sweep
 
-    check_sweep(cfg.focus, cfg.vision.exposure_ms, sim_time_scale(cfg))  # a sweep the exposure cannot allow: one line, nothing started
+    # A sweep the exposure cannot allow: one line, nothing started. Checked here, after --mode and --time-scale,
+    # not when the file is read: the file's mode or exposure may be overridden.
+    check_sweep(cfg.focus, cfg.vision.exposure_ms, sim_time_scale(cfg))
     if args.out:
         cfg.run.out_dir = args.out
     if args.no_analyze:
