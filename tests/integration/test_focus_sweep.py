@@ -117,3 +117,28 @@ async def test_without_a_state_stream_the_planned_profile_places_the_frames(tmp_
     # stream, and the stated uncertainty includes the timing.
     assert r.sweep["timing_sigma_mm"] > 0.05 and r.peak_sigma_mm >= r.sweep["timing_sigma_mm"]
     assert abs(r.peak_offset_mm - 21.3) <= max(0.5, 3 * r.peak_sigma_mm)
+
+
+async def test_a_plane_beyond_the_first_sweep_is_found_by_extending_it(tmp_path):
+    params = FocusParams(mode="sweep")
+    async with nodes(tmp_path, 52.6, *PYTHON_ARGS) as (rc, comm, state):
+        r = await sweep_focus(rc, comm, params, exposure_ms=5.0, state_endpoint=state, time_scale=5.0)
+    plans = r.sweep["plans"]
+    assert plans[0]["to_mm"] == 40.0 and plans[1]["kind"] == "extend" and plans[1]["to_mm"] == 60.0
+    assert not r.sweep["fits"][0]["bracketed"] and r.sweep["fits"][0]["side"] == 1
+    assert abs(r.peak_offset_mm - 52.6) <= 0.15
+
+
+async def test_no_peak_within_the_reach_fails_and_goes_back_to_the_approach_pose(tmp_path):
+    from aioadept.apps.focus import FocusError
+    from aioadept.commands import Here
+
+    params = FocusParams(mode="sweep", max_steps=10)  # reach 10 x 2 mm: the plane at 30 mm is out of it
+    async with nodes(tmp_path, 30.0, *PYTHON_ARGS) as (rc, comm, state):
+        with pytest.raises(FocusError, match="no sharpness peak within 20 mm") as info:
+            await sweep_focus(rc, comm, params, exposure_ms=5.0, state_endpoint=state, time_scale=5.0)
+        here = (await rc.cmdexec(Here())).pose
+    assert info.value.retracted
+    from aioadept.vision.virtual_camera import paper_approach_pose  # where init_move leaves the robot
+
+    assert abs(axis_offset_mm(paper_approach_pose(), here)) < 0.05

@@ -152,6 +152,7 @@ class SweepRun:
     vision_offset_s: float = 0.0
     vision_offset_bounds_s: tuple[float, float] = (-math.inf, math.inf)
     errors: int = 0
+    first_error: str = ""
     timing_sigma_mm: float = 0.0
     """Planned profile only: how far a frame's position may be off through the ack times (added to the fit's
     uncertainty in the result; another sweep cannot reduce it)."""
@@ -249,7 +250,8 @@ async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: floa
     here_mm = 0.0
     fit: PeakFit | None = None
     try:
-        plan = plan_sweep(params, exposure_ms, 0.0, params.sweep_range_mm, time_scale=time_scale)
+        plan = plan_sweep(params, exposure_ms, 0.0, min(params.sweep_range_mm, max_reach_mm(params)),
+                          time_scale=time_scale)
         while True:
             if stop_event is not None and stop_event.is_set():
                 raise asyncio.CancelledError
@@ -265,7 +267,10 @@ async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: floa
                 t_known = known  # decided while the robot was still moving (state stream)
             log.info("sweep %d %.1f..%.1f mm at %d %% (%.0f mm/s): %s", len(run.plans) - 1, plan.from_mm,
                      plan.to_mm, plan.speed_pct, plan.speed_mm_s, fit)
-            if fit.ok and fit.bracketed and fit.sigma_mm <= params.max_peak_sigma_mm:
+            # Without the state stream a finer sweep cannot be placed better than the first (the ack timing, not
+            # the frames, limits it): the first bracketed fit stands, its sigma including that timing.
+            certain = fit.sigma_mm <= params.max_peak_sigma_mm or source == "planned-profile"
+            if fit.ok and fit.bracketed and certain:
                 if t_known is None:
                     t_known = time.time()
                 break
@@ -274,6 +279,8 @@ async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: floa
                                   f" end)" if not fit.bracketed else
                                   f"peak uncertainty {fit.sigma_mm:.3f} mm above max_peak_sigma_mm "
                                   f"{params.max_peak_sigma_mm:g}")
+                if run.errors:
+                    why += f"; the vision node refused {run.errors} frame(s), first: {run.first_error}"
                 raise FocusError(f"no focal plane after {len(run.plans)} sweep(s): {why}",
                                  sharpness=[f.sharpness for f in run.frames])
             plan = _next_plan(params, exposure_ms, fit, here_mm, time_scale,
@@ -309,6 +316,13 @@ async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: floa
                "timing_sigma_mm": run.timing_sigma_mm})
 
 
+def max_reach_mm(params: Any) -> float:
+    """How far from the approach pose a sweep may take the tool, either way along z: ``max_steps x delta_z_mm``,
+    the reach the stepwise loop is allowed (80 mm by default), so choosing the sweep never takes the object nearer
+    the camera than the cell already accepts."""
+    return float(params.max_steps * params.delta_z_mm)
+
+
 def _next_plan(params: Any, exposure_ms: float, fit: PeakFit, here_mm: float, time_scale: float, *,
                forward_only: bool = False) -> SweepPlan:
     """After a sweep ending at ``here_mm``: extend past the end where the peak was not bracketed (or nothing was
@@ -316,16 +330,24 @@ def _next_plan(params: Any, exposure_ms: float, fit: PeakFit, here_mm: float, ti
     on through the whole window."""
     if not fit.bracketed or not math.isfinite(fit.peak_mm):
         ext = params.sweep_range_mm / 2.0
+        reach = max_reach_mm(params)
         if fit.side < 0:  # still rising at the near end: the plane is behind the start
             lo = min(fit.window_mm[0], here_mm) if math.isfinite(fit.window_mm[0]) else here_mm
-            return plan_sweep(params, exposure_ms, here_mm, lo - ext, kind="extend", time_scale=time_scale)
-        hi = max(fit.window_mm[1], here_mm) if math.isfinite(fit.window_mm[1]) else here_mm
-        return plan_sweep(params, exposure_ms, here_mm, hi + ext, kind="extend", time_scale=time_scale)
+            to = max(lo - ext, -reach)
+        else:
+            hi = max(fit.window_mm[1], here_mm) if math.isfinite(fit.window_mm[1]) else here_mm
+            to = min(hi + ext, reach)
+        if abs(to - here_mm) < 1.0:
+            raise FocusError(f"no sharpness peak within {reach:g} mm of the approach pose (max_steps x delta_z_mm, "
+                             "the stepwise loop's reach too)")
+        return plan_sweep(params, exposure_ms, here_mm, to, kind="extend", time_scale=time_scale)
     half = params.fine_range_mm / 2.0
     centre = fit.peak_mm
     a, b = (centre + half, centre - half) if here_mm >= centre else (centre - half, centre + half)
     if forward_only:  # placed by the profile: a time offset shifts a sweep along its direction; keep one direction
         a, b = centre - half, centre + half
+    reach = max_reach_mm(params)
+    a, b = min(max(a, -reach), reach), min(max(b, -reach), reach)
     return plan_sweep(params, exposure_ms, a, b, kind="fine", factor=params.fine_speed_factor,
                       time_scale=time_scale)
 
@@ -350,6 +372,13 @@ async def _one_sweep(rc: Robot, comm: Vision, approach: Pose, plan: SweepPlan, i
     pending: set[asyncio.Task[Any]] = set()
     known: list[float] = []
 
+    failed: list[BaseException] = []
+
+    def settled(task: asyncio.Task[Any]) -> None:
+        pending.discard(task)
+        if not task.cancelled() and task.exception() is not None:
+            failed.append(task.exception())  # type: ignore[arg-type]
+
     async def one_frame(t_send: float) -> None:
         try:
             resp = await comm.request("VisionRequest", {}, timeout_s=vision_timeout_s)
@@ -359,6 +388,7 @@ async def _one_sweep(rc: Robot, comm: Vision, approach: Pose, plan: SweepPlan, i
         attrs = dict(resp.attributes)
         if attrs.get("error") or "sharpness" not in attrs or "frame_t" not in attrs:
             run.errors += 1
+            run.first_error = run.first_error or str(attrs.get("error") or "no sharpness in the answer")
             log.debug("sweep frame refused: %s", attrs.get("error"))
             return
         exp_s = float(attrs.get("exposure_ms", 0.0)) / 1e3
@@ -383,10 +413,12 @@ async def _one_sweep(rc: Robot, comm: Vision, approach: Pose, plan: SweepPlan, i
         while not motion.done():
             # At most IN_FLIGHT requests outstanding: one exposing, one waiting to trigger the moment the camera is
             # free. A deeper queue at a node slower than the interval would only hold frames of the arm at rest.
+            if failed:
+                raise failed[0]  # a frame's own error (no answer in time, a lost bus): not one frame later
             if len(pending) < IN_FLIGHT:
                 task = asyncio.create_task(one_frame(time.time()))
                 pending.add(task)
-                task.add_done_callback(pending.discard)
+                task.add_done_callback(settled)
             next_t += interval_s
             delay = next_t - loop.time()
             if delay < 0:  # fell behind (a loaded machine): keep the interval, skip the ticks missed
@@ -395,7 +427,9 @@ async def _one_sweep(rc: Robot, comm: Vision, approach: Pose, plan: SweepPlan, i
             await asyncio.wait({motion}, timeout=delay)
         result = motion.result()
         if pending:
-            await asyncio.gather(*pending)
+            await asyncio.gather(*pending, return_exceptions=True)
+        if failed:
+            raise failed[0]
     finally:
         for task in pending:
             task.cancel()
