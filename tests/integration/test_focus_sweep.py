@@ -20,7 +20,6 @@ from aioadept.apps.demo import run_demo
 from aioadept.apps.focus import FocusParams
 from aioadept.apps.sweep import axis_offset_mm, sweep_focus
 from aioadept.bus import Communicator
-from aioadept.bus.endpoints import opposite
 from aioadept.client import RobotClient
 from aioadept.testing.nodes import running_node
 

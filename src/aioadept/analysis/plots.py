@@ -111,7 +111,8 @@ def plot_sweep(result: Mapping[str, Any], path: str | os.PathLike[str], *, title
                    label=f"focal plane {peak:.3f} mm" + (f" ± {sigma:.3f}" if isinstance(sigma, (int, float)) else ""))
         if isinstance(sigma, (int, float)) and math.isfinite(sigma):
             ax.axvspan(peak - sigma, peak + sigma, color="red", alpha=0.15)
-    ax.set_xlabel(f"position along tool z from the approach pose, mm (pose from the {result.get('pose_source') or '?'})")
+    source = result.get("pose_source") or "?"
+    ax.set_xlabel(f"position along tool z from the approach pose, mm (pose from the {source})")
     ax.set_ylabel("sharpness (std of Sobel-x profile)")
     ax.set_title(title or "Sharpness along one sweep, with the fit")
     ax.grid(alpha=0.3)

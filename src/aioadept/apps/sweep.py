@@ -27,7 +27,6 @@ import asyncio
 import logging
 import math
 import time
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -37,7 +36,7 @@ from aioadept.apps.sweep_model import (PeakFit, StateTrack, _finite, axis_offset
                                       fit_peak, profile_offset)
 from aioadept.commands import Break, MoveToS, SetSpeed
 from aioadept.configfile import Range
-from aioadept.errors import CommandAborted, CommandError, VisionError
+from aioadept.errors import CommandAborted, CommandError
 from aioadept.geometry import Pose
 
 log = logging.getLogger("aioadept.apps.sweep")
@@ -275,8 +274,9 @@ async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: floa
                     t_known = time.time()
                 break
             if len(run.plans) >= params.max_sweeps:
-                why = fit.why or (f"peak not bracketed (sharpness still rising at the {'far' if fit.side > 0 else 'near'}"
-                                  f" end)" if not fit.bracketed else
+                end = "far" if fit.side > 0 else "near"
+                why = fit.why or (f"peak not bracketed (sharpness still rising at the {end} end)"
+                                  if not fit.bracketed else
                                   f"peak uncertainty {fit.sigma_mm:.3f} mm above max_peak_sigma_mm "
                                   f"{params.max_peak_sigma_mm:g}")
                 if run.errors:

@@ -1,8 +1,8 @@
 """The pure parts of the focus sweep (:mod:`aioadept.apps.sweep`): where each frame was, and the fit.
 
-- Positions: the robot state samples as a :class:`StateTrack` (the sender's clock mapped to ours within what the
-  traffic allows, :func:`clock_offset`), the vision node's clock bounded by the traffic (:func:`clock_offset`), and without a state stream the
-  planned trapezoid between the acks (:func:`profile_offset`).
+- Positions: the robot state samples as a :class:`StateTrack`, the sender's clock and the vision node's mapped
+  to ours within the bounds the traffic allows (:func:`clock_offset`), and without a state stream the planned
+  trapezoid between the acks (:func:`profile_offset`).
 - The fit: sharpness against position in, the focal plane and its uncertainty out (:func:`fit_peak`). Pure numpy
   (the focus app is in the core, without scipy): a model, a Levenberg-Marquardt least squares, and the covariance
   carried to the vertex. docs/focus.md says why this model and what it achieved.

@@ -108,7 +108,8 @@ def test_grab_uses_the_pose_source_at_the_frame_time():
     f0, f1 = cam.grab(), cam.grab()
     # The pose at the exposure's mid-time (5 ms exposure by default), then at its start (did the tool move during
     # the exposure? then it is blurred); t_s is the exposure start.
-    assert asked == pytest.approx([100.0025, 100.0, 100.1025, 100.1]) and (f0.t_s, f1.t_s) == (100.0, 100.1) and (f0.seq, f1.seq) == (0, 1)
+    assert asked == pytest.approx([100.0025, 100.0, 100.1025, 100.1])
+    assert (f0.t_s, f1.t_s) == (100.0, 100.1) and (f0.seq, f1.seq) == (0, 1)
     assert (f0.exposure_s, f0.readout_s) == (0.005, pytest.approx(1024 * 768 * 8 / 1e9))
     assert f0.camera_id == "cam0" and measure(f0.image).ok
 
