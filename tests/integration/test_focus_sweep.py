@@ -115,7 +115,7 @@ async def test_without_a_state_stream_the_planned_profile_places_the_frames(tmp_
     # Ack times of 1 ms (0.2 mm at 200 mm/s) and the V+ emulator's 16 ms cycle: a looser bound than with the
     # stream, and the stated uncertainty includes the timing.
     assert r.sweep["timing_sigma_mm"] > 0.05 and r.peak_sigma_mm >= r.sweep["timing_sigma_mm"]
-    assert abs(r.peak_offset_mm - 21.3) <= max(0.5, 3 * r.peak_sigma_mm)
+    assert abs(r.peak_offset_mm - 21.3) <= 0.6  # measured: within 0.32 mm in 6 runs, sigma 0.12..0.29 mm
 
 
 async def test_a_plane_beyond_the_first_sweep_is_found_by_extending_it(tmp_path):

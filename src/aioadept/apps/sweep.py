@@ -223,8 +223,8 @@ async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: floa
 
     ``params``: :class:`~aioadept.apps.focus.FocusParams`; ``exposure_ms``: the camera's (sets the speed);
     ``state_endpoint``: the robot state stream (None or silent: the planned profile and the ack times place the
-    frames instead; ``ramp_s`` is the robot's ramp time the profile assumes); ``time_scale``: a simulated robot's
-    speed-up (:func:`sweep_speed`). Raises :class:`FocusError` (no peak
+    frames instead; ``ramp_s`` is the robot's ramp time the profile assumes, in robot time); ``time_scale``: a
+    simulated robot's speed-up (:func:`sweep_speed`; its ramps are that much shorter too). Raises :class:`FocusError` (no peak
     within ``max_sweeps`` sweeps, no usable frames: after a retract to the approach pose) or the robot's own error.
     """
     check_sweep(params, exposure_ms, time_scale)
@@ -258,7 +258,7 @@ async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: floa
             if recorder is not None:
                 recorder.mark("sweep", len(run.plans) - 1)
             known = await _one_sweep(rc, comm, approach, plan, len(run.plans) - 1, run, feed, source,
-                                     params.frame_interval_s, vision_timeout_s, ramp_s, params)
+                                     params.frame_interval_s, vision_timeout_s, ramp_s, params, time_scale)
             here_mm = plan.to_mm
             fit = fit_peak([f.offset_mm for f in run.frames], [f.sharpness for f in run.frames])
             run.fits.append(fit)
@@ -354,7 +354,7 @@ def _next_plan(params: Any, exposure_ms: float, fit: PeakFit, here_mm: float, ti
 
 async def _one_sweep(rc: Robot, comm: Vision, approach: Pose, plan: SweepPlan, index: int, run: SweepRun,
                      feed: StateFeed | None, source: str, interval_s: float, vision_timeout_s: float | None,
-                     ramp_s: float, params: Any) -> float | None:
+                     ramp_s: float, params: Any, time_scale: float = 1.0) -> float | None:
     """Run one sweep: go to its start if the robot is not there, then the line with frames triggered every
     ``interval_s``. Returns the local time the peak became known during the sweep (state stream only), else None."""
     start = approach @ Pose(z=plan.from_mm)
@@ -442,7 +442,7 @@ async def _one_sweep(rc: Robot, comm: Vision, approach: Pose, plan: SweepPlan, i
             if math.isnan(f.offset_mm) and await feed.wait_covering(f.t_mid_s):
                 f.offset_mm = feed.track.at(f.t_mid_s)
     else:
-        _place_by_profile(run, frames, result, plan, ramp_s, epoch_minus_loop)
+        _place_by_profile(run, frames, result, plan, ramp_s / time_scale, epoch_minus_loop)
     run.frames.extend(frames)
     return known[0] if known else None
 
@@ -484,9 +484,9 @@ def _place_by_profile(run: SweepRun, frames: list[SweepFrame], result: Any, plan
     brk = msgs[-1]
     t0 = move.ack.t_done_s - off  # a motion skill returns as its motion starts (V+ forward processing)
     t1 = brk.ack.t_done_s - off   # break returns when the robot is at rest
-    planned = abs(plan.to_mm - plan.from_mm) / plan.speed_mm_s + ramp_s
-    # The measured duration against the planned one: a robot slower or faster than planned (a sim's time scale
-    # shortens the ramps too) stretches the profile as a whole.
+    planned = abs(plan.to_mm - plan.from_mm) / plan.speed_mm_s + ramp_s  # real time (ramp_s: the scaled ramp)
+    # The measured duration against the planned one: a robot slower or faster than planned stretches the profile
+    # as a whole.
     ramp = ramp_s * (t1 - t0) / planned if planned > 0 else ramp_s
     for f in frames:
         f.offset_mm = profile_offset(f.t_mid_s, t0, t1, plan.from_mm, plan.to_mm, ramp)
