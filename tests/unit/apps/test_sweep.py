@@ -131,3 +131,41 @@ def test_cell_values_out_of_range_name_the_key():
     with pytest.raises(ConfigError, match=r"\[focus\].*mode = 'fast'"):
         CellConfig.from_dict({"focus": {"mode": "fast"}})
     assert CellConfig.from_dict({"focus": {"mode": "sweep", "frame_interval_s": 0.02}}).focus.frame_interval_s == 0.02
+
+
+def test_next_sweep_extends_past_the_open_end_within_the_reach_and_the_fine_one_crosses_the_peak():
+    from aioadept.apps.focus import FocusError
+    from aioadept.apps.sweep import _next_plan, max_reach_mm
+    from aioadept.apps.sweep_model import PeakFit
+
+    assert max_reach_mm(SWEEP) == 80.0  # max_steps x delta_z_mm, the stepwise loop's reach
+    rising = PeakFit(40.0, math.inf, 3, (30.0, 40.0), False, 1)
+    plan = _next_plan(SWEEP, 5.0, rising, 40.0, 1.0)
+    assert (plan.kind, plan.from_mm, plan.to_mm) == ("extend", 40.0, 60.0)
+    assert _next_plan(SWEEP, 5.0, rising, 70.0, 1.0).to_mm == 80.0  # capped at the reach
+    with pytest.raises(FocusError, match="within 80 mm"):
+        _next_plan(SWEEP, 5.0, PeakFit(80.0, math.inf, 3, (70.0, 80.0), False, 1), 80.0, 1.0)
+    behind = PeakFit(0.0, math.inf, 3, (0.0, 8.0), False, -1)
+    assert _next_plan(SWEEP, 5.0, behind, 40.0, 1.0).to_mm == -20.0  # back past the start, away from the camera
+    uncertain = PeakFit(21.3, 0.3, 7, (12.0, 33.0), True, 0)
+    fine = _next_plan(SWEEP, 5.0, uncertain, 40.0, 1.0)
+    assert (fine.kind, fine.from_mm, fine.to_mm, fine.speed_mm_s) == ("fine", 27.3, 15.3, 100.0)
+    assert (_next_plan(SWEEP, 5.0, uncertain, 0.0, 1.0).from_mm, _next_plan(SWEEP, 5.0, uncertain, 0.0, 1.0).to_mm) \
+        == (15.3, 27.3)
+    forward = _next_plan(SWEEP, 5.0, uncertain, 40.0, 1.0, forward_only=True)
+    assert (forward.from_mm, forward.to_mm) == (15.3, 27.3)
+
+
+def test_the_sweep_figure_shows_frames_fit_and_plane(tmp_path):
+    pytest.importorskip("matplotlib")
+    from aioadept.analysis.plots import plot_sweep
+
+    z = np.arange(0.7, 40.0, 2.8)
+    s = curve(z)
+    fit = fit_peak(z, s)
+    result = {"peak_offset_mm": fit.peak_mm, "peak_sigma_mm": fit.sigma_mm, "pose_source": "state-stream",
+              "frames": [{"sweep": 0, "offset_mm": float(a), "sharpness": float(b)} for a, b in zip(z, s)],
+              "sweep": {"plans": [{"kind": "coarse", "speed_mm_s": 200.0}], "fits": [fit.as_dict()]}}
+    path = plot_sweep(result, tmp_path / "fig09b_sweep.png")
+    assert path.stat().st_size > 10_000 and path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert np.allclose(fit.sharpness_at(z[3:8]), s[3:8], rtol=1e-3)  # the curve drawn is the one fitted
