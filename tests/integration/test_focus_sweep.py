@@ -141,3 +141,40 @@ async def test_no_peak_within_the_reach_fails_and_goes_back_to_the_approach_pose
     from aioadept.vision.virtual_camera import paper_approach_pose  # where init_move leaves the robot
 
     assert abs(axis_offset_mm(paper_approach_pose(), here)) < 0.05
+
+
+async def test_a_vision_node_that_never_answers_ends_the_sweep_at_rest_then_retracts():
+    """The first request times out while the line still runs (1 s at 40 mm/s, 0.3 s timeout): the line runs to its
+    planned end, and only then does the run fail and go back to the approach pose (a retract never queues behind
+    a motion under way)."""
+    from aioadept.apps.focus import FocusError
+    from aioadept.commands import Here
+    from aioadept.testing.sim import running_sim
+    from aioadept.vision.virtual_camera import paper_approach_pose
+
+    class Acks:
+        def __init__(self):
+            self.results = []
+
+        def on_send(self, msg):
+            pass
+
+        def on_ack(self, result):
+            self.results.append(result)
+
+    acks = Acks()
+    params = FocusParams(mode="sweep", sweep_max_speed_mm_s=40.0)
+    async with running_sim() as sim:
+        async with RobotClient(sim.host, sim.port, observers=[acks]) as rc, \
+                Communicator("tcp://127.0.0.1:1", "tcp://127.0.0.1:2", timeout_s=0.3) as comm:
+            with pytest.raises(FocusError, match="no answer from the vision node") as info:
+                await sweep_focus(rc, comm, params, exposure_ms=5.0, vision_timeout_s=0.3)
+            here = (await rc.cmdexec(Here())).pose
+    assert info.value.retracted
+    assert abs(axis_offset_mm(paper_approach_pose(), here)) < 0.05
+    skills = [r.skill for r in acks.results]
+    line = skills.index("move_to_s")  # the sweep's line, then its break (the arm at rest at 40 mm)
+    assert skills[line + 1] == "break" and skills[line + 2:line + 4] == ["set_speed", "move_to"]  # the retract
+    line_end, retract = acks.results[line + 1], acks.results[line + 2]
+    assert line_end.ack.t_done_s - acks.results[line].ack.t_done_s > 0.9  # 40 mm at 40 mm/s ran to its end
+    assert retract.t_send_s >= line_end.t_recv_s  # written only once the line's break was acked

@@ -224,8 +224,9 @@ async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: floa
     ``params``: :class:`~aioadept.apps.focus.FocusParams`; ``exposure_ms``: the camera's (sets the speed);
     ``state_endpoint``: the robot state stream (None or silent: the planned profile and the ack times place the
     frames instead; ``ramp_s`` is the robot's ramp time the profile assumes, in robot time); ``time_scale``: a
-    simulated robot's speed-up (:func:`sweep_speed`; its ramps are that much shorter too). Raises :class:`FocusError` (no peak
-    within ``max_sweeps`` sweeps, no usable frames: after a retract to the approach pose) or the robot's own error.
+    simulated robot's speed-up (:func:`sweep_speed`; its ramps are that much shorter too). Raises
+    :class:`FocusError` (no peak within ``max_sweeps`` sweeps or the reach, no usable frames, no answer from the
+    vision node: after the line ended and a retract to the approach pose) or the robot's own error.
     """
     check_sweep(params, exposure_ms, time_scale)
     approach = (await init_move(rc)).pose if do_init_move else None
@@ -236,19 +237,20 @@ async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: floa
     run = SweepRun()
     feed: StateFeed | None = None
     source = "planned-profile"
-    if state_endpoint:
-        feed = StateFeed(approach, curve=state_curve)
-        try:
-            if await feed.start(state_endpoint):
-                source = "state-stream"
-            else:
-                log.warning("no robot state on %s within 1 s: frames placed by the planned profile", state_endpoint)
-        except Exception as exc:  # a bad address must not stop a calibration that can do without it
-            log.warning("robot state stream %s: %s; frames placed by the planned profile", state_endpoint, exc)
     t_known: float | None = None
     here_mm = 0.0
     fit: PeakFit | None = None
     try:
+        if state_endpoint:
+            feed = StateFeed(approach, curve=state_curve)
+            try:
+                if await feed.start(state_endpoint):
+                    source = "state-stream"
+                else:
+                    log.warning("no robot state on %s within 1 s: frames placed by the planned profile",
+                                state_endpoint)
+            except Exception as exc:  # a bad address must not stop a calibration that can do without it
+                log.warning("robot state stream %s: %s; frames placed by the planned profile", state_endpoint, exc)
         plan = plan_sweep(params, exposure_ms, 0.0, min(params.sweep_range_mm, max_reach_mm(params)),
                           time_scale=time_scale)
         while True:
@@ -414,7 +416,7 @@ async def _one_sweep(rc: Robot, comm: Vision, approach: Pose, plan: SweepPlan, i
             # At most IN_FLIGHT requests outstanding: one exposing, one waiting to trigger the moment the camera is
             # free. A deeper queue at a node slower than the interval would only hold frames of the arm at rest.
             if failed:
-                raise failed[0]  # a frame's own error (no answer in time, a lost bus): not one frame later
+                break  # a frame's own error (no answer in time, a lost bus): no more frames; raised at rest below
             if len(pending) < IN_FLIGHT:
                 task = asyncio.create_task(one_frame(time.time()))
                 pending.add(task)
@@ -425,7 +427,9 @@ async def _one_sweep(rc: Robot, comm: Vision, approach: Pose, plan: SweepPlan, i
                 next_t += math.ceil(-delay / interval_s) * interval_s
                 delay = next_t - loop.time()
             await asyncio.wait({motion}, timeout=delay)
-        result = motion.result()
+        # The line was planned whole and runs to its end (a stop is the interrupter's, on Ctrl-C): any error is
+        # raised with the arm at rest, so a retract never queues behind a motion still under way.
+        result = await motion
         if pending:
             await asyncio.gather(*pending, return_exceptions=True)
         if failed:
