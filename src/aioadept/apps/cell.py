@@ -22,7 +22,7 @@ from aioadept.apps.processes import NodeProcess, watch
 from aioadept.apps.runfolder import discard_run_dir, merged_save_error, save_run
 from aioadept.commands import SPEED_MAX, SPEED_MIN
 from aioadept.configfile import Range, ranged
-from aioadept.defaults import ROBOT_HOST, ROBOT_PORT, STATE_ENDPOINT, STOP_PORT_OFFSET
+from aioadept.defaults import ROBOT_HOST, ROBOT_PORT, STATE_ENDPOINT, STOP_PORT, STOP_PORT_OFFSET
 from aioadept.worldmodel import WorldConfig
 from aioadept.vision.options import VisionOptions
 
@@ -204,8 +204,13 @@ def sim_argv(cfg: CellConfig, world_file: Path | None = None) -> list[str]:
     """The sim's command line; ``world_file``: the cell's world as a file (:func:`write_world_file`)."""
     r = cfg.robot
     world = ["--world", str(world_file)] if world_file is not None else []
-    return ["sim", "--host", r.host, "--port", str(r.port), "--stop-port", str(stop_port_of(cfg)),
-            "--time-scale", str(r.time_scale),
+    if "--vplus" in r.sim_args:
+        # The V+ program opens its own ports (rs.port, rs.sport in vplus/rsconfig.V2: the defaults): map them to
+        # the cell's. A --map-port of the user's in sim_args comes later and wins.
+        ports = ["--map-port", f"{ROBOT_PORT}={r.port}", "--map-port", f"{STOP_PORT}={stop_port_of(cfg)}"]
+    else:
+        ports = ["--port", str(r.port), "--stop-port", str(stop_port_of(cfg))]
+    return ["sim", "--host", r.host, *ports, "--time-scale", str(r.time_scale),
             "--monitor-speed", str(r.monitor_speed), "--state-endpoint", r.state_endpoint, *world,
             *transport_argv(cfg), *r.sim_args]
 
