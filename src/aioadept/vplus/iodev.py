@@ -515,6 +515,12 @@ def read(rt: Any):
             ev = dev.pop()
             if ev is not None:
                 break
+            net = rt.devices
+            if net is not None and net.pending:
+                # the program has read all there was: what it wrote leaves now, not when the round ends (a
+                # burst of lines still gets one send for its acks; a lone ack does not wait for the rest of
+                # the round: the tail of the reader's loop and the other tasks' turns)
+                net.flush()
             if mode != 0:
                 T.iostat[n] = E.NO_DATA
                 return
@@ -531,14 +537,16 @@ def read(rt: Any):
 
 
 def _no_wait(items: tuple) -> bool:
-    return any(type(it) is tuple and len(it) == 2 and it[0] == "fmt" and str(it[1])[:1].upper() == "N"
-               for it in items)
+    for it in items:
+        if type(it) is tuple and len(it) == 2 and it[0] == "fmt" and str(it[1])[:1].upper() == "N":
+            return True
+    return False
 
 
 def write(rt: Any):
-    def io_write(T: Any, lun: Any, handle: Any, items: tuple) -> Generator:
-        from aioadept.vplus.builtins import _render
+    from aioadept.vplus.builtins import _render
 
+    def io_write(T: Any, lun: Any, handle: Any, items: tuple) -> Generator:
         n = int(lun)
         dev = _lun_of(T, n)
         if dev is None:
@@ -546,13 +554,16 @@ def write(rt: Any):
             return
         net = rt.devices
         # A no-wait output still under way on this LUN is waited for first; if it failed, this one is cancelled
-        # and IOSTAT reports the first's error (V+ Language User's Guide, "Output Wait Modes").
-        if dev.nowait is not None:
-            if net is not None:
-                net.flush()
-            while (st := dev.nowait_state()) == 0:
-                T.io_wait = True
-                yield rt.next_tick()
+        # and IOSTAT reports the first's error (V+ Language User's Guide, "Output Wait Modes"). (Its state
+        # counts what this burst has not sent yet: sent only when it is not complete, so that a burst of acks
+        # still leaves in one send.)
+        if dev.nowait is not None and (st := dev.nowait_state()) != 1:
+            if st == 0:
+                if net is not None:
+                    net.flush()
+                while (st := dev.nowait_state()) == 0:
+                    T.io_wait = True
+                    yield rt.next_tick()
             if st < 0:
                 dev.nowait_err = 0
                 T.iostat[n] = st
