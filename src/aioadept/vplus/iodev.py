@@ -536,6 +536,9 @@ def read(rt: Any):
     return io_read
 
 
+_FMT_N = ("fmt", "N")
+
+
 def _no_wait(items: tuple) -> bool:
     for it in items:
         if type(it) is tuple and len(it) == 2 and it[0] == "fmt" and str(it[1])[:1].upper() == "N":
@@ -569,6 +572,9 @@ def write(rt: Any):
                 T.iostat[n] = st
                 return
         dev.nowait_err = 0
+        no_wait = items[-1] == _FMT_N if items else False
+        if no_wait:
+            items = items[:-1]       # WRITE ..., /N of strings: _render joins them at once
         text, no_eol = _render(items)
         if not no_eol:
             text += "\r\n"
@@ -584,7 +590,7 @@ def write(rt: Any):
         else:
             tr.write(text.encode("latin-1"))
         T.iostat[n] = 1
-        if _no_wait(items):
+        if no_wait or _no_wait(items):
             dev.nowait = tr
             return
         # V+ WRITE waits until the record is out: here while the peer does not read. A connection lost meanwhile
