@@ -252,6 +252,8 @@ class Emulator:
                 if not rt.any_ready() or loop.time() >= until:
                     break
 
+        armed: list[float | None] = [None]     # the runtime time the sleeping loop's timer is set for
+
         def wake() -> None:
             f = sleeper[0]
             if f is None or f.done():
@@ -265,7 +267,20 @@ class Emulator:
                     burst()
                 except BaseException as exc:  # noqa: BLE001 - re-raised by serve, not by the I/O callback
                     failed.append(exc)
+                else:
+                    w = rt.next_wake()
+                    if not rt.any_ready() and (w is None or (armed[0] is not None and w >= armed[0])):
+                        # every task waits again, none before the loop's timer: the loop sleeps on (waking it
+                        # to arm the same sleep again was most of a round trip's work after its ack)
+                        sleeper[0] = f
+                        return
             f.set_result(None)
+
+        def on_timer() -> None:
+            armed[0] = None
+            f = sleeper[0]
+            if f is not None and not f.done():
+                f.set_result(None)
 
         rt.on_wake = wake
         stopper = asyncio.ensure_future(stop.wait())
@@ -280,11 +295,13 @@ class Emulator:
                     rt.devices.flush()
                 w = rt.next_wake()
                 f = sleeper[0] = loop.create_future()
-                timer = None if w is None else loop.call_at(loop.time() + max(0.0, w - rt.now), wake)
+                armed[0] = w
+                timer = None if w is None else loop.call_at(loop.time() + max(0.0, w - rt.now), on_timer)
                 try:
                     await f
                 finally:
                     sleeper[0] = None
+                    armed[0] = None
                     if timer is not None:
                         timer.cancel()
                 if failed:
