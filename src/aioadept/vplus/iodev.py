@@ -208,6 +208,18 @@ class TcpLun:
             tr.abort()
         return True
 
+    def drop_input(self, h: int) -> None:
+        """Connection ``h`` was reset: its input not yet read by the program is gone with it, as a TCP stack drops
+        a reset connection's receive queue. (Kept, a flood's held input, read at once from the socket in 256 KiB,
+        took the reader seconds after the flooder was killed, and its slot stayed taken all that time.)"""
+        self.held.pop(h, None)
+        self.held_close.discard(h)
+        mine = [ev for ev in self.events if ev[1] == h and ev[0] == 1]
+        if mine:
+            self.buffered -= sum(len(ev[2]) for ev in mine)
+            self.events = deque(ev for ev in self.events if not (ev[1] == h and ev[0] == 1))
+        self.inbuf.pop(h, None)
+
     def new_handle(self) -> int | None:
         if len(self.conns) >= self.max_clients:
             return None
@@ -332,6 +344,7 @@ class _Proto(asyncio.Protocol):
     def __init__(self, lun: TcpLun) -> None:
         self.lun = lun
         self.handle: int | None = None
+        self.transport: asyncio.BaseTransport | None = None
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         h = self.lun.new_handle()
@@ -339,6 +352,7 @@ class _Proto(asyncio.Protocol):
             transport.close()        # more clients than /CLIENTS: refused
             return
         self.handle = h
+        self.transport = transport
         self.lun.conns[h] = transport   # type: ignore[assignment]
         self.lun.reserved.add(h)
         net = self.lun.rt.devices
@@ -347,20 +361,25 @@ class _Proto(asyncio.Protocol):
         self.lun.push(100, h)
 
     def data_received(self, data: bytes) -> None:
-        if self.handle is not None:
+        if self.handle is not None and self.lun.conns.get(self.handle) is self.transport:
             self.lun.push(1, self.handle, data.decode("latin-1"))
 
     def connection_lost(self, exc: Exception | None) -> None:
+        # Only if the handle is still this connection's: one closed by FCLOSE (lun, handle) has left the table at
+        # once, and a new connection may hold its handle by now (it then lost its own entry and got a 101 that was
+        # not its own; its slot was taken again by its data and never freed: a slot gone for good)
+        mine = self.handle is not None and self.lun.conns.get(self.handle) is self.transport
         net = self.lun.rt.devices
-        if net is not None and self.handle is not None:
-            tr = self.lun.conns.get(self.handle)
-            if tr is not None:
-                net.server_transports.discard(tr)
-                net._written.pop(tr, None)
-                net._delayed.pop(tr, None)
-        if self.handle is not None and self.lun.conns.get(self.handle) is not None:
+        if net is not None and mine:
+            tr = self.transport
+            net.server_transports.discard(tr)
+            net._written.pop(tr, None)
+            net._delayed.pop(tr, None)
+        if mine:
             del self.lun.conns[self.handle]
             self.lun.paused.discard(self.handle)
+            if exc is not None:
+                self.lun.drop_input(self.handle)
             self.lun.push(101, self.handle)
 
 

@@ -98,3 +98,22 @@ def test_read_serves_the_connections_in_turn_when_one_has_input_released_behind_
     # the flood's input is all there, in order, after it
     rest = "".join(ev[2] for ev in iter(lun.pop, None) if ev[0] == 1)
     assert len(rest) + 8 * 128 + (n - 1) * 128 == 6000 and set(rest) == {"f"}
+
+
+def test_a_reset_connection_s_unread_input_is_dropped_and_its_close_comes_at_once():
+    """A reset connection's input not yet read goes with it (a TCP stack drops a reset connection's receive
+    queue): its 101 is the next READ, not after a flood's held 256 KiB, which kept its slot for seconds."""
+    emu = Emulator.from_source(".PROGRAM p()\n.END\n", robot=False, strict=True)
+    task = emu.execute(1, "p")
+    lun = TcpLun(emu.rt, task, 20)
+    lun.push(100, 0)
+    lun.push(100, 1)
+    assert [lun.pop()[:2], lun.pop()[:2]] == [[100, 0], [100, 1]]
+    lun.push(1, 0, "f" * 100_000)
+    lun.push(1, 1, "0000abcd:here\r\n")
+    lun.reserved.add(0)
+    lun.drop_input(0)
+    lun.push(101, 0)
+    assert lun.pop() == [1, 1, "0000abcd:here\r\n"]
+    assert lun.pop()[:2] == [101, 0]
+    assert lun.pop() is None and lun.buffered == 0 and 0 not in lun.reserved
