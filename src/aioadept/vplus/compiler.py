@@ -11,8 +11,9 @@ dispatch loop.
 
 Generated functions are generators, so that a task can block (WAIT, READ, a motion waiting for its slot) and be
 time-sliced: every yield is a wake-up time in runtime seconds, or ``PREEMPT`` (-1.0) when the task has used its
-slice (a budget of loop iterations, counted at every loop back-edge and GOTO). The scheduler is in
-:mod:`aioadept.vplus.runtime`.
+slice. Loop iterations are counted at every loop back-edge and GOTO; each ``_BUDGET`` of them the generated code
+asks ``_slice_over()`` whether the slice has ended (virtual time: every time, so a slice is ``BUDGET`` iterations;
+real time: when the task has run for 1 ms, :mod:`aioadept.vplus.runtime`, which also ends a slice at a CALL).
 
 Each simple statement sits in ``try/except`` (free in CPython 3.11 unless it raises): an error becomes a V+ error
 with the program name and line, and goes to the task's REACTE program if there is one, after which execution
@@ -33,7 +34,8 @@ from typing import Any
 from aioadept.vplus.loader import LoadProblem, Program
 
 BUDGET = 2000
-"""Loop iterations a task runs before it yields its time slice."""
+"""Loop iterations a task runs before it yields its time slice (virtual time; the generated code reads the
+runtime's ``_BUDGET``, which is smaller in real time, where the slice is measured on the clock)."""
 
 _LOC_FUNCS = {"TRANS", "INVERSE", "HERE", "RX", "RY", "RZ", "NULL"}
 _PP_FUNCS = {"#PPOINT", "#HERE"}
@@ -449,7 +451,7 @@ class _Gen:
                           f"else _arg(A, {i}, {name!r})")
         for name, typ in self.autos.items():
             pass
-        self.emit(f"_b = {BUDGET}")
+        self.emit("_b = _BUDGET")
         has_goto = any(isinstance(it, tuple) and it[1][0] == "LABEL" for it in tree) or _uses_goto(p.steps)
         if has_goto:
             self.goto_program(tree)
@@ -489,7 +491,8 @@ class _Gen:
     def budget(self) -> None:
         self.emit("_b -= 1")
         self.emit("if not _b:")
-        self.emit(f"    _b = {BUDGET}; yield -1.0")
+        self.emit("    _b = _BUDGET")
+        self.emit("    if _slice_over(): yield -1.0")
 
     def block(self, items: list) -> None:
         if not items:

@@ -241,8 +241,52 @@ class Emulator:
         # task's wake time or ``stop`` completes it. (An asyncio.Event and asyncio.wait over two new tasks cost
         # several loop turns and task creations per sleep: a large part of a round trip.)
         sleeper: list[asyncio.Future | None] = [None]
+        failed: list[BaseException] = []
+
+        def burst() -> None:
+            # Rounds back to back while tasks are ready (a reader handing a line to the executor and the
+            # executor's ack back to the reader take three), then let asyncio serve the sockets: writes leave at
+            # once (transport.write), reads and new connections wait for this yield.
+            # Each round's writes leave right after it (an ack written by the reader does not wait for the
+            # executor's re-test of its WAIT in the next round): latency, not CPU.
+            # At most BURST_S of rounds before the sockets are served: a task kept busy by one client's flood
+            # must not hold another client's stop in the kernel (32 rounds of a busy reader took 300 ms; a stop
+            # behind them waited that long).
+            devices = rt.devices
+            until = loop.time() + BURST_S
+            for _ in range(32):
+                rt.run_round()
+                if devices is not None and devices.pending:
+                    devices.flush()
+                if not rt.any_ready() or loop.time() >= until:
+                    break
+
+        armed: list[float | None] = [None]     # the runtime time the sleeping loop's timer is set for
 
         def wake() -> None:
+            f = sleeper[0]
+            if f is None or f.done():
+                return
+            if not stop.is_set() and rt.any_ready():
+                # The loop is parked in ``await f``: run the woken tasks now, inside the I/O callback that woke
+                # them (an ack leaves one event-loop turn sooner: the turn and the task wake-up were a tenth of a
+                # here round trip). A wake-up from within these rounds (SET.EVENT) finds no sleeper.
+                sleeper[0] = None
+                try:
+                    burst()
+                except BaseException as exc:  # noqa: BLE001 - re-raised by serve, not by the I/O callback
+                    failed.append(exc)
+                else:
+                    w = rt.next_wake()
+                    if not rt.any_ready() and (w is None or (armed[0] is not None and w >= armed[0])):
+                        # every task waits again, none before the loop's timer: the loop sleeps on (waking it
+                        # to arm the same sleep again was most of a round trip's work after its ack)
+                        sleeper[0] = f
+                        return
+            f.set_result(None)
+
+        def on_timer() -> None:
+            armed[0] = None
             f = sleeper[0]
             if f is not None and not f.done():
                 f.set_result(None)
@@ -253,35 +297,24 @@ class Emulator:
         try:
             while not stop.is_set():
                 if rt.any_ready():
-                    # Rounds back to back while tasks are ready (a reader handing a line to the executor and the
-                    # executor's ack back to the reader take three), then let asyncio serve the sockets: writes
-                    # leave at once (transport.write), reads and new connections wait for this yield.
-                    # Each round's writes leave right after it (an ack written by the reader does not wait for
-                    # the executor's re-test of its WAIT in the next round): latency, not CPU.
-                    # At most BURST_S of rounds before the sockets are served: a task kept busy by one client's
-                    # flood must not hold another client's stop in the kernel (32 rounds of a busy reader took
-                    # 300 ms; a stop behind them waited that long).
-                    devices = rt.devices
-                    until = loop.time() + BURST_S
-                    for _ in range(32):
-                        rt.run_round()
-                        if devices is not None and devices.pending:
-                            devices.flush()
-                        if not rt.any_ready() or loop.time() >= until:
-                            break
+                    burst()
                     await asyncio.sleep(0)
                     continue
                 if rt.devices is not None:
                     rt.devices.flush()
                 w = rt.next_wake()
                 f = sleeper[0] = loop.create_future()
-                timer = None if w is None else loop.call_at(loop.time() + max(0.0, w - rt.now), wake)
+                armed[0] = w
+                timer = None if w is None else loop.call_at(loop.time() + max(0.0, w - rt.now), on_timer)
                 try:
                     await f
                 finally:
                     sleeper[0] = None
+                    armed[0] = None
                     if timer is not None:
                         timer.cancel()
+                if failed:
+                    raise failed[0]
         finally:
             rt.on_wake = None
             stopper.cancel()

@@ -41,7 +41,6 @@ from __future__ import annotations
 import asyncio
 import re
 from collections import deque
-from itertools import islice
 from collections.abc import Callable, Generator
 from dataclasses import dataclass, field
 from typing import Any
@@ -212,6 +211,18 @@ class TcpLun:
             tr.abort()
         return True
 
+    def drop_input(self, h: int) -> None:
+        """Connection ``h`` was reset: its input not yet read by the program is gone with it, as a TCP stack drops
+        a reset connection's receive queue. (Kept, a flood's held input, read at once from the socket in 256 KiB,
+        took the reader seconds after the flooder was killed, and its slot stayed taken all that time.)"""
+        self.held.pop(h, None)
+        self.held_close.discard(h)
+        mine = [ev for ev in self.events if ev[1] == h and ev[0] == 1]
+        if mine:
+            self.buffered -= sum(len(ev[2]) for ev in mine)
+            self.events = deque(ev for ev in self.events if not (ev[1] == h and ev[0] == 1))
+        self.inbuf.pop(h, None)
+
     def new_handle(self) -> int | None:
         if len(self.conns) >= self.max_clients:
             return None
@@ -278,10 +289,10 @@ class TcpLun:
         if ev[0] == 1 and len(ev[2]) > _READ_MAX:
             out = [1, ev[1], ev[2][:_READ_MAX]]
             ev[2] = ev[2][_READ_MAX:]
-            if len(self.events) > 1 and all(e[1] != ev[1] for e in islice(self.events, 1, None)):
+            if len(self.events) > 1:
                 # the connections are served in turn, a READ each: the rest of this one's input waits behind
                 # the others' events (an emulator choice: the manuals do not say; docs/vplus.md)
-                self.events.rotate(-1)
+                self._behind_others()
         else:
             out = self.events.popleft()
         if out[0] == 1:
@@ -301,6 +312,24 @@ class TcpLun:
             self.inbuf.pop(out[1], None)
         return out
 
+    def _behind_others(self) -> None:
+        """Move the first event (the rest of a connection's data), and every later event of that connection, behind
+        all other connections' events, in their order. (The rest once stayed in front whenever the connection had
+        a later event too, e.g. input released from ``held``: a flood's 2 KiB went out 128 characters a READ, 16
+        READs, before another client's stop, 10 ms of a busy reader.)"""
+        h = self.events[0][1]
+        others = [e for e in self.events if e[1] != h]
+        if not others:
+            return
+        mine: list[list] = []
+        for e in self.events:
+            if e[1] == h:
+                if mine and e[0] == 1 and mine[-1][0] == 1:
+                    mine[-1][2] += e[2]          # one data event: a READ takes up to 128 characters of it
+                else:
+                    mine.append(e)
+        self.events = deque(others + mine)
+
     def close(self) -> None:
         net = self.rt.devices
         if net is not None:
@@ -318,6 +347,7 @@ class _Proto(asyncio.Protocol):
     def __init__(self, lun: TcpLun) -> None:
         self.lun = lun
         self.handle: int | None = None
+        self.transport: asyncio.BaseTransport | None = None
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         h = self.lun.new_handle()
@@ -325,6 +355,7 @@ class _Proto(asyncio.Protocol):
             transport.close()        # more clients than /CLIENTS: refused
             return
         self.handle = h
+        self.transport = transport
         self.lun.conns[h] = transport   # type: ignore[assignment]
         self.lun.reserved.add(h)
         net = self.lun.rt.devices
@@ -333,20 +364,25 @@ class _Proto(asyncio.Protocol):
         self.lun.push(100, h)
 
     def data_received(self, data: bytes) -> None:
-        if self.handle is not None:
+        if self.handle is not None and self.lun.conns.get(self.handle) is self.transport:
             self.lun.push(1, self.handle, data.decode("latin-1"))
 
     def connection_lost(self, exc: Exception | None) -> None:
+        # Only if the handle is still this connection's: one closed by FCLOSE (lun, handle) has left the table at
+        # once, and a new connection may hold its handle by now (it then lost its own entry and got a 101 that was
+        # not its own; its slot was taken again by its data and never freed: a slot gone for good)
+        mine = self.handle is not None and self.lun.conns.get(self.handle) is self.transport
         net = self.lun.rt.devices
-        if net is not None and self.handle is not None:
-            tr = self.lun.conns.get(self.handle)
-            if tr is not None:
-                net.server_transports.discard(tr)
-                net._written.pop(tr, None)
-                net._delayed.pop(tr, None)
-        if self.handle is not None and self.lun.conns.get(self.handle) is not None:
+        if net is not None and mine:
+            tr = self.transport
+            net.server_transports.discard(tr)
+            net._written.pop(tr, None)
+            net._delayed.pop(tr, None)
+        if mine:
             del self.lun.conns[self.handle]
             self.lun.paused.discard(self.handle)
+            if exc is not None:
+                self.lun.drop_input(self.handle)
             self.lun.push(101, self.handle)
 
 
@@ -525,6 +561,12 @@ def read(rt: Any):
             ev = dev.pop()
             if ev is not None:
                 break
+            net = rt.devices
+            if net is not None and net.pending:
+                # the program has read all there was: what it wrote leaves now, not when the round ends (a
+                # burst of lines still gets one send for its acks; a lone ack does not wait for the rest of
+                # the round: the tail of the reader's loop and the other tasks' turns)
+                net.flush()
             if mode != 0:
                 T.iostat[n] = E.NO_DATA
                 return
@@ -540,9 +582,14 @@ def read(rt: Any):
     return io_read
 
 
+_FMT_N = ("fmt", "N")
+
+
 def _no_wait(items: tuple) -> bool:
-    return any(type(it) is tuple and len(it) == 2 and it[0] == "fmt" and str(it[1])[:1].upper() == "N"
-               for it in items)
+    for it in items:
+        if type(it) is tuple and len(it) == 2 and it[0] == "fmt" and str(it[1])[:1].upper() == "N":
+            return True
+    return False
 
 
 def write(rt: Any):
@@ -561,18 +608,24 @@ def write(rt: Any):
             return
         net = rt.devices
         # A no-wait output still under way on this LUN is waited for first; if it failed, this one is cancelled
-        # and IOSTAT reports the first's error (V+ Language User's Guide, "Output Wait Modes").
-        if dev.nowait is not None:
-            if net is not None:
-                net.flush()
-            while (st := dev.nowait_state()) == 0:
-                T.io_wait = True
-                yield rt.next_tick()
+        # and IOSTAT reports the first's error (V+ Language User's Guide, "Output Wait Modes"). (Its state
+        # counts what this burst has not sent yet: sent only when it is not complete, so that a burst of acks
+        # still leaves in one send.)
+        if dev.nowait is not None and (st := dev.nowait_state()) != 1:
+            if st == 0:
+                if net is not None:
+                    net.flush()
+                while (st := dev.nowait_state()) == 0:
+                    T.io_wait = True
+                    yield rt.next_tick()
             if st < 0:
                 dev.nowait_err = 0
                 T.iostat[n] = st
                 return
         dev.nowait_err = 0
+        no_wait = items[-1] == _FMT_N if items else False
+        if no_wait:
+            items = items[:-1]       # WRITE ..., /N of strings: _render joins them at once
         text, no_eol = _render(items)
         if not no_eol:
             text += "\r\n"
@@ -588,7 +641,7 @@ def write(rt: Any):
         else:
             tr.write(text.encode("latin-1"))
         T.iostat[n] = 1
-        if _no_wait(items):
+        if no_wait or _no_wait(items):
             dev.nowait = tr
             return
         # V+ WRITE waits until the record is out: here while the peer does not read. A connection lost meanwhile

@@ -1,13 +1,21 @@
 """The V+ run time: global data, tasks and their scheduler, the clock, built-in functions and instructions.
 
+(Over 500 lines because the scheduler is one model: rounds, time slices, the wake-ups of blocked tasks and the
+errors that end a task all work on the one task table. Seam for a split: the real-time slicing at the end.)
+
 Programs compiled by :mod:`aioadept.vplus.compiler` run here as generators, one stack of them per task.
 
 **Time slicing.** V+ divides time into slices and runs the tasks by priority in each slice; a task gives up the
 rest of its slice when it waits (WAIT, READ, a motion). The emulator runs the ready tasks round-robin in task-number
-order. A task runs until it blocks or has run ``BUDGET`` loop iterations (counted at loop back-edges and GOTOs),
-which ends its slice. In virtual time each ended slice costs ``slice_s`` (1 ms) of virtual time, so a busy-wait
+order. In virtual time a task runs until it blocks or has run ``BUDGET`` loop iterations (counted at loop back-edges
+and GOTOs), which ends its slice, and each ended slice costs ``slice_s`` (1 ms) of virtual time, so a busy-wait
 loop on ``TIMER`` terminates; when every task is blocked the clock jumps to the earliest wake-up. In real time the
-clock is the wall clock and the scheduler returns to asyncio between rounds so that sockets are served.
+clock is the wall clock, a slice ends when the task has run ``SLICE_S`` (V+'s 1 ms slice: V+ Language User's
+Guide, "Scheduling of Program Execution Tasks", pp. 48-50: at each 1 ms interval the scheduler looks for another
+task to run, and tasks of equal priority take turns), looked at every ``REAL_BUDGET`` loop iterations and at each
+CALL, and the scheduler returns to asyncio between rounds so that sockets are served. (A slice of 2000 iterations
+let a reader busy with one client's flood run 45 ms at a stretch: the executor, and a stop's ack, waited that
+long for each turn.)
 
 ``WAIT`` without a condition waits for the next trajectory cycle (``cycle_s``); ``WAIT cond`` re-tests the
 condition once per cycle. A task blocked in ``READ`` mode 0 is also woken as soon as data arrives.
@@ -18,6 +26,8 @@ from __future__ import annotations
 import math
 import re
 import struct
+import time
+from array import array
 from collections import deque
 from collections.abc import Callable, Generator, Iterable
 from dataclasses import dataclass, field
@@ -26,12 +36,16 @@ from typing import Any
 from aioadept.vplus import builtins as B
 from aioadept.vplus import errors as E
 from aioadept.vplus import iodev
-from aioadept.vplus.compiler import compile_program
+from aioadept.vplus.compiler import BUDGET, compile_program
 from aioadept.vplus.errors import VPlusError, VPlusHalt
 from aioadept.vplus.loader import LoadProblem, Module
 from aioadept.vplus.values import _FB, _GOTO, MAX_STRING, _Goto, _LocArray, _Missing, f32  # noqa: F401 (re-exported)
 
 PREEMPT = -1.0
+SLICE_S = 0.001
+"""Real time: how long a task runs before the others get their turn (V+'s time slice, module docstring)."""
+REAL_BUDGET = 16
+"""Real time: loop iterations between two looks at the clock (a look costs about as much as 2 iterations)."""
 
 _UNBOUND_RE = re.compile(r"(?:variable|name) '(V_\w+)'")   # unbound local, or a local never assigned
 
@@ -126,6 +140,8 @@ class Runtime:
         self.devices: Any = None           # the TCP device layer (aioadept.vplus.tcp.Network)
         self.input: deque[str] = deque()
         self.on_wake: Callable[[], None] | None = None   # real time: poke the scheduler loop
+        self.realtime = not self.clock.virtual
+        self.slice_end = math.inf          # real time: when the running task's slice ends (time.monotonic)
         self._load_data()
         self.compile_all()
 
@@ -314,6 +330,8 @@ class Runtime:
             T.cond_wait = T.event_wait = T.motion_wait = False
             if not retest:
                 progress = True
+            if self.realtime:
+                self.slice_end = _mono() + SLICE_S
             try:
                 w = T.gen.send(None)
             except StopIteration:
@@ -476,4 +494,44 @@ class Runtime:
 
     # -- the namespace of generated code ------------------------------------------------------------------
     def _namespace(self) -> dict[str, Any]:
-        return B.namespace(self)
+        ns = B.namespace(self)
+        # time slices (module docstring): the generated code counts loop iterations in _b from _BUDGET and then
+        # asks _slice_over(); in real time a CALL ends the slice too once it has run SLICE_S
+        if not self.realtime:
+            ns["_BUDGET"] = BUDGET
+            ns["_slice_over"] = _always
+            return ns
+        ns["_BUDGET"] = REAL_BUDGET
+        ns["_slice_over"] = self.slice_over
+        ns["_call"] = self._sliced_call()
+        return ns
+
+    def slice_over(self) -> bool:
+        """Real time: the running task has used its slice (it yields PREEMPT; the others get their turn)."""
+        return _mono() >= self.slice_end
+
+    def _sliced_call(self) -> Callable[[Task, str, tuple], Generator]:
+        """CALL (``_call`` of the generated code, as builtins' ``call``) that first ends the slice if it is over:
+        straight-line code that calls programs, loop-free as it may be, is sliced too."""
+        programs = self.programs           # filled by compile_all; never replaced
+
+        def sliced_call(T: Task, name: str, args: tuple) -> Generator:
+            f = programs.get(name)
+            gen = self.call(T, name, args) if f is None else f(T, args)
+            if _mono() >= self.slice_end:
+                return _preempt_then(gen)
+            return gen
+
+        return sliced_call
+
+
+def _always() -> bool:
+    return True
+
+
+def _preempt_then(gen: Generator) -> Generator:
+    yield PREEMPT
+    return (yield from gen)
+
+
+_mono = time.monotonic
