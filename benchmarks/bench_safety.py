@@ -139,10 +139,10 @@ async def stop_trials(port: int, trials: int, stop_port: int | None = None) -> t
         target = 150 if i % 2 == 0 else -150
         m, b, s = b"%08x" % (3 * i + 1), b"%08x" % (3 * i + 2), b"%08x" % (3 * i + 3)
         mover.writer.write(m + b":move_joints:%d,-90,180,0,90,0\r\n" % target + b + b":break\r\n")
-        await mover.until(m)
+        await asyncio.wait_for(mover.until(m), 30)  # a server that lost the slot must fail the bench, not hang it
         await asyncio.sleep(0.05)  # the arm is moving, the break waits
         t0 = loop.time()
-        via = stopper if stop_port is None else await Conn.open(stop_port)
+        via = stopper if stop_port is None else await asyncio.wait_for(Conn.open(stop_port), 30)
         via.writer.write(s + b":stop\r\n")
         line = await asyncio.wait_for(mover.until(b), 30)
         t_break = loop.time()
@@ -170,7 +170,7 @@ async def here_trial(port: int, moving: bool, clients: int = 50) -> list[float]:
     mover = await Conn.open(port)
     if moving:
         mover.writer.write(b"0000aaa1:move_joints:150,-90,180,0,90,0\r\n0000aaa2:break\r\n")
-        await mover.until(b"0000aaa1")
+        await asyncio.wait_for(mover.until(b"0000aaa1"), 30)
 
     async def one(c: Conn, k: int) -> float:
         mid = b"0001%04d" % k  # never 00000000, the reserved ID
