@@ -79,6 +79,8 @@ class CellConfig:
     vision: VisionSection = field(default_factory=VisionSection)
     focus: FocusParams = field(default_factory=FocusParams)
     run: RunSection = field(default_factory=RunSection)
+    pickplace: Any = None
+    """The ``[pickplace]`` table (aioadept.apps.pickplace.PickPlaceParams); None: its defaults."""
     world: WorldConfig | None = None
     """The simulated world (``[world]``: table, parts, feeder, pallet, camera; aioadept.worldfile), or None."""
 
@@ -92,8 +94,10 @@ class CellConfig:
     def from_dict(cls, data: dict[str, Any], *, source: str = "config") -> CellConfig:
         from aioadept.configfile import ConfigError, check_ranges, check_section
 
+        from aioadept.apps.pickplace import PickPlaceParams
+
         known = {"robot": RobotSection, "vision": VisionSection, "focus": FocusParams, "run": RunSection,
-                 "world": WorldConfig}
+                 "world": WorldConfig, "pickplace": PickPlaceParams}
         unknown = set(data) - set(known)
         if unknown:
             raise ConfigError(f"{source}: unknown section(s) {', '.join(sorted(unknown))}; expected "
@@ -181,6 +185,11 @@ def sim_argv(cfg: CellConfig, world_file: Path | None = None) -> list[str]:
     """The sim's command line; ``world_file``: the cell's world as a file (:func:`write_world_file`)."""
     r = cfg.robot
     world = ["--world", str(world_file)] if world_file is not None else []
+    if "--vplus" in r.sim_args:
+        # The V+ server binds the ports its rsconfig.V2 names (1234, its stop port 1235, 1236): map them here.
+        return ["sim", "--host", r.host, "--map-port", f"1234={r.port}", "--map-port", f"1235={stop_port_of(cfg)}",
+                "--map-port", "1236=0", "--time-scale", str(r.time_scale), "--monitor-speed", str(r.monitor_speed),
+                "--state-endpoint", r.state_endpoint, *world, *r.sim_args]
     return ["sim", "--host", r.host, "--port", str(r.port), "--stop-port", str(stop_port_of(cfg)),
             "--time-scale", str(r.time_scale),
             "--monitor-speed", str(r.monitor_speed), "--state-endpoint", r.state_endpoint, *world, *r.sim_args]
