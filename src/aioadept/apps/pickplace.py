@@ -17,6 +17,7 @@ cancellation (Ctrl-C, SIGHUP), a stop, a lost connection or an ack timeout, no m
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import time
@@ -380,11 +381,10 @@ async def pickplace(rc: Robot, locator: Locator, p: PickPlaceParams, *, pallet: 
             cycle.t_end_s = time.perf_counter()
             if on_cycle is not None:
                 on_cycle(cycle)
-    except PickPlaceError as exc:
-        exc.part = len(result.cycles) - 1
-        exc.result = result  # type: ignore[attr-defined]
-        raise
-    except (CommandError, CommandAborted) as exc:
-        exc.result = result  # type: ignore[attr-defined]
+    except BaseException as exc:  # the partial result goes with the error (a cancellation's too)
+        if isinstance(exc, PickPlaceError):
+            exc.part = len(result.cycles) - 1
+        with contextlib.suppress(AttributeError):
+            exc.result = result  # type: ignore[attr-defined]
         raise
     return result
