@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from aioadept.apps.focus import FocusParams, FocusResult, ufloop
+from aioadept.apps.pickplace import PickPlaceParams
 from aioadept.apps.processes import NodeProcess, watch
 from aioadept.commands import SPEED_MAX, SPEED_MIN
 from aioadept.configfile import Range, ranged
@@ -79,8 +80,8 @@ class CellConfig:
     vision: VisionSection = field(default_factory=VisionSection)
     focus: FocusParams = field(default_factory=FocusParams)
     run: RunSection = field(default_factory=RunSection)
-    pickplace: Any = None
-    """The ``[pickplace]`` table (aioadept.apps.pickplace.PickPlaceParams); None: its defaults."""
+    pickplace: PickPlaceParams = field(default_factory=PickPlaceParams)
+    """The ``[pickplace]`` table (docs/pickplace.md)."""
     world: WorldConfig | None = None
     """The simulated world (``[world]``: table, parts, feeder, pallet, camera; aioadept.worldfile), or None."""
 
@@ -93,8 +94,6 @@ class CellConfig:
     @classmethod
     def from_dict(cls, data: dict[str, Any], *, source: str = "config") -> CellConfig:
         from aioadept.configfile import ConfigError, check_ranges, check_section
-
-        from aioadept.apps.pickplace import PickPlaceParams
 
         known = {"robot": RobotSection, "vision": VisionSection, "focus": FocusParams, "run": RunSection,
                  "world": WorldConfig, "pickplace": PickPlaceParams}

@@ -133,14 +133,14 @@ class BusLocator:
         self.timeout_s = timeout_s
 
     async def locate(self) -> LocateAnswer:
-        t0 = time.perf_counter()
+        t0 = time.monotonic()
         try:
             resp = await self.comm.request(LOCATE_REQUEST, {}, timeout_s=self.timeout_s)
         except TimeoutError as exc:
             raise PickPlaceError(f"locate: no answer from the vision node within {self.timeout_s:g} s") from exc
         except AdeptError as exc:
             raise PickPlaceError(f"locate: {exc}") from exc
-        ms = (time.perf_counter() - t0) * 1000.0
+        ms = (time.monotonic() - t0) * 1000.0
         return LocateAnswer(parts_of(dict(resp.attributes)), ms)
 
 
@@ -212,7 +212,7 @@ class Cycle:
     attempts: int = 0
     placed: bool = False
     steps: list[tuple[str, float, float]] = field(default_factory=list)
-    """(phase, start s, end s) on the client's clock, for the Gantt chart."""
+    """(phase, start s, end s) on the client's monotonic clock (asyncio's), for the Gantt chart."""
 
     @property
     def cycle_ms(self) -> float:
@@ -236,6 +236,13 @@ def _durations(res: Any, cycle: Cycle) -> None:
     """Add the server-clock durations of an ExecResult's motions (motion ack start .. following break's done) and
     hand waits to ``cycle``."""
     msgs = list(res.messages)
+    for m in msgs:  # the Gantt chart's rows: each message from its write to its ack (the loop's clock, monotonic)
+        if m.skill not in ("set_speed", "break"):
+            end = m.t_recv_s
+            nxt = msgs[msgs.index(m) + 1] if msgs.index(m) + 1 < len(msgs) else None
+            if nxt is not None and nxt.skill == "break":
+                end = nxt.t_recv_s  # a motion ends when its break is acked
+            cycle.steps.append((m.skill, m.t_send_s, end))
     for i, m in enumerate(msgs):
         if m.skill in MOTION_SKILLS:
             end = m.ack.t_done_s
@@ -281,19 +288,15 @@ async def pick(rc: Robot, part: LocatedPart, p: PickPlaceParams, cycle: Cycle, *
     check_workspace("the part's grip pose", grip, p)
     above = tool_down(part.x_mm, part.y_mm, grip.z + p.approach_mm, heading)
     check_workspace("the pose above the part", above, p)
-    t0 = time.perf_counter()
     cmds: list[Any] = [SetSpeed(p.speed), Appros(grip, p.approach_mm)]
     if not hand_open:
         cmds.append(OpenHand())
     cmds += [SetSpeed(p.speed), MoveToS(grip), CloseHand(), Sig(p.closed_switch)]
     res = await rc.cmdexec(*cmds)
-    cycle.steps.append(("pick", t0, time.perf_counter()))
     _durations(res, cycle)
     if Sig.states(res.messages[-1].ack)[0]:
-        t1 = time.perf_counter()
         res = await rc.cmdexec(OpenHand(), SetSpeed(p.speed), Departs(p.approach_mm))
         _durations(res, cycle)
-        cycle.steps.append(("miss", t1, time.perf_counter()))
         raise PickPlaceError(f"the gripper closed on nothing at x={grip.x:.1f} y={grip.y:.1f} mm (input "
                              f"{p.closed_switch} on): the part is not where the locator said", moved=True)
     return grip
@@ -306,10 +309,8 @@ async def place(rc: Robot, slot: tuple[float, float, float], grip: Pose, p: Pick
     # The part keeps its pose in the tool: turn the tool by the turn that brings the part's heading to the slot's.
     tool_heading = sh - (heading_deg - fold_heading(heading_deg))
     target = tool_down(sx, sy, grip.z, tool_heading)
-    t0 = time.perf_counter()
     res = await rc.cmdexec(SetSpeed(p.speed), Departs(p.approach_mm), SetSpeed(p.speed), Appros(target, p.approach_mm),
                            SetSpeed(p.speed), MoveToS(target), OpenHand(), SetSpeed(p.speed), Departs(p.approach_mm))
-    cycle.steps.append(("place", t0, time.perf_counter()))
     _durations(res, cycle)
 
 
@@ -346,18 +347,18 @@ async def pickplace(rc: Robot, locator: Locator, p: PickPlaceParams, *, pallet: 
     hand_open = False
     try:
         for k in range(p.parts):
-            cycle = Cycle(k, p.first_slot + k, time.perf_counter())
+            cycle = Cycle(k, p.first_slot + k, time.monotonic())
             result.cycles.append(cycle)
             if recorder is not None:
                 recorder.mark("part", k)
-            t0 = time.perf_counter()
+            t0 = time.monotonic()
             await wait_part(rc, p)
-            cycle.steps.append(("wait part", t0, time.perf_counter()))
+            cycle.steps.append(("wait part", t0, time.monotonic()))
             for attempt in range(p.retries + 1):
                 cycle.attempts = attempt + 1
-                t0 = time.perf_counter()
+                t0 = time.monotonic()
                 part, ms = await locate_part(locator, feeder)
-                cycle.steps.append(("locate", t0, time.perf_counter()))
+                cycle.steps.append(("locate", t0, time.monotonic()))
                 cycle.located, cycle.locate_ms = part, cycle.locate_ms + ms
                 try:
                     grip = await pick(rc, part, p, cycle, hand_open=hand_open)
@@ -378,7 +379,7 @@ async def pickplace(rc: Robot, locator: Locator, p: PickPlaceParams, *, pallet: 
             await place(rc, slots[k], grip, p, cycle, part.yaw_deg)
             hand_open = True
             cycle.placed = True
-            cycle.t_end_s = time.perf_counter()
+            cycle.t_end_s = time.monotonic()
             if on_cycle is not None:
                 on_cycle(cycle)
     except BaseException as exc:  # the partial result goes with the error (a cancellation's too)

@@ -68,10 +68,10 @@ class World:
         self._sensor_on = False
         self._waiting: deque[int] = deque(p.id for p in sorted(config.parts, key=lambda p: p.fed) if p.fed)
         """The fed parts still queued, next first: not in the world yet."""
-        self._empty_since: float | None = None
+        self._empty_since: float | None = -math.inf  # an empty feeder gets its first part at once
         self._now = 0.0
         self._update_sensor(0.0)
-        self.step(0.0)  # an empty feeder gets its first part at once
+        self.step(0.0)
 
     # -- the hand ------------------------------------------------------------------------------------------
     def grasp_candidate(self, tool: Pose) -> int | None:
