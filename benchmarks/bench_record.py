@@ -5,7 +5,9 @@ The focus loop (:func:`aioadept.apps.focus.ufloop`, no init move) runs against t
 with a sharpness series and the ``camera``/``frame_seq`` of a 1024 x 768 frame saved as PNG, as the vision node
 does with ``--save-frames``. Runs alternate between ``off`` (the timing Recorder only, as before) and ``on`` (plus
 a :class:`aioadept.record.RunRecording`: run.rrd, the state stream followed, each frame read, downsampled and
-logged). The cycle is one focus step: mark ``iteration`` to the next.
+logged; and the :class:`aioadept.record.mcapfile.StateTap` that keeps the state stream for run.mcap, which is then
+written after the run, as the applications do; its writing time is reported, not judged). The cycle is one focus
+step: mark ``iteration`` to the next.
 
 Verdicts:
 
@@ -79,6 +81,7 @@ async def one_run(sim, frames: Path, steps: int, record: bool, out: Path, speed:
     from aioadept.client import RobotClient
     from aioadept.record.hook import MarkTee
     from aioadept.record.live import RunRecording
+    from aioadept.record.mcapfile import StateTap, write_run_mcap
 
     series = [float(i) for i in range(1, steps)] + [0.5]
     n = {"i": 0}
@@ -92,6 +95,7 @@ async def one_run(sim, frames: Path, steps: int, record: bool, out: Path, speed:
     recorder = Recorder()
     marks = Marks()
     rrd = None
+    tap = None
     timed: Timed | None = None
     async with contextlib.AsyncExitStack() as stack:
         responder = await stack.enter_async_context(Responder(ANY, ANY, handler))
@@ -101,6 +105,7 @@ async def one_run(sim, frames: Path, steps: int, record: bool, out: Path, speed:
                                clock_ref=recorder, short_switch_interval=True).start()  # as the CLIs record
             timed = Timed(rrd)
             observers.append(timed)
+            tap = StateTap(sim.state_endpoint).start()  # run.mcap's state messages, as run_focus_once keeps them
         rc = await stack.enter_async_context(RobotClient(sim.host, sim.port, observers=observers))
         comm = await stack.enter_async_context(
             Communicator(responder.actual_request_endpoint, responder.actual_response_endpoint, timeout_s=5, bind=False,
@@ -121,12 +126,23 @@ async def one_run(sim, frames: Path, steps: int, record: bool, out: Path, speed:
         from aioadept.commands import MoveToolZ, SetSpeed
 
         await rc.cmdexec(SetSpeed(100), MoveToolZ(-2.0 * (steps - 1)))
+    mcap_s = None
+    states_kept = 0
     if rrd is not None:
         await rrd.aclose()
+    if tap is not None:
+        payloads = await tap.stop()
+        states_kept = len(payloads)
+        t0 = time.perf_counter()
+        why = await asyncio.to_thread(write_run_mcap, recorder.snapshot(), out / "run.mcap", frames_dir=frames,
+                                      state=payloads)
+        mcap_s = time.perf_counter() - t0
+        assert why is None, why
     cycles = [b - a for a, b in zip(marks.t, marks.t[1:])]
     hooks = (timed.calls if timed else []) + t_mark
     return {"cycles_s": cycles, "hook_s": hooks, "frames": rrd.logger.counts.get("frame", 0) if rrd else 0,
-            "states": rrd.logger.counts.get("state", 0) if rrd else 0}
+            "states": rrd.logger.counts.get("state", 0) if rrd else 0, "mcap_write_s": mcap_s,
+            "mcap_states": states_kept}
 
 
 async def main_async(args: argparse.Namespace) -> dict:
@@ -147,7 +163,8 @@ async def main_async(args: argparse.Namespace) -> dict:
     off_cycles: list[float] = []
     hooks: list[float] = []
     hook_per_cycle: list[float] = []
-    counts = {"frames": 0, "states": 0}
+    counts = {"frames": 0, "states": 0, "mcap_states": 0}
+    mcap_write: list[float] = []
     async with running_sim(state_endpoint=ANY, time_scale=1.0) as sim:
         async with RobotClient(sim.host, sim.port) as rc:
             await init_move(rc)
@@ -163,6 +180,8 @@ async def main_async(args: argparse.Namespace) -> dict:
                     hook_per_cycle.append(sum(res["hook_s"]) / max(1, len(res["cycles_s"]) + 1))
                     counts["frames"] += res["frames"]
                     counts["states"] += res["states"]
+                    counts["mcap_states"] += res["mcap_states"]
+                    mcap_write.append(res["mcap_write_s"])
             per_round.append(med[True] / med[False])
     ratio = statistics.median(per_round)
     off_med = statistics.median(off_cycles)
@@ -178,6 +197,7 @@ async def main_async(args: argparse.Namespace) -> dict:
         "hooks_us": {"per_cycle_median": hook_cycle * 1e6, "max": hook_max * 1e6,
                      "p50": statistics.median(hooks) * 1e6 if hooks else None, "calls": len(hooks)},
         "logged": counts,
+        "mcap_write_ms": {"median": statistics.median(mcap_write) * 1e3, "max": max(mcap_write) * 1e3},
         "verdicts": [
             verdict("focus cycle median, recording on vs off", on_med * 1e3, off_med * 1e3, unit="ms", ratio=ratio,
                     goal="ratio <= 1.02", passed=ratio <= 1.02),

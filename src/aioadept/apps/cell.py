@@ -69,7 +69,8 @@ class RunSection:
     analyze: bool = True
     name: str = ""
     record: bool = True
-    """Write ``run.rrd`` (Rerun) into every run folder when the [viewer] extra is installed (docs/record.md)."""
+    """Write ``run.rrd`` (Rerun) and ``run.mcap`` into every run folder when the [viewer] / [mcap] extras are
+    installed (docs/record.md)."""
     view_url: str = ""
     """gRPC address of a live viewer each run streams to (set by ``--view``); empty: none."""
 
@@ -270,11 +271,12 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
     from aioadept.capture import Recorder
     from aioadept.client import RobotClient
 
-    from aioadept.record.hook import MarkTee, open_run_recording
+    from aioadept.record.hook import MarkTee, open_run_recording, open_state_tap, write_run_mcap_of
 
     params = params or cfg.focus
     recorder = Recorder()
     rrd = open_run_recording(cfg, run_dir, recorder)  # run.rrd / live view; None when off or Rerun is missing
+    state_tap = open_state_tap(cfg)  # the robot's state messages for run.mcap; None when not wanted
     observers = [recorder] if rrd is None else [recorder, rrd]
     result: FocusResult | None = None
     error: str | None = None
@@ -302,6 +304,8 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
         if not connected:  # nothing happened that a run folder could keep: leave none behind
             if rrd is not None:
                 await asyncio.shield(rrd.aclose())
+            if state_tap is not None:
+                await asyncio.shield(state_tap.stop())
             discard_run_dir(run_dir)
         raise
     finally:
@@ -319,6 +323,12 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
                 await asyncio.shield(rrd.aclose())  # flushed and closed even when the run was cancelled
                 if rrd.error is not None and rrd.rrd_path is not None:  # e.g. a full disk: named with the others
                     save_error = merged_save_error(save_error, run_dir, {rrd.rrd_path.name: rrd.error})
+            # run.mcap after run.rrd: from the same records as robot.csv/vision.csv, off the loop (it reads frames).
+            state = None if state_tap is None else await asyncio.shield(state_tap.stop())
+            mcap_error = await asyncio.shield(asyncio.to_thread(write_run_mcap_of, cfg, run_dir, recorder, meta,
+                                                                state))
+            if mcap_error is not None:
+                save_error = merged_save_error(save_error, run_dir, {"run.mcap": mcap_error})
     return RunOutcome(run_dir, result, error, save_error)
 
 

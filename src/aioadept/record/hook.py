@@ -18,7 +18,7 @@ from typing import Any
 from aioadept.record import VIEWER_INSTALL_HINT, ViewerUnavailable, rerun_available
 
 __all__ = ["add_view_options", "frames_dir_of", "keep_frames", "open_run_recording", "run_with_viewer", "start_viewer",
-           "wait_for_viewer"]
+           "mcap_wanted", "open_state_tap", "wait_for_viewer", "write_run_mcap_of"]
 
 log = logging.getLogger(__name__)
 
@@ -30,7 +30,7 @@ def add_view_options(p: argparse.ArgumentParser) -> None:
                    help="address the viewer binds (default 127.0.0.1; 0.0.0.0 opens it to the network, "
                         "see docs/security.md)")
     p.add_argument("--no-record", dest="no_record", action="store_true",
-                   help="do not write run.rrd into the run folder")
+                   help="do not write run.rrd and run.mcap into the run folder")
 
 
 def refuse_view_without_rerun(args: argparse.Namespace, prog: str) -> bool:
@@ -72,8 +72,10 @@ def wait_for_viewer(viewer: Any, prog: str) -> None:
 
 def keep_frames(cfg: Any, args: argparse.Namespace, folder: Path) -> None:
     """Have the vision node started for ``cfg`` (a CellConfig) save the frames it serves into ``folder`` when they
-    will be recorded (``run.rrd``) or shown (``--view``)."""
-    if (cfg.run.record and rerun_available()) or getattr(args, "view", False):
+    will be recorded (``run.rrd``, ``run.mcap``) or shown (``--view``)."""
+    from aioadept.record.mcapfile import mcap_available
+
+    if (cfg.run.record and (rerun_available() or mcap_available())) or getattr(args, "view", False):
         cfg.vision.save_frames = str(folder)
 
 
@@ -134,6 +136,44 @@ def open_run_recording(cfg: Any, run_dir: Path, recorder: Any) -> Any:
         log.warning("no run.rrd for this run: %s", exc)
         return None
     return rec.start()
+
+
+def mcap_wanted(cfg: Any) -> bool:
+    """True when runs of ``cfg`` (a CellConfig) get a ``run.mcap``: ``cfg.run.record`` on and the ``[mcap]`` extra
+    installed (without it the run goes on without the file: as with run.rrd, a convenience never fails a run)."""
+    from aioadept.record.mcapfile import MCAP_INSTALL_HINT, mcap_available
+
+    if not getattr(cfg.run, "record", True):
+        return False
+    if not mcap_available():
+        log.debug("no run.mcap (%s)", MCAP_INSTALL_HINT)
+        return False
+    return True
+
+
+def open_state_tap(cfg: Any) -> Any:
+    """A started :class:`~aioadept.record.mcapfile.StateTap` on the robot's state stream for ``run.mcap``, or None
+    (no run.mcap, or no state endpoint). Call it inside the event loop."""
+    from aioadept.bus.endpoints import is_none
+
+    if not mcap_wanted(cfg) or is_none(cfg.robot.state_endpoint):
+        return None
+    from aioadept.record.mcapfile import StateTap
+
+    return StateTap(cfg.robot.state_endpoint).start()
+
+
+def write_run_mcap_of(cfg: Any, run_dir: Path, recorder: Any, meta: dict[str, Any],
+                      state: list[bytes] | None = None) -> str | None:
+    """Write ``run.mcap`` of the run ``recorder`` (a :class:`aioadept.capture.Recorder`) recorded into ``run_dir``,
+    with the ``state`` payloads an :func:`open_state_tap` kept; None when written or not wanted
+    (:func:`mcap_wanted`), else why it was not written. Blocking: call it in a thread."""
+    if not mcap_wanted(cfg):
+        return None
+    from aioadept.record.mcapfile import write_run_mcap
+
+    return write_run_mcap(recorder.snapshot(metadata=meta), run_dir / "run.mcap", frames_dir=frames_dir_of(cfg),
+                          state=state)
 
 
 class MarkTee:
