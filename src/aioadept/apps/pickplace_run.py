@@ -1,6 +1,6 @@
 """One ``aioadept pickplace`` run against a cell: connect to the robot server and the vision node, run
-:func:`aioadept.apps.pickplace.pickplace`, and write the run folder (the timing logs and run.rrd as the focus app's,
-``pickplace.json``, ``summary.json``, ``gantt.png``, ``cycle_hist.png``).
+:func:`aioadept.apps.pickplace.pickplace`, and write the run folder (the timing logs, run.rrd and run.mcap as the
+focus app's, ``pickplace.json``, ``summary.json``, ``gantt.png``, ``cycle_hist.png``).
 
 ``summary.json``: ``parts_placed``, ``parts_failed``, ``place_error_mm`` / ``place_error_deg`` (per placed part,
 from the world's truth on the sim's ``world.state`` stream against its slot; empty without a world stream),
@@ -159,7 +159,7 @@ async def run_pickplace_once(cfg: CellConfig, run_dir: Path, *, interrupter: Any
     from aioadept.bus.endpoints import is_none, opposite
     from aioadept.capture import Recorder, write_atomic
     from aioadept.client import RobotClient
-    from aioadept.record.hook import MarkTee, open_run_recording
+    from aioadept.record.hook import MarkTee, open_run_recording, open_state_tap, write_run_mcap_of
 
     p = params or cfg.pickplace or PickPlaceParams()
     world = cfg.world
@@ -167,6 +167,7 @@ async def run_pickplace_once(cfg: CellConfig, run_dir: Path, *, interrupter: Any
         raise PickPlaceError("the cell has no pallet ([world.pallet]): pick and place needs its slots")
     recorder = Recorder()
     rrd = open_run_recording(cfg, run_dir, recorder)
+    state_tap = open_state_tap(cfg)  # the robot's state messages for run.mcap; None when not wanted
     observers = [recorder] if rrd is None else [recorder, rrd]
     result = PickPlaceResult()
     error: str | None = None
@@ -209,6 +210,8 @@ async def run_pickplace_once(cfg: CellConfig, run_dir: Path, *, interrupter: Any
         if not connected:
             if rrd is not None:
                 await asyncio.shield(rrd.aclose())
+            if state_tap is not None:
+                await asyncio.shield(state_tap.stop())
             discard_run_dir(run_dir)
         raise
     finally:
@@ -230,4 +233,9 @@ async def run_pickplace_once(cfg: CellConfig, run_dir: Path, *, interrupter: Any
                 log.error("run folder %s not fully written: %s", run_dir, exc)
             if rrd is not None:
                 await asyncio.shield(rrd.aclose())
+            state = None if state_tap is None else await asyncio.shield(state_tap.stop())
+            mcap_error = await asyncio.shield(asyncio.to_thread(write_run_mcap_of, cfg, run_dir, recorder, meta,
+                                                                state))
+            if mcap_error is not None:
+                log.error("run.mcap not written: %s", mcap_error)
     return PickPlaceOutcome(run_dir, summary, error)
