@@ -195,6 +195,25 @@ def test_a_cell_whose_pallet_leaves_the_workspace_is_refused_before_anything_sta
     assert not (tmp_path / "runs").exists()
 
 
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("edit, says", [
+    (("[pickplace]", "[pickplace]\nretries = 9"), "[pickplace]: retries = 9"),
+    (("part_timeout_s = 10.0", "part_timeout_s = -1.0"), "part_timeout_s = -1"),
+    (("[pickplace]", "[pickplace]\npart_sensor = 1003"), "part_sensor = 1003: the feeder's sensor is input 1002"),
+    (("[[world.parts]]", "[[world.parts]]\nbogus = 1"), "bogus"),
+    (("jitter_mm = 4.0", "jitter_mm = 60.0"), "jitter_mm = 60"),
+])
+def test_a_bad_cell_value_is_one_line_naming_file_and_key_exit_2_and_no_run_folder(edit, says, tmp_path):
+    text = EXAMPLE.read_text()
+    assert edit[0] in text
+    (tmp_path / "cell.toml").write_text(text.replace(edit[0], edit[1], 1))
+    proc = subprocess.run([sys.executable, "-m", "aioadept", "pickplace", "--config", "cell.toml"],
+                          capture_output=True, text=True, timeout=50, cwd=tmp_path)
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1 and "cell.toml" in lines[0] and says in lines[0], proc.stderr
+    assert not (tmp_path / "runs").exists()
+
+
 SIGNAL_SCRIPT = """
 import sys
 from aioadept.apps.cell import CellConfig, new_run_dir
