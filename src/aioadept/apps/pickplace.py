@@ -28,7 +28,7 @@ from typing import Any, Protocol
 from aioadept.commands import (SPEED_MAX, SPEED_MIN, Appros, CloseHand, Departs, MoveToS, OpenHand, SetSpeed, Sig,
                                WaitSig)
 from aioadept.configfile import Range, check_ranges, ranged
-from aioadept.errors import AdeptError, CommandAborted, CommandError
+from aioadept.errors import AdeptError, CommandError
 from aioadept.geometry import Pose
 from aioadept.protocol.codes import ErrorCode
 from aioadept.worldmodel import Feeder, Pallet

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from aioadept.apps.cell import CellConfig, _guarded, discard_run_dir, stop_port_of
-from aioadept.apps.pickplace import BusLocator, Locator, PickPlaceError, PickPlaceParams, PickPlaceResult, pickplace
+from aioadept.apps.pickplace import BusLocator, PickPlaceError, PickPlaceParams, PickPlaceResult, pickplace
 
 log = logging.getLogger(__name__)
 
@@ -118,7 +118,6 @@ def write_figures(result: PickPlaceResult, run_dir: Path) -> list[str]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from aioadept.capture import write_atomic  # noqa: F401  (the figures go through savefig's own file)
 
     written = []
     one = sorted(placed, key=lambda c: c.cycle_ms)[len(placed) // 2]
