@@ -118,7 +118,6 @@ def write_figures(result: PickPlaceResult, run_dir: Path) -> list[str]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-
     written = []
     one = sorted(placed, key=lambda c: c.cycle_ms)[len(placed) // 2]
     fig, ax = plt.subplots(figsize=(8, 2.6))
