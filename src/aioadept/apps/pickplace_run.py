@@ -40,6 +40,7 @@ class WorldWatch:
     def __init__(self, endpoint: str) -> None:
         self.endpoint = endpoint
         self.latest: Any = None
+        self._new = asyncio.Event()
         self._sub: Any = None
         self._task: asyncio.Task | None = None
 
@@ -63,14 +64,14 @@ class WorldWatch:
         while True:
             _topic, payload = await self._sub.recv()
             self.latest = WorldState.from_bytes(payload)
+            self._new.set()
 
     async def fresh(self, timeout_s: float = 2.0) -> Any:
         """A state published after this call (None if none comes within ``timeout_s``)."""
-        before = self.latest
+        self._new.clear()
         with contextlib.suppress(TimeoutError):
             async with asyncio.timeout(timeout_s):
-                while self.latest is before or self.latest is None:
-                    await asyncio.sleep(0.005)
+                await self._new.wait()
                 return self.latest
         return None
 
