@@ -6,8 +6,13 @@ endpoints through a pipe (a handshake, no sleep); the client side connects a PUB
 The raw ping-pong sends a pre-encoded request Event of the same size and awaits the echoed bytes, so the ratio is
 what the Communicator/Responder machinery costs: Protobuf encode/decode, ids, futures, the reader task, caching.
 
+The same Communicator + Responder also run over Eclipse Zenoh (the ``[zenoh]`` extra; issue 23): the child
+process is the Zenoh router, listening on a free 127.0.0.1 port, and this process connects to it as a client
+(multicast scouting and gossip off), with the same no-op handler and payloads. Rounds alternate raw / ZeroMQ /
+Zenoh.
+
 Prints one JSON object. Usage: ``python benchmarks/bench_bus.py [--n 3000] [--warmup 300] [--rounds 3]``.
-Target: ours p50 <= 1.3 x raw p50.
+Targets: ours p50 <= 1.3 x raw p50; ours over Zenoh p50 <= 1.3 x ours over ZeroMQ p50.
 """
 
 from __future__ import annotations
@@ -76,9 +81,41 @@ def _responder_server(conn) -> None:
     asyncio.run(main())
 
 
-def _start(target) -> tuple[mp.Process, str, str]:
+def _zenoh_responder_server(conn, router: str, key: str) -> None:
+    from aioadept.bus import zenoh as zb
+
+    zb.configure(zb.ZenohOptions.router(router))
+
+    async def main() -> None:
+        stop = asyncio.Event()
+
+        def handler(event_type, rid, attrs):
+            if event_type == "STOP":
+                stop.set()
+            return None
+
+        async with Responder(f"zenoh:{key}/request", f"zenoh:{key}/response", handler) as node:
+            conn.send((node.peer_request_endpoint, node.peer_response_endpoint))
+            await stop.wait()
+            await asyncio.sleep(0.05)
+
+    try:
+        asyncio.run(main())
+    finally:
+        zb.close_session()
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _start(target, *args: str) -> tuple[mp.Process, str, str]:
     parent, child = mp.Pipe()
-    proc = mp.get_context("spawn").Process(target=target, args=(child,), daemon=True)
+    proc = mp.get_context("spawn").Process(target=target, args=(child, *args), daemon=True)
     proc.start()
     if not parent.poll(20):
         proc.kill()
@@ -144,6 +181,8 @@ async def _communicator_client(req_ep: str, resp_ep: str, n: int, warmup: int) -
 
 
 def _run(kind: str, n: int, warmup: int) -> list[float]:
+    if kind == "zenoh":
+        return _run_zenoh(n, warmup)
     server = _raw_server if kind == "raw" else _responder_server
     client = _raw_client if kind == "raw" else _communicator_client
     proc, req, resp = _start(server)
@@ -153,6 +192,32 @@ def _run(kind: str, n: int, warmup: int) -> list[float]:
         proc.join(5)
         if proc.is_alive():
             proc.kill()
+
+
+def _run_zenoh(n: int, warmup: int) -> list[float]:
+    from aioadept.bus import zenoh as zb
+
+    router = f"tcp/127.0.0.1:{_free_port()}"
+    proc, req, resp = _start(_zenoh_responder_server, router, f"aioadept/bench/{os.urandom(4).hex()}")
+    zb.configure(zb.ZenohOptions.client(router))
+    try:
+        return asyncio.run(_communicator_client(req, resp, n, warmup))
+    finally:
+        zb.close_session()
+        proc.join(5)
+        if proc.is_alive():
+            proc.kill()
+
+
+def _zenoh_version() -> str | None:
+    try:
+        from importlib.metadata import version
+
+        import zenoh  # noqa: F401
+
+        return version("eclipse-zenoh")
+    except ImportError:
+        return None
 
 
 def _stats(samples: list[float]) -> dict[str, float]:
@@ -169,16 +234,30 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=3, help="alternating raw/ours rounds; samples are pooled")
     args = ap.parse_args()
 
+    zenoh_version = _zenoh_version()
     raw: list[float] = []
     ours: list[float] = []
+    zen: list[float] = []
     per_round = []
-    for _ in range(args.rounds):  # alternate so drifting machine load hits both alike
+    zen_per_round = []
+    for _ in range(args.rounds):  # alternate so drifting machine load hits all alike
         r_i = _run("raw", args.n, args.warmup)
         o_i = _run("ours", args.n, args.warmup)
         raw += r_i
         ours += o_i
         per_round.append(round(statistics.median(o_i) / statistics.median(r_i), 3))
+        if zenoh_version is not None:
+            z_i = _run("zenoh", args.n, args.warmup)
+            zen += z_i
+            zen_per_round.append(round(statistics.median(z_i) / statistics.median(o_i), 3))
     r, o = _stats(raw), _stats(ours)
+    z = _stats(zen) if zen else None
+    verdicts = [verdict("request->response p50, Communicator+Responder vs raw pyzmq", o["p50_us"], r["p50_us"],
+                        unit="us", goal="ratio <= 1.3", passed=o["p50_us"] / r["p50_us"] <= 1.3)]
+    if z is not None:
+        verdicts.append(verdict("request->response p50, Communicator+Responder over Zenoh vs over ZeroMQ",
+                                z["p50_us"], o["p50_us"], unit="us", goal="ratio <= 1.3",
+                                passed=z["p50_us"] / o["p50_us"] <= 1.3))
     print(json.dumps({
         "benchmark": "bus request->response latency, 127.0.0.1, server in a child process",
         "python": sys.version.split()[0], "pyzmq": zmq.__version__, "libzmq": zmq.zmq_version(),
@@ -192,9 +271,12 @@ def main() -> None:
         "cpu_count": os.cpu_count(),
         "load_avg_1min": round(os.getloadavg()[0], 2),
         "target_ratio_p50": 1.3,
-        "verdicts": [verdict("request->response p50, Communicator+Responder vs raw pyzmq", o["p50_us"],
-                             r["p50_us"], unit="us", goal="ratio <= 1.3",
-                             passed=o["p50_us"] / r["p50_us"] <= 1.3)],
+        "eclipse_zenoh": zenoh_version,
+        "communicator_responder_noop_zenoh": z,
+        "zenoh_vs_zeromq_ratio_p50": None if z is None else round(z["p50_us"] / o["p50_us"], 3),
+        "zenoh_vs_zeromq_ratio_p99": None if z is None else round(z["p99_us"] / o["p99_us"], 3),
+        "zenoh_vs_zeromq_ratio_p50_per_round": zen_per_round,
+        "verdicts": verdicts,
     }, indent=2))
 
 

@@ -117,12 +117,10 @@ async def test_stop_aborts_a_waiting_wait_sig(server):
 
 
 @pytest.mark.timeout(90)
-async def test_hand_wiring_is_the_controllers_configuration(backend, tmp_path):
+async def test_hand_wiring_is_the_controllers_configuration(backend, start_server):
     """``aioadept sim --hand OPEN,CLOSE,SWITCH``: the hand skills drive those signals on both backends (the V+
     server through OPENI/CLOSEI, which use the controller's configuration, as on a real controller)."""
-    from conftest import start
-
-    async with start(backend, tmp_path, "--hand", "5,6,1010,0.1") as srv:
+    async with start_server(backend, "--hand", "5,6,1010,0.1") as srv:
         c = await srv.connect()
         await c.send("70000001:close_hand", "70000002:wait_sig:1010,5", "70000003:sig:6,-5,-1,-2,-1001")
         acks = await c.acks(3, timeout=30)
@@ -132,17 +130,15 @@ async def test_hand_wiring_is_the_controllers_configuration(backend, tmp_path):
 
 
 @pytest.mark.timeout(90)
-async def test_state_stream_sends_each_signal_change_once_with_its_time(backend, tmp_path):
+async def test_state_stream_sends_each_signal_change_once_with_its_time(backend, start_server):
     """Both backends publish the one I/O model's changes on ``robot.state`` (the V+ server's SIGNAL and CLOSEI
     included), each once, in order, with the server time it happened."""
     import asyncio
 
-    from conftest import start
-
     from aioadept.bus.messages import ROBOT_STATE_TOPIC, RobotState
     from aioadept.bus.pubsub import Subscriber
 
-    async with start(backend, tmp_path, "--state-endpoint", "tcp://127.0.0.1:0", "--state-rate-hz", "100") as srv:
+    async with start_server(backend, "--state-endpoint", "tcp://127.0.0.1:0", "--state-rate-hz", "100") as srv:
         log = srv.log.read_text()
         endpoint = next(f.split("=", 1)[1] for ln in log.splitlines() if ln.startswith("READY")
                         for f in ln.split() if f.startswith("state="))

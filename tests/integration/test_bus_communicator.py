@@ -1,9 +1,8 @@
-"""Communicator <-> Responder over real ZeroMQ on 127.0.0.1: matching, slow joiner, stale/foreign, timeouts."""
+"""Communicator <-> Responder over real ZeroMQ and over Zenoh (the ``bus`` fixture) on 127.0.0.1: matching, slow joiner, stale/foreign, timeouts."""
 
 from __future__ import annotations
 
 import asyncio
-import socket
 import threading
 import time
 
@@ -15,9 +14,6 @@ from aioadept.bus.messages import EventMessage, decode_event, encode_event
 from aioadept.bus.pubsub import Publisher, Subscriber
 from aioadept.bus.errors import RemoteError
 from aioadept.errors import BusError, ClientStateError, RequestTimeout
-
-ANY = "tcp://127.0.0.1:*"
-
 
 class Recorder:
     def __init__(self) -> None:
@@ -37,15 +33,8 @@ class Recorder:
         self.responses.append(r)
 
 
-def free_port() -> int:
-    # The slow-joiner test needs an address nobody serves yet; ZeroMQ's connect keeps retrying it.
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 @pytest.mark.timeout(10)
-async def test_request_gets_matching_response_with_observers_and_t_request():
+async def test_request_gets_matching_response_with_observers_and_t_request(bus):
     calls = []
 
     def handler(event_type, rid, attrs):
@@ -59,7 +48,7 @@ async def test_request_gets_matching_response_with_observers_and_t_request():
         on_response = on_request
 
     rec = Recorder()
-    async with Responder(ANY, ANY, handler) as node:
+    async with Responder(bus.any(), bus.any(), handler) as node:
         async with Communicator(node.peer_request_endpoint, node.peer_response_endpoint,
                                 observers=[Broken(), rec]) as comm:
             t0 = time.time()
@@ -75,8 +64,8 @@ async def test_request_gets_matching_response_with_observers_and_t_request():
 
 
 @pytest.mark.timeout(10)
-async def test_responder_started_after_request_was_published_slow_joiner():
-    req_ep, resp_ep = f"tcp://127.0.0.1:{free_port()}", f"tcp://127.0.0.1:{free_port()}"
+async def test_responder_started_after_request_was_published_slow_joiner(bus):
+    req_ep, resp_ep = bus.fixed(), bus.fixed()
     rec = Recorder()
     async with Communicator(req_ep, resp_ep, observers=[rec], timeout_s=5.0) as comm:
         pending = asyncio.create_task(comm.request("VisionRequest", {"n": 1}))
@@ -92,11 +81,11 @@ async def test_responder_started_after_request_was_published_slow_joiner():
 
 
 @pytest.mark.timeout(10)
-async def test_stale_and_foreign_responses_are_ignored():
+async def test_stale_and_foreign_responses_are_ignored(bus):
     # A hand-made node: before each right answer it publishes an answer to the previously answered id (stale) and
     # to an id nobody asked for (foreign). It answers every copy it receives, so lost answers are repaired by the
     # communicator's re-publication like with a real node.
-    async with Subscriber(ANY, bind=True) as req_sub, Publisher(ANY) as resp_pub:
+    async with Subscriber(bus.any(), bind=True) as req_sub, Publisher(bus.any()) as resp_pub:
         async def node():
             answered: list[str] = []
             while True:
@@ -122,8 +111,8 @@ async def test_stale_and_foreign_responses_are_ignored():
 
 
 @pytest.mark.timeout(10)
-async def test_timeout_raises_request_timeout_and_republishes_same_id():
-    async with Subscriber(ANY, bind=True) as req_sub, Publisher(ANY) as resp_pub:
+async def test_timeout_raises_request_timeout_and_republishes_same_id(bus):
+    async with Subscriber(bus.any(), bind=True) as req_sub, Publisher(bus.any()) as resp_pub:
         async with Communicator(">" + req_sub.actual_endpoint, resp_pub.actual_endpoint,
                                 republish_interval_s=0.01, republish_backoff=1.5) as comm:
             got: list[bytes] = []
@@ -161,8 +150,8 @@ async def test_timeout_raises_request_timeout_and_republishes_same_id():
 
 
 @pytest.mark.timeout(10)
-async def test_concurrent_requests_are_routed_by_id_when_answered_out_of_order():
-    async with Subscriber(ANY, bind=True) as req_sub, Publisher(ANY) as resp_pub:
+async def test_concurrent_requests_are_routed_by_id_when_answered_out_of_order(bus):
+    async with Subscriber(bus.any(), bind=True) as req_sub, Publisher(bus.any()) as resp_pub:
         ids: dict[int, str] = {}
 
         async def node():  # collects all five, answers them in reverse order, then answers any repeat at once
@@ -189,14 +178,14 @@ async def test_concurrent_requests_are_routed_by_id_when_answered_out_of_order()
 
 
 @pytest.mark.timeout(10)
-async def test_repeated_id_is_answered_from_cache_not_reprocessed():
+async def test_repeated_id_is_answered_from_cache_not_reprocessed(bus):
     calls = []
 
     async def handler(t, rid, attrs):
         calls.append(rid)
         return {"count": len(calls)}
 
-    async with Responder(ANY, ANY, handler, cache_size=2) as node:
+    async with Responder(bus.any(), bus.any(), handler, cache_size=2) as node:
         async with Communicator(node.peer_request_endpoint, node.peer_response_endpoint) as comm:
             async def ask(rid: str) -> int:
                 return (await comm.request("VisionRequest", id=rid)).attributes["count"]
@@ -219,7 +208,7 @@ async def test_repeated_id_is_answered_from_cache_not_reprocessed():
 
 
 @pytest.mark.timeout(10)
-async def test_handler_errors_become_error_attribute_and_node_keeps_serving():
+async def test_handler_errors_become_error_attribute_and_node_keeps_serving(bus):
     def handler(t, rid, attrs):
         if attrs.get("fail"):
             raise LookupError("no object found")
@@ -227,7 +216,7 @@ async def test_handler_errors_become_error_attribute_and_node_keeps_serving():
             return {"flag": True}  # bool cannot be carried
         return {"ok": 1}
 
-    async with Responder(ANY, ANY, handler) as node:
+    async with Responder(bus.any(), bus.any(), handler) as node:
         async with Communicator(node.peer_request_endpoint, node.peer_response_endpoint) as comm:
             r1 = await comm.request("VisionRequest", {"fail": 1})
             r2 = await comm.request("VisionRequest", {"bad": 1})
@@ -241,7 +230,7 @@ async def test_handler_errors_become_error_attribute_and_node_keeps_serving():
 
 
 @pytest.mark.timeout(10)
-async def test_sync_handler_in_thread_does_not_block_the_loop():
+async def test_sync_handler_in_thread_does_not_block_the_loop(bus):
     release = threading.Event()
     threads = []
 
@@ -250,7 +239,7 @@ async def test_sync_handler_in_thread_does_not_block_the_loop():
         release.wait(5)
         return {"sharpness": 1.0}
 
-    async with Responder(ANY, ANY, slow_graph, in_thread=True) as node:
+    async with Responder(bus.any(), bus.any(), slow_graph, in_thread=True) as node:
         async with Communicator(node.peer_request_endpoint, node.peer_response_endpoint,
                                 republish_interval_s=0.002, republish_backoff=1.0) as comm:
             task = asyncio.create_task(comm.request("VisionRequest", {}))
@@ -266,8 +255,8 @@ async def test_sync_handler_in_thread_does_not_block_the_loop():
 
 
 @pytest.mark.timeout(10)
-async def test_paper_style_send_recv_and_topics():
-    async with Responder(ANY, ANY, lambda t, i, a: {"sharpness": 2.0}, request_topic="vision.req",
+async def test_paper_style_send_recv_and_topics(bus):
+    async with Responder(bus.any(), bus.any(), lambda t, i, a: {"sharpness": 2.0}, request_topic="vision.req",
                          response_topic="vision.resp") as node:
         async with Communicator(node.peer_request_endpoint, node.peer_response_endpoint,
                                 request_topic="vision.req", response_topic="vision.resp") as comm:
@@ -283,8 +272,8 @@ async def test_paper_style_send_recv_and_topics():
 
 
 @pytest.mark.timeout(10)
-async def test_close_fails_outstanding_and_state_errors():
-    async with Subscriber(ANY, bind=True) as req_sub, Publisher(ANY) as resp_pub:
+async def test_close_fails_outstanding_and_state_errors(bus):
+    async with Subscriber(bus.any(), bind=True) as req_sub, Publisher(bus.any()) as resp_pub:
         comm = Communicator(">" + req_sub.actual_endpoint, resp_pub.actual_endpoint)
         with pytest.raises(ClientStateError):
             await comm.request()
@@ -300,9 +289,8 @@ async def test_close_fails_outstanding_and_state_errors():
 
 
 @pytest.mark.timeout(15)
-async def test_requests_that_timed_out_while_the_node_was_down_are_not_processed_after_its_restart():
-    req_port, resp_port = free_port(), free_port()
-    req_ep, resp_ep = f"tcp://127.0.0.1:{req_port}", f"tcp://127.0.0.1:{resp_port}"
+async def test_requests_that_timed_out_while_the_node_was_down_are_not_processed_after_its_restart(bus):
+    req_ep, resp_ep = bus.fixed(), bus.fixed()
     seen: list[str] = []
 
     def handler(event_type, rid, attrs):
@@ -324,7 +312,7 @@ async def test_requests_that_timed_out_while_the_node_was_down_are_not_processed
 
 
 @pytest.mark.timeout(10)
-async def test_plain_handler_may_answer_at_once_or_return_an_awaitable_and_answers_keep_arrival_order():
+async def test_plain_handler_may_answer_at_once_or_return_an_awaitable_and_answers_keep_arrival_order(bus):
     release = asyncio.Event()
     calls: list[str] = []
 
@@ -337,7 +325,7 @@ async def test_plain_handler_may_answer_at_once_or_return_an_awaitable_and_answe
             return later()
         return {"name": attrs["name"]}
 
-    async with Responder(ANY, ANY, handler) as node, \
+    async with Responder(bus.any(), bus.any(), handler) as node, \
             Communicator(node.peer_request_endpoint, node.peer_response_endpoint, timeout_s=5) as comm:
         assert (await comm.request("VisionRequest", {"name": "quick"})).attributes["name"] == "quick"
         order: list[str] = []
@@ -369,9 +357,9 @@ async def until(predicate, timeout_s: float = 5.0) -> bool:
 
 
 @pytest.mark.timeout(15)
-async def test_send_without_recv_leaves_no_pending_entries_on_any_path(monkeypatch):
+async def test_send_without_recv_leaves_no_pending_entries_on_any_path(bus, monkeypatch):
     # Answered: the entries leave the registry when the answers arrive, not when recv() takes them.
-    async with Responder(ANY, ANY, lambda t, i, a: {"ok": 1}) as node:
+    async with Responder(bus.any(), bus.any(), lambda t, i, a: {"ok": 1}) as node:
         async with Communicator(node.peer_request_endpoint, node.peer_response_endpoint) as comm:
             first = await comm.send(EventMessage("VisionRequest", "000000a1"))
             second = await comm.send(EventMessage("VisionRequest", "000000a2"))
@@ -380,8 +368,8 @@ async def test_send_without_recv_leaves_no_pending_entries_on_any_path(monkeypat
             # The outcomes are kept for recv(), in send order.
             assert (await comm.recv()).id == first and (await comm.recv()).id == second
     # Timed out, and closed: nobody ever calls recv().
-    async with Subscriber(ANY, bind=True) as req_sub:
-        async with Communicator(">" + req_sub.actual_endpoint, "tcp://127.0.0.1:1", timeout_s=0.2) as comm:
+    async with Subscriber(bus.any(), bind=True) as req_sub:
+        async with Communicator(">" + req_sub.actual_endpoint, bus.nowhere(), timeout_s=0.2) as comm:
             await comm.send(EventMessage("VisionRequest", "000000b1"))
             assert comm.pending_ids == ("000000b1",)
             assert await until(lambda: comm.pending_ids == ()), comm.pending_ids
@@ -393,7 +381,7 @@ async def test_send_without_recv_leaves_no_pending_entries_on_any_path(monkeypat
         assert comm.pending_ids == ()
         # More sends than are kept without recv(): the oldest is forgotten (and not pending).
         monkeypatch.setattr("aioadept.bus.communicator.MAX_UNRECEIVED", 2)
-        async with Communicator(">" + req_sub.actual_endpoint, "tcp://127.0.0.1:1", timeout_s=5) as comm:
+        async with Communicator(">" + req_sub.actual_endpoint, bus.nowhere(), timeout_s=5) as comm:
             ids = [await comm.send(EventMessage("VisionRequest")) for _ in range(3)]
             assert comm.pending_ids == tuple(ids[1:])
             task = asyncio.ensure_future(comm.recv())
@@ -404,9 +392,9 @@ async def test_send_without_recv_leaves_no_pending_entries_on_any_path(monkeypat
 
 
 @pytest.mark.timeout(10)
-async def test_a_cancelled_request_leaves_no_pending_entry():
-    async with Subscriber(ANY, bind=True) as req_sub:
-        async with Communicator(">" + req_sub.actual_endpoint, "tcp://127.0.0.1:1", timeout_s=5) as comm:
+async def test_a_cancelled_request_leaves_no_pending_entry(bus):
+    async with Subscriber(bus.any(), bind=True) as req_sub:
+        async with Communicator(">" + req_sub.actual_endpoint, bus.nowhere(), timeout_s=5) as comm:
             task = asyncio.create_task(comm.request())
             await req_sub.recv()
             assert len(comm.pending_ids) == 1

@@ -45,8 +45,8 @@ async def test_bound_port_zero_resolves_and_topic_frames_arrive():
 
 
 @pytest.mark.timeout(10)
-async def test_single_frame_send_arrives_with_empty_topic():
-    async with Publisher(ANY) as pub, Subscriber(pub.actual_endpoint) as sub:
+async def test_single_frame_send_arrives_with_empty_topic(bus):
+    async with Publisher(bus.any()) as pub, Subscriber(pub.actual_endpoint) as sub:
         assert await recv_while_publishing(sub, lambda: pub.send_nowait(b"epypes-style")) == (b"", b"epypes-style")
         await pub.send(b"again")
         while (msg := await sub.recv()) != (b"", b"again"):
@@ -54,8 +54,8 @@ async def test_single_frame_send_arrives_with_empty_topic():
 
 
 @pytest.mark.timeout(10)
-async def test_sync_publisher_from_a_thread():
-    async with Subscriber(ANY, bind=True, topics=[b"t"]) as sub:
+async def test_sync_publisher_from_a_thread(bus):
+    async with Subscriber(bus.any(), bind=True, topics=[b"t"]) as sub:
         stop = threading.Event()
 
         def worker():

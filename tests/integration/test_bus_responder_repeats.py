@@ -17,11 +17,8 @@ import pytest
 from aioadept.bus.communicator import Communicator, Responder
 from aioadept.bus.messages import decode_event
 
-ANY = "tcp://127.0.0.1:*"
-
-
 @pytest.mark.timeout(10)
-async def test_repeat_of_a_queued_request_is_not_processed_again_after_cache_eviction():
+async def test_repeat_of_a_queued_request_is_not_processed_again_after_cache_eviction(bus):
     calls: list[str] = []
     a_started = asyncio.Event()
     release_a = asyncio.Event()
@@ -33,7 +30,7 @@ async def test_repeat_of_a_queued_request_is_not_processed_again_after_cache_evi
             await release_a.wait()
         return {"rid": rid}
 
-    node = Responder(ANY, ANY, handler, cache_size=1)
+    node = Responder(bus.any(), bus.any(), handler, cache_size=1)
     # Count what the node reads, per id (white box: the queue is otherwise invisible while the handler blocks).
     read: Counter[str] = Counter()
     b_repeated = asyncio.Event()

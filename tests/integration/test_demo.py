@@ -30,11 +30,14 @@ def _live_cmdlines() -> set[str]:
 
 
 @pytest.mark.timeout(120)
-def test_demo_fast_finds_the_focus_plane_writes_the_run_folder_and_leaves_no_process(tmp_path):
+@pytest.mark.parametrize("transport", ["zeromq", "zenoh"])
+def test_demo_fast_finds_the_focus_plane_writes_the_run_folder_and_leaves_no_process(tmp_path, transport):
+    if transport == "zenoh":
+        pytest.importorskip("zenoh", reason="the [zenoh] extra (eclipse-zenoh) is not installed")
     focus_offset_mm, delta_z_mm = 16.0, 2.0
     proc = subprocess.run(
         [*AIOADEPT, "demo", "--fast", "--out", str(tmp_path), "--focus-offset-mm", str(focus_offset_mm),
-         "--delta-z", str(delta_z_mm)],
+         "--delta-z", str(delta_z_mm), "--transport", transport],
         capture_output=True, text=True, timeout=110)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     (run_dir,) = [p for p in tmp_path.iterdir() if p.is_dir()]
@@ -57,6 +60,11 @@ def test_demo_fast_finds_the_focus_plane_writes_the_run_folder_and_leaves_no_pro
     live = _live_cmdlines()
     for cmd in started:
         assert " ".join(shlex.split(cmd)) not in live, f"still running: {cmd}"
+    # The run went over the transport asked for: the nodes were started on it (and the peak above shows the virtual
+    # camera followed the robot state over it).
+    for cmd in started:
+        assert ("--transport zenoh" in cmd) == (transport == "zenoh"), cmd
+        assert ("zenoh:aioadept/demo/" in cmd) == (transport == "zenoh"), cmd
 
 
 @pytest.mark.timeout(30)

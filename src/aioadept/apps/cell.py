@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from aioadept.apps.cellbus import BusSection, transport_argv, with_transport, zenoh_session
 from aioadept.apps.focus import FocusParams, FocusResult, ufloop
 from aioadept.apps.pickplace import PickPlaceParams
 from aioadept.apps.processes import NodeProcess, watch
@@ -85,6 +86,10 @@ class CellConfig:
     """The ``[pickplace]`` table (docs/pickplace.md)."""
     world: WorldConfig | None = None
     """The simulated world (``[world]``: table, parts, feeder, pallet, camera; aioadept.worldfile), or None."""
+    bus: BusSection = field(default_factory=BusSection)
+    calibration: Any = None
+    """The camera-to-robot calibration (``[calibration]``: :class:`aioadept.vision.calibration.CameraCalibration`,
+    written by ``aioadept calibrate``), or None."""
 
     @classmethod
     def from_toml(cls, path: str | Path) -> CellConfig:
@@ -97,12 +102,16 @@ class CellConfig:
         from aioadept.configfile import ConfigError, check_ranges, check_section
 
         known = {"robot": RobotSection, "vision": VisionSection, "focus": FocusParams, "run": RunSection,
-                 "world": WorldConfig, "pickplace": PickPlaceParams}
-        unknown = set(data) - set(known)
+                 "world": WorldConfig, "bus": BusSection, "pickplace": PickPlaceParams}
+        unknown = set(data) - set(known) - {"calibration"}
         if unknown:
             raise ConfigError(f"{source}: unknown section(s) {', '.join(sorted(unknown))}; expected "
-                              f"{', '.join(known)}")
-        parts = {}
+                              f"{', '.join([*known, 'calibration'])}")
+        parts: dict[str, Any] = {}
+        if "calibration" in data:
+            from aioadept.vision.calibration import CameraCalibration
+
+            parts["calibration"] = CameraCalibration.from_table(data["calibration"], f"{source} [calibration]")
         for name, typ in known.items():
             # Unknown keys, wrong types and values out of range as one line naming file, key and what was expected
             # (ConfigError).
@@ -119,6 +128,8 @@ class CellConfig:
             try:
                 parts[name] = typ(**check_section(typ, data.get(name, {}), where))  # FocusParams checks its ranges
                 check_ranges(parts[name])
+                if typ is BusSection:
+                    parts[name].check(where)
             except ConfigError:
                 raise
             except ValueError as exc:
@@ -128,6 +139,11 @@ class CellConfig:
         if "world" in v.sources() and not v.world and (cfg.world is None or cfg.world.camera is None):
             raise ConfigError(f'{source} [vision]: source = "world" needs a [world] table with [world.camera] (or '
                               f'world = FILE)')
+        if cfg.calibration is not None and v.graph == "locate" and not v.calibration and Path(source).is_file():
+            v.calibration = source  # the node a starter runs reads this file's [calibration] (vision_argv)
+        if v.graph == "locate" and not v.calibration:
+            raise ConfigError(f'{source} [vision]: graph = "locate" needs a [calibration] table (aioadept calibrate '
+                              f'writes one) or calibration = FILE')
         if not v.exposure_ms > 0:  # the node takes 0 (a camera's own minimum); a cell's camera must expose
             raise ConfigError(f"{source} [vision]: exposure_ms = {v.exposure_ms!r}: expected a finite number of "
                               f"ms > 0")
@@ -162,7 +178,12 @@ def _with_free_port(endpoint: str) -> str:
 
 
 def resolve_ports(cfg: CellConfig) -> CellConfig:
-    """Replace port 0 by free ports for the nodes this machine starts."""
+    """Replace port 0 by free ports for the nodes this machine starts (and the Zenoh router's port 0 when this
+    machine starts it), and apply the cell's transport (:func:`aioadept.apps.cellbus.with_transport`)."""
+    if cfg.bus.zenoh and cfg.bus.start_router and cfg.bus.zenoh_router.endswith(":0"):
+        host = cfg.bus.zenoh_router[len("tcp/"):].rpartition(":")[0]
+        cfg = dataclasses.replace(cfg, bus=dataclasses.replace(cfg.bus, zenoh_router=f"tcp/{host}:{free_port(host)}"))
+    cfg = with_transport(cfg)
     cfg = dataclasses.replace(cfg, robot=dataclasses.replace(cfg.robot), vision=dataclasses.replace(cfg.vision))
     if cfg.robot.start_sim:
         if cfg.robot.port == 0:
@@ -192,7 +213,8 @@ def sim_argv(cfg: CellConfig, world_file: Path | None = None) -> list[str]:
                 "--state-endpoint", r.state_endpoint, *world, *r.sim_args]
     return ["sim", "--host", r.host, "--port", str(r.port), "--stop-port", str(stop_port_of(cfg)),
             "--time-scale", str(r.time_scale),
-            "--monitor-speed", str(r.monitor_speed), "--state-endpoint", r.state_endpoint, *world, *r.sim_args]
+            "--monitor-speed", str(r.monitor_speed), "--state-endpoint", r.state_endpoint, *world,
+            *transport_argv(cfg), *r.sim_args]
 
 
 def write_world_file(cfg: CellConfig, folder: Path) -> Path | None:
@@ -236,7 +258,7 @@ def vision_argv(cfg: CellConfig, world_file: Path | None = None) -> list[str]:
             argv += [flag, str(value)]
     if world_file is not None and not v.world and "world" in v.sources():
         argv += ["--world", str(world_file)]
-    return [*argv, *v.vision_args]
+    return [*argv, *transport_argv(cfg), *v.vision_args]
 
 
 def new_run_dir(cfg: CellConfig, base: Path | None = None) -> Path:
@@ -434,6 +456,9 @@ async def running_cell(cfg: CellConfig, log_dir: Path):
     nodes: list[NodeProcess] = []
     world_file = write_world_file(cfg, log_dir) if cfg.robot.start_sim or cfg.vision.start else None
     async with contextlib.AsyncExitStack() as stack:
+        # Zenoh: this process is the cell's router (or a client of it) before any node connects to it; the
+        # session closes after the nodes have stopped.
+        stack.enter_context(zenoh_session(cfg))
         if cfg.robot.start_sim:
             sim = await stack.enter_async_context(NodeProcess("sim", sim_argv(cfg, world_file),
                                                               log_path=log_dir / "sim.log"))

@@ -16,6 +16,9 @@ An endpoint given to one side of a link describes the other side too: :func:`pee
 the explicit "connect to X" for the peer (and back). The ``READY`` line of ``aioadept vision`` gives each endpoint
 in that peer form, so what it prints can be passed as is to ``aioadept focus --request-endpoint`` or
 :class:`~aioadept.bus.Communicator`.
+
+``zenoh:KEY`` (e.g. ``zenoh:aioadept/demo/vision/request``) names a Zenoh key expression instead
+(:mod:`aioadept.bus.zenoh`): nobody binds a key, so an ``@``/``>`` prefix is accepted and means nothing there.
 """
 
 from __future__ import annotations
@@ -46,6 +49,11 @@ class Endpoint:
 
     address: str
     mode: str | None = None
+
+    @property
+    def zenoh(self) -> bool:
+        """Whether this names a Zenoh key (``zenoh:KEY``) rather than a ZeroMQ address."""
+        return self.address.startswith("zenoh:")
 
     @property
     def only_bindable(self) -> bool:
@@ -79,12 +87,17 @@ def parse_endpoint(text: str) -> Endpoint:
         mode, s = "bind", s[1:]
     elif s[:1] == ">":
         mode, s = "connect", s[1:]
+    if s.startswith("zenoh:"):
+        from aioadept.bus.zenoh import key_of  # imports no Zenoh: checks the key's spelling only
+
+        key_of(s)
+        return Endpoint(s, mode)
     if "," in s:
         raise BusError(f"endpoint {text!r}: one address per endpoint (no comma-separated lists)")
     m = _ADDRESS.match(s)
     if m is None:
         raise BusError(f"endpoint {text!r}: expected [@|>]transport://address, e.g. '@tcp://127.0.0.1:5556' "
-                       "(@ binds, > connects, bare: publishers bind and subscribers connect)")
+                       "(@ binds, > connects, bare: publishers bind and subscribers connect), or zenoh:KEY")
     if m["transport"] not in _TRANSPORTS:
         raise BusError(f"endpoint {text!r}: unknown transport {m['transport']!r}; use one of {_TRANSPORTS}")
     ep = Endpoint(s, mode)
@@ -104,6 +117,8 @@ def peer(text: str, default_bind: bool) -> str:
     """The explicit endpoint the *other* side of the link uses, given this side's ``text`` and role default: if
     this side binds X, the peer gets ``>X``; if it connects to X, the peer gets ``@X``."""
     ep = parse_endpoint(text)
+    if ep.zenoh:
+        return ep.address  # a key has no sides
     return (">" if ep.binds(default_bind) else "@") + ep.address
 
 
@@ -111,10 +126,15 @@ def opposite(text: str) -> str:
     """The same link seen from the other side: ``@X`` <-> ``>X``; a bare address stays bare (the role defaults of
     the two sides are complementary, so a bare address names the same link from either side)."""
     ep = parse_endpoint(text)
+    if ep.zenoh:
+        return ep.address
     return {"bind": ">", "connect": "@", None: ""}[ep.mode] + ep.address
 
 
 def peer_actual(text: str, default_bind: bool, actual: str) -> str:
     """:func:`peer` for a socket opened on ``text`` whose endpoint in use is ``actual`` (the real port after binding
     to port 0): the peer connects to ``actual`` if this side bound, else binds it."""
-    return (">" if parse_endpoint(text).binds(default_bind) else "@") + actual
+    ep = parse_endpoint(text)
+    if ep.zenoh:
+        return actual
+    return (">" if ep.binds(default_bind) else "@") + actual

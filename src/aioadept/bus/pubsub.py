@@ -131,7 +131,8 @@ class Publisher(_PublisherBase):
                  sndhwm: int = 1000, curve: Curve | None = None) -> None:
         # A plain (synchronous) socket on the asyncio context: sends never wait, so the asyncio machinery of
         # zmq.asyncio (a future per send) would be pure overhead on the hot path.
-        self._sock = make_socket(zmq.PUB, context=context, flavour="plain", hwm=sndhwm)
+        self._sock = make_socket(zmq.PUB, context=context, flavour="plain", hwm=sndhwm,
+                                 endpoint=endpoint)
         self._endpoint = endpoint
         self._actual, self._bind = attach(self._sock, endpoint, bind, curve)
 
@@ -167,7 +168,7 @@ class SyncPublisher(_PublisherBase):
 
     def __init__(self, endpoint: str, *, bind: bool = True, context: zmq.Context | None = None,
                  sndhwm: int = 1000, curve: Curve | None = None) -> None:
-        self._sock = make_socket(zmq.PUB, context=context, flavour="thread", hwm=sndhwm)
+        self._sock = make_socket(zmq.PUB, context=context, flavour="thread", hwm=sndhwm, endpoint=endpoint)
         self._endpoint = endpoint
         self._actual, self._bind = attach(self._sock, endpoint, bind, curve)
 
@@ -195,7 +196,7 @@ class Subscriber(_Owned):
 
     def __init__(self, endpoint: str, *, topics: Iterable[bytes | str] = (b"",), bind: bool = False,
                  context: zmq.Context | None = None, rcvhwm: int = 1000, curve: Curve | None = None) -> None:
-        self._sock = make_socket(zmq.SUB, context=context, flavour="asyncio", hwm=rcvhwm)
+        self._sock = make_socket(zmq.SUB, context=context, flavour="asyncio", hwm=rcvhwm, endpoint=endpoint)
         self._topics: list[bytes] = []
         try:
             for t in topics:
@@ -273,7 +274,8 @@ class SyncSubscriber(_Owned):
     def __init__(self, endpoint: str, *, topics: Iterable[bytes | str] = (b"",), bind: bool = False,
                  context: zmq.Context | None = None, rcvhwm: int = 1000, curve: Curve | None = None) -> None:
         self._topics = tuple(as_topic(t) for t in topics)
-        self._sock = make_socket(zmq.SUB, context=context, flavour="thread", hwm=rcvhwm, topics=self._topics)
+        self._sock = make_socket(zmq.SUB, context=context, flavour="thread", hwm=rcvhwm, topics=self._topics,
+                                 endpoint=endpoint)
         self._endpoint = endpoint
         self._actual, self._bind = attach(self._sock, endpoint, bind, curve)
 

@@ -18,6 +18,10 @@ one way out (it also releases a CURVE server's share of the authenticator).
 reader hands every queued message straight to its owner, without a task switch or a future per message (most of
 our overhead over a raw ping-pong, benchmarks/bench_bus.py). Without ``loop.add_reader`` (e.g. the Windows
 proactor loop) it falls back to a task awaiting zmq.asyncio.
+
+An endpoint written ``zenoh:KEY`` gets a :class:`~aioadept.bus.zenoh.ZenohSocket` instead (the same calls, over
+Eclipse Zenoh): :func:`make_socket` creates it, :func:`attach` declares it, :class:`SocketReader` is woken by its
+callback instead of a file descriptor, :func:`close_socket` undeclares it.
 """
 
 from __future__ import annotations
@@ -32,6 +36,7 @@ import zmq.asyncio
 
 from aioadept.bus import security
 from aioadept.bus.endpoints import resolve
+from aioadept.bus.zenoh import is_zenoh
 from aioadept.bus.security import Curve
 from aioadept.errors import BusError
 
@@ -70,9 +75,18 @@ def _context(context: zmq.Context | None, flavour: Flavour) -> zmq.Context:
 
 
 def make_socket(kind: int, *, context: zmq.Context | None = None, flavour: Flavour = "plain", hwm: int = 1000,
-                topics: Iterable[bytes | str] = (), options: Mapping[int, int] = {}) -> zmq.Socket:
+                topics: Iterable[bytes | str] = (), options: Mapping[int, int] = {},
+                endpoint: str | None = None) -> zmq.Socket:
     """A new socket, not yet bound or connected: ``LINGER 0``, ``hwm`` for its direction (RCVHWM for a SUB,
-    SNDHWM otherwise), ``options``, and for a SUB the ``topics`` prefixes. Raises :class:`BusError`."""
+    SNDHWM otherwise), ``options``, and for a SUB the ``topics`` prefixes. Raises :class:`BusError`.
+
+    An ``endpoint`` given here that is ``zenoh:KEY`` makes a Zenoh socket (:mod:`aioadept.bus.zenoh`) instead."""
+    if endpoint is not None and is_zenoh(endpoint):
+        from aioadept.bus.zenoh import make_zenoh_socket
+
+        subs = [as_topic(t) for t in topics] if kind == zmq.SUB else []
+        return make_zenoh_socket(kind, endpoint, flavour=flavour, hwm=hwm, topics=subs,  # type: ignore[return-value]
+                                 options=options)
     ctx = _context(context, flavour)
     sock = ctx.socket(kind) if flavour == "asyncio" else zmq.Socket(ctx, kind)
     opt: int = zmq.LINGER
@@ -97,7 +111,17 @@ def make_socket(kind: int, *, context: zmq.Context | None = None, flavour: Flavo
 def attach(sock: zmq.Socket, endpoint: str, bind: bool, curve: Curve | None = None) -> tuple[str, bool]:
     """Set up CURVE if asked, then bind or connect ``sock`` as ``endpoint`` says (``bind``: the role's default for a
     bare address); return ``(endpoint in use, bound)``. On failure the socket is closed and :class:`BusError`
-    raised."""
+    raised. A Zenoh socket is declared on its key instead (never "bound")."""
+    if is_zenoh_socket(sock):
+        if curve is not None:
+            close_socket(sock)
+            raise BusError(f"endpoint {endpoint!r}: CURVE is ZeroMQ's; the Zenoh transport has no CURVE "
+                           "(docs/bus.md, Zenoh)")
+        try:
+            return sock.declare(), False  # type: ignore[attr-defined]
+        except BaseException:
+            close_socket(sock)
+            raise
     try:
         address, bind = resolve(endpoint, bind)
     except BusError:
@@ -124,12 +148,20 @@ def open_socket(kind: int, endpoint: str, *, bind: bool, context: zmq.Context | 
     """A plain (synchronous) socket on the asyncio context, set up by :func:`make_socket` and :func:`attach`;
     returns ``(socket, actual_endpoint)``. The caller owns it and closes it with :func:`close_socket`.
     Raises :class:`BusError`."""
-    sock = make_socket(kind, context=context, hwm=hwm, topics=topics, options=options)
+    sock = make_socket(kind, context=context, hwm=hwm, topics=topics, options=options, endpoint=endpoint)
     return sock, attach(sock, endpoint, bind, curve)[0]
+
+
+def is_zenoh_socket(sock: object) -> bool:
+    """Whether ``sock`` is a :class:`~aioadept.bus.zenoh.ZenohSocket` (checked without importing Zenoh)."""
+    return hasattr(sock, "set_reader")
 
 
 def close_socket(sock: zmq.Socket) -> None:
     """Close a socket at once (linger 0), releasing its CURVE authenticator share if any. Idempotent."""
+    if is_zenoh_socket(sock):
+        sock.close()
+        return
     security.release(sock)
     if not sock.closed:
         sock.close(linger=0)
@@ -160,6 +192,11 @@ class SocketReader:
     def start(self) -> None:
         """Start reading on the running loop."""
         loop = self._loop = asyncio.get_running_loop()
+        if is_zenoh_socket(self._sock):
+            # Woken by the Zenoh callback (call_soon_threadsafe) instead of a file descriptor; -1 marks "reading".
+            self._fd = -1
+            self._sock.set_reader(loop, self._on_readable)  # type: ignore[attr-defined]
+            return
         fd = self._sock.getsockopt(zmq.FD)
         try:
             loop.add_reader(fd, self._on_readable)
@@ -172,7 +209,9 @@ class SocketReader:
 
     def stop_nowait(self) -> None:
         """Stop reading at once (the fallback task, if any, is cancelled; :meth:`stop` awaits it)."""
-        if self._fd is not None and self._loop is not None:
+        if self._fd == -1:
+            self._sock.set_reader(self._loop, None)  # type: ignore[attr-defined]
+        elif self._fd is not None and self._loop is not None:
             self._loop.remove_reader(self._fd)
         self._fd = None
         if self._task is not None:

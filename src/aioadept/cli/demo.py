@@ -49,6 +49,8 @@ def demo_config(args: argparse.Namespace) -> CellConfig:
         cfg.vision.response_endpoint = "tcp://127.0.0.1:0"
     # Without a file the demo starts the whole cell; a file says itself which nodes run here (start_sim = false:
     # connect to the server at robot.host:port, e.g. a real controller, and fail if nothing answers there).
+    if not args.config and args.transport == "zenoh":
+        cfg.bus.zenoh_router = "tcp/127.0.0.1:0"  # a free port for this demo's router, as above
     if args.fast:
         cfg.robot.time_scale = 10.0
     if args.time_scale is not None:

@@ -82,8 +82,17 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(cfg: CellConfig, run_dir: Path) -> int:
-    return run_once(lambda intr: run_focus_once(cfg, run_dir, interrupter=intr), run_dir,
-                    analyze=cfg.run.analyze, prog="aioadept focus")
+    from aioadept.apps.cell import resolve_ports, zenoh_session
+    from aioadept.errors import BusError
+
+    cfg = resolve_ports(cfg)  # [bus] transport = "zenoh": the cell's keys, and this process joins its router
+    try:
+        with zenoh_session(cfg):
+            return run_once(lambda intr: run_focus_once(cfg, run_dir, interrupter=intr), run_dir,
+                            analyze=cfg.run.analyze, prog="aioadept focus")
+    except BusError as exc:
+        print(f"aioadept focus: {exc}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":  # pragma: no cover

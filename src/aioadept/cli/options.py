@@ -104,6 +104,7 @@ def add_cell_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--vision-timeout", type=float, dest="vision_timeout",
                    help=option_help("seconds per vision request", FocusParams, "vision_timeout_s"))
     p.add_argument("--no-analyze", action="store_true", help="do not compute the timing analysis and plots")
+    add_transport_option(p)
     add_verbose(p)
     from aioadept.record.hook import add_view_options
 
@@ -135,6 +136,8 @@ def apply_overrides(cfg: "CellConfig", args: argparse.Namespace) -> "CellConfig"
         cfg.run.analyze = False
     if getattr(args, "no_record", False):
         cfg.run.record = False
+    if getattr(args, "transport", None):
+        cfg.bus.transport = args.transport
     return cfg
 
 
@@ -156,3 +159,56 @@ def with_default(text: str, default: object) -> str:
 def add_robot_option(p: argparse.ArgumentParser) -> None:
     """``--robot HOST[:PORT]``, read with :func:`parse_robot_address`."""
     p.add_argument("--robot", help=ROBOT_HELP)
+
+
+TRANSPORTS = defaults.TRANSPORTS
+
+_ZENOH_OPTIONS = ("cell", "zenoh_connect", "zenoh_listen")
+
+
+def add_transport_option(p: argparse.ArgumentParser) -> None:
+    """``--transport zeromq|zenoh`` (default: the cell file's, else zeromq)."""
+    p.add_argument("--transport", choices=TRANSPORTS,
+                   help="bus transport: zeromq (default; the paper's wire) or zenoh (the [zenoh] extra; docs/bus.md)")
+
+
+def add_node_transport_options(p: argparse.ArgumentParser) -> None:
+    """A node's ``--transport`` and the Zenoh options that go with it."""
+    add_transport_option(p)
+    p.add_argument("--cell", help="--transport zenoh: the cell's name in the key expressions "
+                                  "aioadept/CELL/NODE/TOPIC (default demo)")
+    p.add_argument("--zenoh-connect", metavar="tcp/HOST:PORT",
+                   help="--transport zenoh: the Zenoh router to connect to (default tcp/127.0.0.1:7447)")
+    p.add_argument("--zenoh-listen", metavar="tcp/HOST:PORT",
+                   help="--transport zenoh: be the router, listening here, instead of connecting to one")
+
+
+def apply_node_transport(values: dict, node: str, streams: dict[str, tuple[str, str, str]]) -> None:
+    """``--transport zenoh`` for node ``node`` (``sim``, ``vision``): configure this process's Zenoh session (a
+    client of ``zenoh_connect``, or the router itself with ``zenoh_listen``; multicast scouting and gossip off),
+    turn every endpoint of ``values`` named in ``streams`` (key -> (its ZeroMQ default, owner node, topic)) that is
+    still at its ZeroMQ default into the cell's key ``zenoh:aioadept/CELL/OWNER/TOPIC``, and have the node declare
+    its liveliness token when it prints READY. ValueError naming the option for a bad value."""
+    if values.get("transport") != "zenoh":
+        given = [o for o in _ZENOH_OPTIONS if values.get(o)]
+        if given:
+            raise ValueError(f"--{given[0].replace('_', '-')} needs --transport zenoh")
+        return
+    from aioadept.bus import zenoh as zb
+    from aioadept.errors import BusError
+
+    cell = values.get("cell") or zb.DEFAULT_CELL
+    try:
+        if "/" in cell:
+            raise BusError(f"--cell {cell!r}: one key chunk (letters, digits, '_', '.', '-'), no '/'")
+        zb.check_key(cell)
+        listen, connect = values.get("zenoh_listen"), values.get("zenoh_connect")
+        if listen and connect:
+            raise BusError("give --zenoh-listen (be the router) or --zenoh-connect (use one), not both")
+        zb.configure(zb.ZenohOptions.router(listen) if listen else zb.ZenohOptions.client(connect or zb.DEFAULT_ROUTER))
+        zb.announce_as(cell, node)
+    except BusError as exc:
+        raise ValueError(str(exc)) from None
+    for key, (zmq_default, owner, topic) in streams.items():
+        if values.get(key) == zmq_default:
+            values[key] = zb.endpoint_for(cell, owner, topic)

@@ -14,7 +14,8 @@ import signal
 import sys
 
 from aioadept import defaults
-from aioadept.cli.options import ArgumentParser, DefaultsHelpFormatter, description
+from aioadept.cli.options import (ArgumentParser, DefaultsHelpFormatter, add_node_transport_options,
+                                  apply_node_transport, description)
 from aioadept.geometry import NULL, Pose
 from aioadept.robots import viper_s850 as kin
 from aioadept.sim.line import CartesianLimits
@@ -137,6 +138,7 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--disk", metavar="DIR", default=None,
                    help="with --vplus: the folder that holds the program's disk files (FOPENR, FOPENW, ...); "
                         "nothing outside it is reachable; default a new temporary folder")
+    add_node_transport_options(p)
     return p
 
 
@@ -207,6 +209,9 @@ async def run(options: SimOptions) -> int:
         async with SimServer(options) as sim:
             state = sim.state_endpoint or "none"
             stop_port = sim.stop_port if sim.stop_port is not None else "none"
+            from aioadept.bus.zenoh import announce_ready
+
+            announce_ready()  # --transport zenoh: the node's liveliness token (no-op on ZeroMQ)
             print(f"READY host={sim.host} port={sim.port} state={state} stop_port={stop_port}", flush=True)
             await stop.wait()
     finally:
@@ -280,6 +285,7 @@ def main(argv: list[str] | None = None) -> int:
 
         try:
             vplus_cli.parse_port_map(args.map_port)
+            apply_node_transport(vars(args), "sim", {"state_endpoint": (DEFAULT_STATE_ENDPOINT, "sim", "state")})
             options = options_from_args(args)     # the same robot, state stream and faults as the Python backend
         except ValueError as exc:
             parser.error(str(exc))
@@ -295,6 +301,7 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
                         format="%(asctime)s %(name)s %(levelname)s %(message)s")
     try:
+        apply_node_transport(vars(args), "sim", {"state_endpoint": (DEFAULT_STATE_ENDPOINT, "sim", "state")})
         options = options_from_args(args)
     except ValueError as exc:
         parser.error(str(exc))

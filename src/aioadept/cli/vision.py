@@ -93,10 +93,18 @@ def build_parser() -> argparse.ArgumentParser:
                         "ms for 1024x768 mono8)")
     p.add_argument("--frame-timeout", type=float,
                    help=option_help("max wait for a frame", VisionOptions, "frame_timeout"))
-    p.add_argument("--graph", choices=("sharpness", "frame-sharpness", "noop"),
+    p.add_argument("--graph", choices=("sharpness", "frame-sharpness", "noop", "locate"),
                    help="processing graph: sharpness (the paper's, of the calibration object; default), "
                         "frame-sharpness (the whole frame, no object search: aiming a real camera), noop (latency "
-                        "tests)")
+                        "tests), locate (the part locator: answers LocateRequest events; needs --calibration)")
+    p.add_argument("--calibration", metavar="FILE",
+                   help="--graph locate: the cell file whose [calibration] table holds the camera's intrinsics and "
+                        "pose in the robot base frame (aioadept calibrate writes it)")
+    p.add_argument("--part-height-mm", type=float,
+                   help="--graph locate: height of the parts' top faces above the table (default: unknown; marked "
+                        "parts then use the marker's own depth, coloured parts need it in the request)")
+    p.add_argument("--marker-mm", type=float, help="--graph locate: side of the parts' ArUco markers (default 15)")
+    p.add_argument("--aruco-dict", help="--graph locate: the markers' ArUco dictionary (default DICT_4X4_50)")
     p.add_argument("--graph-thread", choices=GRAPH_THREAD_CHOICES,
                    help="where the graph runs: auto (default: on the event loop while its measured cost is at most "
                         "--graph-inline-max-ms, else in the node's worker thread), always (worker), never (loop)")
@@ -129,6 +137,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--curve-allow", action="append", metavar="FILE",
                    help="CURVE: public certificate (NAME.key) of a requester allowed in (repeatable; without any, "
                         "every requester that knows the node's public key is accepted)")
+    from aioadept.cli.options import add_node_transport_options
+
+    add_node_transport_options(p)
     return p
 
 
@@ -156,6 +167,8 @@ def load_config(path: str) -> dict[str, Any]:
             out["world"] = str(path)  # the cell file's own [world]
         if cfg.vision.vision_args:
             out["vision_args"] = list(cfg.vision.vision_args)
+        if cfg.calibration is not None and "calibration" not in out:  # the locator's camera: this cell's own
+            out["calibration"] = str(path)
     else:
         opts = VisionOptions.from_table(data, str(path))
         out = {k: v for k, v in opts.to_dict().items() if k in {str(k).replace("-", "_") for k in data}}
@@ -169,6 +182,7 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
     parser = build_parser()
     args = parser.parse_args(argv)
     merged = dict(DEFAULTS)
+    merged.update(transport="zeromq", cell=None, zenoh_connect=None, zenoh_listen=None)
     if args.config:
         try:
             merged.update(load_config(args.config))
@@ -218,6 +232,15 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
         value = merged[key]
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             parser.error(f"{key.replace('_', '-')} must be an integer >= 1, got {value!r}")
+    from aioadept.cli.options import apply_node_transport
+
+    try:
+        apply_node_transport(merged, "vision", {
+            "request_endpoint": (defaults.REQUEST_ENDPOINT, "vision", "request"),
+            "response_endpoint": (defaults.RESPONSE_ENDPOINT, "vision", "response"),
+            "state_endpoint": (defaults.STATE_ENDPOINT, "sim", "state")})
+    except ValueError as exc:
+        parser.error(str(exc))
     from aioadept.bus.endpoints import is_none, parse_endpoint
     from aioadept.errors import BusError
 
@@ -249,6 +272,17 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
         if merged["world_config"].camera is None:
             raise SystemExit(report("aioadept vision", ValueError(
                 f"{merged['world']}: the world has no [world.camera] for --source world")))
+    merged["locate_calibration"] = None
+    if merged["graph"] == "locate":
+        if not merged["calibration"]:
+            parser.error("--graph locate needs --calibration FILE (a cell file with a [calibration] table)")
+        from aioadept.configfile import report
+        from aioadept.vision.calibration import load_calibration
+
+        try:  # before anything starts: one line naming the file and the key
+            merged["locate_calibration"] = load_calibration(merged["calibration"])
+        except ValueError as exc:
+            raise SystemExit(report("aioadept vision", exc)) from None
     return argparse.Namespace(**merged)
 
 

@@ -26,6 +26,8 @@ _EXPORTS = {
     "paper_approach_pose": "virtual_camera", "camera_facing_tool": "virtual_camera",
     "Acquisition": "acquisition", "FrameRing": "acquisition",
     "VisionNode": "node", "noop_graph": "node",
+    "locate_graph": "locate", "LocatorNode": "locate_node", "CameraCalibration": "calibration",
+    "calibrate_eye_to_hand": "calibration",
     "write_figures": "figures",
     "raise_for_error": "responses",
 }

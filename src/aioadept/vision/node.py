@@ -155,7 +155,7 @@ class VisionNode:
                 result = self._refuse_stale(frame, t_request)
                 if result is None:
                     self.inline_runs += on_loop
-                    result = self._measure(frame, t_request)
+                    result = self._measure(frame, t_request, attributes)
             self._merge(out, i, cid, result)
         return self._count(out)
 
@@ -178,13 +178,13 @@ class VisionNode:
                     result = stale
                 elif self.runs_inline():
                     self.inline_runs += 1
-                    result = self._measure(frame, t_request)
+                    result = self._measure(frame, t_request, attributes)
                 else:
                     self.thread_runs += 1
                     if self._executor is None:
                         self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vision-node")
                     result = await asyncio.get_running_loop().run_in_executor(
-                        self._executor, self._measure, frame, t_request)
+                        self._executor, self._measure, frame, t_request, attributes)
             self._merge(out, i, cid, result)
         return self._count(out)
 
@@ -260,14 +260,12 @@ class VisionNode:
         t_request = attributes.get("t_request")
         log.info("%s %s t_request=%.3f camera=%s -> %s", event_type, event_id,
                  t_request if isinstance(t_request, (int, float)) else float("nan"), out.get("camera"),
-                 (f"error: {out['error']}" if "error" in out else
-                  f"sharpness={out['sharpness']:.3f} frame_t={out['frame_t']:.3f} "
-                  f"age={out['frame_age_ms']:.1f} ms proc={out['proc_time_ms']:.2f} ms"))
+                 f"error: {out['error']}" if "error" in out else self.describe(out))
 
-    def _measure(self, frame: Frame, t_request: float) -> dict[str, Any]:
+    def _measure(self, frame: Frame, t_request: float, attributes: Mapping[str, Any] | None = None) -> dict[str, Any]:
         """The offloadable work of one frame (graph, saving the frame); its wall time feeds ``cost_ms``."""
         t0 = time.perf_counter()
-        res = measure(frame.image, self.graph)
+        result = self.analyse(frame.image, attributes or {})
         if self.recorder is not None:
             # Saving a frame (PNG encoding, ~10 ms for 1024x768) is not part of the answer: it goes to the writer
             # thread and happens while the response travels and the robot makes its next move.
@@ -278,12 +276,22 @@ class VisionNode:
         self.cost_ms = cost_ms if self.cost_ms is None else \
             self.cost_ms + self.COST_EWMA_ALPHA * (cost_ms - self.cost_ms)
         attrs = self._frame_attrs(frame, t_request)
-        attrs["proc_time_ms"] = res.proc_time_ms
-        if res.ok:
-            attrs["sharpness"] = float(res.sharpness)
-        else:
-            attrs["error"] = res.error
+        attrs.update(result)
         return attrs
+
+    def analyse(self, image: Any, attributes: Mapping[str, Any]) -> dict[str, Any]:
+        """The graph's answer for one frame as response attributes: ``sharpness`` or ``error``, and
+        ``proc_time_ms``. A node serving another graph (:class:`aioadept.vision.locate_node.LocatorNode`) overrides
+        it; ``attributes`` are the request's."""
+        res = measure(image, self.graph)
+        if res.ok:
+            return {"proc_time_ms": res.proc_time_ms, "sharpness": float(res.sharpness)}
+        return {"proc_time_ms": res.proc_time_ms, "error": res.error}
+
+    def describe(self, out: Mapping[str, Any]) -> str:
+        """The log line's summary of a successful answer."""
+        return (f"sharpness={out['sharpness']:.3f} frame_t={out['frame_t']:.3f} age={out['frame_age_ms']:.1f} ms "
+                f"proc={out['proc_time_ms']:.2f} ms")
 
     SAVE_QUEUE = 16
     """Frames waiting for the writer thread; when it falls this far behind, the node waits for it (back-pressure,

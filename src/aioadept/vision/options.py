@@ -28,7 +28,7 @@ SOURCES: dict[str, str] = {
 
 POLICIES = ("nearest", "after")
 TRIGGERS = ("auto", "software", "free")
-GRAPHS = ("sharpness", "frame-sharpness", "noop")
+GRAPHS = ("sharpness", "frame-sharpness", "noop", "locate")
 GRAPH_THREADS = ("auto", "always", "never")
 
 
@@ -77,6 +77,11 @@ class VisionOptions:
     readout_ms: float | None = None
     frame_timeout: float = ranged(1.0, Range(0.0, lo_open=True, unit="s"))
     graph: str = "sharpness"
+    calibration: str | None = None
+    """``graph = "locate"``: the cell file with the ``[calibration]`` table (:mod:`aioadept.vision.calibration`)."""
+    part_height_mm: float | None = ranged(None, Range(-1000.0, 2000.0, unit="mm"))
+    marker_mm: float = ranged(15.0, Range(0.1, 1000.0, unit="mm"))
+    aruco_dict: str = "DICT_4X4_50"
     graph_thread: str = "auto"
     graph_inline_max_ms: float = ranged(5.0, Range(0.0, unit="ms"))
     inline: bool = False
@@ -127,6 +132,9 @@ class VisionOptions:
             value = getattr(self, key)
             if value not in allowed:
                 raise ValueError(f'{key} = "{value}": expected one of {", ".join(allowed)}')
+        if not (self.aruco_dict.startswith("DICT_") and self.aruco_dict.split("_")[1][:1].isdigit()):
+            raise ValueError(f'aruco_dict = "{self.aruco_dict}": expected an OpenCV ArUco dictionary name such as '
+                             f'DICT_4X4_50')
         from aioadept.vision.gige import PIXEL_FORMATS
 
         if self.pixel_format not in PIXEL_FORMATS:

@@ -82,6 +82,11 @@ def make_sources(opts: argparse.Namespace, pose_at: Any, state_age: Any = None, 
     return sources
 
 
+def locate_hyperparameters(opts: argparse.Namespace) -> dict[str, Any]:
+    """The locator graph's frozen tokens from the options (``--part-height-mm``, ``--marker-mm``, ``--aruco-dict``)."""
+    return {"height_mm": opts.part_height_mm, "marker_mm": float(opts.marker_mm), "dictionary": opts.aruco_dict}
+
+
 async def serve(opts: argparse.Namespace) -> int:
     from aioadept.vision.acquisition import Acquisition
     from aioadept.vision.node import NodeResponder, VisionNode, noop_graph
@@ -116,17 +121,25 @@ async def serve(opts: argparse.Namespace) -> int:
         # Serve only once every camera has a frame: the first render/read pays one-off costs (imports, caches).
         if not await asyncio.to_thread(acq.wait_ready, 10.0):
             log.warning("not every camera delivered a frame within 10 s; serving anyway")
-        graph = (noop_graph() if opts.graph == "noop" else
-                 frame_sharpness_graph() if opts.graph == "frame-sharpness" else sharpness_graph())
-        node = VisionNode(acq, graph, policy=opts.policy, timeout_s=opts.frame_timeout, recorder=recorder,
-                          graph_thread=opts.graph_thread, inline_max_ms=float(opts.graph_inline_max_ms),
-                          max_state_age_s=opts.max_state_age, max_frame_age_s=opts.max_frame_age)
-        # Frame waits are awaited on the loop and the graph runs where --graph-thread says, so the loop is never
-        # blocked for longer than one cheap graph run; requests that need no waiting are answered in the socket
-        # callback (NodeResponder).
-        responder = NodeResponder(opts.request_endpoint, opts.response_endpoint, node,
-                                  max_queue=opts.max_queue, max_request_bytes=opts.max_request_bytes,
-                                  **({"curve": opts.curve} if opts.curve is not None else {}))
+        node_options = dict(policy=opts.policy, timeout_s=opts.frame_timeout, recorder=recorder,
+                            graph_thread=opts.graph_thread, inline_max_ms=float(opts.graph_inline_max_ms),
+                            max_state_age_s=opts.max_state_age, max_frame_age_s=opts.max_frame_age)
+        responder_options = dict(max_queue=opts.max_queue, max_request_bytes=opts.max_request_bytes,
+                                 **({"curve": opts.curve} if opts.curve is not None else {}))
+        if opts.graph == "locate":  # the part locator: LocateRequest events, answered with parts in base coordinates
+            from aioadept.vision.locate_node import LocatorNode, locate_responder
+
+            node = LocatorNode(acq, opts.locate_calibration, hyperparameters=locate_hyperparameters(opts),
+                               **node_options)
+            responder = locate_responder(opts.request_endpoint, opts.response_endpoint, node, **responder_options)
+        else:
+            graph = (noop_graph() if opts.graph == "noop" else
+                     frame_sharpness_graph() if opts.graph == "frame-sharpness" else sharpness_graph())
+            node = VisionNode(acq, graph, **node_options)
+            # Frame waits are awaited on the loop and the graph runs where --graph-thread says, so the loop is
+            # never blocked for longer than one cheap graph run; requests that need no waiting are answered in the
+            # socket callback (NodeResponder).
+            responder = NodeResponder(opts.request_endpoint, opts.response_endpoint, node, **responder_options)
         responder.start()
         cams = ",".join(acq.camera_ids)
         from aioadept.bus.endpoints import opposite
@@ -136,6 +149,9 @@ async def serve(opts: argparse.Namespace) -> int:
         # --request-endpoint/--response-endpoint). node_request=/node_response=: the same links as this node uses
         # them (real ports), so neither side has to be guessed.
         mcn_req, mcn_resp = responder.peer_request_endpoint, responder.peer_response_endpoint
+        from aioadept.bus.zenoh import announce_ready
+
+        announce_ready()  # --transport zenoh: the node's liveliness token, as it starts serving (no-op on ZeroMQ)
         print(f"READY request={mcn_req} response={mcn_resp} node_request={opposite(mcn_req)} "
               f"node_response={opposite(mcn_resp)} "
               f"cameras={cams} fps={opts.fps:g} policy={opts.policy} graph={opts.graph} "

@@ -75,7 +75,11 @@ async def run(args: argparse.Namespace, options: Any) -> int:
     listening = [False]
 
     def on_listen(vport: int, host: str, port: int) -> None:
+        from aioadept.bus.zenoh import announce_ready
+
         listening[0] = True
+
+        announce_ready()  # --transport zenoh: the node's liveliness token (no-op on ZeroMQ)
         print(f"READY host={host} port={port} vport={vport} state={state}", flush=True)
 
     emu.rt.devices = Network(args.host, port_map, on_listen, faults=options.faults)

@@ -1,0 +1,103 @@
+"""The cell file's ``[bus]`` table and what follows from it: which transport carries the vision requests and the
+robot state (ZeroMQ, the default and the paper's wire, or Eclipse Zenoh), the cell's Zenoh key expressions, the
+options a started node gets, and the starter's own Zenoh session (docs/bus.md, "Zenoh, the second transport").
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+from aioadept.defaults import TRANSPORTS
+
+__all__ = ["BusSection", "transport_argv", "with_transport", "zenoh_session"]
+
+
+@dataclass(slots=True)
+class BusSection:
+    """The cell file's ``[bus]`` table: which transport carries the vision requests and the robot state
+    (docs/bus.md). ZeroMQ (the default) uses the endpoints of ``[robot]`` and ``[vision]`` as written; with
+    ``transport = "zenoh"`` every endpoint left as a ZeroMQ address becomes the cell's key expression
+    ``aioadept/<cell>/<node>/<topic>``, and the processes meet at ``zenoh_router``."""
+
+    transport: str = "zeromq"
+    """``zeromq`` or ``zenoh`` (the [zenoh] extra)."""
+    cell: str = "demo"
+    """The cell's name in the Zenoh key expressions (one key chunk)."""
+    zenoh_router: str = "tcp/127.0.0.1:7447"
+    """``tcp/HOST:PORT`` of the Zenoh router (port 0 with ``start_router``: a free one)."""
+    start_router: bool = True
+    """The starter (``aioadept demo``/``focus``) is the router, listening on ``zenoh_router``; false: connect to a
+    router that runs elsewhere."""
+
+    def check(self, where: str) -> None:
+        """ValueError naming the key for a value out of its choices."""
+        if self.transport not in TRANSPORTS:
+            raise ValueError(f"transport = {self.transport!r}: expected one of {', '.join(TRANSPORTS)}")
+        from aioadept.bus import zenoh as zb
+        from aioadept.errors import BusError
+
+        try:
+            if "/" in self.cell:
+                raise BusError(f"cell = {self.cell!r}: one key chunk (letters, digits, '_', '.', '-'), no '/'")
+            zb.check_key(self.cell)
+        except BusError as exc:
+            raise ValueError(f"cell: {exc}") from None
+        host_port = self.zenoh_router.rpartition(":")
+        try:
+            if host_port[2] == "0" and self.start_router:
+                zb.check_locator(host_port[0] + ":1")  # a free port is picked at start
+            else:
+                zb.check_locator(self.zenoh_router)
+        except BusError as exc:
+            raise ValueError(f"zenoh_router: {exc}") from None
+
+    @property
+    def zenoh(self) -> bool:
+        return self.transport == "zenoh"
+
+
+def with_transport(cfg: Any) -> Any:
+    """``cfg`` with ``[bus] transport = "zenoh"`` applied: every endpoint that is a ZeroMQ address becomes the
+    cell's key (``zenoh:aioadept/<cell>/sim/state``, ``.../vision/request``, ``.../vision/response``); a
+    ``zenoh:`` endpoint or ``none`` is kept. The same ``cfg`` on ZeroMQ."""
+    if not cfg.bus.zenoh:
+        return cfg
+    from aioadept.bus.endpoints import is_none
+    from aioadept.bus.zenoh import endpoint_for, is_zenoh
+
+    cfg = dataclasses.replace(cfg, robot=dataclasses.replace(cfg.robot), vision=dataclasses.replace(cfg.vision))
+    for section, name, owner, topic in ((cfg.robot, "state_endpoint", "sim", "state"),
+                                        (cfg.vision, "request_endpoint", "vision", "request"),
+                                        (cfg.vision, "response_endpoint", "vision", "response")):
+        value = getattr(section, name)
+        if not is_none(value) and not is_zenoh(value):
+            setattr(section, name, endpoint_for(cfg.bus.cell, owner, topic))
+    return cfg
+
+
+def transport_argv(cfg: Any) -> list[str]:
+    """The ``--transport`` options a node of ``cfg`` is started with (none on ZeroMQ)."""
+    if not cfg.bus.zenoh:
+        return []
+    return ["--transport", "zenoh", "--cell", cfg.bus.cell, "--zenoh-connect", cfg.bus.zenoh_router]
+
+
+@contextlib.contextmanager
+def zenoh_session(cfg: Any, node: str = "app"):
+    """For a Zenoh cell: this process's session (the router when ``start_router``, else a client of it), declared
+    as node ``node``, closed on exit. Nothing on ZeroMQ."""
+    if not cfg.bus.zenoh:
+        yield
+        return
+    from aioadept.bus import zenoh as zb
+
+    zb.configure(zb.ZenohOptions.router(cfg.bus.zenoh_router) if cfg.bus.start_router
+                 else zb.ZenohOptions.client(cfg.bus.zenoh_router))
+    try:
+        zb.declare_node(cfg.bus.cell, node)
+        yield
+    finally:
+        zb.close_session()
