@@ -8,9 +8,10 @@ hand's HAND.TIME waits (both from the server's acks) plus the locate request's t
 wall clock from the part's ``wait_sig`` to its release's ``departs`` acked. The ratio's median is the verdict
 (goal <= 1.10): what the app, the wire and the client add to what the robot must take.
 
-The locator is the world's truth on ``world.state`` (aioadept.testing.world_truth), not the camera: this measures
-the motion sequence; the vision node's locate time is measured in its own benchmark. Prints one JSON object.
-Usage: ``python benchmarks/bench_pickplace.py [--parts 100] [--time-scale 5] [--backends python,vplus]``.
+The locator is the app's own: the vision node's part locator on the world camera's images (its request's time is
+in the floor). ``--locator truth`` answers from the world's truth on ``world.state`` instead
+(aioadept.testing.world_truth: the motion sequence alone). Prints one JSON object. Usage:
+``python benchmarks/bench_pickplace.py [--parts 100] [--time-scale 5] [--backends python,vplus] [--locator truth]``.
 """
 
 from __future__ import annotations
@@ -34,11 +35,11 @@ ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "pickplace-cell.toml"
 
 
-def run_backend(backend: str, parts: int, time_scale: float, out: Path) -> dict:
+def run_backend(backend: str, parts: int, time_scale: float, out: Path, truth: bool) -> dict:
     from aioadept.cli.pickplace import run
 
     cfg = CellConfig.from_toml(EXAMPLE)
-    cfg.vision.start = False
+    cfg.vision.start = not truth
     cfg.robot.time_scale = time_scale
     cfg.run.out_dir = str(out)
     cfg.run.name = f"bench-{backend}"
@@ -51,7 +52,8 @@ def run_backend(backend: str, parts: int, time_scale: float, out: Path) -> dict:
                               "--run", "rs.main"]
     run_dir = new_run_dir(cfg)
     with contextlib.redirect_stdout(sys.stderr):  # the app's one line; stdout carries only the JSON
-        code = run(cfg, run_dir, locator=lambda comm, c: WorldTruthLocator(c.robot.state_endpoint, c.world))
+        code = run(cfg, run_dir, locator=(lambda comm, c: WorldTruthLocator(c.robot.state_endpoint, c.world))
+                   if truth else None)
     s = json.loads((run_dir / "summary.json").read_text()) if (run_dir / "summary.json").is_file() else {}
     ratios = [c / f for c, f in zip(s.get("cycle_ms", []), s.get("floor_ms", [])) if f > 0]
     return {
@@ -71,11 +73,13 @@ def main() -> None:
     ap.add_argument("--parts", type=int, default=100)
     ap.add_argument("--time-scale", type=float, default=5.0)
     ap.add_argument("--backends", default="python,vplus")
+    ap.add_argument("--locator", choices=("vision", "truth"), default="vision")
     args = ap.parse_args()
     results, verdicts = {}, []
     with tempfile.TemporaryDirectory() as tmp:
         for backend in args.backends.split(","):
-            r = results[backend] = run_backend(backend, args.parts, args.time_scale, Path(tmp))
+            r = results[backend] = run_backend(backend, args.parts, args.time_scale, Path(tmp),
+                                                        args.locator == "truth")
             print(f"{backend}: {json.dumps(r)}", file=sys.stderr)
             verdicts.append(verdict(f"pickplace {backend}: median cycle / floor", r["cycle_ms_p50"],
                                     r["floor_ms_p50"], unit="ms", ratio=r["ratio_p50"], goal="ratio <= 1.10",
@@ -85,6 +89,7 @@ def main() -> None:
                                     r["parts_dropped"], None, unit="parts",
                                     goal=f"{args.parts} of {args.parts} placed, 0 drops", passed=clean))
     print(json.dumps({"python": platform.python_version(), "parts": args.parts, "time_scale": args.time_scale,
+                      "locator": args.locator,
                       "results": results, "verdicts": verdicts}, indent=2))
 
 

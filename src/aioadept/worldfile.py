@@ -162,7 +162,7 @@ def _part(data: Any, where: str, aruco_dict: str) -> PartSpec:
                     float(t.x_mm), float(t.y_mm), float(t.yaw_deg))
 
 
-def _queue(feeder: Feeder, parts: list[PartSpec], where: str) -> tuple[PartSpec, ...]:
+def _queue(feeder: Feeder, parts: list[PartSpec], where: str, n_ids: int) -> tuple[PartSpec, ...]:
     """The feeder's queued parts (:func:`aioadept.worldmodel.fed_parts`), checked: a template to copy, and each part
     inside the feeder's rectangle (else it would never turn the part-present sensor on)."""
     if feeder.template is None:
@@ -177,7 +177,9 @@ def _queue(feeder: Feeder, parts: list[PartSpec], where: str) -> tuple[PartSpec,
     if 2 * feeder.jitter_mm > min(feeder.width_mm, feeder.depth_mm):
         raise ConfigError(f"{where}: jitter_mm = {feeder.jitter_mm:g}: a fed part could lie outside the feeder "
                           f"(at most half its width and depth, {min(feeder.width_mm, feeder.depth_mm) / 2:g} mm)")
-    return fed_parts(feeder, template, max(p.id for p in parts) + 1 if parts else 1)
+    used = {p.marker for p in parts if p.marker is not None}
+    free = tuple(m for m in range(n_ids) if m not in used)
+    return fed_parts(feeder, template, max(p.id for p in parts) + 1 if parts else 1, free)
 
 
 def world_from_table(data: Any, where: str = "[world]") -> WorldConfig:
@@ -200,7 +202,7 @@ def world_from_table(data: Any, where: str = "[world]") -> WorldConfig:
                         None if f.template is None else int(f.template), float(f.interval_s), float(f.jitter_mm),
                         float(f.jitter_deg), int(f.seed))
         if feeder.queue:
-            parts += _queue(feeder, parts, f"{where} feeder")
+            parts += _queue(feeder, parts, f"{where} feeder", ARUCO_DICTS[w.aruco_dict])
     if w.pallet is not None:
         p = _table(_PalletTable, w.pallet, f"{where} pallet")
         pallet = Pallet(p.x_mm, p.y_mm, p.yaw_deg, int(p.rows), int(p.cols), p.pitch_x_mm, p.pitch_y_mm)

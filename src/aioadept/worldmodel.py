@@ -204,16 +204,22 @@ class WorldSnapshot:
         raise KeyError(part_id)
 
 
-def fed_parts(feeder: Feeder, template: PartSpec, first_id: int) -> tuple[PartSpec, ...]:
+def fed_parts(feeder: Feeder, template: PartSpec, first_id: int,
+              free_markers: tuple[int, ...] = ()) -> tuple[PartSpec, ...]:
     """The ``feeder.queue`` parts the feeder brings, in order: copies of ``template`` with ids from ``first_id``,
-    each at the feeder's centre plus its jitter (seeded: pure). They share the template's marker id: only one of them
-    lies in the feeder at a time, so a locator looking there sees one."""
+    each at the feeder's centre plus its jitter (seeded: pure). A marked template's copies take the ids of
+    ``free_markers`` (the dictionary's ids no listed part uses) in turn, from the first after the template's: every
+    fed part has its own marker until the dictionary runs out, then they repeat."""
     rng = np.random.default_rng(feeder.seed)
+    start = sum(1 for m in free_markers if template.marker is not None and m < template.marker)
     out = []
     for k in range(1, feeder.queue + 1):
         dx, dy = rng.uniform(-1.0, 1.0, 2) * feeder.jitter_mm
         dyaw = float(rng.uniform(-1.0, 1.0)) * feeder.jitter_deg
-        out.append(PartSpec(first_id + k - 1, template.shape, template.size_mm, template.colour, template.marker,
+        marker = template.marker
+        if marker is not None and free_markers:
+            marker = free_markers[(start + k - 1) % len(free_markers)]
+        out.append(PartSpec(first_id + k - 1, template.shape, template.size_mm, template.colour, marker,
                             template.marker_mm, round(feeder.x_mm + float(dx), 3), round(feeder.y_mm + float(dy), 3),
                             round(template.yaw_deg + dyaw, 3), fed=k))
     return tuple(out)

@@ -25,6 +25,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+from aioadept.bus.located import LOCATE_REQUEST, LocatedPart, parts_from_attributes
 from aioadept.commands import (SPEED_MAX, SPEED_MIN, Appros, CloseHand, Departs, MoveToS, OpenHand, SetSpeed, Sig,
                                WaitSig)
 from aioadept.configfile import Range, check_ranges, ranged
@@ -35,8 +36,6 @@ from aioadept.worldmodel import Feeder, Pallet
 
 log = logging.getLogger(__name__)
 
-LOCATE_REQUEST = "LocateRequest"
-"""The event type of a part-locator request (the vision node's locator answers it; docs/pickplace.md)."""
 
 _SPEED = Range(SPEED_MIN, SPEED_MAX, integer=True, unit="%")
 MOTION_SKILLS = frozenset({"appros", "appro", "departs", "depart", "move_to_s", "move_to", "move_rel_tool_s"})
@@ -95,18 +94,6 @@ class PickPlaceParams:
 
 # ------------------------------------------------------------------------------------------------- the locator
 @dataclass(frozen=True, slots=True)
-class LocatedPart:
-    """A part in robot base coordinates: its top face's centre and its turn about the base z axis (the locator
-    node's ``LocatedPart``, aioadept.bus.messages on the o-locate branch, carries the same fields)."""
-
-    x_mm: float
-    y_mm: float
-    z_mm: float
-    yaw_deg: float
-    marker: int | None = None
-
-
-@dataclass(frozen=True, slots=True)
 class LocateAnswer:
     parts: tuple[LocatedPart, ...]
     processing_ms: float
@@ -145,21 +132,14 @@ class BusLocator:
 
 
 def parts_of(attrs: dict[str, Any]) -> tuple[LocatedPart, ...]:
-    """The parts of a locate answer's attributes; :class:`PickPlaceError` for an error answer or a bad one."""
+    """The parts of a locate answer's attributes (:func:`aioadept.bus.located.parts_from_attributes`);
+    :class:`PickPlaceError` for an error answer or a bad one."""
     if attrs.get("error"):
         raise PickPlaceError(f"locate: the vision node answered: {attrs['error']}")
-    n = attrs.get("parts")
-    if isinstance(n, bool) or not isinstance(n, int) or n < 0:
-        raise PickPlaceError(f"locate: parts = {n!r} in the answer: expected the number of parts found")
-    out = []
-    for i in range(n):
-        try:
-            x, y, z, yaw = (float(attrs[f"part.{i}.{k}"]) for k in ("x_mm", "y_mm", "z_mm", "yaw_deg"))
-        except (KeyError, TypeError, ValueError) as exc:
-            raise PickPlaceError(f"locate: part {i} of the answer has no usable {exc}") from None
-        marker = attrs.get(f"part.{i}.marker")
-        out.append(LocatedPart(x, y, z, yaw, None if marker is None else int(marker)))
-    return tuple(out)
+    try:
+        return parts_from_attributes(attrs)
+    except AdeptError as exc:
+        raise PickPlaceError(f"{exc}; no motion") from None
 
 
 # ------------------------------------------------------------------------------------------------- the geometry

@@ -47,5 +47,5 @@ class WorldTruthLocator:
                 continue
             spec = self.world.part(st.id)
             parts.append(LocatedPart(st.pose.x + self.offset_mm[0], st.pose.y + self.offset_mm[1],
-                                     st.pose.z + spec.height_mm, st.heading_deg, spec.marker))
+                                     st.pose.z + spec.height_mm, st.heading_deg, marker=spec.marker))
         return LocateAnswer(tuple(parts), (time.perf_counter() - t0) * 1000.0)

@@ -26,14 +26,26 @@ def test_the_queue_copies_the_template_with_seeded_jitter_inside_the_feeder_and_
     w = world_from_table(TABLE)
     fed = [p for p in w.parts if p.fed]
     assert [(p.id, p.fed) for p in fed] == [(8, 1), (9, 2), (10, 3)]
+    assert [p.marker for p in fed] == [4, 5, 6], "each its own marker, after the template's"
     for p in fed:
-        assert (p.shape, p.size_mm, p.marker) == ("box", (40.0, 30.0, 20.0), 3)
+        assert (p.shape, p.size_mm) == ("box", (40.0, 30.0, 20.0))
         assert abs(p.x_mm - 400.0) <= 5.0 and abs(p.y_mm - 100.0) <= 5.0 and abs(p.yaw_deg - 10.0) <= 20.0
     assert len({(p.x_mm, p.y_mm, p.yaw_deg) for p in fed}) == 3, "jittered, not all alike"
     assert world_from_table(TABLE) == w, "the same seed feeds the same parts"
     assert world_from_table(world_to_table(w)) == w
     other = world_from_table({**TABLE, "feeder": {**TABLE["feeder"], "seed": 5}})
     assert [p.x_mm for p in other.parts if p.fed] != [p.x_mm for p in fed]
+
+
+def test_fed_markers_skip_the_listed_parts_ids_and_repeat_only_when_the_dictionary_runs_out():
+    table = {"parts": [{**TABLE["parts"][0], "marker": 48},
+                       {"id": 9, "size_mm": [40, 30, 20], "marker": 0, "marker_mm": 15, "x_mm": 0.0}],
+             "feeder": {**TABLE["feeder"], "queue": 4}}
+    fed = [p.marker for p in world_from_table(table).parts if p.fed]
+    assert fed == [49, 1, 2, 3], "DICT_4X4_50: after 48 comes 49, then 0 is part 9's"
+    big = world_from_table({**TABLE, "aruco_dict": "DICT_4X4_250", "feeder": {**TABLE["feeder"], "queue": 200}})
+    markers = [p.marker for p in big.parts]
+    assert len(set(markers)) == len(markers) == 201
 
 
 @pytest.mark.parametrize("feeder, says", [
