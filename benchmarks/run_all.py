@@ -34,6 +34,7 @@ HERE = Path(__file__).resolve().parent
 QUICK_ARGS: dict[str, list[str]] = {
     "bench_bus": ["--n", "200", "--warmup", "50", "--rounds", "1"],
     "bench_client": ["--quick"],
+    "bench_focus_sweep": ["--rounds", "1"],
     "bench_locate": ["--frames", "5"],
     "bench_load": ["--clients", "5", "--sim-seconds", "0.5", "--vision-rates", "5,20", "--vision-seconds", "1",
                    "--idle-seconds", "0.5"],

@@ -24,7 +24,7 @@ REQUEST_ENDPOINT = "tcp://127.0.0.1:5555"
 """Vision requests: the MCN's PUB, the node's SUB."""
 RESPONSE_ENDPOINT = "tcp://127.0.0.1:5556"
 """Vision responses: the node's PUB, the MCN's SUB."""
-STATE_STREAM_PORT = 1235
+STATE_STREAM_PORT = 1236
 """The V+ server's state-stream TCP port (``rs.stport`` in vplus/rsconfig.V2), which ``aioadept state`` reads."""
 TRANSPORTS = ("zeromq", "zenoh")
 """The bus transports (``--transport``, the cell file's ``[bus] transport``): ZeroMQ is the default and the paper's

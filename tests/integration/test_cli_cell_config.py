@@ -79,3 +79,26 @@ def test_the_cell_file_loads_in_the_cell_commands(tmp_path, command):
                cwd=tmp_path)
     assert proc.returncode not in (0, 2), proc.stdout + proc.stderr
     assert "unknown" not in proc.stderr and "expected" not in proc.stderr.split("Connect")[0]
+
+
+@pytest.mark.timeout(180)
+def test_demo_runs_the_shipped_v_plus_server_from_a_cell_file(tmp_path):
+    """``sim_args = ["--vplus", ...]`` in ``[robot]``: the demo maps the V+ program's own ports (rs.port 1234, rs.sport
+    1235) to the cell's free ports, so the focus run reaches the V+ server and its stop port (before, the sim was
+    started with --stop-port, which --vplus refuses, and never listened on the cell's port)."""
+    import json
+
+    root = Path(__file__).resolve().parents[2]
+    files = ", ".join(f'"{root / "vplus" / f}"' for f in ("rserver.V2", "rsskills.V2", "rsconfig.V2"))
+    cfg = tmp_path / "cell.toml"
+    cfg.write_text(f'[robot]\nport = 0\ntime_scale = 10.0\nstate_endpoint = "tcp://127.0.0.1:0"\n'
+                   f'sim_args = ["--vplus", {files}, "--run", "rs.main"]\n'
+                   '[vision]\nrequest_endpoint = "tcp://127.0.0.1:0"\nresponse_endpoint = "tcp://127.0.0.1:0"\n')
+    proc = run("demo", "--config", str(cfg), "--out", str(tmp_path / "runs"), "--no-analyze", cwd=tmp_path,
+               timeout=150)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    (run_dir,) = (tmp_path / "runs").iterdir()
+    result = json.loads((run_dir / "focus.json").read_text())
+    assert result["peak_offset_mm"] == pytest.approx(20.0, abs=2.0), result  # the default cell's focal plane
+    sim_log = (run_dir / "logs").glob("sim*")
+    assert any("vport=1234" in p.read_text() for p in sim_log), "the sim ran the V+ server"

@@ -23,10 +23,10 @@ def _state(pose: Pose, in_motion: bool) -> bytes:
                       in_motion=in_motion).to_bytes()
 
 
-def _first_sample(pub: SyncPublisher, follower: RobotStateFollower, payload: bytes) -> None:
+def _first_sample(pub: SyncPublisher, follower: RobotStateFollower, pose: Pose, in_motion: bool) -> None:
     t0 = time.time()
     while not follower.history.wait_covering(t0, 0.02):  # slow joiner: publish until one arrives
-        pub.publish(ROBOT_STATE_TOPIC, payload)
+        pub.publish(ROBOT_STATE_TOPIC, _state(pose, in_motion))  # stamped when sent, as the sim does
 
 
 @pytest.mark.timeout(20)
@@ -34,7 +34,7 @@ def test_at_rest_sample_is_held_without_waiting_and_a_moving_or_old_one_still_wa
     rest, moving = Pose(x=1.0, z=100.0), Pose(x=5.0, z=100.0)
     with SyncPublisher("tcp://127.0.0.1:0") as pub:
         with RobotStateFollower(pub.actual_endpoint, max_wait_s=1.0, rest_hold_s=0.5) as follower:
-            _first_sample(pub, follower, _state(rest, in_motion=False))
+            _first_sample(pub, follower, rest, in_motion=False)
             t_frame = time.time() + 0.01  # after the newest sample, within rest_hold_s
             t0 = time.monotonic()
             assert follower.pose_at(t_frame) == rest
@@ -44,7 +44,7 @@ def test_at_rest_sample_is_held_without_waiting_and_a_moving_or_old_one_still_wa
             assert follower.pose_at(time.time() + 1.0) == rest
             assert time.monotonic() - t0 >= 0.99 and follower.rest_holds == 1
         with RobotStateFollower(pub.actual_endpoint, max_wait_s=1.0, rest_hold_s=0.5) as follower:
-            _first_sample(pub, follower, _state(moving, in_motion=True))
+            _first_sample(pub, follower, moving, in_motion=True)
             t0 = time.monotonic()
             assert follower.pose_at(time.time() + 0.01) == moving
             assert time.monotonic() - t0 >= 0.99 and follower.rest_holds == 0  # in motion: waited

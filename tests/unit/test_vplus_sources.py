@@ -700,3 +700,19 @@ def test_v_plus_error_in_a_skill_becomes_an_error_ack(machine):
     assert [(a.id, a.status) for a in acks] == [("0c000001", Status.ERROR), ("0c000002", Status.DONE)]
     assert acks[0].error_code == ErrorCode.SKILL_FAILED
     assert acks[0].error_message.startswith("V+ -610 ") and ":" not in acks[0].error_message
+
+
+def test_the_ports_in_rsconfig_are_the_python_defaults():
+    """The client, ``aioadept state`` and the cell file find the shipped V+ server where rsconfig.V2 puts it: the
+    command port, the stop port and the state stream's port (these once disagreed: the state port default was the
+    stop port)."""
+    from aioadept import defaults
+
+    text = (VPLUS / "rsconfig.V2").read_text()
+
+    def value(name: str) -> int:
+        (line,) = [ln for ln in text.splitlines() if ln.strip().startswith(f"{name} = ")]
+        return int(line.split("=", 1)[1].split(";")[0])
+
+    assert (value("rs.port"), value("rs.sport"), value("rs.stport")) == (
+        defaults.ROBOT_PORT, defaults.STOP_PORT, defaults.STATE_STREAM_PORT)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -81,6 +81,42 @@ def plot_sharpness(sharpness: Sequence[float], path: str | os.PathLike[str], *, 
     ax.xaxis.get_major_locator().set_params(integer=True)
     ax.grid(alpha=0.3)
     ax.legend(loc="best", fontsize=9)
+    return _save(fig, path)
+
+
+def plot_sweep(result: Mapping[str, Any], path: str | os.PathLike[str], *, title: str | None = None) -> Path:
+    """The focus sweep (issue 22): each frame's sharpness against its position along tool z (one colour per
+    sweep), the fitted curve over its window, and the fitted plane with its +-1 sigma band."""
+    from aioadept.apps.sweep import blur_model
+
+    fig = _figure(6.4, 3.8)
+    ax = fig.add_subplot()
+    frames = [f for f in result.get("frames") or () if f.get("offset_mm") is not None]
+    plans = (result.get("sweep") or {}).get("plans") or []
+    for k in sorted({int(f.get("sweep", 0)) for f in frames}):
+        mine = [f for f in frames if int(f.get("sweep", 0)) == k]
+        kind = plans[k]["kind"] if k < len(plans) else "sweep"
+        speed = f", {plans[k]['speed_mm_s']:g} mm/s" if k < len(plans) else ""
+        ax.plot([f["offset_mm"] for f in mine], [f["sharpness"] for f in mine], "o", markersize=4,
+                label=f"frames, sweep {k} ({kind}{speed})")
+    fits = (result.get("sweep") or {}).get("fits") or []
+    fit = fits[-1] if fits else {}
+    if fit.get("ok") and fit.get("params") and fit.get("scale"):
+        z = np.linspace(fit["window_mm"][0], fit["window_mm"][1], 200)
+        ax.plot(z, fit["scale"] / blur_model(fit["params"], z), "-", color="#333333", linewidth=1.2,
+                label="fit: 1/s = a + b√((z−z0)² + w²) + c(z−z0)")
+    peak, sigma = result.get("peak_offset_mm"), result.get("peak_sigma_mm")
+    if isinstance(peak, (int, float)):
+        ax.axvline(peak, color="red", linewidth=1.5,
+                   label=f"focal plane {peak:.3f} mm" + (f" ± {sigma:.3f}" if isinstance(sigma, (int, float)) else ""))
+        if isinstance(sigma, (int, float)) and math.isfinite(sigma):
+            ax.axvspan(peak - sigma, peak + sigma, color="red", alpha=0.15)
+    source = result.get("pose_source") or "?"
+    ax.set_xlabel(f"position along tool z from the approach pose, mm (pose from the {source})")
+    ax.set_ylabel("sharpness (std of Sobel-x profile)")
+    ax.set_title(title or "Sharpness along one sweep, with the fit")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="best", fontsize=8)
     return _save(fig, path)
 
 

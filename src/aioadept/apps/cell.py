@@ -20,9 +20,10 @@ from aioadept.apps.cellbus import BusSection, transport_argv, with_transport, ze
 from aioadept.apps.focus import FocusParams, FocusResult, ufloop
 from aioadept.apps.pickplace import PickPlaceParams
 from aioadept.apps.processes import NodeProcess, watch
+from aioadept.apps.runfolder import discard_run_dir, merged_save_error, save_run
 from aioadept.commands import SPEED_MAX, SPEED_MIN
 from aioadept.configfile import Range, ranged
-from aioadept.defaults import ROBOT_HOST, ROBOT_PORT, STATE_ENDPOINT, STOP_PORT_OFFSET
+from aioadept.defaults import ROBOT_HOST, ROBOT_PORT, STATE_ENDPOINT, STOP_PORT, STOP_PORT_OFFSET
 from aioadept.worldmodel import WorldConfig
 from aioadept.vision.options import VisionOptions
 
@@ -207,12 +208,12 @@ def sim_argv(cfg: CellConfig, world_file: Path | None = None) -> list[str]:
     r = cfg.robot
     world = ["--world", str(world_file)] if world_file is not None else []
     if "--vplus" in r.sim_args:
-        # The V+ server binds the ports its rsconfig.V2 names (1234, its stop port 1235, 1236): map them here.
-        return ["sim", "--host", r.host, "--map-port", f"1234={r.port}", "--map-port", f"1235={stop_port_of(cfg)}",
-                "--map-port", "1236=0", "--time-scale", str(r.time_scale), "--monitor-speed", str(r.monitor_speed),
-                "--state-endpoint", r.state_endpoint, *world, *r.sim_args]
-    return ["sim", "--host", r.host, "--port", str(r.port), "--stop-port", str(stop_port_of(cfg)),
-            "--time-scale", str(r.time_scale),
+        # The V+ program opens its own ports (rs.port, rs.sport in vplus/rsconfig.V2: the defaults): map them to
+        # the cell's. A --map-port of the user's in sim_args comes later and wins.
+        ports = ["--map-port", f"{ROBOT_PORT}={r.port}", "--map-port", f"{STOP_PORT}={stop_port_of(cfg)}"]
+    else:
+        ports = ["--port", str(r.port), "--stop-port", str(stop_port_of(cfg))]
+    return ["sim", "--host", r.host, *ports, "--time-scale", str(r.time_scale),
             "--monitor-speed", str(r.monitor_speed), "--state-endpoint", r.state_endpoint, *world,
             *transport_argv(cfg), *r.sim_args]
 
@@ -314,10 +315,13 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
             async with Communicator(opposite(cfg.vision.request_endpoint), opposite(cfg.vision.response_endpoint),
                                     timeout_s=params.vision_timeout_s, observers=observers) as comm, \
                     _guarded(interrupter, rc):
-                result = await ufloop(rc, comm, params.delta_z_mm, params.approach_speed,
-                                      max_steps=params.max_steps, vision_timeout_s=params.vision_timeout_s,
-                                      retract_speed=params.retract_speed,
-                                      recorder=recorder if rrd is None else MarkTee(recorder, rrd))
+                marks = recorder if rrd is None else MarkTee(recorder, rrd)
+                if params.mode == "sweep":
+                    result = await _sweep(cfg, rc, comm, params, marks)
+                else:
+                    result = await ufloop(rc, comm, params.delta_z_mm, params.approach_speed,
+                                          max_steps=params.max_steps, vision_timeout_s=params.vision_timeout_s,
+                                          retract_speed=params.retract_speed, recorder=marks)
     except BaseException as exc:
         if isinstance(exc, (asyncio.CancelledError, KeyboardInterrupt)):
             error = "interrupted"
@@ -334,11 +338,13 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
         if connected:  # (else the run folder is gone, above, and the connect error propagates)
             meta = {
                 "app": "focus", "aioadept_version": __version__, "started_utc": started,
-                "approach_speed": params.approach_speed, "delta_z_mm": params.delta_z_mm,
+                "mode": params.mode, "approach_speed": params.approach_speed, "delta_z_mm": params.delta_z_mm,
                 "max_steps": params.max_steps, "cell": cfg.to_dict(), "error": error,
                 "result": None if result is None else focus_result_dict(result),
             }
             save_error = save_run(recorder, run_dir, meta)
+            if result is not None and result.mode == "sweep" and cfg.run.analyze:
+                save_error = _sweep_figure(meta["result"], run_dir, save_error)
             if save_error is not None and result is None:
                 log.error("%s", save_error)  # the run's own error propagates; this one must not vanish either
             if rrd is not None:
@@ -354,51 +360,45 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
     return RunOutcome(run_dir, result, error, save_error)
 
 
-def merged_save_error(err: OSError | None, run_dir: Path, not_written: dict[str, str]) -> OSError:
-    """``err`` (a run's ``save_error``, or None) with more files not written (name -> reason) added."""
-    from aioadept.capture import RunSaveError
+async def _sweep(cfg: CellConfig, rc: Any, comm: Any, params: FocusParams, marks: Any) -> FocusResult:
+    """:func:`aioadept.apps.sweep.sweep_focus` with the cell's camera exposure and robot state stream (the sim's,
+    or ``aioadept state`` relaying a controller's; none: the frames are placed by the planned profile)."""
+    from aioadept.apps.sweep import sweep_focus
+    from aioadept.bus.endpoints import is_none
 
-    more = RunSaveError(run_dir, (), not_written)
-    if err is None:
-        return more
-    return err.merged(more) if isinstance(err, RunSaveError) else err
+    endpoint = None if is_none(cfg.robot.state_endpoint) else cfg.robot.state_endpoint  # as the vision node's
+    curve = None
+    if endpoint is not None and (cfg.vision.state_curve_secret or cfg.vision.state_curve_server):
+        from aioadept.vision.service import _state_curve
 
-
-def discard_run_dir(run_dir: Path) -> None:
-    """Remove a run folder whose robot connection never succeeded: its ``run.rrd`` (opened before connecting)
-    and the folder, unless something else is in it (the logs of nodes a demo started: kept, they say why)."""
-    with contextlib.suppress(OSError):
-        (run_dir / "run.rrd").unlink(missing_ok=True)
-    for d in (run_dir / "frames", run_dir / "logs", run_dir):
-        with contextlib.suppress(OSError):
-            d.rmdir()  # only when empty
+        curve = _state_curve(cfg.vision)
+    return await sweep_focus(rc, comm, params, exposure_ms=cfg.vision.exposure_ms, state_endpoint=endpoint,
+                             state_curve=curve, vision_timeout_s=params.vision_timeout_s, recorder=marks,
+                             time_scale=sim_time_scale(cfg))
 
 
-def save_run(recorder: Any, run_dir: Path, meta: dict[str, Any]) -> OSError | None:
-    """Write ``focus.json`` (the result, first: it matters most) and the recorder's tables; never raises OSError.
+def sim_time_scale(cfg: CellConfig) -> float:
+    """The robot's speed-up: the sim's ``time_scale`` when this cell starts it, else 1 (a real controller, or a
+    server started elsewhere at its own scale)."""
+    return cfg.robot.time_scale if cfg.robot.start_sim else 1.0
 
-    Returns a :class:`~aioadept.capture.RunSaveError` naming every file not written, or None.
-    """
-    from aioadept.capture import RunSaveError, write_atomic
 
-    err: RunSaveError | None = None
+SWEEP_FIGURE = "fig09b_sweep.png"
+
+
+def _sweep_figure(result: dict[str, Any], run_dir: Path, save_error: OSError | None) -> OSError | None:
+    """The sweep's figure (sharpness against position, the fit, the plane +- sigma) beside focus.json; skipped
+    without matplotlib (the [analysis] extra), named with the files not written when the disk refuses it."""
     try:
-        run_dir.mkdir(parents=True, exist_ok=True)
-        write_atomic(run_dir / "focus.json", json.dumps(meta["result"] or {"error": meta["error"]}, indent=2))
-        written: tuple[str, ...] = ("focus.json",)
+        from aioadept.analysis.plots import plot_sweep
+    except ImportError:
+        log.info("no %s: matplotlib is not installed (the [analysis] extra)", SWEEP_FIGURE)
+        return save_error
+    try:
+        plot_sweep(result, run_dir / SWEEP_FIGURE, title=f"Focus sweep: sharpness along tool z\n{run_dir.name}")
     except OSError as exc:
-        err = RunSaveError(run_dir, (), {"focus.json": exc.strerror or str(exc)})
-        written = ()
-    try:
-        recorder.save(run_dir, metadata=meta)
-    except RunSaveError as exc:
-        err = exc if err is None else err.merged(exc)
-    except OSError as exc:  # not expected from Recorder.save, but a result must never be lost to it
-        more = RunSaveError(run_dir, (), {"run tables": exc.strerror or str(exc)})
-        err = more if err is None else err.merged(more)
-    if err is not None and written:
-        err = RunSaveError(run_dir, (*written, *err.written), err.not_written)
-    return err
+        return merged_save_error(save_error, run_dir, {SWEEP_FIGURE: exc.strerror or str(exc)})
+    return save_error
 
 
 @contextlib.asynccontextmanager
@@ -411,12 +411,17 @@ async def _guarded(interrupter: Any, robot: Any):  # noqa: ANN202
 
 
 def focus_result_dict(r: FocusResult) -> dict[str, Any]:
-    return {
+    """focus.json: the result; both modes write ``mode`` and ``search_s``, a sweep its fit and frames too."""
+    out: dict[str, Any] = {
         "inspection_pose": dataclasses.asdict(r.inspection_pose),
         "approach_pose": dataclasses.asdict(r.approach_pose),
         "sharpness": list(r.sharpness), "peak_index": r.peak_index, "delta_z_mm": r.delta_z_mm,
-        "peak_offset_mm": r.peak_offset_mm, "steps": r.steps,
+        "peak_offset_mm": r.peak_offset_mm, "steps": r.steps, "mode": r.mode, "search_s": r.search_s,
     }
+    if r.mode == "sweep":
+        out.update({"peak_sigma_mm": r.peak_sigma_mm, "pose_source": r.pose_source, "frames": list(r.frames),
+                    "sweep": r.sweep})
+    return out
 
 
 class Cell:

@@ -13,7 +13,8 @@ import dataclasses
 import logging
 from pathlib import Path
 
-from aioadept.apps.cell import CellConfig, RunOutcome, merged_save_error, run_focus_once, running_cell
+from aioadept.apps.cell import CellConfig, RunOutcome, run_focus_once, running_cell
+from aioadept.apps.runfolder import merged_save_error
 from aioadept.apps.interrupt import Interrupter
 
 log = logging.getLogger("aioadept.demo")

@@ -37,6 +37,7 @@ from aioadept.apps.paper import (  # noqa: F401  (the paper's coroutines, re-exp
     move_tool_z,
     ufloop,
 )
+from aioadept.apps.sweep import MODES, SWEEP_RANGES
 from aioadept.configfile import check_ranges, ranged
 from aioadept.errors import AdeptError
 
@@ -78,8 +79,32 @@ class FocusParams:
     """Give up (and retract) after this many z steps without passing the sharpness peak."""
     vision_timeout_s: float = ranged(5.0, FOCUS_RANGES["vision_timeout_s"])
     retract_speed: int = ranged(25, FOCUS_RANGES["retract_speed"])
+    mode: str = "stepwise"
+    """``stepwise``: the paper's loop (:func:`ufloop`); ``sweep``: one straight-line sweep and a fit
+    (:func:`aioadept.apps.sweep.sweep_focus`). The fields below are the sweep's (docs/focus.md)."""
+    sweep_range_mm: float = ranged(40.0, SWEEP_RANGES["sweep_range_mm"])
+    """The first sweep runs from the approach pose this far along tool +z."""
+    depth_of_field_mm: float = ranged(3.0, SWEEP_RANGES["depth_of_field_mm"])
+    """The camera's depth of field (the virtual camera's at f/2.8: blur circle <= 2 px over about 3 mm)."""
+    max_blur_fraction: float = ranged(0.34, SWEEP_RANGES["max_blur_fraction"])
+    """Travel during one exposure, as a fraction of the depth of field: it sets the sweep's speed."""
+    sweep_max_speed_mm_s: float = ranged(500.0, SWEEP_RANGES["sweep_max_speed_mm_s"])
+    line_speed_mm_s: float = ranged(2000.0, SWEEP_RANGES["line_speed_mm_s"])
+    """The tool's straight-line speed at 100 % program speed (the robot's setting; ``aioadept sim
+    --cartesian-speed``), times the monitor speed."""
+    frame_interval_s: float = ranged(0.012, SWEEP_RANGES["frame_interval_s"])
+    """A vision request is sent this often while the tool moves (a node slower than that queues them)."""
+    max_peak_sigma_mm: float = ranged(0.1, SWEEP_RANGES["max_peak_sigma_mm"])
+    """A fit less certain than this is followed by a slower sweep over ``fine_range_mm``."""
+    fine_range_mm: float = ranged(12.0, SWEEP_RANGES["fine_range_mm"])
+    fine_speed_factor: float = ranged(0.5, SWEEP_RANGES["fine_speed_factor"])
+    """The fine sweep's speed as a fraction of the first sweep's."""
+    max_sweeps: int = ranged(4, SWEEP_RANGES["max_sweeps"])
+    """Give up (and retract) after this many sweeps without a bracketed, certain peak."""
 
     def __post_init__(self) -> None:
+        if self.mode not in MODES:
+            raise ValueError(f"mode = {self.mode!r}: expected one of {', '.join(MODES)}")
         check_ranges(self)
 
 

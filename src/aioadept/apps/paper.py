@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -75,6 +76,20 @@ class FocusResult:
     peak_index: int
     delta_z_mm: float
     frame_times_s: tuple[float, ...] = field(default=())
+    mode: str = "stepwise"
+    """``stepwise`` (:func:`ufloop`) or ``sweep`` (:func:`aioadept.apps.sweep.sweep_focus`)."""
+    search_s: float | None = None
+    """From the first search motion's start to the focal plane known (stepwise: the fall seen; sweep: the fit)."""
+    fitted_offset_mm: float | None = None
+    """Sweep: the fitted focal plane along tool z from the approach pose, not rounded to a step."""
+    peak_sigma_mm: float | None = None
+    """Sweep: the fitted plane's standard uncertainty (mm)."""
+    frames: tuple[dict[str, Any], ...] = field(default=())
+    """Sweep: each frame's ``offset_mm``, ``sharpness``, mid-exposure ``t_mid_s`` and ``sweep`` index."""
+    pose_source: str = ""
+    """Sweep: where the frames' positions came from: ``state-stream`` or ``planned-profile`` (acks)."""
+    sweep: dict[str, Any] = field(default_factory=dict)
+    """Sweep: the plans, the fits, the clock offsets (focus.json's ``sweep``)."""
 
     @property
     def steps(self) -> int:
@@ -82,7 +97,10 @@ class FocusResult:
 
     @property
     def peak_offset_mm(self) -> float:
-        """Distance along tool z from the approach pose to the inspection-start pose."""
+        """Distance along tool z from the approach pose to the inspection-start pose (the fitted plane for a
+        sweep, a whole number of steps for the stepwise loop)."""
+        if self.fitted_offset_mm is not None:
+            return self.fitted_offset_mm
         return self.peak_index * self.delta_z_mm
 
 
@@ -145,6 +163,8 @@ async def ufloop(rc: Robot, comm: Vision, delta_z: float, appr_speed: int, *, ma
     sharpness: list[float] = []
     frame_times: list[float] = []
     pose: Pose | None = approach
+    t_search0: float | None = None  # the first search motion's start (issue 22: search_s)
+    t_known: float | None = None
     try:
         while True:
             if recorder is not None:
@@ -160,10 +180,13 @@ async def ufloop(rc: Robot, comm: Vision, delta_z: float, appr_speed: int, *, ma
             frame_times.append(float(attrs.get("frame_t", float("nan"))))
             # The paper's criterion: the first fall in sharpness means the focus plane was passed.
             if len(sharpness) > 1 and sharpness[-1] < sharpness[-2]:
+                t_known = time.monotonic()
                 break
             if len(sharpness) > max_steps:
                 raise FocusError(f"no sharpness peak within {max_steps} steps of {delta_z} mm",
                                  sharpness=sharpness)
+            if t_search0 is None:
+                t_search0 = time.monotonic()
             pose = (await move_tool_z(rc, appr_speed, delta_z)).pose
         if recorder is not None:
             recorder.mark("retract", len(sharpness))
@@ -181,7 +204,8 @@ async def ufloop(rc: Robot, comm: Vision, delta_z: float, appr_speed: int, *, ma
     peak = len(sharpness) - 2
     if approach is None:
         approach = pose
-    return FocusResult(pose, approach, tuple(sharpness), peak, delta_z, tuple(frame_times))
+    search_s = None if t_search0 is None or t_known is None else t_known - t_search0
+    return FocusResult(pose, approach, tuple(sharpness), peak, delta_z, tuple(frame_times), search_s=search_s)
 
 
 async def _retract(rc: Robot, approach: Pose | None, speed: int) -> bool:

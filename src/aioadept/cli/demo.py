@@ -16,8 +16,8 @@ from pathlib import Path
 
 from aioadept.apps.cell import CellConfig, new_run_dir
 from aioadept.apps.demo import run_demo
-from aioadept.cli.options import (ArgumentParser, add_cell_options, apply_overrides, check_option, configure_logging,
-                                  description, option_help, report)
+from aioadept.cli.options import (ArgumentParser, add_cell_options, add_mode_option, apply_overrides, check_option,
+                                  configure_logging, description, option_help, report)
 from aioadept.cli.report import run_once
 
 log = logging.getLogger("aioadept.demo")
@@ -29,6 +29,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = ArgumentParser(prog="aioadept demo", description=description(__doc__))
     add_cell_options(p)
+    add_mode_option(p)
     p.add_argument("--time-scale", type=float, dest="time_scale",
                    help=option_help("run the simulated motion this many times faster than real time", RobotSection,
                                     "time_scale"))

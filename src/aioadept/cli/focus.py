@@ -12,8 +12,9 @@ from pathlib import Path
 
 from aioadept.apps.cell import CellConfig, new_run_dir, run_focus_once
 from aioadept import defaults
-from aioadept.cli.options import (ArgumentParser, add_cell_options, add_robot_option, apply_overrides,
-                                  configure_logging, description, parse_robot_address, report, with_default)
+from aioadept.cli.options import (ArgumentParser, add_cell_options, add_mode_option, add_robot_option,
+                                  apply_overrides, configure_logging, description, parse_robot_address, report,
+                                  with_default)
 from aioadept.cli.report import run_once
 
 log = logging.getLogger("aioadept.focus")
@@ -22,6 +23,7 @@ log = logging.getLogger("aioadept.focus")
 def build_parser() -> argparse.ArgumentParser:
     p = ArgumentParser(prog="aioadept focus", description=description(__doc__))
     add_cell_options(p)
+    add_mode_option(p)
     add_robot_option(p)
     p.add_argument("--request-endpoint", dest="request_endpoint",
                    help=with_default("PUB for vision requests: binds by default (as pyadept's MCN), '>tcp://...' "

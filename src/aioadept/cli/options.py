@@ -111,6 +111,16 @@ def add_cell_options(p: argparse.ArgumentParser) -> None:
     add_view_options(p)
 
 
+def add_mode_option(p: argparse.ArgumentParser) -> None:
+    """``--mode stepwise|sweep`` (``aioadept focus``, ``aioadept demo``): the cell file's ``[focus] mode``."""
+    from aioadept.apps.sweep import MODES
+
+    p.add_argument("--mode", choices=MODES, default=None,
+                   help="stepwise: the paper's loop, a frame at every delta-z step (the default); sweep: one "
+                        "straight-line motion with frames on the way and a fit of the sharpness peak "
+                        "(docs/focus.md)")
+
+
 def check_option(option: str, cls: type, name: str, value: object) -> None:
     """ValueError ``"--OPTION VALUE: expected ..."`` unless ``value`` is in the range of field ``cls.name``."""
     from aioadept.configfile import range_of
@@ -129,7 +139,16 @@ def apply_overrides(cfg: "CellConfig", args: argparse.Namespace) -> "CellConfig"
         if value is not None:
             check_option("--" + dest.replace("_", "-"), FocusParams, name, value)
             changes[name] = value
+    mode = getattr(args, "mode", None)
+    if mode is not None:
+        changes["mode"] = mode
     cfg.focus = dataclasses.replace(cfg.focus, **changes)
+    from aioadept.apps.cell import sim_time_scale
+    from aioadept.apps.sweep import check_sweep
+
+    # A sweep the exposure cannot allow: one line, nothing started. Checked here, after --mode and --time-scale,
+    # not when the file is read: the file's mode or exposure may be overridden.
+    check_sweep(cfg.focus, cfg.vision.exposure_ms, sim_time_scale(cfg))
     if args.out:
         cfg.run.out_dir = args.out
     if args.no_analyze:

@@ -23,6 +23,9 @@ def print_result(result: FocusResult, run_dir: Path) -> None:
     from rich.table import Table
 
     console = Console()
+    if result.mode == "sweep":
+        _print_sweep(console, result, run_dir)
+        return
     top = max(result.sharpness) or 1.0
     table = Table(title="Sharpness along tool z", show_lines=False)
     table.add_column("step", justify="right")
@@ -37,6 +40,29 @@ def print_result(result: FocusResult, run_dir: Path) -> None:
     p = result.inspection_pose
     console.print(f"[bold]inspection-start pose[/bold] (step {result.peak_index}, "
                   f"{result.peak_offset_mm:.1f} mm along tool z from the approach pose):")
+    console.print(f"  x={p.x:.3f} y={p.y:.3f} z={p.z:.3f} mm  yaw={p.yaw:.3f} pitch={p.pitch:.3f} "
+                  f"roll={p.roll:.3f} deg")
+    console.print(f"run folder: {run_dir}")
+
+
+def _print_sweep(console: Any, result: FocusResult, run_dir: Path) -> None:
+    """A sweep's frames (position along tool z, sharpness) and the fitted plane with its uncertainty."""
+    from rich.table import Table
+
+    frames = [f for f in result.frames if f.get("offset_mm") is not None]
+    top = max((f["sharpness"] for f in frames), default=1.0) or 1.0
+    table = Table(title="Sharpness along tool z, one sweep", show_lines=False)
+    for col in ("sweep", "z offset (mm)", "sharpness", ""):
+        table.add_column(col, justify="right" if col else "left")
+    for f in frames:
+        table.add_row(str(f["sweep"]), f"{f['offset_mm']:.2f}", f"{f['sharpness']:.2f}",
+                      "█" * max(1, round(30 * f["sharpness"] / top)))
+    console.print(table)
+    sigma = f" ± {result.peak_sigma_mm:.3f}" if result.peak_sigma_mm is not None else ""
+    search = f", found {result.search_s:.3f} s after the sweep started" if result.search_s is not None else ""
+    console.print(f"[bold]focal plane[/bold] {result.peak_offset_mm:.3f}{sigma} mm along tool z from the approach "
+                  f"pose (fitted; frames placed by the {result.pose_source}{search}); the robot is there:")
+    p = result.inspection_pose
     console.print(f"  x={p.x:.3f} y={p.y:.3f} z={p.z:.3f} mm  yaw={p.yaw:.3f} pitch={p.pitch:.3f} "
                   f"roll={p.roll:.3f} deg")
     console.print(f"run folder: {run_dir}")

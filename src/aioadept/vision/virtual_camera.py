@@ -5,7 +5,8 @@ blur -> sensor noise -> exposure/readout timing, each step a few small functions
 paper geometry; a split would pass that state across modules for no reader's gain.)
 
 Where it sits: the sim publishes :class:`aioadept.bus.messages.RobotState` at 100 Hz; a
-:class:`RobotStateFollower` (one owned thread) keeps a short :class:`PoseHistory` of tool poses stamped on receipt;
+:class:`RobotStateFollower` (one owned thread) keeps a short :class:`PoseHistory` of tool poses, each at its own time on
+this clock;
 :class:`VirtualCamera` renders a frame at ``time.time()`` from the pose interpolated at that time (once a state sample
 at or after that time has arrived, so a frame taken just after the robot stopped never shows it mid-motion; or at
 once from the newest sample when that one says the robot is at rest and is at most ``rest_hold_s`` old: opt-in,
@@ -186,6 +187,16 @@ class NoiseField:
         return cv2.add(frame, window, dtype=cv2.CV_8U)
 
 
+def _mix(weighted: Sequence[tuple[float, np.ndarray]]) -> np.ndarray:
+    """Weighted sum of centred square kernels of odd sizes (each padded to the largest)."""
+    n = max(k.shape[0] for _, k in weighted)
+    out = np.zeros((n, n), np.float32)
+    for w, k in weighted:
+        m = (n - k.shape[0]) // 2
+        out[m:m + k.shape[0], m:m + k.shape[0]] += np.float32(w) * k
+    return out
+
+
 # ------------------------------------------------------------------------------------------ paper geometry
 def paper_approach_pose(forward: Callable[[Sequence[float]], Pose] | None = None) -> Pose:
     """The approach pose of the paper's focus application: where ``init_move`` leaves the robot.
@@ -320,8 +331,7 @@ class VirtualCamera(Camera):
         return uv.astype(np.float32)
 
     # --------------------------------------------------------------------------------------- rendering
-    def _kernel(self, diameter_px: float) -> np.ndarray:
-        key = int(round(diameter_px * 4))  # quarter-pixel steps: finer than the eye or the metric can tell
+    def _disk(self, key: int) -> np.ndarray:
         k = self._kernels.get(key)
         if k is None:
             if len(self._kernels) > 256:
@@ -329,25 +339,56 @@ class VirtualCamera(Camera):
             k = self._kernels[key] = disk_kernel(key / 4.0)
         return k
 
-    def _blur(self, roi: np.ndarray, diameter_px: float) -> np.ndarray:
-        """Disk blur of ``roi``. Beyond :data:`_DIRECT_BLUR_PX` it blurs a proportionally shrunk copy and scales it
-        back: the result is smooth at that scale anyway, and the cost stays that of a small kernel."""
-        if diameter_px <= _DIRECT_BLUR_PX:
-            k = self._kernel(diameter_px)
+    def _kernel(self, diameter_px: float) -> np.ndarray:
+        """The disk kernel of ``diameter_px``: the two cached quarter-pixel disks around it, blended linearly. The
+        blend keeps the rendered image (and so the sharpness) a continuous function of the pose: a kernel rounded to
+        the nearest quarter pixel made the sharpness a staircase in z (steps of ~4 % every 0.2 mm near focus),
+        which a sub-step fit of the sweep (apps/sweep.py) would read as structure."""
+        x = diameter_px * 4.0
+        lo = int(math.floor(x))
+        f = x - lo
+        k0 = self._disk(lo)
+        if f < 1e-3:
+            return k0
+        return _mix([(1.0 - f, k0), (f, self._disk(lo + 1))])
+
+    def _exposure_kernel(self, diameters_px: Sequence[float]) -> np.ndarray:
+        """The mean of the disk kernels of ``diameters_px`` (the blur at instants spread evenly over one exposure):
+        a target moving along the optical axis during the exposure integrates all those defocus blurs."""
+        if len(diameters_px) == 1:
+            return self._kernel(diameters_px[0])
+        w = 1.0 / len(diameters_px)
+        return _mix([(w, self._kernel(d)) for d in diameters_px])
+
+    def _blur(self, roi: np.ndarray, diameter_px: float | Sequence[float]) -> np.ndarray:
+        """Disk blur of ``roi`` (several diameters: their mean kernel, :meth:`_exposure_kernel`). Beyond
+        :data:`_DIRECT_BLUR_PX` it blurs a proportionally shrunk copy and scales it back: the result is smooth at
+        that scale anyway, and the cost stays that of a small kernel."""
+        ds = [float(diameter_px)] if isinstance(diameter_px, (int, float)) else [float(d) for d in diameter_px]
+        top = max(ds)
+        if top <= _DIRECT_BLUR_PX:
+            k = self._exposure_kernel(ds)
             return roi if k.shape[0] == 1 else cv2.filter2D(roi, -1, k, borderType=cv2.BORDER_REPLICATE)
-        f = _DIRECT_BLUR_PX / diameter_px
+        f = _DIRECT_BLUR_PX / top
         h, w = roi.shape
         small = cv2.resize(roi, (max(1, round(w * f)), max(1, round(h * f))), interpolation=cv2.INTER_AREA)
-        small = cv2.filter2D(small, -1, self._kernel(_DIRECT_BLUR_PX), borderType=cv2.BORDER_REPLICATE)
+        small = cv2.filter2D(small, -1, self._exposure_kernel([d * f for d in ds]), borderType=cv2.BORDER_REPLICATE)
         return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
 
-    def render(self, tool_pose: Pose | None) -> np.ndarray:
-        """A mono8 frame of the target at ``tool_pose`` (None: background only), with blur and noise."""
+    def render(self, tool_pose: Pose | None, *, exposure_poses: Sequence[Pose] = ()) -> np.ndarray:
+        """A mono8 frame of the target at ``tool_pose`` (None: background only), with blur and noise.
+
+        ``exposure_poses``: the tool's poses at instants spread evenly over the exposure (``tool_pose`` is the
+        mid-exposure one); the target is blurred by the mean of their defocus kernels, the motion blur of a move
+        along the optical axis (the focus sweep's). Its image position and size are those of ``tool_pose``: the
+        sideways smear and the magnification change during the exposure are not modelled (a few tenths of a pixel
+        for a sweep along the axis)."""
         o = self.optics
         frame = np.full((o.height_px, o.width_px), self.background, np.uint8)
         corners = self.project(tool_pose) if tool_pose is not None else None
         if corners is not None:
-            diameter = min(self.blur_diameter_px(tool_pose), self.max_blur_px)
+            diameters = [min(self.blur_diameter_px(p), self.max_blur_px) for p in (exposure_poses or (tool_pose,))]
+            diameter = max(diameters)
             pad = int(math.ceil(diameter / 2)) + 2
             x0 = max(0, int(math.floor(corners[:, 0].min())) - pad)
             y0 = max(0, int(math.floor(corners[:, 1].min())) - pad)
@@ -357,7 +398,7 @@ class VirtualCamera(Camera):
                 h = cv2.getPerspectiveTransform(self._tex_corners, corners - np.float32([x0, y0]))
                 roi = cv2.warpPerspective(self._texture, h, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR,
                                           borderMode=cv2.BORDER_CONSTANT, borderValue=self.background)
-                frame[y0:y1, x0:x1] = self._blur(roi, diameter)
+                frame[y0:y1, x0:x1] = self._blur(roi, diameters)
         with self._lock:  # the Generator is not thread-safe
             return self._noise.add(frame)
 
@@ -379,10 +420,14 @@ class VirtualCamera(Camera):
         pose = self._pose_source(t_mid) if self._pose_source is not None else None
         # Asked after pose_source, which may have waited for a sample covering t_mid.
         age = self._state_age(t_mid) if self._state_age is not None else None
-        if image is None or not same_pose(pose, guess):
+        # A guess the covering pose confirms means the tool stood still from the at-rest sample (before the
+        # exposure) to mid-exposure: no motion blur, and no further pose to ask for.
+        confirmed = guess is not None and same_pose(pose, guess)
+        exposure_poses = () if confirmed else self._exposure_poses(t_s, exposure_s, pose, age)
+        if image is None or not same_pose(pose, guess) or exposure_poses:
             if image is not None:
                 self.rerenders += 1  # the robot moved after the at-rest sample: never keep that frame
-            image = self.render(pose)
+            image = self.render(pose, exposure_poses=exposure_poses)
         if self._sleep is not None:
             left = t_s + exposure_s + readout_s - self._clock()
             if left > 0:
@@ -390,6 +435,28 @@ class VirtualCamera(Camera):
         frame = Frame(image, t_s, self.camera_id, self._seq, age, exposure_s, readout_s)
         self._seq += 1
         return frame
+
+    EXPOSURE_SAMPLES = 5
+    """Poses per exposure when the tool moves during it (motion blur): the travel is sampled every fifth of the
+    exposure, 0.14 mm at the focus sweep's 140 mm/s and 5 ms, a twentieth of the depth of field."""
+
+    def _exposure_poses(self, t_s: float, exposure_s: float, mid: Pose | None,
+                        age: float | None) -> tuple[Pose, ...]:
+        """The poses spread over the exposure when the tool moved during it, else ``()`` (a still frame).
+
+        The first half of the exposure is covered by the samples the mid-exposure pose waited for; the second half
+        is extrapolated from it at the same rate (``mid + (mid - start)``), so no further wait for a later sample
+        delays the frame: exact at constant speed, and within a few micrometres on the sweep's 0.1 s ramps. Not
+        while the state stream is stale (``age`` > 0): a frozen pose has no motion to blur."""
+        if self._pose_source is None or mid is None or exposure_s <= 0 or (age is not None and age > 0):
+            return ()
+        start = self._pose_source(t_s)
+        if start is None or same_pose(start, mid):
+            return ()
+        m0, m1 = start.to_matrix(), mid.to_matrix()
+        end = m1 @ inverse_transform(m0) @ m1  # as far beyond mid as start is before it (same motion)
+        n = self.EXPOSURE_SAMPLES
+        return tuple(Pose.from_matrix(_interpolate(m0, end, (k + 0.5) / n)) for k in range(n))
 
 
 SAME_POSE_MM = 1e-6
@@ -518,12 +585,13 @@ rendered at its start pose (measured: the sharpness of the previous step, test_v
 
 
 class RobotStateFollower:
-    """Subscribes to the sim's robot state stream and fills a :class:`PoseHistory`, stamped on receipt.
+    """Subscribes to the sim's robot state stream and fills a :class:`PoseHistory` (samples at their own time).
 
     One owned non-daemon thread reading a :class:`aioadept.bus.pubsub.SyncSubscriber`. :meth:`start` connects,
     :meth:`stop` sets the stop flag, joins the thread and closes the socket; also a context manager. Samples are
-    stamped with ``time.time()`` at receipt (the frame clock), so the camera and the history share one clock even if
-    the sim's clock drifts; the state's own ``wall_time_s`` is kept as :attr:`last_state`.
+    stamped on the frame clock (``time.time()``): the state's own ``wall_time_s``, shifted back only when samples
+    arrive before they were taken (the sim's clock ahead of ours), so a sample delayed on its way is still placed
+    at its own time and the stamp is never later than the receipt.
     """
 
     def __init__(self, endpoint: str, *, history: PoseHistory | None = None, topic: bytes = b"robot.state",
@@ -538,6 +606,8 @@ class RobotStateFollower:
         self.topic = topic
         self.history = history if history is not None else PoseHistory()
         self.received = 0
+        self.min_delay_s: float | None = None
+        """Smallest receipt time minus the sample's ``wall_time_s`` seen so far (see :meth:`_run`)."""
         self.rest_holds = 0  # poses held from an at-rest sample without waiting (pose_at)
         self.last_state = None
         self._clock = clock
@@ -590,7 +660,16 @@ class RobotStateFollower:
                 except Exception as exc:  # a bad sample must not kill the camera
                     log.warning("robot state: undecodable message (%s)", exc)
                     continue
-                self.history.add(t_s, state.pose, state.in_motion)
+                # The sample's own time on our clock: its wall time, shifted only if our clock is behind the sim's
+                # (a sample received before it was taken), by the largest such lead seen: the offset nearest 0 that
+                # the traffic allows (aioadept.apps.sweep_model.clock_offset; the focus sweep maps the samples by
+                # the same rule). Stamping on receipt instead made the shown pose lag the robot by each sample's
+                # own delay, up to a millisecond when this process is busy rendering: 0.2 mm at a focus sweep's
+                # 200 mm/s. Never later than the receipt.
+                delay = t_s - state.wall_time_s
+                if self.min_delay_s is None or delay < self.min_delay_s:
+                    self.min_delay_s = delay
+                self.history.add(state.wall_time_s + min(0.0, self.min_delay_s), state.pose, state.in_motion)
                 self.last_state = state
                 self.received += 1
 

@@ -106,8 +106,10 @@ def test_grab_uses_the_pose_source_at_the_frame_time():
     times = iter([100.0, 100.1])
     cam = paper_camera(pose_at, clock=lambda: next(times), camera_id="cam0", sleep=None)
     f0, f1 = cam.grab(), cam.grab()
-    # The pose at the exposure's mid-time (5 ms exposure by default); t_s is the exposure start.
-    assert asked == pytest.approx([100.0025, 100.1025]) and (f0.t_s, f1.t_s) == (100.0, 100.1) and (f0.seq, f1.seq) == (0, 1)
+    # The pose at the exposure's mid-time (5 ms exposure by default), then at its start (did the tool move during
+    # the exposure? then it is blurred); t_s is the exposure start.
+    assert asked == pytest.approx([100.0025, 100.0, 100.1025, 100.1])
+    assert (f0.t_s, f1.t_s) == (100.0, 100.1) and (f0.seq, f1.seq) == (0, 1)
     assert (f0.exposure_s, f0.readout_s) == (0.005, pytest.approx(1024 * 768 * 8 / 1e9))
     assert f0.camera_id == "cam0" and measure(f0.image).ok
 
@@ -137,3 +139,36 @@ def test_pose_history_forgets_old_samples():
         h.add(i * 0.1, Pose(x=i))
     assert len(h) <= 12 and h.at(0.0).x == pytest.approx(len(range(50)) - len(h))
     assert not math.isnan(h.at(100.0).x)
+
+
+def test_a_tool_moving_along_the_axis_during_the_exposure_is_blurred_by_its_travel():
+    """Motion blur (issue 22): the frame of a tool crossing the focal plane during the exposure integrates the
+    defocus of every instant, so it is less sharp than a still frame at its mid-exposure pose; the faster, the
+    less sharp; a still tool renders exactly as before."""
+    cam = paper_camera(None, focus_offset_mm=20.0, noise_sigma=0.0, sleep=None)
+    still = measure(cam.render(APPROACH @ Pose(z=20))).sharpness
+
+    def moving(travel_mm: float) -> float:
+        poses = [APPROACH @ Pose(z=20 + travel_mm * ((k + 0.5) / 5 - 0.5)) for k in range(5)]
+        return measure(cam.render(APPROACH @ Pose(z=20), exposure_poses=poses)).sharpness
+
+    assert moving(0.0) == pytest.approx(still)
+    assert still > moving(1.0) > moving(4.0)
+
+    speed_mm_s = 200.0
+
+    def pose_at(t_s: float) -> Pose:  # the tool crossing the plane at 200 mm/s, at the plane at t = 100.0025
+        return APPROACH @ Pose(z=20 + speed_mm_s * (t_s - 100.0025))
+
+    grabbed = paper_camera(pose_at, focus_offset_mm=20.0, noise_sigma=0.0, clock=lambda: 100.0, sleep=None).grab()
+    assert measure(grabbed.image).sharpness == pytest.approx(moving(speed_mm_s * 0.005), rel=1e-6)
+
+
+def test_sharpness_is_continuous_in_the_blur_diameter():
+    """Kernels between quarter pixels are blended: the image changes by little for a small change of focus (a
+    kernel rounded to quarter pixels made sharpness a staircase in z, which a sweep's fit would read as signal)."""
+    cam = paper_camera(None, focus_offset_mm=20.0, noise_sigma=0.0, sleep=None)
+    k = cam._kernel(5.1)
+    assert k.sum() == pytest.approx(1.0, abs=1e-5)
+    a, b = cam.render(APPROACH @ Pose(z=16.0)), cam.render(APPROACH @ Pose(z=16.02))
+    assert 0 < np.abs(a.astype(int) - b.astype(int)).max() <= 2
