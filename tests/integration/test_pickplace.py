@@ -264,4 +264,7 @@ def test_an_interrupt_stops_the_robot_with_no_new_motion(sig, tmp_path):
         rows = list(csv.DictReader(f))
     # the stop is the last message written and acked: no motion after it ("" = cancelled before its ack came)
     assert rows[-1]["skill"] == "stop" and rows[-1]["status"] == "done"
-    assert [r["skill"] for r in rows[:-1]].count("appros") == 1 and rows[-2]["status"] in ("aborted", "")
+    skills = [r["skill"] for r in rows]
+    assert skills.count("appros") <= 1 and "move_to_s" not in skills, "no motion after the first one the stop met"
+    if "appros" in skills:  # (on a loaded machine the signal may come before it was written: then none at all)
+        assert rows[skills.index("appros") + 1]["status"] in ("aborted", "")
