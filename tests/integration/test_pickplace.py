@@ -226,6 +226,8 @@ cfg = CellConfig.from_toml(sys.argv[1])
 cfg.vision.start = False
 cfg.run.out_dir = sys.argv[2]
 cfg.robot.time_scale = 1.0
+fields = {k: getattr(cfg.pickplace, k) for k in PickPlaceParams.__dataclass_fields__}
+cfg.pickplace = PickPlaceParams(**{**fields, "speed": 10})  # the first appros takes seconds: the signal meets it
 run_dir = new_run_dir(cfg)
 print("RUN", run_dir, flush=True)
 
@@ -251,7 +253,7 @@ def test_an_interrupt_stops_the_robot_with_no_new_motion(sig, tmp_path):
         assert line.startswith("RUN"), proc.stderr.read()
         run_dir = Path(line.split()[1])
         assert proc.stdout.readline().startswith("LOCATED"), proc.stderr.read()
-        time.sleep(0.3)  # in the first appros (about 0.5 s at time scale 1)
+        time.sleep(0.3)  # in the first appros (seconds long at speed 10)
         os.kill(proc.pid, sig)
         out, err = proc.communicate(timeout=60)
     finally:
