@@ -216,6 +216,21 @@ def test_a_bad_cell_value_is_one_line_naming_file_and_key_exit_2_and_no_run_fold
     assert not (tmp_path / "runs").exists()
 
 
+@pytest.mark.timeout(120)
+def test_the_cli_says_no_part_on_the_feeder_in_one_line_exit_1_and_keeps_the_run(tmp_path):
+    text = EXAMPLE.read_text().replace("queue = 99", "queue = 0").replace("y_mm = 150.0\nyaw_deg", "y_mm = 0.0\nyaw_deg")
+    (tmp_path / "cell.toml").write_text(text)
+    proc = subprocess.run([sys.executable, "-m", "aioadept", "pickplace", "--config", "cell.toml", "--part-timeout",
+                           "0.5", "--fast"], capture_output=True, text=True, timeout=100, cwd=tmp_path)
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 1 and len(lines) == 1 and "no part on the feeder" in lines[0], proc.stderr
+    (run_dir,) = (tmp_path / "runs").iterdir()
+    s = json.loads((run_dir / "summary.json").read_text())
+    assert (s["parts_placed"], s["parts_failed"]) == (0, 1) and "no part on the feeder" in s["error"]
+    with (run_dir / "robot.csv").open() as f:
+        assert [r["skill"] for r in csv.DictReader(f)] == ["wait_sig"]
+
+
 SIGNAL_SCRIPT = """
 import sys
 from aioadept.apps.cell import CellConfig, new_run_dir
