@@ -340,6 +340,10 @@ async def pickplace(rc: Robot, locator: Locator, p: PickPlaceParams, *, pallet: 
                 part, ms = await locate_part(locator, feeder)
                 cycle.steps.append(("locate", t0, time.monotonic()))
                 cycle.located, cycle.locate_ms = part, cycle.locate_ms + ms
+                x, y, h = slots[k]
+                for what, z in (("", 0.0), (" above", p.approach_mm)):  # where this part will be set down
+                    check_workspace(f"pallet slot {cycle.slot}{what}",
+                                    tool_down(x, y, part.z_mm - p.grip_depth_mm + z, h), p)
                 try:
                     grip = await pick(rc, part, p, cycle, hand_open=hand_open)
                     hand_open = False
@@ -354,8 +358,6 @@ async def pickplace(rc: Robot, locator: Locator, p: PickPlaceParams, *, pallet: 
                     log.warning("part %d: %s; retrying", k + 1, exc)
             else:  # pragma: no cover (the loop breaks or raises)
                 raise AssertionError
-            x, y, h = slots[k]
-            check_workspace(f"pallet slot {cycle.slot}", tool_down(x, y, grip.z, h), p)
             await place(rc, slots[k], grip, p, cycle, part.yaw_deg)
             hand_open = True
             cycle.placed = True
