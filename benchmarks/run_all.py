@@ -45,6 +45,7 @@ QUICK_ARGS: dict[str, list[str]] = {
     "bench_vision": ["--frames", "20", "--n", "100", "--warmup", "20", "--rounds", "1", "--verdict-rounds", "1"],
     "bench_vplus": ["--quick"],
     "bench_world": ["--rounds", "20"],
+    "bench_pickplace": ["--parts", "10"],
 }
 
 

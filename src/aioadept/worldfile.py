@@ -14,7 +14,8 @@ The table, as ``examples/cell.toml`` shows it::
     x_mm = 450.0
     y_mm = 150.0
     yaw_deg = 0.0
-    [world.feeder]            # x_mm, y_mm, width_mm, depth_mm, sensor (an input 1001..1512)
+    [world.feeder]            # x_mm, y_mm, width_mm, depth_mm, sensor (an input 1001..1512); a queue of parts fed
+                              # one after another: queue, template, interval_s, jitter_mm, jitter_deg, seed
     [world.pallet]            # x_mm, y_mm, yaw_deg, rows, cols, pitch_x_mm, pitch_y_mm
     [world.camera]            # x_mm, y_mm, z_mm, yaw_deg, focal_length_mm, f_number, noise_sigma, width_px, height_px
 
@@ -32,7 +33,8 @@ from pathlib import Path
 from typing import Any
 
 from aioadept.configfile import ConfigError, Range, check_ranges, check_section, ranged
-from aioadept.worldmodel import COLOURS, SHAPES, Feeder, Pallet, PartSpec, WorldCamera, WorldConfig, label_mm
+from aioadept.worldmodel import (COLOURS, SHAPES, Feeder, Pallet, PartSpec, WorldCamera, WorldConfig, fed_parts,
+                                 label_mm)
 
 ARUCO_DICTS = {"DICT_4X4_50": 50, "DICT_4X4_100": 100, "DICT_4X4_250": 250, "DICT_5X5_50": 50,
                "DICT_5X5_100": 100, "DICT_6X6_50": 50, "DICT_6X6_250": 250}
@@ -79,6 +81,12 @@ class _FeederTable:
     width_mm: float = ranged(80.0, _SIZE)
     depth_mm: float = ranged(80.0, _SIZE)
     sensor: int = ranged(1002, INPUT_SIGNALS)
+    queue: int = ranged(0, Range(0, 100_000, integer=True))
+    template: int | None = ranged(None, Range(0, 2**31 - 1, integer=True))
+    interval_s: float = ranged(0.5, Range(0.0, 3600.0, unit="s"))
+    jitter_mm: float = ranged(0.0, Range(0.0, 500.0, unit="mm"))
+    jitter_deg: float = ranged(0.0, Range(0.0, 180.0, unit="deg"))
+    seed: int = ranged(0, Range(0, 2**31 - 1, integer=True))
 
 
 @dataclass(slots=True)
@@ -154,6 +162,26 @@ def _part(data: Any, where: str, aruco_dict: str) -> PartSpec:
                     float(t.x_mm), float(t.y_mm), float(t.yaw_deg))
 
 
+def _queue(feeder: Feeder, parts: list[PartSpec], where: str, n_ids: int) -> tuple[PartSpec, ...]:
+    """The feeder's queued parts (:func:`aioadept.worldmodel.fed_parts`), checked: a template to copy, and each part
+    inside the feeder's rectangle (else it would never turn the part-present sensor on)."""
+    if feeder.template is None:
+        if not parts:
+            raise ConfigError(f"{where}: queue = {feeder.queue}: the fed parts copy a part: list one "
+                              f"([[world.parts]]) or name it with template = ID")
+        template = parts[0]
+    else:
+        template = next((p for p in parts if p.id == feeder.template), None)
+        if template is None:
+            raise ConfigError(f"{where}: template = {feeder.template}: no part has that id")
+    if 2 * feeder.jitter_mm > min(feeder.width_mm, feeder.depth_mm):
+        raise ConfigError(f"{where}: jitter_mm = {feeder.jitter_mm:g}: a fed part could lie outside the feeder "
+                          f"(at most half its width and depth, {min(feeder.width_mm, feeder.depth_mm) / 2:g} mm)")
+    used = {p.marker for p in parts if p.marker is not None}
+    free = tuple(m for m in range(n_ids) if m not in used)
+    return fed_parts(feeder, template, max(p.id for p in parts) + 1 if parts else 1, free)
+
+
 def world_from_table(data: Any, where: str = "[world]") -> WorldConfig:
     """The :class:`WorldConfig` of a ``[world]`` table; :class:`ConfigError` (one line naming ``where`` and the
     key) for anything unknown, of the wrong type or out of range."""
@@ -170,7 +198,11 @@ def world_from_table(data: Any, where: str = "[world]") -> WorldConfig:
     feeder = pallet = camera = None
     if w.feeder is not None:
         f = _table(_FeederTable, w.feeder, f"{where} feeder")
-        feeder = Feeder(f.x_mm, f.y_mm, f.width_mm, f.depth_mm, int(f.sensor))
+        feeder = Feeder(f.x_mm, f.y_mm, f.width_mm, f.depth_mm, int(f.sensor), int(f.queue),
+                        None if f.template is None else int(f.template), float(f.interval_s), float(f.jitter_mm),
+                        float(f.jitter_deg), int(f.seed))
+        if feeder.queue:
+            parts += _queue(feeder, parts, f"{where} feeder", ARUCO_DICTS[w.aruco_dict])
     if w.pallet is not None:
         p = _table(_PalletTable, w.pallet, f"{where} pallet")
         pallet = Pallet(p.x_mm, p.y_mm, p.yaw_deg, int(p.rows), int(p.cols), p.pitch_x_mm, p.pitch_y_mm)
@@ -191,7 +223,10 @@ def world_to_table(world: WorldConfig) -> dict[str, Any]:
                                                           "grip_tilt_deg", "aruco_dict")}
     parts = []
     for p in world.parts:
+        if p.fed:
+            continue  # the feeder's queue values bring them back
         d = dataclasses.asdict(p)
+        del d["fed"]
         d["size_mm"] = list(p.size_mm) if p.shape == "box" else [p.size_mm[0], p.size_mm[2]]
         d["colour"] = list(p.colour)
         if p.marker is None:
@@ -201,7 +236,7 @@ def world_to_table(world: WorldConfig) -> dict[str, Any]:
     for key in ("feeder", "pallet", "camera"):
         value = getattr(world, key)
         if value is not None:
-            out[key] = dataclasses.asdict(value)
+            out[key] = {k: v for k, v in dataclasses.asdict(value).items() if v is not None}
     return out
 
 

@@ -43,6 +43,9 @@ class PartSpec:
     x_mm: float = 0.0
     y_mm: float = 0.0
     yaw_deg: float = 0.0
+    fed: int = 0
+    """0: on the table from the start. k >= 1: the k-th part the feeder's queue brings (:class:`Feeder`); it is not
+    in the world until it arrives, at (``x_mm``, ``y_mm``, ``yaw_deg``) in the feeder."""
 
     @property
     def height_mm(self) -> float:
@@ -59,6 +62,18 @@ class Feeder:
     width_mm: float = 80.0
     depth_mm: float = 80.0
     sensor: int = 1002
+    queue: int = 0
+    """Parts the feeder brings one after another (:func:`fed_parts`; 0: none, only the parts listed)."""
+    template: int | None = None
+    """The id of the part whose shape, size, colour and marker the fed parts copy (None: the first listed)."""
+    interval_s: float = 0.5
+    """The next part arrives this long (robot time: divided by the sim's time scale) after the feeder emptied."""
+    jitter_mm: float = 0.0
+    """Each fed part lies within +-``jitter_mm`` of the feeder's centre in x and in y (uniform)."""
+    jitter_deg: float = 0.0
+    """... turned within +-``jitter_deg`` of the template's yaw (uniform)."""
+    seed: int = 0
+    """Seed of the jitter: the same cell file feeds the same parts."""
 
     def contains(self, x_mm: float, y_mm: float) -> bool:
         return abs(x_mm - self.x_mm) <= self.width_mm / 2 and abs(y_mm - self.y_mm) <= self.depth_mm / 2
@@ -159,7 +174,7 @@ class PartState:
 @dataclass(frozen=True, slots=True)
 class WorldEvent:
     """Something that happened in the world at server time ``t_s``: ``kind`` is ``grasped``, ``released``,
-    ``dropped`` (an error: a part fell) or ``sensor`` (``signal`` turned ``on``). ``seq`` runs over all events."""
+    ``dropped`` (an error: a part fell), ``fed`` (the feeder's queue brought it) or ``sensor`` (``signal`` turned ``on``). ``seq`` runs over all events."""
 
     seq: int
     t_s: float
@@ -189,6 +204,27 @@ class WorldSnapshot:
         raise KeyError(part_id)
 
 
+def fed_parts(feeder: Feeder, template: PartSpec, first_id: int,
+              free_markers: tuple[int, ...] = ()) -> tuple[PartSpec, ...]:
+    """The ``feeder.queue`` parts the feeder brings, in order: copies of ``template`` with ids from ``first_id``,
+    each at the feeder's centre plus its jitter (seeded: pure). A marked template's copies take the ids of
+    ``free_markers`` (the dictionary's ids no listed part uses) in turn, from the first after the template's: every
+    fed part has its own marker until the dictionary runs out, then they repeat."""
+    rng = np.random.default_rng(feeder.seed)
+    start = sum(1 for m in free_markers if template.marker is not None and m < template.marker)
+    out = []
+    for k in range(1, feeder.queue + 1):
+        dx, dy = rng.uniform(-1.0, 1.0, 2) * feeder.jitter_mm
+        dyaw = float(rng.uniform(-1.0, 1.0)) * feeder.jitter_deg
+        marker = template.marker
+        if marker is not None and free_markers:
+            marker = free_markers[(start + k - 1) % len(free_markers)]
+        out.append(PartSpec(first_id + k - 1, template.shape, template.size_mm, template.colour, marker,
+                            template.marker_mm, round(feeder.x_mm + float(dx), 3), round(feeder.y_mm + float(dy), 3),
+                            round(template.yaw_deg + dyaw, 3), fed=k))
+    return tuple(out)
+
+
 def marker_bits(aruco_dict: str) -> int:
     """The data bits per side of an ArUco dictionary named like OpenCV's (``DICT_4X4_50`` -> 4)."""
     return int(aruco_dict.split("_")[1].split("X")[0])
@@ -213,5 +249,5 @@ def flat_matrix(x_mm: float, y_mm: float, z_mm: float, heading_deg: float) -> np
 
 __all__ = [
     "COLOURS", "SHAPES", "Feeder", "Pallet", "PartSpec", "PartState", "WorldCamera", "WorldConfig", "WorldEvent",
-    "WorldSnapshot", "flat_matrix", "label_mm", "marker_bits",
+    "WorldSnapshot", "fed_parts", "flat_matrix", "label_mm", "marker_bits",
 ]

@@ -18,6 +18,7 @@ from typing import Any
 
 from aioadept.apps.cellbus import BusSection, transport_argv, with_transport, zenoh_session
 from aioadept.apps.focus import FocusParams, FocusResult, ufloop
+from aioadept.apps.pickplace import PickPlaceParams
 from aioadept.apps.processes import NodeProcess, watch
 from aioadept.apps.runfolder import discard_run_dir, merged_save_error, save_run
 from aioadept.commands import SPEED_MAX, SPEED_MIN
@@ -82,6 +83,8 @@ class CellConfig:
     vision: VisionSection = field(default_factory=VisionSection)
     focus: FocusParams = field(default_factory=FocusParams)
     run: RunSection = field(default_factory=RunSection)
+    pickplace: PickPlaceParams = field(default_factory=PickPlaceParams)
+    """The ``[pickplace]`` table (docs/pickplace.md)."""
     world: WorldConfig | None = None
     """The simulated world (``[world]``: table, parts, feeder, pallet, camera; aioadept.worldfile), or None."""
     bus: BusSection = field(default_factory=BusSection)
@@ -100,7 +103,7 @@ class CellConfig:
         from aioadept.configfile import ConfigError, check_ranges, check_section
 
         known = {"robot": RobotSection, "vision": VisionSection, "focus": FocusParams, "run": RunSection,
-                 "world": WorldConfig, "bus": BusSection}
+                 "world": WorldConfig, "bus": BusSection, "pickplace": PickPlaceParams}
         unknown = set(data) - set(known) - {"calibration"}
         if unknown:
             raise ConfigError(f"{source}: unknown section(s) {', '.join(sorted(unknown))}; expected "

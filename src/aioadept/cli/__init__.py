@@ -20,6 +20,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "vision": ("aioadept.cli.vision", "run the image acquisition + processing node"),
     "focus": ("aioadept.cli.focus", "run focus-plane calibration against a robot server and vision node"),
     "demo": ("aioadept.cli.demo", "start the whole simulated cell and run focus calibration"),
+    "pickplace": ("aioadept.cli.pickplace", "pick parts from the feeder and place them on the pallet, vision-guided"),
     "analyze": ("aioadept.cli.analyze", "analyse run folders: the paper's timing metrics and plots"),
     "experiment": ("aioadept.cli.experiment", "repeat the demo over a parameter grid, then analyse"),
     "calibrate": ("aioadept.cli.calibrate", "estimate the fixed camera's pose in the robot base frame (marker on "

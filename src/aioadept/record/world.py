@@ -72,16 +72,10 @@ class WorldLogger:
                                                half_sizes=[(f.width_mm / 2, f.depth_mm / 2, 1.0)],
                                                colors=[(240, 160, 40)], fill_mode="MajorWireframe",
                                                labels=[f"feeder (sensor {f.sensor})"]), static=True)
+        self._drawn: set[int] = set()
         for p in w.parts:
-            path = f"world/parts/{p.id}"
-            h = p.height_mm
-            if p.shape == "cylinder":
-                rec.log(path, rr.Cylinders3D(lengths=[h], radii=[p.size_mm[0] / 2], centers=[(0.0, 0.0, h / 2)],
-                                             colors=[p.colour], fill_mode="Solid"), static=True)
-            else:
-                rec.log(path, rr.Boxes3D(half_sizes=[(p.size_mm[0] / 2, p.size_mm[1] / 2, h / 2)],
-                                         centers=[(0.0, 0.0, h / 2)], colors=[p.colour], fill_mode="Solid"),
-                        static=True)
+            if not p.fed:  # a part the feeder's queue brings is drawn when it arrives (else it sits at the origin)
+                self._draw_part(p)
         if self._view is not None:
             v = self._view
             pose = v.camera_pose
@@ -100,6 +94,19 @@ class WorldLogger:
                     static=True)
             self._scale = scale
 
+    def _draw_part(self, p: Any) -> None:
+        rr, rec = self.rr, self.rec
+        self._drawn.add(p.id)
+        path = f"world/parts/{p.id}"
+        h = p.height_mm
+        if p.shape == "cylinder":
+            rec.log(path, rr.Cylinders3D(lengths=[h], radii=[p.size_mm[0] / 2], centers=[(0.0, 0.0, h / 2)],
+                                         colors=[p.colour], fill_mode="Solid"), static=True)
+        else:
+            rec.log(path, rr.Boxes3D(half_sizes=[(p.size_mm[0] / 2, p.size_mm[1] / 2, h / 2)],
+                                     centers=[(0.0, 0.0, h / 2)], colors=[p.colour], fill_mode="Solid"),
+                    static=True)
+
     def state(self, ws: Any) -> None:
         """One ``world.state`` sample: the parts, the events, and (rate-limited) the camera's view."""
         rr, rec = self.rr, self.rec
@@ -108,13 +115,18 @@ class WorldLogger:
         rec.set_time("time", timestamp=ws.wall_time_s)
         self.counts["world"] += 1
         for p in ws.parts:
+            if p.id not in self._drawn:
+                try:
+                    self._draw_part(self.world.part(p.id))
+                except KeyError:
+                    continue  # not a part of this cell's world
             m = p.pose.to_matrix()
             rec.log(f"world/parts/{p.id}", rr.Transform3D(translation=m[:3, 3], mat3x3=m[:3, :3]))
         for e in ws.events:
             text = e.text or (f"part {e.part} {e.kind}" if e.kind != "sensor" else
                               f"sensor {e.signal} {'on' if e.on else 'off'}")
             rec.log("messages/world", rr.TextLog(text, level="ERROR" if e.kind == "dropped" else "INFO"))
-        moved = any(e.kind in ("grasped", "released", "dropped") for e in ws.events)
+        moved = any(e.kind in ("grasped", "released", "dropped", "fed") for e in ws.events)
         if self._view is not None and (moved or ws.wall_time_s - self._last_image_t >= 1.0 / IMAGE_RATE_HZ):
             self._last_image_t = ws.wall_time_s
             img = self._view.render_colour(ws.parts)[::self._scale, ::self._scale]

@@ -178,6 +178,7 @@ class Controller:
         """The parts the hand grasps and the feeder sensor drives (aioadept.sim.world), or None: no world."""
         if world is not None:
             self.io.on_drive = self._hand_drive
+            world.time_scale = time_scale
             self._apply_world_events([e for e in world.events if e.kind == "sensor"], 0.0)
         self.now_s = 0.0
         """The time of the event being processed (a skill reads it as 'now')."""
@@ -198,6 +199,8 @@ class Controller:
         self._fk_cache: tuple[tuple[float, ...], Pose, Pose] | None = None  # (joints, tool, pose) of the last FK
         self.executed = 0
         """Skills run to completion (done or error), for inspection in tests and benchmarks."""
+        if world is not None:  # last: the feeder's step reads the arm's pose (HERE)
+            self.io.on_advance = self._world_step
         self.last_error: tuple[int, str] = (0, "")
         """Code and text of the last skill that failed (0, "": none), as the ``status`` skill reports it."""
 
@@ -499,6 +502,12 @@ class Controller:
             events = self.world.hand_opened(t_s, tool)
         self.io.hand.part = self.world.held is not None
         self._apply_world_events(events, t_s)
+
+    def _world_step(self, t_s: float) -> None:
+        """The I/O advanced to ``t_s``: the feeder's queue may bring the next part (its sensor is an input)."""
+        assert self.world is not None
+        if self.world.queued:
+            self._apply_world_events(self.world.step(t_s, self.here_at(t_s)), t_s)
 
     def _apply_world_events(self, events: Sequence[WorldEvent], t_s: float) -> None:
         for ev in events:

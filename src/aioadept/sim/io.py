@@ -230,6 +230,10 @@ class DigitalIO:
         """A deferred OPEN/CLOSE/RELAX waiting for the start of the next motion."""
         self._switch_at: float | None = None        # when the closed-fully switch turns on (a pending event)
         self._now = 0.0
+        self.on_advance: Callable[[float], None] | None = None
+        """Called whenever the I/O advances to a time (every read and write of a signal does): the controller's
+        world brings the feeder's next part there (aioadept.sim.world, ``World.step``), so that inputs it drives
+        change on both backends at the same times."""
         self.on_drive: Callable[[HandState, float], None] | None = None
         """Called when the valves drive the hand another way (open, closed, relaxed), at that time, before the
         closed-fully switch is updated: the controller's world (aioadept.sim.world) grasps or releases a part
@@ -386,10 +390,13 @@ class DigitalIO:
 
     # -- time ----------------------------------------------------------------------------------------------
     def advance(self, t_s: float) -> None:
-        """Process what the hand does up to ``t_s`` (the closed-fully switch turns on at its own time)."""
+        """Process what the hand does up to ``t_s`` (the closed-fully switch turns on at its own time), and what
+        :attr:`on_advance` adds (the world's feeder)."""
         if t_s < self._now:
             return
         self._now = t_s
+        if self.on_advance is not None:
+            self.on_advance(t_s)
         if self._switch_at is not None and self._switch_at <= t_s:
             at = self._switch_at
             self._switch_at = None

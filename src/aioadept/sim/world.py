@@ -22,6 +22,11 @@ Rules (docs/sim.md, "The world"):
   overlaps it).
 - The feeder's sensor (a digital input) is on while the centre of any part that is not in the hand lies inside
   the feeder's rectangle.
+- The feeder's queue (``queue`` parts, :func:`aioadept.worldmodel.fed_parts`) brings the next part
+  ``interval_s`` (robot time) after the feeder emptied: after no part's centre, held or not, has lain in its
+  rectangle for that long (the previous part left it, in the hand or not). A part still queued is not in the world
+  (not in a snapshot, never grasped). :meth:`World.step` makes it arrive; the controller calls it whenever its
+  I/O advances, so both backends and the state stream see the same arrivals.
 
 The values (configuration, part states, events, snapshots) live in :mod:`aioadept.worldmodel`, re-exported here.
 Poses are 4 x 4 matrices inside and :class:`~aioadept.geometry.Pose` values (Adept Z-Y-Z) outside.
@@ -45,8 +50,10 @@ MAX_EVENTS = 4096
 class World:
     """The parts and sensors of a :class:`WorldConfig`; see the module docstring. All times are server seconds."""
 
-    def __init__(self, config: WorldConfig) -> None:
+    def __init__(self, config: WorldConfig, *, time_scale: float = 1.0) -> None:
         self.config = config
+        self.time_scale = float(time_scale)
+        """The sim's time scale: the feeder's interval shrinks with it, as motion does."""
         ids = [p.id for p in config.parts]
         if len(set(ids)) != len(ids):
             raise ValueError(f"part ids must be unique, got {ids}")
@@ -59,7 +66,12 @@ class World:
         self.events: deque[WorldEvent] = deque(maxlen=MAX_EVENTS)
         self._seq = 0
         self._sensor_on = False
+        self._waiting: deque[int] = deque(p.id for p in sorted(config.parts, key=lambda p: p.fed) if p.fed)
+        """The fed parts still queued, next first: not in the world yet."""
+        self._empty_since: float | None = -math.inf  # an empty feeder gets its first part at once
+        self._now = 0.0
         self._update_sensor(0.0)
+        self.step(0.0)
 
     # -- the hand ------------------------------------------------------------------------------------------
     def grasp_candidate(self, tool: Pose) -> int | None:
@@ -71,7 +83,7 @@ class World:
         tcp = m[:3, 3]
         best: tuple[float, int] | None = None
         for spec in c.parts:
-            if spec.id == self.held:
+            if spec.id == self.held or spec.id in self._waiting:
                 continue
             pm = self._pose[spec.id]
             local = inverse_transform(pm) @ np.append(tcp, 1.0)
@@ -143,10 +155,48 @@ class World:
     def snapshot(self, t_s: float, tool: Pose | None = None) -> WorldSnapshot:
         """Every part's pose at ``t_s`` (``tool``: the TCP at ``t_s``, which a held part follows)."""
         parts = tuple(PartState(p.id, Pose.from_matrix(self.part_matrix(p.id, tool)), p.id == self.held,
-                                p.id in self._dropped) for p in self.config.parts)
+                                p.id in self._dropped) for p in self.config.parts if p.id not in self._waiting)
         feeder = self.config.feeder
         on = (feeder.sensor,) if feeder is not None and self._sensor_on else ()
         return WorldSnapshot(t_s, parts, on)
+
+    # -- the feeder's queue ----------------------------------------------------------------------------------
+    @property
+    def queued(self) -> int:
+        """Fed parts not arrived yet."""
+        return len(self._waiting)
+
+    def step(self, t_s: float, tool: Pose | None = None) -> list[WorldEvent]:
+        """Advance the feeder's queue to ``t_s`` (``tool``: the TCP then, which a held part follows): the next part
+        arrives once the feeder has been empty for ``interval_s`` / time scale. Earlier times than one seen before
+        change nothing. Returns the events (``fed``, then the sensor's)."""
+        feeder = self.config.feeder
+        if feeder is None or not self._waiting or t_s < self._now:
+            return []
+        self._now = t_s
+        occupied = any(feeder.contains(float(m[0, 3]), float(m[1, 3]))
+                       for pid in self._pose if pid not in self._waiting
+                       for m in (self.part_matrix(pid, tool),))
+        if occupied:
+            self._empty_since = None
+            return []
+        if self._empty_since is None:
+            self._empty_since = t_s
+        if t_s < self._empty_since + feeder.interval_s / self.time_scale:
+            return []
+        part = self._waiting.popleft()
+        self._empty_since = None
+        spec = self.config.part(part)
+        out = [self._event(t_s, "fed", part=part, text=f"part {part} fed at x={spec.x_mm:.1f} y={spec.y_mm:.1f} "
+                                                      f"mm, yaw {spec.yaw_deg:.1f} deg ({len(self._waiting)} queued)")]
+        return out + self._update_sensor(t_s)
+
+    def next_feed_s(self) -> float | None:
+        """When the next part is due, if the feeder is empty and parts are queued (else None)."""
+        feeder = self.config.feeder
+        if feeder is None or not self._waiting or self._empty_since is None:
+            return None
+        return self._empty_since + feeder.interval_s / self.time_scale
 
     def sensor_on(self) -> bool:
         """The feeder's part-present sensor (False without a feeder)."""
@@ -168,7 +218,7 @@ class World:
         if feeder is None:
             return []
         on = any(feeder.contains(float(m[0, 3]), float(m[1, 3]))
-                 for pid, m in self._pose.items() if pid != self.held)
+                 for pid, m in self._pose.items() if pid != self.held and pid not in self._waiting)
         if on == self._sensor_on:
             return []
         self._sensor_on = on

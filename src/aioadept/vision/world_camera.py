@@ -195,7 +195,7 @@ class WorldView:
 def parts_at_rest(world: WorldConfig) -> tuple[PartState, ...]:
     """The parts where the cell file puts them (before any world state has arrived)."""
     return tuple(PartState(p.id, Pose.from_matrix(flat_matrix(p.x_mm, p.y_mm, world.table_z_mm, p.yaw_deg)))
-                 for p in world.parts)
+                 for p in world.parts if not p.fed)  # the feeder's queue has brought none yet
 
 
 class WorldStateFollower:
