@@ -444,10 +444,12 @@ class Cell:
 
 
 @contextlib.asynccontextmanager
-async def running_cell(cfg: CellConfig, log_dir: Path):
+async def running_cell(cfg: CellConfig, log_dir: Path, *, own_session: bool = True):
     """Start the nodes of ``cfg`` that run on this machine and yield a :class:`Cell` with resolved addresses.
 
-    The nodes are stopped on exit (SIGINT, then SIGTERM, then SIGKILL), whatever happened.
+    The nodes are stopped on exit (SIGINT, then SIGTERM, then SIGKILL), whatever happened. ``own_session=False``:
+    this process's Zenoh session is opened and closed by the caller (several cells sharing one router,
+    :mod:`aioadept.apps.multicell`).
     """
     cfg = resolve_ports(cfg)
     nodes: list[NodeProcess] = []
@@ -455,7 +457,8 @@ async def running_cell(cfg: CellConfig, log_dir: Path):
     async with contextlib.AsyncExitStack() as stack:
         # Zenoh: this process is the cell's router (or a client of it) before any node connects to it; the
         # session closes after the nodes have stopped.
-        stack.enter_context(zenoh_session(cfg))
+        if own_session:
+            stack.enter_context(zenoh_session(cfg))
         if cfg.robot.start_sim:
             sim = await stack.enter_async_context(NodeProcess("sim", sim_argv(cfg, world_file),
                                                               log_path=log_dir / "sim.log"))
