@@ -102,6 +102,9 @@ class CellConfig:
         known = {"robot": RobotSection, "vision": VisionSection, "focus": FocusParams, "run": RunSection,
                  "world": WorldConfig, "bus": BusSection}
         unknown = set(data) - set(known) - {"calibration"}
+        if unknown & {"robots", "cameras"}:
+            raise ConfigError(f"{source}: [[robots]]/[[cameras]] describe a cell of several robots, which only "
+                              f"`aioadept demo --config FILE` runs (docs/focus.md, \"Many robots in one cell\")")
         if unknown:
             raise ConfigError(f"{source}: unknown section(s) {', '.join(sorted(unknown))}; expected "
                               f"{', '.join([*known, 'calibration'])}")

@@ -177,8 +177,8 @@ def _check_distinct(members: list[Member], source: str) -> None:
             if item[1].endswith(":0") or item[1] == "none":  # a free port each, or no stream
                 continue
             if item in seen:
-                raise ConfigError(f"{source}: {item[0]} {item[1]!r} of robot {m.robot!r} is also robot "
-                                  f"{seen[item]!r}'s: each robot and camera needs addresses of its own (or port 0: "
+                raise ConfigError(f"{source}: {item[0]} {item[1]!r} of robot {m.robot!r} is also used by robot "
+                                  f"{seen[item]!r}: each robot and camera needs addresses of its own (or port 0: "
                                   f"a free one)")
             seen[item] = m.robot
 
