@@ -70,6 +70,10 @@ def test_two_robots_each_find_their_own_cameras_plane_at_the_same_time_and_leave
     (run_dir,) = (tmp_path / "runs").iterdir()
     summary = json.loads((run_dir / "multi.json").read_text())
     assert summary["transport"] == transport and [r["robot"] for r in summary["robots"]] == ["r1", "r2"]
+    if transport == "zenoh":  # the application saw every node come (before the robots moved) and go
+        seen = {(e["node"], e["alive"]) for e in summary["presence"]}
+        nodes = {(n, alive) for n in ("r1", "r2", "cam1", "cam2") for alive in (True, False)}
+        assert seen == nodes | {("app", True)}, seen  # the application's own token goes with its session
     for robot, camera, plane in (("r1", "cam1", 12.0), ("r2", "cam2", 22.0)):
         sub = run_dir / robot
         focus = json.loads((sub / "focus.json").read_text())

@@ -289,13 +289,16 @@ async def _all_present(members: list[Member], cell: str, watcher: Any) -> None:
 async def run_multi(multi: MultiCell, run_dir: Path, *, interrupter: Any = None,
                     presence_log: list[dict[str, Any]] | None = None) -> list[MemberOutcome]:
     """Start every member's nodes, run focus calibration on all robots at once, stop every node; one
-    :class:`MemberOutcome` per robot, in the file's order. ``presence_log`` (Zenoh) receives each node appearing
-    and vanishing as the application saw it (``{"node", "alive", "t_s"}``)."""
+    :class:`MemberOutcome` per robot, in the file's order, and ``multi.json`` in ``run_dir``. ``presence_log``
+    (Zenoh) receives each node appearing and vanishing as the application saw it (``{"node", "alive", "t_s"}``,
+    seconds since it began to watch); ``multi.json`` keeps it as ``presence``."""
     from aioadept.apps.cellbus import zenoh_session
 
     members = prepared(multi)
     base = members[0].cfg
     gate = _Gate(len(members))
+    if presence_log is None:
+        presence_log = []
     with zenoh_session(base):  # the cell's router (or a client of it), for every member's streams
         async with contextlib.AsyncExitStack() as stack:
             ready: asyncio.Future[None] | None = None
@@ -304,14 +307,13 @@ async def run_multi(multi: MultiCell, run_dir: Path, *, interrupter: Any = None,
 
                 watcher = await stack.enter_async_context(NodeWatcher(base.bus.cell))
                 t_watch = time.monotonic()
-                if presence_log is not None:
-                    stack.push_async_callback(_cancelled, asyncio.ensure_future(
-                        _log_presence(watcher, presence_log, t_watch)))
+                stack.push_async_callback(_cancelled, asyncio.ensure_future(
+                    _log_presence(watcher, presence_log, t_watch)))
                 ready = asyncio.ensure_future(_all_present(members, base.bus.cell, watcher))
                 stack.push_async_callback(_cancelled, ready)
             tasks = [_one(m, run_dir, gate, ready, interrupter) for m in members]
             results = await asyncio.gather(*tasks)
-    _write_summary(run_dir, base, results)
+    _write_summary(run_dir, base, results, presence_log)
     return list(results)
 
 
@@ -339,13 +341,15 @@ def member_dict(r: MemberOutcome, cfg: CellConfig | None = None) -> dict[str, An
     return out
 
 
-def _write_summary(run_dir: Path, base: CellConfig, results: list[MemberOutcome]) -> None:
+def _write_summary(run_dir: Path, base: CellConfig, results: list[MemberOutcome],
+                   presence: list[dict[str, Any]]) -> None:
     from aioadept.capture import write_atomic
 
     data = {"app": "focus-multi", "written_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(),
             "transport": base.bus.transport, "cell": base.bus.cell,
             "zenoh_router": base.bus.zenoh_router if base.bus.zenoh else None,
-            "robots": [member_dict(r) for r in results]}
+            "robots": [member_dict(r) for r in results],
+            "presence": presence if base.bus.zenoh else None}
     try:
         write_atomic(run_dir / "multi.json", json.dumps(data, indent=2))
     except OSError as exc:
