@@ -162,3 +162,44 @@ def test_a_node_name_needs_zenoh_and_is_one_key_chunk():
                         (["--transport", "zenoh", "--node", "a/b"], "--node 'a/b'")):
         proc = subprocess.run([*AIOADEPT, "sim", "--port", "0", *extra], capture_output=True, text=True, timeout=25)
         assert proc.returncode == 2 and text in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+
+
+@pytest.mark.timeout(150)
+async def test_one_sigint_stops_every_robot_of_the_cell_then_every_node_and_exits_130(tmp_path):
+    import asyncio
+    import os
+
+    from aioadept.apps.cell import free_port
+    from test_sigint import SLOW_SPEED, StateWatch, _finish, _gone, _spawn, at_rest, moving_at
+
+    states = [f"tcp://127.0.0.1:{free_port()}" for _ in range(2)]
+    cell = tmp_path / "two.toml"
+    cell.write_text(TWO_ROBOTS.format(transport="zeromq", out=tmp_path / "runs").replace(
+        'name = "r1"', f'name = "r1"\nstate_endpoint = "{states[0]}"').replace(
+        'name = "r2"', f'name = "r2"\nstate_endpoint = "{states[1]}"').replace(
+        "focus_offset_mm = 12.0", "focus_offset_mm = 200.0").replace("focus_offset_mm = 22.0",
+                                                                     "focus_offset_mm = 200.0"))
+    watches = [StateWatch(s) for s in states]  # connect before the sims bind: ZeroMQ retries
+    try:
+        proc = await _spawn("demo", "--config", str(cell), "--speed", str(SLOW_SPEED), "--delta-z", "40",
+                            "--max-steps", "5", "--no-record", "--no-analyze")
+        try:
+            for w in watches:  # both arms in a slow 40 mm step at once
+                await w.until(moving_at(SLOW_SPEED), f"moving at {SLOW_SPEED} %", timeout_s=60)
+            t_kill = asyncio.get_running_loop().time()
+            os.kill(proc.pid, signal.SIGINT)
+            rests = [await w.until(at_rest, "at rest", timeout_s=5) for w in watches]
+            out, err = await _finish(proc, timeout_s=30)
+        finally:
+            if proc.returncode is None:
+                proc.kill()
+                await proc.wait()
+    finally:
+        for w in watches:
+            w.close()
+    for t_rest, _rest in rests:
+        assert t_rest - t_kill < 2.0, f"at rest {t_rest - t_kill:.3f} s after SIGINT"
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "interrupted: robot stopped" in err
+    for s in states:
+        await _gone(s)  # each robot's sim and camera node (both have its state endpoint in their command line)
