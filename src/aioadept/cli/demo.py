@@ -84,7 +84,7 @@ def main(argv: list[str] | None = None) -> int:
         if is_multi(data):  # [[robots]] and [[cameras]]: every robot calibrates its camera at once
             from aioadept.cli.multi import main_multi
 
-            return main_multi(args, data)
+            return main_multi(args, data, with_demo_options)
     try:
         cfg = demo_config(args)
     except (OSError, ValueError) as exc:

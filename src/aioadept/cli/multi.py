@@ -13,6 +13,7 @@ import argparse
 import contextlib
 import logging
 import sys
+from collections.abc import Callable
 from typing import Any
 
 log = logging.getLogger("aioadept.demo")
@@ -20,18 +21,19 @@ log = logging.getLogger("aioadept.demo")
 PROG = "aioadept demo"
 
 
-def multi_config(args: argparse.Namespace, data: dict[str, Any]) -> Any:
-    """The file's cell with the command line's options applied to every robot (ValueError naming the mistake)."""
+def multi_config(args: argparse.Namespace, data: dict[str, Any], options: Callable[..., Any]) -> Any:
+    """The file's cell with the command line's ``options`` (``aioadept demo``'s) applied to every robot
+    (ValueError naming the mistake)."""
     from aioadept.apps.multicell import multi_from_dict
-    from aioadept.cli.demo import with_demo_options
 
     multi = multi_from_dict(data, source=str(args.config))
     for m in multi.members:
-        m.cfg = with_demo_options(m.cfg, args, from_file=True)
+        m.cfg = options(m.cfg, args, from_file=True)
     return multi
 
 
-def main_multi(args: argparse.Namespace, data: dict[str, Any]) -> int:
+def main_multi(args: argparse.Namespace, data: dict[str, Any], options: Callable[..., Any]) -> int:
+    """``options(cfg, args, from_file=True)``: the demo's options applied to one robot's cell."""
     from aioadept.apps.interrupt import run_interruptible
     from aioadept.apps.multicell import new_multi_run_dir, run_multi
     from aioadept.cli.options import report
@@ -42,7 +44,7 @@ def main_multi(args: argparse.Namespace, data: dict[str, Any]) -> int:
               f"run.rrd is written in its sub-folder (docs/record.md)", file=sys.stderr)
         return 2
     try:
-        multi = multi_config(args, data)
+        multi = multi_config(args, data, options)
     except (OSError, ValueError) as exc:
         return report(PROG, exc, verbose=args.verbose)
     try:
