@@ -154,6 +154,15 @@ def test_a_mistake_in_a_cell_of_several_robots_is_one_line_and_starts_nothing(tm
     assert not (tmp_path / "runs").exists()
     proc = subprocess.run([*AIOADEPT, "focus", "--config", str(cell)], capture_output=True, text=True, timeout=25)
     assert proc.returncode == 2 and "only `aioadept demo --config FILE` runs" in proc.stderr
+    good = tmp_path / "good.toml"
+    good.write_text(TWO_ROBOTS.format(transport="zenoh", out=tmp_path / "runs"))
+    proc = subprocess.run([*AIOADEPT, "demo", "--config", str(good), "--view"], capture_output=True, text=True,
+                          timeout=25)
+    assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1 and "--view" in proc.stderr
+    proc = subprocess.run([*AIOADEPT, "demo", "--config", str(good), "--speed", "0"], capture_output=True,
+                          text=True, timeout=25)
+    assert proc.returncode == 2 and "--speed 0: expected" in proc.stderr and "Traceback" not in proc.stderr
+    assert not (tmp_path / "runs").exists()
 
 
 @pytest.mark.timeout(30)
