@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: venv demo test bench docs proto clean toxiproxy chromium gige
+.PHONY: venv demo demo-multi test bench docs proto clean toxiproxy chromium gige
 
 $(STAMP): pyproject.toml requirements.lock
 	$(PY) -m venv $(VENV)
@@ -17,6 +17,10 @@ venv: $(STAMP)
 
 demo: $(STAMP)
 	$(BIN)/aioadept demo $(ARGS)
+
+# Four simulated robots, each calibrating its own camera at the same time, over one Zenoh router (docs/focus.md).
+demo-multi: $(STAMP)
+	$(BIN)/aioadept demo --config examples/multi-cell.toml $(ARGS)
 
 # The fault matrix drives toxiproxy (a Go program) when it can be built here; without Go its cases skip.
 toxiproxy:

@@ -36,6 +36,7 @@ QUICK_ARGS: dict[str, list[str]] = {
     "bench_client": ["--quick"],
     "bench_focus_sweep": ["--rounds", "1"],
     "bench_locate": ["--frames", "5"],
+    "bench_multi_cell": ["--rounds", "1", "--restarts", "2"],
     "bench_load": ["--clients", "5", "--sim-seconds", "0.5", "--vision-rates", "5,20", "--vision-seconds", "1",
                    "--idle-seconds", "0.5"],
     "bench_safety": ["--trials", "3"],

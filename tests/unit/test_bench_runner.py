@@ -100,7 +100,7 @@ def test_a_real_benchmark_in_quick_mode_gives_its_verdict(tmp_path: Path) -> Non
 
 @pytest.mark.parametrize("name", ["bench_bus", "bench_client", "bench_load", "bench_safety", "bench_sigint",
                                   "bench_sim", "bench_statestream", "bench_vision", "bench_vplus",
-                                  "bench_focus_sweep"])
+                                  "bench_focus_sweep", "bench_multi_cell"])
 def test_each_benchmark_puts_the_standard_verdicts_in_its_json(name: str) -> None:
     # A benchmark without the list still runs: the table shows it as "no goal stated".
     assert '"verdicts"' in (ROOT / "benchmarks" / f"{name}.py").read_text(encoding="utf-8")

@@ -105,6 +105,9 @@ class CellConfig:
         known = {"robot": RobotSection, "vision": VisionSection, "focus": FocusParams, "run": RunSection,
                  "world": WorldConfig, "bus": BusSection, "pickplace": PickPlaceParams}
         unknown = set(data) - set(known) - {"calibration"}
+        if unknown & {"robots", "cameras"}:
+            raise ConfigError(f"{source}: [[robots]]/[[cameras]] describe a cell of several robots, which only "
+                              f"`aioadept demo --config FILE` runs (docs/focus.md, \"Many robots in one cell\")")
         if unknown:
             raise ConfigError(f"{source}: unknown section(s) {', '.join(sorted(unknown))}; expected "
                               f"{', '.join([*known, 'calibration'])}")
@@ -452,10 +455,12 @@ class Cell:
 
 
 @contextlib.asynccontextmanager
-async def running_cell(cfg: CellConfig, log_dir: Path):
+async def running_cell(cfg: CellConfig, log_dir: Path, *, own_session: bool = True):
     """Start the nodes of ``cfg`` that run on this machine and yield a :class:`Cell` with resolved addresses.
 
-    The nodes are stopped on exit (SIGINT, then SIGTERM, then SIGKILL), whatever happened.
+    The nodes are stopped on exit (SIGINT, then SIGTERM, then SIGKILL), whatever happened. ``own_session=False``:
+    this process's Zenoh session is opened and closed by the caller (several cells sharing one router,
+    :mod:`aioadept.apps.multicell`).
     """
     cfg = resolve_ports(cfg)
     nodes: list[NodeProcess] = []
@@ -463,7 +468,8 @@ async def running_cell(cfg: CellConfig, log_dir: Path):
     async with contextlib.AsyncExitStack() as stack:
         # Zenoh: this process is the cell's router (or a client of it) before any node connects to it; the
         # session closes after the nodes have stopped.
-        stack.enter_context(zenoh_session(cfg))
+        if own_session:
+            stack.enter_context(zenoh_session(cfg))
         if cfg.robot.start_sim:
             sim = await stack.enter_async_context(NodeProcess("sim", sim_argv(cfg, world_file),
                                                               log_path=log_dir / "sim.log"))

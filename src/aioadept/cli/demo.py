@@ -42,7 +42,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 def demo_config(args: argparse.Namespace) -> CellConfig:
     cfg = CellConfig.from_toml(args.config) if args.config else CellConfig()
-    if not args.config:
+    return with_demo_options(cfg, args, from_file=bool(args.config))
+
+
+def with_demo_options(cfg: CellConfig, args: argparse.Namespace, *, from_file: bool) -> CellConfig:
+    """``cfg`` with the demo's command-line options applied (ValueError naming the option)."""
+    if not from_file:
         # Free ports, so the demo runs beside anything else on this machine.
         cfg.robot.port = 0
         cfg.robot.state_endpoint = "tcp://127.0.0.1:0"
@@ -50,7 +55,7 @@ def demo_config(args: argparse.Namespace) -> CellConfig:
         cfg.vision.response_endpoint = "tcp://127.0.0.1:0"
     # Without a file the demo starts the whole cell; a file says itself which nodes run here (start_sim = false:
     # connect to the server at robot.host:port, e.g. a real controller, and fail if nothing answers there).
-    if not args.config and args.transport == "zenoh":
+    if not from_file and args.transport == "zenoh":
         cfg.bus.zenoh_router = "tcp/127.0.0.1:0"  # a free port for this demo's router, as above
     if args.fast:
         cfg.robot.time_scale = 10.0
@@ -68,6 +73,18 @@ def main(argv: list[str] | None = None) -> int:
     printed but not fully saved, 130 interrupted with the robot stopped (and every node stopped)."""
     args = build_parser().parse_args(argv)
     configure_logging(args.verbose)
+    if args.config:
+        from aioadept.apps.multicell import is_multi
+        from aioadept.configfile import load_toml
+
+        try:
+            data = load_toml(args.config)
+        except ValueError as exc:
+            return report("aioadept demo", exc, verbose=args.verbose)
+        if is_multi(data):  # [[robots]] and [[cameras]]: every robot calibrates its camera at once
+            from aioadept.cli.multi import main_multi
+
+            return main_multi(args, data, with_demo_options)
     try:
         cfg = demo_config(args)
     except (OSError, ValueError) as exc:

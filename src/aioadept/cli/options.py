@@ -182,7 +182,7 @@ def add_robot_option(p: argparse.ArgumentParser) -> None:
 
 TRANSPORTS = defaults.TRANSPORTS
 
-_ZENOH_OPTIONS = ("cell", "zenoh_connect", "zenoh_listen")
+_ZENOH_OPTIONS = ("cell", "zenoh_connect", "zenoh_listen", "node")
 
 
 def add_transport_option(p: argparse.ArgumentParser) -> None:
@@ -200,6 +200,9 @@ def add_node_transport_options(p: argparse.ArgumentParser) -> None:
                    help="--transport zenoh: the Zenoh router to connect to (default tcp/127.0.0.1:7447)")
     p.add_argument("--zenoh-listen", metavar="tcp/HOST:PORT",
                    help="--transport zenoh: be the router, listening here, instead of connecting to one")
+    p.add_argument("--node", metavar="NAME",
+                   help="--transport zenoh: this node's name in its liveliness token aioadept/CELL/NAME (default: "
+                        "sim or vision; a cell of several robots names each, e.g. r1, cam1)")
 
 
 def apply_node_transport(values: dict, node: str, streams: dict[str, tuple[str, str, str]]) -> None:
@@ -225,7 +228,11 @@ def apply_node_transport(values: dict, node: str, streams: dict[str, tuple[str, 
         if listen and connect:
             raise BusError("give --zenoh-listen (be the router) or --zenoh-connect (use one), not both")
         zb.configure(zb.ZenohOptions.router(listen) if listen else zb.ZenohOptions.client(connect or zb.DEFAULT_ROUTER))
-        zb.announce_as(cell, node)
+        name = values.get("node") or node
+        if "/" in name:
+            raise BusError(f"--node {name!r}: one key chunk (letters, digits, '_', '.', '-'), no '/'")
+        zb.check_key(name)
+        zb.announce_as(cell, name)
     except BusError as exc:
         raise ValueError(str(exc)) from None
     for key, (zmq_default, owner, topic) in streams.items():

@@ -182,7 +182,7 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
     parser = build_parser()
     args = parser.parse_args(argv)
     merged = dict(DEFAULTS)
-    merged.update(transport="zeromq", cell=None, zenoh_connect=None, zenoh_listen=None)
+    merged.update(transport="zeromq", cell=None, zenoh_connect=None, zenoh_listen=None, node=None)
     if args.config:
         try:
             merged.update(load_config(args.config))
