@@ -241,3 +241,60 @@ def test_cli_mistakes_are_one_line(argv, said):
     assert out.returncode != 0
     lines = out.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("aioadept bridge: ") and said in lines[0], out.stderr
+
+
+@pytest.mark.timeout(60)
+async def test_one_application_cannot_queue_without_bound(tmp_path):
+    from aioadept.bridge.wire import MAX_QUEUED_PER_APP
+    from aioadept.errors import TooManyPending
+
+    async with shared_robot(tmp_path) as (name, _sim, _bridge):
+        async with client(name, "a") as a, client(name, "b") as b:
+            moving = asyncio.create_task(b.cmdexec_joined(slow_move(FAR)))
+            await asyncio.sleep(0.3)
+            extra = 6
+            polls = [asyncio.create_task(a.here()) for _ in range(MAX_QUEUED_PER_APP + extra)]
+            async with asyncio.timeout(2):   # the refusals come back at once, while the motion runs
+                while sum(p.done() for p in polls) < extra:
+                    await asyncio.sleep(0.01)
+            early = [p for p in polls if p.done()]
+            refused = sum(isinstance(p.exception(), TooManyPending) for p in early)
+            assert "already has 64 batches" in str(early[0].exception())
+            assert not moving.done()
+            await b.stop()
+            outcomes = await asyncio.gather(*polls, return_exceptions=True)
+            with pytest.raises(CommandAborted):
+                await moving
+            assert (await b.here()) is not None      # b, and the bridge, carry on
+    assert refused == extra
+    assert sum(isinstance(o, AbortedBeforeSend) for o in outcomes) == MAX_QUEUED_PER_APP
+    assert sum(isinstance(o, TooManyPending) for o in outcomes) == extra
+
+
+@pytest.mark.timeout(60)
+async def test_the_paper_s_coroutines_run_unchanged_through_the_bridge_beside_another_application(tmp_path):
+    from aioadept.apps.paper import init_move, move_tool_z
+
+    async with shared_robot(tmp_path) as (name, _sim, _bridge):
+        async with client(name, "focus") as rc, client(name, "monitor") as mon:
+            polls = 0
+            running = True
+
+            async def monitor():
+                nonlocal polls
+                while running:
+                    await mon.here()
+                    polls += 1
+
+            watcher = asyncio.create_task(monitor())
+            try:
+                start = (await init_move(rc)).pose
+                for _ in range(3):
+                    last = (await move_tool_z(rc, 20, 2.5)).pose
+                final = await rc.here()
+            finally:
+                running = False
+                await watcher
+    moved = ((final.x - start.x) ** 2 + (final.y - start.y) ** 2 + (final.z - start.z) ** 2) ** 0.5
+    assert abs(moved - 7.5) < 0.05            # three 2.5 mm steps along the tool's z
+    assert last is not None and polls > 0     # the other application was served meanwhile

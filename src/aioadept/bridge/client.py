@@ -13,7 +13,8 @@ the reply carries the acks. Results and errors are RobotClient's: :class:`ExecRe
 :class:`CommandAborted` (a stop from any application aborted the batch on the controller),
 :class:`AbortedBeforeSend` (a stop came while the batch was queued in the bridge: never sent),
 :class:`ConnectionLost` (``acked`` / ``unresolved``: the controller link or the bridge itself went away),
-:class:`AckTimeout`, and :class:`BridgeRefused` for a query the bridge would not take.
+:class:`AckTimeout`, :class:`TooManyPending` (this application already has 64 batches waiting in the bridge;
+nothing sent) and :class:`BridgeRefused` for a query the bridge would not take.
 
 While connected the client holds a liveliness token ``aioadept/<cell>/<robot>/apps/<app>``: when this process
 ends, the bridge drops this application's batches not yet sent. It also watches the bridge's own token: when the
@@ -30,6 +31,7 @@ from collections.abc import Iterable
 from typing import Any
 
 from aioadept.bridge.wire import (
+    MAX_QUEUED_PER_APP,
     BridgeFailure,
     app_key,
     bridge_key,
@@ -49,6 +51,7 @@ from aioadept.errors import (
     CommandError,
     ConnectError,
     ConnectionLost,
+    TooManyPending,
 )
 from aioadept.geometry import Pose
 from aioadept.protocol import HELLO_SKILL, HERE_SKILL, STOP_SKILL, IdAllocator, SkillCall, Status, parse_ack
@@ -350,4 +353,6 @@ def _error_of(f: BridgeFailure, calls: tuple[SkillCall, ...]) -> AdeptError:
         return ConnectionLost(f.text, acked=f.acked, unresolved=f.unresolved)
     if f.kind == "timeout":
         return AckTimeout(f.text, pending=f.unresolved)
+    if f.kind == "busy":
+        return TooManyPending(f.text, pending=MAX_QUEUED_PER_APP, wanted=len(calls), limit=MAX_QUEUED_PER_APP)
     return BridgeRefused(f"the robot bridge refused the query: {f.text}", kind=f.kind)

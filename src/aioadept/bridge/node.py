@@ -32,6 +32,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 from aioadept.bridge.wire import (
+    MAX_QUEUED_PER_APP,
     BridgeFailure,
     BridgeRequest,
     MalformedRequest,
@@ -59,6 +60,7 @@ class BridgeStats:
     malformed: int = 0
     aborted_before_send: int = 0
     dropped_vanished: int = 0
+    busy: int = 0
 
 
 @dataclass
@@ -87,6 +89,8 @@ class Bridge:
         self._jobs: deque[_Job] = deque()
         self._more = asyncio.Event()
         self._current: _Job | None = None
+        self._queued: dict[str, int] = {}  # application -> its batches in _jobs
+        self._stop_gen = 0  # stops so far: a batch taken from the queue before a stop is never sent after it
         self._loop: asyncio.AbstractEventLoop | None = None
         self._entities: list[Any] = []
         self._tasks: list[asyncio.Task[None]] = []
@@ -171,16 +175,25 @@ class Bridge:
         if req.is_stop:
             self._stop(req, query)
             return
+        n = self._queued.get(req.app, 0)
+        if n >= MAX_QUEUED_PER_APP:
+            self.stats.busy += 1
+            self._reply_err(query, BridgeFailure("busy", f"application {req.app!r} already has {n} batches "
+                                                         "waiting in the bridge; not sent"))
+            return
+        self._queued[req.app] = n + 1
         self._jobs.append(_Job(req, query))
         self._more.set()
 
     def _stop(self, req: BridgeRequest, query: Any) -> None:
         """A stop from ``req.app``: written now, before anything queued; the queued batches are answered."""
         self.stats.stops += 1
+        self._stop_gen += 1
         task = self.robot.stop_nowait()  # connected: written before this returns
         log.warning("bridge %s: stop from application %r (%d queued batch(es) not sent)", self._key, req.app,
                     len(self._jobs))
         jobs, self._jobs = self._jobs, deque()
+        self._queued.clear()
         for job in jobs:
             self.stats.aborted_before_send += 1
             self._fail(job, BridgeFailure("aborted", f"stop from application {req.app!r} before it was sent"))
@@ -218,6 +231,7 @@ class Bridge:
         gone = [j for j in self._jobs if j.req.app == app]
         if gone:
             self._jobs = deque(j for j in self._jobs if j.req.app != app)
+            self._queued.pop(app, None)
             for job in gone:
                 self.stats.dropped_vanished += 1
                 self._fail(job, BridgeFailure("dropped", f"application {app!r} vanished; not sent"))
@@ -233,6 +247,11 @@ class Bridge:
                 self._more.clear()
                 await self._more.wait()
             job = self._jobs.popleft()
+            left = self._queued.get(job.req.app, 1) - 1
+            if left > 0:
+                self._queued[job.req.app] = left
+            else:
+                self._queued.pop(job.req.app, None)
             self._current = job
             try:
                 await self._execute(job)
@@ -243,12 +262,17 @@ class Bridge:
         req = job.req
         robot = self.robot
         self.stats.batches += 1
+        gen = self._stop_gen
         if not robot.connected:
             try:  # a lost controller link: reconnect for the NEXT batch (nothing is ever re-sent)
                 await robot.connect()
             except (ConnectError, ClientStateError) as exc:
                 self._fail(job, BridgeFailure("lost", f"controller not connected, not sent: {exc}"))
                 return
+        if self._stop_gen != gen:  # a stop came while we reconnected: as if it had been queued
+            self.stats.aborted_before_send += 1
+            self._fail(job, BridgeFailure("aborted", "a stop came before it was sent"))
+            return
         try:
             sub = robot.submit(*req.calls)
         except (ConnectionLost, ClientStateError) as exc:
