@@ -86,9 +86,10 @@ async def bench(args: argparse.Namespace) -> dict:
     cell, name = "bench", f"r{os.getpid()}"
     async with running_node("sim", "--port", "0", "--state-endpoint", "none") as sim:
         port = int(sim.ready["port"])
-        async with running_node("bridge", "--robot", f"127.0.0.1:{port}", "--zenoh-connect", router, "--cell", cell,
+        async with running_node("bridge", "--robot", f"127.0.0.1:{port}", "--stop-port", sim.ready["stop_port"],
+                                "--zenoh-connect", router, "--cell", cell,
                                 "--name", name, expect_clean_exit=False):
-            direct = RobotClient("127.0.0.1", port)
+            direct = RobotClient("127.0.0.1", port, stop_port=int(sim.ready["stop_port"]))
             via = BridgeClient(cell, name, app="bench")
             async with direct, via:
                 await trips(direct.here, args.warmup)

@@ -43,13 +43,15 @@ def slow_move(joints) -> Joined:
 
 
 @asynccontextmanager
-async def shared_robot(tmp_path, *, state: bool = False):
+async def shared_robot(tmp_path, *, state: bool = False, sim_killed: bool = False):
     """A sim and a bridge in front of it; yields ``(robot name, sim node, bridge node)``."""
     router = start_zenoh_router()
     name = f"r{next(_names)}-{os.getpid()}"
     async with running_node("sim", "--port", "0", "--state-endpoint", "tcp://127.0.0.1:0" if state else "none",
-                            "--joints", ",".join(map(str, HOME)), log_path=tmp_path / "sim.log") as sim:
-        argv = ["--robot", f"127.0.0.1:{sim.ready['port']}", "--zenoh-connect", router, "--cell", CELL,
+                            "--joints", ",".join(map(str, HOME)), log_path=tmp_path / "sim.log",
+                            expect_clean_exit=not sim_killed) as sim:
+        argv = ["--robot", f"127.0.0.1:{sim.ready['port']}", "--stop-port", sim.ready["stop_port"],
+                "--zenoh-connect", router, "--cell", CELL,
                 "--name", name, "--log-level", "INFO"]
         if state:
             argv += ["--state-endpoint", sim.ready["state"]]
@@ -298,3 +300,30 @@ async def test_the_paper_s_coroutines_run_unchanged_through_the_bridge_beside_an
     moved = ((final.x - start.x) ** 2 + (final.y - start.y) ** 2 + (final.z - start.z) ** 2) ** 0.5
     assert abs(moved - 7.5) < 0.05            # three 2.5 mm steps along the tool's z
     assert last is not None and polls > 0     # the other application was served meanwhile
+
+
+@pytest.mark.timeout(60)
+async def test_a_lost_controller_link_names_what_is_known_done_and_queued_batches_are_not_sent(tmp_path):
+    async with shared_robot(tmp_path, sim_killed=True) as (name, sim, _bridge):
+        async with client(name, "a") as a, client(name, "b") as b:
+            batch = slow_move(FAR)
+            moving = asyncio.create_task(b.cmdexec_joined(batch))
+            await asyncio.sleep(0.5)
+            queued = asyncio.create_task(a.here())
+            await asyncio.sleep(0.2)
+            sim.proc.send_signal(signal.SIGKILL)
+            with pytest.raises(ConnectionLost) as lost:
+                await asyncio.wait_for(moving, 5)
+            with pytest.raises(ConnectionLost) as not_sent:
+                await asyncio.wait_for(queued, 10)
+            await sim.proc.wait()
+    n = len(batch.calls())
+    # set_speed and the move were acked (forward processing: a move acks as it starts); the breaks are unknown.
+    assert len(lost.value.acked) == 2 and len(lost.value.unresolved) == n - 2
+    assert "controller link lost" in str(lost.value)
+    # Never acked. Normally never sent either (the reconnect is refused); but a controller process still dying can
+    # accept the reconnect into its listen backlog and then reset it: then it was sent, and it says so.
+    assert not_sent.value.acked == ()
+    said = str(not_sent.value)
+    assert ("not sent" in said and not_sent.value.unresolved == ()) or (
+        len(not_sent.value.unresolved) == 1 and said.count("acked=") == 1), said

@@ -339,7 +339,9 @@ def _failure_of(exc: BaseException, app_ids: tuple[str, ...], to_app: dict[str, 
         return tuple(to_app.get(c, c) for c in cids if c in to_app)
 
     if isinstance(exc, ConnectionLost):
-        return BridgeFailure("lost", f"controller link lost: {exc}", ids(exc.acked), ids(exc.unresolved))
+        # Its text without its own ID lists: those are the controller's IDs, the reply carries the application's.
+        reason = str(exc).split("; acked=")[0]
+        return BridgeFailure("lost", f"controller link lost: {reason}", ids(exc.acked), ids(exc.unresolved))
     if isinstance(exc, AckTimeout):
         return BridgeFailure("timeout", f"controller gave no ack in time: {exc}", (),
                              ids(tuple(exc.pending)) or app_ids)
