@@ -327,3 +327,36 @@ async def test_a_lost_controller_link_names_what_is_known_done_and_queued_batche
     said = str(not_sent.value)
     assert ("not sent" in said and not_sent.value.unresolved == ()) or (
         len(not_sent.value.unresolved) == 1 and said.count("acked=") == 1), said
+
+
+@pytest.mark.timeout(90)
+async def test_the_bridge_serves_the_vplus_emulated_server_too(tmp_path):
+    from pathlib import Path
+
+    router = start_zenoh_router()
+    vplus = Path(__file__).resolve().parents[2] / "vplus"
+    files = [str(vplus / f) for f in ("rsconfig.V2", "rserver.V2", "rsskills.V2")]
+    name = f"v{next(_names)}-{os.getpid()}"
+    async with running_node("sim", "--vplus", *files, "--run", "rs.main", "--map-port", "1234=0",
+                            "--map-port", "1235=0", "--state-endpoint", "none", log_path=tmp_path / "vplus.log",
+                            expect_clean_exit=False) as server:
+        argv = ["--robot", f"127.0.0.1:{server.ready['port']}", "--zenoh-connect", router, "--cell", CELL,
+                "--name", name]
+        if server.ready.get("stop_port"):
+            argv += ["--stop-port", server.ready["stop_port"]]
+        async with running_node("bridge", *argv, log_path=tmp_path / "bridge.log", expect_clean_exit=False):
+            async with client(name, "a") as a, client(name, "b") as b:
+                moving = asyncio.create_task(b.cmdexec_joined(slow_move(FAR)))
+                await asyncio.sleep(0.5)
+                queued = asyncio.create_task(b.cmdexec(MoveJoints(HOME)))
+                await asyncio.sleep(0.2)
+                stop = await a.stop()
+                with pytest.raises(CommandAborted):
+                    await asyncio.wait_for(moving, 5)
+                with pytest.raises(AbortedBeforeSend):
+                    await asyncio.wait_for(queued, 5)
+                p1 = await a.here()
+                await asyncio.sleep(0.5)
+                p2 = await a.here()
+    assert stop.ack.ok
+    assert abs(p1.y - p2.y) < 1e-3 and abs(p2.y - stop.ack.pose.y) < 1e-3
