@@ -44,7 +44,9 @@ FLOOD = textwrap.dedent("""
                     count += 1
             tasks = [asyncio.create_task(one()) for _ in range(int(n))]
             print("FLOODING", flush=True)
-            await asyncio.sleep(3600)
+            while True:
+                await asyncio.sleep(0.25)
+                print("COUNT", count, flush=True)
     asyncio.run(main(*sys.argv[1:]))
 """)
 
@@ -115,6 +117,13 @@ async def bench(args: argparse.Namespace) -> dict:
                     line = await asyncio.wait_for(flood.stdout.readline(), 30)
                     if line.strip() != b"FLOODING":
                         raise RuntimeError(f"flood app said {line!r}")
+                    counts: list[tuple[float, int]] = []
+
+                    async def read_counts() -> None:
+                        while line := await flood.stdout.readline():
+                            counts.append((time.perf_counter(), int(line.split()[1])))
+
+                    reader = asyncio.create_task(read_counts())
                     await asyncio.sleep(0.5)
                     stop_flood = []
                     for _ in range(args.stops):
@@ -124,6 +133,10 @@ async def bench(args: argparse.Namespace) -> dict:
                     t0 = time.perf_counter()
                     await via.here()
                     here_behind_flood_s = time.perf_counter() - t0
+                    await asyncio.sleep(0.3)
+                    reader.cancel()
+                    (t_a, n_a), (t_b, n_b) = counts[0], counts[-1]
+                    flood_rate = (n_b - n_a) / (t_b - t_a)
                 finally:
                     flood.kill()
                     await flood.wait()
@@ -138,6 +151,7 @@ async def bench(args: argparse.Namespace) -> dict:
         "round_trip_ratio_per_block": [round(r, 3) for r in ratios],
         "stop_direct_no_flood": summary_ms(stop_direct), "stop_bridge_flood": summary_ms(stop_flood),
         "here_behind_flood_ms": round(here_behind_flood_s * 1e3, 3),
+        "flood_queries_per_s": round(flood_rate, 1),
         "verdicts": [
             verdict("here round trip p50, through the bridge vs RobotClient direct", pct(b_all, 0.5) * 1e3,
                     pct(d_all, 0.5) * 1e3, unit="ms", ratio=rt_ratio),
