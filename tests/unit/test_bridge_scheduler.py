@@ -184,3 +184,22 @@ async def test_a_malformed_query_is_answered_and_changes_nothing():
         await robot.close()
     assert kind == "err" and failure.kind == "malformed" and "line 1" in failure.text
     assert [line.split(b":")[1] for line in server.lines()] == [b"here"]
+
+
+@pytest.mark.timeout(10)
+async def test_closing_the_bridge_answers_the_batch_in_flight_as_unknown_and_the_queued_as_not_sent():
+    server = ScriptedServer({"move_joints": Reply(delay_s=2.0)})
+    robot = RobotClient(connector=server.connector(), stop_port=None)
+    bridge = Bridge(robot)
+    bridge._tasks.append(await started(bridge))
+    moving = query("a", "00000001:move_joints:0,0,0,0,0,0")
+    bridge._on_query(moving)
+    await asyncio.sleep(0.05)
+    queued = query("b", "00000001:here")
+    bridge._on_query(queued)
+    await bridge.aclose()
+    kind, failure = await outcome(moving)
+    assert kind == "err" and failure.kind == "lost" and failure.unresolved == ("00000001",)
+    kind, failure = await outcome(queued)
+    assert kind == "err" and failure.kind == "closed" and failure.unresolved == ()
+    assert [line.split(b":")[1] for line in server.lines()] == [b"move_joints"]

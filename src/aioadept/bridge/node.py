@@ -67,6 +67,7 @@ class BridgeStats:
 class _Job:
     req: BridgeRequest
     query: Any
+    answered: bool = False
 
 
 @dataclass
@@ -134,9 +135,13 @@ class Bridge:
             self._fail(job, BridgeFailure("closed", "the bridge is shutting down; not sent",
                                           unresolved=()))
         self._jobs.clear()
+        current = self._current
         for t in self._tasks:
             t.cancel()
         await asyncio.gather(*self._tasks, return_exceptions=True)
+        if current is not None and not current.answered:  # it was on the controller: its fate is unknown
+            self._fail(current, BridgeFailure("lost", "the bridge shut down before the acks",
+                                              unresolved=current.req.ids))
         await self._undeclare()
         await self.robot.close()
 
@@ -286,6 +291,7 @@ class Bridge:
         except (ConnectionLost, AckTimeout) as exc:
             self._fail(job, _failure_of(exc, req.ids, to_app))
             return
+        job.answered = True
         self._reply_ok(job.query, b"".join(encode_ack(replace(r.ack, id=to_app[r.id])) for r in results))
 
     # ------------------------------------------------------------------------------------------ replies
@@ -306,6 +312,7 @@ class Bridge:
             query.drop()
 
     def _fail(self, job: _Job, failure: BridgeFailure) -> None:
+        job.answered = True
         self._reply_err(job.query, failure)
 
     # ------------------------------------------------------------------------------------------ state
