@@ -233,6 +233,8 @@ async def test_the_robot_state_is_relayed_as_publications(tmp_path):
     (["--robot", "x:0"], "--robot 'x:0'"),
     (["--stop-port", "many"], "--stop-port 'many'"),
     (["--cell", "a/b"], "--cell 'a/b'"),
+    (["--state-endpoint", "zenoh:aioadept/demo/sim/state"], "--state-endpoint"),
+    (["--ack-timeout", "0"], "--ack-timeout"),
     (["--zenoh-connect", "udp/1.2.3.4:5"], "udp/1.2.3.4:5"),
     (["--zenoh-listen", "tcp/127.0.0.1:7447", "--zenoh-connect", "tcp/127.0.0.1:7448"], "not both"),
     (["--robot", "127.0.0.1:1", "--zenoh-listen", f"tcp/127.0.0.1:{free_port()}"], "connect to 127.0.0.1:1"),

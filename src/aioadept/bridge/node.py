@@ -335,6 +335,10 @@ class Bridge:
                 frames = await sub.recv_multipart()
                 if len(frames) in (1, 2):
                     pub.send_multipart(frames)
+        except asyncio.CancelledError:
+            raise
+        except Exception as exc:  # the commands go on being served without the relay; say so once
+            log.error("bridge %s: the state relay from %s stopped: %s", self._key, self.state_endpoint, exc)
         finally:
             sub.close()
             pub.close()

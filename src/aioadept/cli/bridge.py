@@ -67,6 +67,10 @@ def _options(args: argparse.Namespace):  # -> (host, port, stop_port, ZenohOptio
                 else zb.ZenohOptions.client(args.zenoh_connect or zb.DEFAULT_ROUTER))
     except BusError as exc:
         raise ValueError(str(exc)) from None
+    state = args.state_endpoint.strip()
+    if state.lower() != "none" and not state.startswith(("tcp://", "ipc://")):
+        raise ValueError(f"--state-endpoint {state!r}: the controller's ZeroMQ state stream (tcp://HOST:PORT or "
+                         "ipc://PATH), or none; a stream already on Zenoh needs no relay")
     if not (args.ack_timeout_s > 0 and args.ack_timeout_s < float("inf")):
         raise ValueError(f"--ack-timeout {args.ack_timeout_s!r}: a number of seconds > 0")
     return host, port, stop_port, opts
