@@ -1,0 +1,359 @@
+"""The robot bridge node: ONE connection to a controller, shared by several applications over Zenoh (issue 23).
+
+Where it sits: ``aioadept bridge`` (:mod:`aioadept.cli.bridge`) runs it between a RobotServer (the V+ AdeptServer,
+``aioadept sim`` or the V+ emulator) and any number of :class:`~aioadept.bridge.client.BridgeClient` s::
+
+    app A ─┐  Zenoh query  aioadept/<cell>/<robot>/cmd   ┌────────┐  TCP (one RobotClient, + stop port)
+    app B ─┼──────────────────────────────────────────▶│ Bridge │─────────────────────────▶ controller
+    app C ─┘  ◀── state: aioadept/<cell>/<robot>/state  └────────┘  ◀── state stream (ZeroMQ) relayed
+
+The safety rules it keeps (docs/bridge.md; each has a test in tests/integration/test_bridge.py):
+
+- One writer: every batch goes through the bridge's one :class:`~aioadept.client.RobotClient`; batches run one
+  at a time in arrival order (the controller runs one skill task anyway), so nothing waits on the controller's
+  queue that the bridge could still withdraw.
+- IDs: the RobotClient allocates the controller-side IDs; the acks go back with the application's own IDs, so two
+  applications using the same IDs never collide.
+- ``stop`` from any application is written at once (:meth:`RobotClient.stop_nowait`, in the loop turn the query
+  arrives), past every queued batch; the controller aborts the batch in flight (its owner gets the ``aborted``
+  acks) and every queued batch of every application is answered ``aborted`` and never sent.
+- An application whose liveliness token vanishes gets its queued batches dropped, never sent; a batch of it
+  already on the controller runs to its end (the protocol has no "withdraw one message", and a ``stop`` would
+  abort the other applications' motions too).
+- A malformed query gets an ``err`` reply (``malformed``) and changes nothing.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from collections import deque
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+from aioadept.bridge.wire import (
+    MAX_QUEUED_PER_APP,
+    BridgeFailure,
+    BridgeRequest,
+    MalformedRequest,
+    apps_key,
+    cmd_key,
+    encode_failure,
+    parse_request,
+    state_key,
+)
+from aioadept.client import RobotClient
+from aioadept.errors import AckTimeout, ClientStateError, CommandAborted, CommandError, ConnectError, ConnectionLost
+from aioadept.protocol import encode_ack
+
+__all__ = ["Bridge", "BridgeStats"]
+
+log = logging.getLogger("aioadept.bridge")
+
+
+@dataclass
+class BridgeStats:
+    """What the bridge did, for tests and the log."""
+
+    batches: int = 0
+    stops: int = 0
+    malformed: int = 0
+    aborted_before_send: int = 0
+    dropped_vanished: int = 0
+    busy: int = 0
+
+
+@dataclass
+class _Job:
+    req: BridgeRequest
+    query: Any
+    answered: bool = False
+
+
+@dataclass
+class Bridge:
+    """Serve ``robot`` (a connected-or-not :class:`RobotClient`) as ``aioadept/<cell>/<name>`` on this process's
+    Zenoh session (:func:`aioadept.bus.zenoh.session`, configured by the caller).
+
+    ``async with Bridge(robot, cell="demo", name="robot") as bridge: await bridge.closed()``. ``state_endpoint``:
+    the controller's ZeroMQ state stream to relay onto ``aioadept/<cell>/<name>/state`` (``None``: no relay).
+    """
+
+    robot: RobotClient
+    cell: str = "demo"
+    name: str = "robot"
+    state_endpoint: str | None = None
+    stats: BridgeStats = field(default_factory=BridgeStats)
+
+    def __post_init__(self) -> None:
+        self._key = cmd_key(self.cell, self.name)
+        self._jobs: deque[_Job] = deque()
+        self._more = asyncio.Event()
+        self._current: _Job | None = None
+        self._queued: dict[str, int] = {}  # application -> its batches in _jobs
+        self._stop_gen = 0  # stops so far: a batch taken from the queue before a stop is never sent after it
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._entities: list[Any] = []
+        self._tasks: list[asyncio.Task[None]] = []
+        self._closing = False
+        self.apps: set[str] = set()
+        """Applications whose liveliness token is alive."""
+
+    # ------------------------------------------------------------------------------------------ lifecycle
+    async def __aenter__(self) -> Bridge:
+        from aioadept.bus import zenoh as zb
+
+        zenoh = zb._zenoh()
+        self._loop = asyncio.get_running_loop()
+        if not self.robot.connected:
+            await self.robot.connect()
+        s = zb.session()
+        try:
+            self._entities.append(s.declare_queryable(
+                self._key, zenoh.handlers.Callback(self._on_query_thread, indirect=True)))
+            self._entities.append(s.liveliness().declare_subscriber(
+                apps_key(self.cell, self.name), zenoh.handlers.Callback(self._on_presence_thread), history=True))
+        except Exception:
+            await self._undeclare()
+            raise
+        self._tasks.append(self._loop.create_task(self._pump(), name=f"bridge {self._key}"))
+        if self.state_endpoint is not None:
+            self._tasks.append(self._loop.create_task(self._relay_state(), name=f"bridge state {self._key}"))
+        # Last: applications waiting for the bridge see it once it serves.
+        self._entities.append(zb.declare_node(self.cell, self.name))
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.aclose()
+
+    async def aclose(self) -> None:
+        """Answer every queued batch ``closed`` (never sent), stop serving, close the controller link."""
+        if self._closing:
+            return
+        self._closing = True
+        for job in self._jobs:
+            self._fail(job, BridgeFailure("closed", "the bridge is shutting down; not sent",
+                                          unresolved=()))
+        self._jobs.clear()
+        current = self._current
+        for t in self._tasks:
+            t.cancel()
+        await asyncio.gather(*self._tasks, return_exceptions=True)
+        if current is not None and not current.answered:  # it was on the controller: its fate is unknown
+            self._fail(current, BridgeFailure("lost", "the bridge shut down before the acks",
+                                              unresolved=current.req.ids))
+        await self._undeclare()
+        await self.robot.close()
+
+    async def _undeclare(self) -> None:
+        for e in reversed(self._entities):
+            try:
+                e.undeclare()
+            except Exception as exc:  # already gone with the session
+                log.debug("undeclare: %r", exc)
+        self._entities.clear()
+
+    # ------------------------------------------------------------------------------------------ queries
+    def _on_query_thread(self, query: Any) -> None:
+        # On a Zenoh thread: hand over to the loop, nothing else.
+        loop = self._loop
+        if loop is None:
+            return
+        try:
+            loop.call_soon_threadsafe(self._on_query, query)
+        except RuntimeError:  # the loop is closed
+            pass
+
+    def _on_query(self, query: Any) -> None:
+        if self._closing:
+            self._reply_err(query, BridgeFailure("closed", "the bridge is shutting down; not sent"))
+            return
+        try:
+            payload = query.payload.to_bytes() if query.payload is not None else b""
+            att = query.attachment.to_bytes() if query.attachment is not None else None
+            req = parse_request(payload, att)
+        except MalformedRequest as exc:
+            self.stats.malformed += 1
+            log.warning("bridge %s: malformed query refused: %s", self._key, exc)
+            self._reply_err(query, BridgeFailure("malformed", str(exc)))
+            return
+        if req.is_stop:
+            self._stop(req, query)
+            return
+        n = self._queued.get(req.app, 0)
+        if n >= MAX_QUEUED_PER_APP:
+            self.stats.busy += 1
+            self._reply_err(query, BridgeFailure("busy", f"application {req.app!r} already has {n} batches "
+                                                         "waiting in the bridge; not sent"))
+            return
+        self._queued[req.app] = n + 1
+        self._jobs.append(_Job(req, query))
+        self._more.set()
+
+    def _stop(self, req: BridgeRequest, query: Any) -> None:
+        """A stop from ``req.app``: written now, before anything queued; the queued batches are answered."""
+        self.stats.stops += 1
+        self._stop_gen += 1
+        task = self.robot.stop_nowait()  # connected: written before this returns
+        log.warning("bridge %s: stop from application %r (%d queued batch(es) not sent)", self._key, req.app,
+                    len(self._jobs))
+        jobs, self._jobs = self._jobs, deque()
+        self._queued.clear()
+        for job in jobs:
+            self.stats.aborted_before_send += 1
+            self._fail(job, BridgeFailure("aborted", f"stop from application {req.app!r} before it was sent"))
+
+        def done(t: asyncio.Task[Any]) -> None:
+            if t.cancelled():
+                self._reply_err(query, BridgeFailure("closed", "the bridge closed before the stop's ack",
+                                                     unresolved=req.ids))
+                return
+            exc = t.exception()
+            if exc is None:
+                self._reply_ok(query, encode_ack(replace(t.result().ack, id=req.ids[0])))
+            else:
+                self._reply_err(query, _failure_of(exc, req.ids, {}))
+
+        task.add_done_callback(done)
+
+    def _on_presence_thread(self, sample: Any) -> None:
+        from aioadept.bus import zenoh as zb
+
+        app = str(sample.key_expr).rsplit("/", 1)[-1]
+        alive = sample.kind == zb._zenoh().SampleKind.PUT
+        loop = self._loop
+        if loop is not None:
+            try:
+                loop.call_soon_threadsafe(self._on_presence, app, alive)
+            except RuntimeError:
+                pass
+
+    def _on_presence(self, app: str, alive: bool) -> None:
+        if alive:
+            self.apps.add(app)
+            return
+        self.apps.discard(app)
+        gone = [j for j in self._jobs if j.req.app == app]
+        if gone:
+            self._jobs = deque(j for j in self._jobs if j.req.app != app)
+            self._queued.pop(app, None)
+            for job in gone:
+                self.stats.dropped_vanished += 1
+                self._fail(job, BridgeFailure("dropped", f"application {app!r} vanished; not sent"))
+        log.warning("bridge %s: application %r vanished: %d queued batch(es) dropped, never sent%s", self._key,
+                    app, len(gone), "; its batch on the controller runs to its end"
+                    if self._current is not None and self._current.req.app == app else "")
+
+    # ------------------------------------------------------------------------------------------ the writer
+    async def _pump(self) -> None:
+        """The one writer: batches in arrival order, one at a time."""
+        while True:
+            while not self._jobs:
+                self._more.clear()
+                await self._more.wait()
+            job = self._jobs.popleft()
+            left = self._queued.get(job.req.app, 1) - 1
+            if left > 0:
+                self._queued[job.req.app] = left
+            else:
+                self._queued.pop(job.req.app, None)
+            self._current = job
+            try:
+                await self._execute(job)
+            finally:
+                self._current = None
+
+    async def _execute(self, job: _Job) -> None:
+        req = job.req
+        robot = self.robot
+        self.stats.batches += 1
+        gen = self._stop_gen
+        if not robot.connected:
+            try:  # a lost controller link: reconnect for the NEXT batch (nothing is ever re-sent)
+                await robot.connect()
+            except (ConnectError, ClientStateError) as exc:
+                self._fail(job, BridgeFailure("lost", f"controller not connected, not sent: {exc}"))
+                return
+        if self._stop_gen != gen:  # a stop came while we reconnected: as if it had been queued
+            self.stats.aborted_before_send += 1
+            self._fail(job, BridgeFailure("aborted", "a stop came before it was sent"))
+            return
+        try:
+            sub = robot.submit(*req.calls)
+        except (ConnectionLost, ClientStateError) as exc:
+            self._fail(job, BridgeFailure("lost", f"controller not connected, not sent: {exc}"))
+            return
+        to_app = dict(zip(sub.ids, req.ids))
+        try:
+            results = await sub.wait()
+        except (CommandError, CommandAborted) as exc:
+            results = exc.results  # type: ignore[union-attr]
+        except (ConnectionLost, AckTimeout) as exc:
+            self._fail(job, _failure_of(exc, req.ids, to_app))
+            return
+        job.answered = True
+        self._reply_ok(job.query, b"".join(encode_ack(replace(r.ack, id=to_app[r.id])) for r in results))
+
+    # ------------------------------------------------------------------------------------------ replies
+    def _reply_ok(self, query: Any, payload: bytes) -> None:
+        try:
+            query.reply(self._key, payload)
+        except Exception as exc:  # the application is gone: nobody to tell
+            log.debug("reply on %s: %r", self._key, exc)
+        finally:
+            query.drop()
+
+    def _reply_err(self, query: Any, failure: BridgeFailure) -> None:
+        try:
+            query.reply_err(encode_failure(failure))
+        except Exception as exc:
+            log.debug("error reply on %s: %r", self._key, exc)
+        finally:
+            query.drop()
+
+    def _fail(self, job: _Job, failure: BridgeFailure) -> None:
+        job.answered = True
+        self._reply_err(job.query, failure)
+
+    # ------------------------------------------------------------------------------------------ state
+    async def _relay_state(self) -> None:
+        """The controller's state publications, frame for frame, onto ``aioadept/<cell>/<name>/state``."""
+        import zmq
+        import zmq.asyncio
+
+        from aioadept.bus.zenoh import PREFIX, make_zenoh_socket
+
+        ctx = zmq.asyncio.Context.instance()
+        sub = ctx.socket(zmq.SUB)
+        sub.setsockopt(zmq.SUBSCRIBE, b"")
+        sub.setsockopt(zmq.LINGER, 0)
+        pub = make_zenoh_socket(zmq.PUB, PREFIX + state_key(self.cell, self.name))
+        try:
+            sub.connect(self.state_endpoint)
+            pub.declare()
+            while True:
+                frames = await sub.recv_multipart()
+                if len(frames) in (1, 2):
+                    pub.send_multipart(frames)
+        except asyncio.CancelledError:
+            raise
+        except Exception as exc:  # the commands go on being served without the relay; say so once
+            log.error("bridge %s: the state relay from %s stopped: %s", self._key, self.state_endpoint, exc)
+        finally:
+            sub.close()
+            pub.close()
+
+
+def _failure_of(exc: BaseException, app_ids: tuple[str, ...], to_app: dict[str, str]) -> BridgeFailure:
+    """The ``err`` reply for a RobotClient failure, controller IDs mapped back to the application's."""
+    def ids(cids: tuple[str, ...]) -> tuple[str, ...]:
+        return tuple(to_app.get(c, c) for c in cids if c in to_app)
+
+    if isinstance(exc, ConnectionLost):
+        # Its text without its own ID lists: those are the controller's IDs, the reply carries the application's.
+        reason = str(exc).split("; acked=")[0]
+        return BridgeFailure("lost", f"controller link lost: {reason}", ids(exc.acked), ids(exc.unresolved))
+    if isinstance(exc, AckTimeout):
+        return BridgeFailure("timeout", f"controller gave no ack in time: {exc}", (),
+                             ids(tuple(exc.pending)) or app_ids)
+    return BridgeFailure("lost", f"{type(exc).__name__}: {exc}", (), app_ids)

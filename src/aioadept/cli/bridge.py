@@ -1,0 +1,127 @@
+"""``aioadept bridge``: share one robot between several applications over Zenoh (issue 23, item 2; docs/bridge.md).
+
+Holds the one TCP connection to a RobotServer (the V+ AdeptServer, ``aioadept sim`` or the V+ emulator; its stop
+port too) and serves the robot's commands as Zenoh queries on ``aioadept/<cell>/<name>/cmd`` to any number of
+:class:`aioadept.bridge.BridgeClient` s; relays the controller's state stream (``--state-endpoint``, ZeroMQ) onto
+``aioadept/<cell>/<name>/state``; declares the liveliness token ``aioadept/<cell>/<name>``. Multicast scouting is
+off: it is the router (``--zenoh-listen``) or connects to one (``--zenoh-connect``). Prints
+``READY cmd=KEY state=KEY|none robot=HOST:PORT`` once it serves; runs until SIGINT/SIGTERM.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import logging
+import signal
+import sys
+
+from aioadept import defaults
+from aioadept.cli.options import DefaultsHelpFormatter, description
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="aioadept bridge", description=description(__doc__),
+                                formatter_class=DefaultsHelpFormatter)
+    p.add_argument("--robot", default=f"{defaults.ROBOT_HOST}:{defaults.ROBOT_PORT}", metavar="HOST[:PORT]",
+                   help="the RobotServer to hold the one connection to")
+    p.add_argument("--stop-port", default="auto", dest="stop_port",
+                   help="the server's stop port: 'auto' (PORT+1), a number, or 'none' (the original AdeptServer)")
+    p.add_argument("--cell", default="demo", help="the cell's name in the key expressions")
+    p.add_argument("--name", default="robot", help="this robot's name in the key expressions")
+    p.add_argument("--zenoh-connect", metavar="tcp/HOST:PORT", dest="zenoh_connect",
+                   help="the Zenoh router to connect to (default tcp/127.0.0.1:7447)")
+    p.add_argument("--zenoh-listen", metavar="tcp/HOST:PORT", dest="zenoh_listen",
+                   help="be the router, listening here, instead of connecting to one")
+    p.add_argument("--state-endpoint", default="none", dest="state_endpoint",
+                   help="the controller's ZeroMQ state stream to relay (as aioadept sim --state-endpoint), or none")
+    p.add_argument("--ack-timeout", type=float, default=60.0, dest="ack_timeout_s",
+                   help="seconds to wait for a batch's acks (above the longest motion)")
+    p.add_argument("--log-level", default="WARNING", dest="log_level", help="logging level on stderr")
+    return p
+
+
+def _options(args: argparse.Namespace):  # -> (host, port, stop_port, ZenohOptions)
+    from aioadept.bridge.wire import bridge_key
+    from aioadept.bus import zenoh as zb
+    from aioadept.cli.options import parse_robot_address
+    from aioadept.errors import BusError
+
+    host, port = parse_robot_address(args.robot)
+    stop = args.stop_port.strip().lower()
+    if stop in ("auto", "none"):
+        stop_port: int | str | None = None if stop == "none" else "auto"
+    elif stop.isdigit() and 0 < int(stop) <= 0xFFFF:
+        stop_port = int(stop)
+    else:
+        raise ValueError(f"--stop-port {args.stop_port!r}: expected auto, none or a port 1..65535")
+    for opt, value in (("--cell", args.cell), ("--name", args.name)):
+        try:
+            bridge_key(value, value)
+        except ValueError:
+            raise ValueError(f"{opt} {value!r}: use 1-64 letters, digits, '_', '.', '-' (one key chunk)") from None
+    if args.zenoh_listen and args.zenoh_connect:
+        raise ValueError("give --zenoh-listen (be the router) or --zenoh-connect (use one), not both")
+    try:
+        opts = (zb.ZenohOptions.router(args.zenoh_listen) if args.zenoh_listen
+                else zb.ZenohOptions.client(args.zenoh_connect or zb.DEFAULT_ROUTER))
+    except BusError as exc:
+        raise ValueError(str(exc)) from None
+    state = args.state_endpoint.strip()
+    if state.lower() != "none" and not state.startswith(("tcp://", "ipc://")):
+        raise ValueError(f"--state-endpoint {state!r}: the controller's ZeroMQ state stream (tcp://HOST:PORT or "
+                         "ipc://PATH), or none; a stream already on Zenoh needs no relay")
+    if not (args.ack_timeout_s > 0 and args.ack_timeout_s < float("inf")):
+        raise ValueError(f"--ack-timeout {args.ack_timeout_s!r}: a number of seconds > 0")
+    return host, port, stop_port, opts
+
+
+async def run(args: argparse.Namespace, host: str, port: int, stop_port, opts) -> int:
+    from aioadept.bridge import Bridge
+    from aioadept.bridge.wire import cmd_key, state_key
+    from aioadept.bus import zenoh as zb
+    from aioadept.client import RobotClient
+
+    loop = asyncio.get_running_loop()
+    stop = asyncio.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(sig, stop.set)
+    zb.configure(opts)
+    robot = RobotClient(host, port, stop_port=stop_port, ack_timeout_s=args.ack_timeout_s)
+    relay = None if args.state_endpoint.strip().lower() == "none" else args.state_endpoint
+    try:
+        async with Bridge(robot, cell=args.cell, name=args.name, state_endpoint=relay) as bridge:
+            print(f"READY cmd={cmd_key(args.cell, args.name)} "
+                  f"state={state_key(args.cell, args.name) if relay else 'none'} robot={host}:{port}", flush=True)
+            await stop.wait()
+            logging.getLogger("aioadept.bridge").info("bridge stats: %s", bridge.stats)
+    finally:
+        zb.close_session()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            loop.remove_signal_handler(sig)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
+                        format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    try:
+        host, port, stop_port, opts = _options(args)
+    except ValueError as exc:   # one line naming the option, no usage block
+        print(f"aioadept bridge: {exc}", file=sys.stderr)
+        return 2
+    try:
+        return asyncio.run(run(args, host, port, stop_port, opts))
+    except Exception as exc:  # the controller unreachable, a Zenoh session that cannot open, ...
+        from aioadept.errors import AdeptError
+
+        if isinstance(exc, (OSError, AdeptError)):
+            print(f"aioadept bridge: {exc}", file=sys.stderr)
+            return 1
+        raise
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
