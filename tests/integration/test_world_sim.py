@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from aioadept import Break, CloseHand, OpenHand, Sig
-from aioadept.commands import MoveToS
+from aioadept.commands import MoveToS, SetSpeed
 from aioadept.bus.messages import WORLD_STATE_TOPIC, WorldState
 from aioadept.bus.pubsub import Subscriber
 from aioadept.client import RobotClient
@@ -218,8 +218,11 @@ async def test_the_recording_draws_the_parts_in_3d_and_the_world_cameras_view(tm
         async with RunRecording(tmp_path / "run.rrd", state_endpoint=sim.ready["state"], world=world), \
                 Subscriber(sim.ready["state"], topics=[WORLD_STATE_TOPIC]) as sub, \
                 RobotClient(sim.ready["host"], int(sim.ready["port"])) as robot:
+            # the carry at 5 %: about 0.4 s at this time scale, so the recording's 25 Hz draws it rising even on a
+            # loaded machine (at 100 % it lasted a few tens of ms and a late sample could miss it)
             await robot.cmdexec(MoveToS(Pose(480.0, 0.0, TABLE_Z + 20.0, 0.0, 180.0, 0.0)), CloseHand(),
-                                MoveToS(Pose(400.0, 150.0, TABLE_Z + 100.0, 0.0, 180.0, 0.0)), OpenHand())
+                                SetSpeed(5), MoveToS(Pose(400.0, 150.0, TABLE_Z + 100.0, 0.0, 180.0, 0.0)),
+                                OpenHand())
             await world_when(sub, 5, lambda p: p.dropped)
             await next_world(sub)  # one more sample: the recording's subscriber has seen the drop too
     rows = read_rrd(tmp_path / "run.rrd")
