@@ -584,7 +584,92 @@ rendered at its start pose (measured: the sharpness of the previous step, test_v
 0.015) only where every motion lasts longer than the hold."""
 
 
-class RobotStateFollower:
+class TopicFollower:
+    """One owned non-daemon thread following one topic of the bus with a
+    :class:`aioadept.bus.pubsub.SyncSubscriber` (connects unless ``@addr``; CURVE if the stream uses it).
+    :meth:`start` connects (raising the subscriber's error), :meth:`stop` joins the thread; also a context manager.
+    Subclasses give ``WHAT`` (for the log), :meth:`decode` (payload -> value) and :meth:`take` (value, receipt
+    time on ``clock``); a message that does not decode is logged and skipped, never fatal."""
+
+    WHAT = "state"
+
+    def __init__(self, endpoint: str, topic: bytes, *, curve: Any = None,
+                 clock: Callable[[], float] = time.time) -> None:
+        self.endpoint = endpoint
+        self.topic = topic
+        self.curve = curve
+        self.received = 0
+        self._clock = clock
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._ready = threading.Event()
+        self._error: BaseException | None = None
+
+    def decode(self, payload: bytes) -> Any:
+        raise NotImplementedError
+
+    def take(self, value: Any, t_s: float) -> None:
+        raise NotImplementedError
+
+    def start(self):  # noqa: ANN201 - the subclass
+        if self._thread is not None:
+            raise RuntimeError(f"{type(self).__name__} already started")
+        self._thread = threading.Thread(target=self._run, name=f"{self.WHAT.replace(' ', '-')}:{self.endpoint}")
+        self._thread.start()
+        self._ready.wait(5.0)
+        if self._error is not None:
+            raise self._error
+        return self
+
+    def _run(self) -> None:
+        from aioadept.bus.pubsub import SyncSubscriber
+        from aioadept.errors import BusError
+
+        try:
+            sub = SyncSubscriber(self.endpoint, topics=(self.topic,), curve=self.curve)
+        except BusError as exc:
+            self._error = exc
+            self._ready.set()
+            return
+        self._ready.set()
+        with sub:
+            while not self._stop.is_set():
+                try:
+                    message = sub.recv(timeout_s=0.1)  # wake up regularly to see the stop flag
+                except BusError as exc:
+                    if exc.__cause__ is not None:  # the socket itself failed (ZeroMQ error): stop following
+                        log.error("%s: %s", self.WHAT, exc)
+                        break
+                    log.warning("%s: %s", self.WHAT, exc)  # a message of three frames: not ours, keep following
+                    continue
+                if message is None:
+                    continue
+                t_s = self._clock()
+                topic, payload = message
+                if not topic:  # a single frame carries the topic as a prefix
+                    payload = payload[len(self.topic):]
+                try:
+                    value = self.decode(payload)
+                except Exception as exc:  # a bad sample must not kill the camera
+                    log.warning("%s: undecodable message (%s)", self.WHAT, exc)
+                    continue
+                self.take(value, t_s)
+                self.received += 1
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
+            self._thread = None
+
+    def __enter__(self):  # noqa: ANN204
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+
+class RobotStateFollower(TopicFollower):
     """Subscribes to the sim's robot state stream and fills a :class:`PoseHistory` (samples at their own time).
 
     One owned non-daemon thread reading a :class:`aioadept.bus.pubsub.SyncSubscriber`. :meth:`start` connects,
@@ -599,79 +684,34 @@ class RobotStateFollower:
                  rest_hold_s: float = DEFAULT_REST_HOLD_S) -> None:
         if not 0 <= rest_hold_s < math.inf:
             raise ValueError(f"rest_hold_s must be finite and >= 0, got {rest_hold_s!r}")
+        super().__init__(endpoint, topic, curve=curve, clock=clock)  # curve: the sim's stream may use CURVE
         self.rest_hold_s = float(rest_hold_s)
-        self.endpoint = endpoint
-        self.curve = curve  # an aioadept.bus.security.CurveClient when the sim's state stream uses CURVE
         self.max_wait_s = max_wait_s
-        self.topic = topic
         self.history = history if history is not None else PoseHistory()
-        self.received = 0
         self.min_delay_s: float | None = None
         """Smallest receipt time minus the sample's ``wall_time_s`` seen so far (see :meth:`_run`)."""
         self.rest_holds = 0  # poses held from an at-rest sample without waiting (pose_at)
         self.last_state = None
-        self._clock = clock
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-        self._ready = threading.Event()
-        self._error: BaseException | None = None
 
-    def start(self) -> RobotStateFollower:
-        if self._thread is not None:
-            raise RuntimeError("RobotStateFollower already started")
-        self._thread = threading.Thread(target=self._run, name=f"robot-state:{self.endpoint}")
-        self._thread.start()
-        self._ready.wait(5.0)
-        if self._error is not None:
-            raise self._error
-        return self
+    WHAT = "robot state"
 
-    def _run(self) -> None:
+    def decode(self, payload: bytes) -> Any:
         from aioadept.bus.messages import RobotState
-        from aioadept.bus.pubsub import SyncSubscriber
-        from aioadept.errors import BusError
 
-        try:
-            # A plain subscriber of the bus: connects unless '@addr', CURVE if the stream uses it.
-            sub = SyncSubscriber(self.endpoint, topics=(self.topic,), curve=self.curve)
-        except BusError as exc:
-            self._error = exc
-            self._ready.set()
-            return
-        self._ready.set()
-        with sub:
-            while not self._stop.is_set():
-                try:
-                    message = sub.recv(timeout_s=0.1)  # wake up regularly to see the stop flag
-                except BusError as exc:
-                    if exc.__cause__ is not None:  # the socket itself failed (ZeroMQ error): stop following
-                        log.error("robot state: %s", exc)
-                        break
-                    log.warning("robot state: %s", exc)  # a message of three frames: not ours, keep following
-                    continue
-                if message is None:
-                    continue
-                t_s = self._clock()
-                topic, payload = message
-                if not topic:  # a single frame carries the topic as a prefix
-                    payload = payload[len(self.topic):]
-                try:
-                    state = RobotState.from_bytes(payload)
-                except Exception as exc:  # a bad sample must not kill the camera
-                    log.warning("robot state: undecodable message (%s)", exc)
-                    continue
-                # The sample's own time on our clock: its wall time, shifted only if our clock is behind the sim's
-                # (a sample received before it was taken), by the largest such lead seen: the offset nearest 0 that
-                # the traffic allows (aioadept.apps.sweep_model.clock_offset; the focus sweep maps the samples by
-                # the same rule). Stamping on receipt instead made the shown pose lag the robot by each sample's
-                # own delay, up to a millisecond when this process is busy rendering: 0.2 mm at a focus sweep's
-                # 200 mm/s. Never later than the receipt.
-                delay = t_s - state.wall_time_s
-                if self.min_delay_s is None or delay < self.min_delay_s:
-                    self.min_delay_s = delay
-                self.history.add(state.wall_time_s + min(0.0, self.min_delay_s), state.pose, state.in_motion)
-                self.last_state = state
-                self.received += 1
+        return RobotState.from_bytes(payload)
+
+    def take(self, state: Any, t_s: float) -> None:
+        # The sample's own time on our clock: its wall time, shifted only if our clock is behind the sim's
+        # (a sample received before it was taken), by the largest such lead seen: the offset nearest 0 that
+        # the traffic allows (aioadept.apps.sweep_model.clock_offset; the focus sweep maps the samples by
+        # the same rule). Stamping on receipt instead made the shown pose lag the robot by each sample's
+        # own delay, up to a millisecond when this process is busy rendering: 0.2 mm at a focus sweep's
+        # 200 mm/s. Never later than the receipt.
+        delay = t_s - state.wall_time_s
+        if self.min_delay_s is None or delay < self.min_delay_s:
+            self.min_delay_s = delay
+        self.history.add(state.wall_time_s + min(0.0, self.min_delay_s), state.pose, state.in_motion)
+        self.last_state = state
 
     def pose_at(self, t_s: float) -> Pose | None:
         """The tool pose at epoch ``t_s``: waits (up to ``max_wait_s``) for a state sample received at or after
@@ -708,14 +748,3 @@ class RobotStateFollower:
         now = self._clock() if t_s is None else t_s
         return max(0.0, now - newest)
 
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join()
-            self._thread = None
-
-    def __enter__(self) -> RobotStateFollower:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()

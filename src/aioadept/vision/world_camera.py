@@ -35,7 +35,8 @@ import numpy as np
 
 from aioadept.geometry import Pose, inverse_transform
 from aioadept.vision.sources import Camera, Frame
-from aioadept.vision.virtual_camera import DEFAULT_EXPOSURE_MS, LensOptics, NoiseField, disk_kernel, gige_readout_ms
+from aioadept.vision.virtual_camera import (DEFAULT_EXPOSURE_MS, LensOptics, NoiseField, TopicFollower, disk_kernel,
+                                           gige_readout_ms)
 from aioadept.worldmodel import PartSpec, PartState, WorldCamera, WorldConfig, flat_matrix, label_mm, marker_bits
 
 log = logging.getLogger(__name__)
@@ -198,65 +199,26 @@ def parts_at_rest(world: WorldConfig) -> tuple[PartState, ...]:
                  for p in world.parts if not p.fed)  # the feeder's queue has brought none yet
 
 
-class WorldStateFollower:
+class WorldStateFollower(TopicFollower):
     """Subscribes to ``world.state`` and keeps the newest :class:`aioadept.bus.messages.WorldState` (one owned
     non-daemon thread; :meth:`start`/:meth:`stop` or a context manager), stamped on receipt with ``clock()``."""
 
+    WHAT = "world state"
+
     def __init__(self, endpoint: str, *, curve: Any = None, clock: Callable[[], float] = time.time) -> None:
-        self.endpoint = endpoint
-        self.curve = curve
+        from aioadept.bus.messages import WORLD_STATE_TOPIC
+
+        super().__init__(endpoint, WORLD_STATE_TOPIC, curve=curve, clock=clock)
         self.latest: Any = None
         self.received_t: float | None = None
-        self.received = 0
-        self._clock = clock
-        self._stop = threading.Event()
-        self._ready = threading.Event()
-        self._thread: threading.Thread | None = None
-        self._error: BaseException | None = None
 
-    def start(self) -> WorldStateFollower:
-        if self._thread is not None:
-            raise RuntimeError("WorldStateFollower already started")
-        self._thread = threading.Thread(target=self._run, name=f"world-state:{self.endpoint}")
-        self._thread.start()
-        self._ready.wait(5.0)
-        if self._error is not None:
-            raise self._error
-        return self
+    def decode(self, payload: bytes) -> Any:
+        from aioadept.bus.messages import WorldState
 
-    def _run(self) -> None:
-        from aioadept.bus.messages import WORLD_STATE_TOPIC, WorldState
-        from aioadept.bus.pubsub import SyncSubscriber
-        from aioadept.errors import BusError
+        return WorldState.from_bytes(payload)
 
-        try:
-            sub = SyncSubscriber(self.endpoint, topics=(WORLD_STATE_TOPIC,), curve=self.curve)
-        except BusError as exc:
-            self._error = exc
-            self._ready.set()
-            return
-        self._ready.set()
-        with sub:
-            while not self._stop.is_set():
-                try:
-                    message = sub.recv(timeout_s=0.1)
-                except BusError as exc:
-                    if exc.__cause__ is not None:
-                        log.error("world state: %s", exc)
-                        break
-                    continue
-                if message is None:
-                    continue
-                topic, payload = message
-                if not topic:
-                    payload = payload[len(WORLD_STATE_TOPIC):]
-                try:
-                    state = WorldState.from_bytes(payload)
-                except Exception as exc:  # a bad sample must not kill the camera
-                    log.warning("world state: undecodable message (%s)", exc)
-                    continue
-                self.latest, self.received_t = state, self._clock()
-                self.received += 1
+    def take(self, state: Any, t_s: float) -> None:
+        self.latest, self.received_t = state, t_s
 
     def parts(self) -> tuple[PartState, ...] | None:
         """The parts of the newest sample, or None before the first."""
@@ -270,19 +232,6 @@ class WorldStateFollower:
         if received is None:
             return math.inf
         return max(0.0, (self._clock() if t_s is None else t_s) - received)
-
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join()
-            self._thread = None
-
-    def __enter__(self) -> WorldStateFollower:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
-
 
 class WorldCameraSource(Camera):
     """The world's camera as a frame source: each grab renders the parts of ``parts()`` (the follower's newest
