@@ -124,12 +124,19 @@ def attributes_from_pb(attribute_list: epypes_pb2.AttributeList) -> dict[str, At
     return out
 
 
-def _check_required(pb: Any, data: bytes) -> None:
+def _parse(pb: Any, data: bytes, what: str) -> Any:
+    """``pb`` (an empty message) filled from ``data``; garbage or missing required fields raise :class:`BusError`
+    saying the bytes are not ``what`` (e.g. "an EPypes Event")."""
+    try:
+        pb.ParseFromString(data)
+    except (DecodeError, EncodeError) as exc:  # EncodeError is not expected here, but keep protobuf types inside
+        raise BusError(f"not {what} ({len(data)} bytes): {exc}") from exc
     # The upb runtime parses proto2 messages with missing required fields without complaint (b"" parses as an
     # empty Event), so we check explicitly: an Event without a type is not an EPypes Event.
     if not pb.IsInitialized():
         missing = ", ".join(pb.FindInitializationErrors())
         raise BusError(f"{pb.DESCRIPTOR.full_name} ({len(data)} bytes) lacks required fields: {missing}")
+    return pb
 
 
 # ---------------------------------------------------------------------------------------------------- events
@@ -176,13 +183,7 @@ def encode_event(event_type: str, event_id: str | None = None, attributes: Mappi
 
 def decode_event(data: bytes) -> tuple[str, str | None, dict[str, AttributeValue]]:
     """Parse EPypes ``Event`` bytes into ``(type, id or None, attributes)``; garbage raises :class:`BusError`."""
-    pb = epypes_pb2.Event()
-    try:
-        pb.ParseFromString(data)
-    except (DecodeError, EncodeError) as exc:  # EncodeError is not expected here, but keep protobuf types inside
-        raise BusError(f"not an EPypes Event ({len(data)} bytes): {exc}") from exc
-    _check_required(pb, data)
-    return event_from_pb(pb)
+    return event_from_pb(_parse(epypes_pb2.Event(), data, "an EPypes Event"))
 
 
 # ---------------------------------------------------------------------------------------------------- images
@@ -277,12 +278,7 @@ def encode_image(data: bytes, *, id: str | None = None, format: str | None = Non
 
 def decode_image(data: bytes) -> ImageMessage:
     """Parse EPypes ``Image`` bytes; garbage raises :class:`BusError`."""
-    pb = epypes_pb2.Image()
-    try:
-        pb.ParseFromString(data)
-    except DecodeError as exc:
-        raise BusError(f"not an EPypes Image ({len(data)} bytes): {exc}") from exc
-    _check_required(pb, data)
+    pb = _parse(epypes_pb2.Image(), data, "an EPypes Image")
     return ImageMessage(
         data=pb.bytes,
         id=pb.id if pb.HasField("id") else None,
@@ -364,12 +360,7 @@ class RobotState:
     @classmethod
     def from_bytes(cls, data: bytes) -> RobotState:
         """Parse ``aioadept.RobotState`` bytes; garbage or missing required fields raise :class:`BusError`."""
-        pb = aioadept_pb2.RobotState()
-        try:
-            pb.ParseFromString(data)
-        except DecodeError as exc:
-            raise BusError(f"not an aioadept RobotState ({len(data)} bytes): {exc}") from exc
-        _check_required(pb, data)
+        pb = _parse(aioadept_pb2.RobotState(), data, "an aioadept RobotState")
         return cls(
             t_s=pb.t_s, wall_time_s=pb.wall_time_s, joints_deg=tuple(pb.joints_deg),
             pose=Pose(pb.x, pb.y, pb.z, pb.yaw, pb.pitch, pb.roll),
@@ -417,12 +408,7 @@ class WorldState:
         """Parse ``aioadept.WorldState`` bytes; garbage or missing required fields raise :class:`BusError`."""
         from aioadept.worldmodel import PartState, WorldEvent
 
-        pb = aioadept_pb2.WorldState()
-        try:
-            pb.ParseFromString(data)
-        except DecodeError as exc:
-            raise BusError(f"not an aioadept WorldState ({len(data)} bytes): {exc}") from exc
-        _check_required(pb, data)
+        pb = _parse(aioadept_pb2.WorldState(), data, "an aioadept WorldState")
         return cls(
             t_s=pb.t_s, wall_time_s=pb.wall_time_s,
             parts=tuple(PartState(p.id, Pose(p.x, p.y, p.z, p.yaw, p.pitch, p.roll), p.grasped, p.dropped)
