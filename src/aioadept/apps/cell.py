@@ -20,7 +20,7 @@ from aioadept.apps.cellbus import BusSection, transport_argv, with_transport, ze
 from aioadept.apps.focus import FocusParams, FocusResult, ufloop
 from aioadept.apps.pickplace import PickPlaceParams
 from aioadept.apps.processes import NodeProcess, watch
-from aioadept.apps.runfolder import discard_run_dir, merged_save_error, save_run
+from aioadept.apps.runfolder import abandon_run, merged_save_error, run_error, save_run
 from aioadept.commands import SPEED_MAX, SPEED_MIN
 from aioadept.configfile import Range, ranged
 from aioadept.defaults import ROBOT_HOST, ROBOT_PORT, STATE_ENDPOINT, STOP_PORT, STOP_PORT_OFFSET
@@ -326,16 +326,9 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
                                           max_steps=params.max_steps, vision_timeout_s=params.vision_timeout_s,
                                           retract_speed=params.retract_speed, recorder=marks)
     except BaseException as exc:
-        if isinstance(exc, (asyncio.CancelledError, KeyboardInterrupt)):
-            error = "interrupted"
-        else:
-            error = f"{type(exc).__name__}: {exc}"
+        error = run_error(exc)
         if not connected:  # nothing happened that a run folder could keep: leave none behind
-            if rrd is not None:
-                await asyncio.shield(rrd.aclose())
-            if state_tap is not None:
-                await asyncio.shield(state_tap.stop())
-            discard_run_dir(run_dir)
+            await abandon_run(run_dir, rrd, state_tap)
         raise
     finally:
         if connected:  # (else the run folder is gone, above, and the connect error propagates)

@@ -21,7 +21,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from aioadept.apps.cell import CellConfig, _guarded, discard_run_dir, stop_port_of
+from aioadept.apps.cell import CellConfig, _guarded, stop_port_of
+from aioadept.apps.runfolder import abandon_run, run_error
 from aioadept.apps.pickplace import BusLocator, PickPlaceError, PickPlaceParams, PickPlaceResult, pickplace
 
 log = logging.getLogger(__name__)
@@ -204,14 +205,9 @@ async def run_pickplace_once(cfg: CellConfig, run_dir: Path, *, interrupter: Any
                     if ws is not None:
                         errors = place_errors(ws, result, world.pallet)
     except BaseException as exc:
-        error = "interrupted" if isinstance(exc, (asyncio.CancelledError, KeyboardInterrupt)) else \
-            f"{type(exc).__name__}: {exc}"
-        if not connected:
-            if rrd is not None:
-                await asyncio.shield(rrd.aclose())
-            if state_tap is not None:
-                await asyncio.shield(state_tap.stop())
-            discard_run_dir(run_dir)
+        error = run_error(exc)
+        if not connected:  # nothing happened that a run folder could keep: leave none behind
+            await abandon_run(run_dir, rrd, state_tap)
         raise
     finally:
         if connected:

@@ -3,6 +3,7 @@ the merged list of what could not be written (``run.json``'s ``not_written``, th
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import json
 from pathlib import Path
@@ -17,6 +18,24 @@ def merged_save_error(err: OSError | None, run_dir: Path, not_written: dict[str,
     if err is None:
         return more
     return err.merged(more) if isinstance(err, RunSaveError) else err
+
+
+def run_error(exc: BaseException) -> str:
+    """What ``run.json``'s ``error`` says of the exception that ended a run: ``interrupted`` for Ctrl-C or a
+    cancellation, else the exception's type and text."""
+    if isinstance(exc, (asyncio.CancelledError, KeyboardInterrupt)):
+        return "interrupted"
+    return f"{type(exc).__name__}: {exc}"
+
+
+async def abandon_run(run_dir: Path, rrd: Any, state_tap: Any) -> None:
+    """A run whose robot connection never succeeded: close its recording and state tap (either may be None), each
+    shielded from the cancellation that may be ending the run, and :func:`discard_run_dir`."""
+    if rrd is not None:
+        await asyncio.shield(rrd.aclose())
+    if state_tap is not None:
+        await asyncio.shield(state_tap.stop())
+    discard_run_dir(run_dir)
 
 
 def discard_run_dir(run_dir: Path) -> None:
