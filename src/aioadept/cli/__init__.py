@@ -17,6 +17,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "sim": ("aioadept.cli.sim", "run the simulated Adept controller (RobotServer) over TCP"),
     "state": ("aioadept.cli.state", "relay a V+ controller's state stream onto the robot.state topic"),
     "bridge": ("aioadept.cli.bridge", "share one robot connection between applications over Zenoh"),
+    "ros2": ("aioadept.cli.ros2", "put the robot state as a ROS 2 JointState on rmw_zenoh's key expression"),
     "send": ("aioadept.cli.send", "send commands to a robot server and print the acks"),
     "vision": ("aioadept.cli.vision", "run the image acquisition + processing node"),
     "focus": ("aioadept.cli.focus", "run focus-plane calibration against a robot server and vision node"),

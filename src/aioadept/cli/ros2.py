@@ -1,0 +1,128 @@
+"""``aioadept ros2``: the robot state as ROS 2 sees it: every robot.state sample put again as a
+``sensor_msgs/msg/JointState`` on the key expression ROS 2's Zenoh middleware (rmw_zenoh, Jazzy and later) uses.
+
+Follows ``--state-endpoint`` (the sim's or ``aioadept state``'s ZeroMQ stream, or a ``zenoh:KEY`` stream) and puts
+each sample on ``<domain>/<topic>/sensor_msgs::msg::dds_::JointState_/RIHS01_...`` with rmw_zenoh's attachment, so
+``ros2 topic echo /joint_states sensor_msgs/msg/JointState`` on rmw_zenoh_cpp, connected to the same Zenoh router,
+prints the arm (joint_1..joint_6 in radians, the URDF's names). Multicast scouting is off: it is the router
+(``--zenoh-listen``) or connects to one (``--zenoh-connect``). Prints ``READY ros2=KEY state=ENDPOINT`` once it
+follows; runs until SIGINT/SIGTERM. What was checked and what was not: docs/bus.md, "ROS 2".
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import logging
+import signal
+import sys
+
+from aioadept import defaults
+from aioadept.cli.options import ArgumentParser, DefaultsHelpFormatter, description
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = ArgumentParser(prog="aioadept ros2", description=description(__doc__), formatter_class=DefaultsHelpFormatter)
+    p.add_argument("--state-endpoint", default=defaults.STATE_ENDPOINT, dest="state_endpoint",
+                   help="the robot.state stream to follow: a ZeroMQ endpoint (as aioadept sim --state-endpoint) or "
+                        "zenoh:KEY (a sim with --transport zenoh: zenoh:aioadept/CELL/sim/state)")
+    p.add_argument("--topic", default="/joint_states", help="the ROS 2 topic")
+    p.add_argument("--domain", type=int, default=0, help="the ROS 2 domain id (ROS_DOMAIN_ID), 0..232")
+    p.add_argument("--frame-id", default="", dest="frame_id", help="the JointState's header.frame_id")
+    p.add_argument("--zenoh-connect", metavar="tcp/HOST:PORT", dest="zenoh_connect",
+                   help="the Zenoh router to connect to, e.g. rmw_zenohd's (default tcp/127.0.0.1:7447)")
+    p.add_argument("--zenoh-listen", metavar="tcp/HOST:PORT", dest="zenoh_listen",
+                   help="be the router, listening here, instead of connecting to one")
+    p.add_argument("--no-lowlatency", action="store_false", dest="lowlatency",
+                   help="Zenoh's default unicast transport instead of the low-latency one aioadept's nodes use: "
+                        "needed with a router that is not low-latency, e.g. ROS 2's rmw_zenohd as installed")
+    p.add_argument("--log-level", default="WARNING", dest="log_level", help="logging level on stderr")
+    return p
+
+
+def _options(args: argparse.Namespace):  # -> (topic key, ZenohOptions)
+    from aioadept.bus import ros2
+    from aioadept.bus import zenoh as zb
+    from aioadept.errors import BusError
+
+    if args.zenoh_listen and args.zenoh_connect:
+        raise ValueError("give --zenoh-listen (be the router) or --zenoh-connect (use one), not both")
+    try:
+        key = ros2.topic_key(args.topic, domain_id=args.domain)
+        opts = (zb.ZenohOptions.router(args.zenoh_listen, lowlatency=args.lowlatency) if args.zenoh_listen
+                else zb.ZenohOptions.client(args.zenoh_connect or zb.DEFAULT_ROUTER, lowlatency=args.lowlatency))
+        if zb.is_zenoh(args.state_endpoint):
+            zb.key_of(args.state_endpoint)
+    except BusError as exc:
+        raise ValueError(str(exc)) from None
+    return key, opts
+
+
+async def run(args: argparse.Namespace, opts) -> int:
+    from aioadept.bus import zenoh as zb
+    from aioadept.bus.messages import ROBOT_STATE_TOPIC, RobotState
+    from aioadept.bus.pubsub import Subscriber
+    from aioadept.bus.ros2 import JointStatePublisher
+    from aioadept.errors import BusError
+
+    log = logging.getLogger("aioadept.ros2")
+    loop = asyncio.get_running_loop()
+    stop = asyncio.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(sig, stop.set)
+    zb.configure(opts)
+    pub = JointStatePublisher(args.topic, domain_id=args.domain, frame_id=args.frame_id)
+    bad = 0
+    try:
+        async with Subscriber(args.state_endpoint, topics=(ROBOT_STATE_TOPIC,)) as sub:
+            print(f"READY ros2={pub.key} state={args.state_endpoint}", flush=True)
+
+            async def follow() -> None:
+                nonlocal bad
+                async for _topic, payload in sub:
+                    try:
+                        pub.publish(RobotState.from_bytes(payload))
+                    except BusError as exc:  # one bad sample is skipped, never fatal; said once
+                        bad += 1
+                        if bad == 1:
+                            log.warning("skipping a robot.state sample that does not decode: %s", exc)
+
+            task = asyncio.create_task(follow(), name="ros2-joint-states")
+            stopped = asyncio.create_task(stop.wait())
+            await asyncio.wait({task, stopped}, return_when=asyncio.FIRST_COMPLETED)
+            for t in (task, stopped):
+                t.cancel()
+            await asyncio.gather(task, stopped, return_exceptions=True)
+            if task.done() and not task.cancelled() and task.exception() is not None:
+                raise task.exception()  # type: ignore[misc]
+            log.info("published %d JointState samples, skipped %d", pub.published, bad)
+    finally:
+        pub.close()
+        zb.close_session()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            loop.remove_signal_handler(sig)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
+                        format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    try:
+        _key, opts = _options(args)
+    except ValueError as exc:   # one line naming the option, no usage block
+        print(f"aioadept ros2: {exc}", file=sys.stderr)
+        return 2
+    try:
+        return asyncio.run(run(args, opts))
+    except Exception as exc:  # a Zenoh session that cannot open, a state endpoint that cannot be used, ...
+        from aioadept.errors import AdeptError
+
+        if isinstance(exc, (OSError, AdeptError)):
+            print(f"aioadept ros2: {exc}", file=sys.stderr)
+            return 1
+        raise
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
