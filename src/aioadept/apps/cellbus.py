@@ -42,7 +42,7 @@ class BusSection:
         try:
             zb.check_chunk(self.cell, "cell", sep=" = ")
         except BusError as exc:
-            raise ValueError(f"cell: {exc}") from None
+            raise ValueError(str(exc)) from None
         host_port = self.zenoh_router.rpartition(":")
         try:
             if host_port[2] == "0" and self.start_router:
