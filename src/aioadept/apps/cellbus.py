@@ -12,7 +12,7 @@ from typing import Any
 
 from aioadept.defaults import TRANSPORTS
 
-__all__ = ["BusSection", "on_cell_key", "transport_argv", "with_transport", "zenoh_session"]
+__all__ = ["BusSection", "check_chunk", "on_cell_key", "transport_argv", "with_transport", "zenoh_session"]
 
 
 @dataclass(slots=True)
@@ -40,7 +40,7 @@ class BusSection:
         from aioadept.errors import BusError
 
         try:
-            zb.check_chunk(self.cell, "cell", sep=" = ")
+            check_chunk(self.cell, "cell", sep=" = ")
         except BusError as exc:
             raise ValueError(str(exc)) from None
         host_port = self.zenoh_router.rpartition(":")
@@ -55,6 +55,21 @@ class BusSection:
     @property
     def zenoh(self) -> bool:
         return self.transport == "zenoh"
+
+
+def check_chunk(value: str, name: str, *, sep: str = " ") -> str:
+    """``value`` if it is one chunk of a Zenoh key (a cell's or a node's name: letters, digits, ``_ . -``); raises
+    :class:`~aioadept.errors.BusError` naming it: ``--cell 'a/b': one key chunk ...`` (``sep=" = "``: a file's
+    key)."""
+    from aioadept.bus.zenoh import check_key
+    from aioadept.errors import BusError
+
+    try:
+        if "/" not in value:
+            return check_key(value)
+    except BusError:
+        pass
+    raise BusError(f"{name}{sep}{value!r}: one key chunk (letters, digits, '_', '.', '-'), no '/'")
 
 
 def with_transport(cfg: Any) -> Any:

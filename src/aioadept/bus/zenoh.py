@@ -50,7 +50,6 @@ __all__ = [
     "configure",
     "announce_as",
     "announce_ready",
-    "check_chunk",
     "declare_node",
     "endpoint_for",
     "is_zenoh",
@@ -89,14 +88,6 @@ def check_key(key: str, *, wildcards: bool = False) -> str:
         raise BusError(f"Zenoh key {key!r}: chunk {c!r} is not allowed; write chunks of letters, digits, '_', '.', "
                        f"'-' separated by '/', e.g. 'aioadept/demo/vision/request'")
     return key
-
-
-def check_chunk(value: str, name: str, *, sep: str = " ") -> str:
-    """``value`` if it is one chunk of a key expression (a cell's or a node's name: letters, digits, ``_ . -``);
-    raises :class:`BusError` naming it: ``--cell 'a/b': one key chunk ...`` (``sep=" = "`` for a file's key)."""
-    if not _CHUNK.match(value):
-        raise BusError(f"{name}{sep}{value!r}: one key chunk (letters, digits, '_', '.', '-'), no '/'")
-    return value
 
 
 def key_of(endpoint: str) -> str:

@@ -217,17 +217,18 @@ def apply_node_transport(values: dict, node: str, streams: dict[str, tuple[str, 
         if given:
             raise ValueError(f"--{given[0].replace('_', '-')} needs --transport zenoh")
         return
+    from aioadept.apps.cellbus import check_chunk
     from aioadept.bus import zenoh as zb
     from aioadept.errors import BusError
 
     cell = values.get("cell") or zb.DEFAULT_CELL
     try:
-        zb.check_chunk(cell, "--cell")
+        check_chunk(cell, "--cell")
         listen, connect = values.get("zenoh_listen"), values.get("zenoh_connect")
         if listen and connect:
             raise BusError("give --zenoh-listen (be the router) or --zenoh-connect (use one), not both")
         zb.configure(zb.ZenohOptions.router(listen) if listen else zb.ZenohOptions.client(connect or zb.DEFAULT_ROUTER))
-        name = zb.check_chunk(values.get("node") or node, "--node")
+        name = check_chunk(values.get("node") or node, "--node")
         zb.announce_as(cell, name)
     except BusError as exc:
         raise ValueError(str(exc)) from None
@@ -254,8 +255,7 @@ def apply_cell_bus(values: dict, bus: "BusSection", given: set[str], streams: di
         values["transport"] = bus.transport
     if values.get("transport") != "zenoh":
         return
-    from aioadept.apps.cellbus import on_cell_key
-    from aioadept.bus import zenoh as zb
+    from aioadept.apps.cellbus import check_chunk, on_cell_key
     from aioadept.errors import BusError
 
     if "cell" not in given:
@@ -267,7 +267,7 @@ def apply_cell_bus(values: dict, bus: "BusSection", given: set[str], streams: di
                               f"router's port (or --zenoh-connect)")
         values["zenoh_connect"] = bus.zenoh_router
     try:
-        zb.check_chunk(values["cell"], "--cell")
+        check_chunk(values["cell"], "--cell")
     except BusError as exc:
         raise ValueError(str(exc)) from None
     for key, (owner, topic) in streams.items():
