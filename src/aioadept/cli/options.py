@@ -19,8 +19,8 @@ if TYPE_CHECKING:
     from aioadept.apps.cellbus import BusSection
 
 __all__ = ["ArgumentParser", "DefaultsHelpFormatter", "ROBOT_HELP", "add_cell_options", "add_config", "add_verbose",
-           "apply_cell_bus", "apply_overrides", "check_option", "configure_logging", "description", "option_help", "parse_robot_address",
-           "report"]
+           "apply_cell_bus", "apply_overrides", "check_option", "configure_logging", "description", "option_help",
+           "parse_robot_address", "report"]
 
 
 def description(doc: str | None) -> str:
@@ -207,11 +207,11 @@ def add_node_transport_options(p: argparse.ArgumentParser) -> None:
 
 
 def apply_node_transport(values: dict, node: str, streams: dict[str, tuple[str, str, str]]) -> None:
-    """``--transport zenoh`` for node ``node`` (``sim``, ``vision``, ``state``): configure this process's Zenoh session (a
-    client of ``zenoh_connect``, or the router itself with ``zenoh_listen``; multicast scouting and gossip off),
-    turn every endpoint of ``values`` named in ``streams`` (key -> (its ZeroMQ default, owner node, topic)) that is
-    still at its ZeroMQ default into the cell's key ``zenoh:aioadept/CELL/OWNER/TOPIC``, and have the node declare
-    its liveliness token when it prints READY. ValueError naming the option for a bad value."""
+    """``--transport zenoh`` for node ``node`` (``sim``, ``vision``, ``state``): configure this process's Zenoh
+    session (a client of ``zenoh_connect``, or the router itself with ``zenoh_listen``; multicast scouting and gossip
+    off), turn every endpoint of ``values`` named in ``streams`` (key -> (its ZeroMQ default, owner node, topic))
+    that is still at its ZeroMQ default into the cell's key ``zenoh:aioadept/CELL/OWNER/TOPIC``, and have the node
+    declare its liveliness token when it prints READY. ValueError naming the option for a bad value."""
     if values.get("transport") != "zenoh":
         given = [o for o in _ZENOH_OPTIONS if values.get(o)]
         if given:
