@@ -12,7 +12,7 @@ from typing import Any
 
 from aioadept.defaults import TRANSPORTS
 
-__all__ = ["BusSection", "transport_argv", "with_transport", "zenoh_session"]
+__all__ = ["BusSection", "check_chunk", "on_cell_key", "transport_argv", "with_transport", "zenoh_session"]
 
 
 @dataclass(slots=True)
@@ -40,11 +40,9 @@ class BusSection:
         from aioadept.errors import BusError
 
         try:
-            if "/" in self.cell:
-                raise BusError(f"cell = {self.cell!r}: one key chunk (letters, digits, '_', '.', '-'), no '/'")
-            zb.check_key(self.cell)
+            check_chunk(self.cell, "cell", sep=" = ")
         except BusError as exc:
-            raise ValueError(f"cell: {exc}") from None
+            raise ValueError(str(exc)) from None
         host_port = self.zenoh_router.rpartition(":")
         try:
             if host_port[2] == "0" and self.start_router:
@@ -59,23 +57,46 @@ class BusSection:
         return self.transport == "zenoh"
 
 
+def check_chunk(value: str, name: str, *, sep: str = " ") -> str:
+    """``value`` if it is one chunk of a Zenoh key (a cell's or a node's name: letters, digits, ``_ . -``); raises
+    :class:`~aioadept.errors.BusError` naming it: ``--cell 'a/b': one key chunk ...`` (``sep=" = "``: a file's
+    key)."""
+    from aioadept.bus.zenoh import check_key
+    from aioadept.errors import BusError
+
+    try:
+        if "/" not in value:
+            return check_key(value)
+    except BusError:
+        pass
+    raise BusError(f"{name}{sep}{value!r}: one key chunk (letters, digits, '_', '.', '-'), no '/'")
+
+
 def with_transport(cfg: Any) -> Any:
     """``cfg`` with ``[bus] transport = "zenoh"`` applied: every endpoint that is a ZeroMQ address becomes the
     cell's key (``zenoh:aioadept/<cell>/sim/state``, ``.../vision/request``, ``.../vision/response``); a
     ``zenoh:`` endpoint or ``none`` is kept. The same ``cfg`` on ZeroMQ."""
     if not cfg.bus.zenoh:
         return cfg
-    from aioadept.bus.endpoints import is_none
-    from aioadept.bus.zenoh import endpoint_for, is_zenoh
-
     cfg = dataclasses.replace(cfg, robot=dataclasses.replace(cfg.robot), vision=dataclasses.replace(cfg.vision))
     for section, name, owner, topic in ((cfg.robot, "state_endpoint", "sim", "state"),
                                         (cfg.vision, "request_endpoint", "vision", "request"),
                                         (cfg.vision, "response_endpoint", "vision", "response")):
-        value = getattr(section, name)
-        if not is_none(value) and not is_zenoh(value):
-            setattr(section, name, endpoint_for(cfg.bus.cell, owner, topic))
+        setattr(section, name, on_cell_key(getattr(section, name), cfg.bus.cell, owner, topic))
     return cfg
+
+
+def on_cell_key(endpoint: str, cell: str, owner: str, topic: str) -> str:
+    """The endpoint a Zenoh cell uses for the stream ``owner``/``topic`` written ``endpoint`` in its file: a ZeroMQ
+    address becomes the cell's key ``zenoh:aioadept/<cell>/<owner>/<topic>``; a ``zenoh:`` endpoint or ``none`` is
+    kept. The one rule of the starter (:func:`with_transport`) and of a node reading the file itself
+    (:func:`aioadept.cli.options.apply_cell_bus`), so both meet on the same keys."""
+    from aioadept.bus.endpoints import is_none
+    from aioadept.bus.zenoh import endpoint_for, is_zenoh
+
+    if is_none(endpoint) or is_zenoh(endpoint):
+        return endpoint
+    return endpoint_for(cell, owner, topic)
 
 
 def transport_argv(cfg: Any) -> list[str]:

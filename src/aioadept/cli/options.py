@@ -12,14 +12,15 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from aioadept import defaults
-from aioadept.configfile import report
+from aioadept.configfile import ConfigError, report
 
 if TYPE_CHECKING:
     from aioadept.apps.cell import CellConfig
+    from aioadept.apps.cellbus import BusSection
 
 __all__ = ["ArgumentParser", "DefaultsHelpFormatter", "ROBOT_HELP", "add_cell_options", "add_config", "add_verbose",
-           "apply_overrides", "check_option", "configure_logging", "description", "option_help", "parse_robot_address",
-           "report"]
+           "apply_cell_bus", "apply_overrides", "check_option", "configure_logging", "description", "option_help",
+           "parse_robot_address", "report"]
 
 
 def description(doc: str | None) -> str:
@@ -202,39 +203,73 @@ def add_node_transport_options(p: argparse.ArgumentParser) -> None:
                    help="--transport zenoh: be the router, listening here, instead of connecting to one")
     p.add_argument("--node", metavar="NAME",
                    help="--transport zenoh: this node's name in its liveliness token aioadept/CELL/NAME (default: "
-                        "sim or vision; a cell of several robots names each, e.g. r1, cam1)")
+                        "sim, vision or state; a cell of several robots names each, e.g. r1, cam1)")
 
 
 def apply_node_transport(values: dict, node: str, streams: dict[str, tuple[str, str, str]]) -> None:
-    """``--transport zenoh`` for node ``node`` (``sim``, ``vision``): configure this process's Zenoh session (a
-    client of ``zenoh_connect``, or the router itself with ``zenoh_listen``; multicast scouting and gossip off),
-    turn every endpoint of ``values`` named in ``streams`` (key -> (its ZeroMQ default, owner node, topic)) that is
-    still at its ZeroMQ default into the cell's key ``zenoh:aioadept/CELL/OWNER/TOPIC``, and have the node declare
-    its liveliness token when it prints READY. ValueError naming the option for a bad value."""
+    """``--transport zenoh`` for node ``node`` (``sim``, ``vision``, ``state``): configure this process's Zenoh
+    session (a client of ``zenoh_connect``, or the router itself with ``zenoh_listen``; multicast scouting and gossip
+    off), turn every endpoint of ``values`` named in ``streams`` (key -> (its ZeroMQ default, owner node, topic))
+    that is still at its ZeroMQ default into the cell's key ``zenoh:aioadept/CELL/OWNER/TOPIC``, and have the node
+    declare its liveliness token when it prints READY. ValueError naming the option for a bad value."""
     if values.get("transport") != "zenoh":
         given = [o for o in _ZENOH_OPTIONS if values.get(o)]
         if given:
             raise ValueError(f"--{given[0].replace('_', '-')} needs --transport zenoh")
         return
+    from aioadept.apps.cellbus import check_chunk
     from aioadept.bus import zenoh as zb
     from aioadept.errors import BusError
 
     cell = values.get("cell") or zb.DEFAULT_CELL
     try:
-        if "/" in cell:
-            raise BusError(f"--cell {cell!r}: one key chunk (letters, digits, '_', '.', '-'), no '/'")
-        zb.check_key(cell)
+        check_chunk(cell, "--cell")
         listen, connect = values.get("zenoh_listen"), values.get("zenoh_connect")
         if listen and connect:
             raise BusError("give --zenoh-listen (be the router) or --zenoh-connect (use one), not both")
         zb.configure(zb.ZenohOptions.router(listen) if listen else zb.ZenohOptions.client(connect or zb.DEFAULT_ROUTER))
-        name = values.get("node") or node
-        if "/" in name:
-            raise BusError(f"--node {name!r}: one key chunk (letters, digits, '_', '.', '-'), no '/'")
-        zb.check_key(name)
+        name = check_chunk(values.get("node") or node, "--node")
         zb.announce_as(cell, name)
     except BusError as exc:
         raise ValueError(str(exc)) from None
     for key, (zmq_default, owner, topic) in streams.items():
         if values.get(key) == zmq_default:
             values[key] = zb.endpoint_for(cell, owner, topic)
+
+
+def apply_cell_bus(values: dict, bus: "BusSection", given: set[str], streams: dict[str, tuple[str, str]],
+                   source: str) -> None:
+    """A node started from a cell file (``aioadept sim|vision|state --config CELL.toml``): the file's ``[bus]``
+    table applied to the node's options ``values`` (defaults < the file < the command line) as a starter applies it
+    to the nodes it runs (:func:`aioadept.apps.cellbus.transport_argv` and
+    :func:`~aioadept.apps.cellbus.with_transport`), so the node meets the demo's application on the same transport
+    and keys. Call it before :func:`apply_node_transport`.
+
+    ``given`` names the options the command line gave; each wins over the file: ``--transport`` over
+    ``transport``, ``--cell`` over ``cell``, ``--zenoh-connect``/``--zenoh-listen`` over ``zenoh_router`` (a node
+    connects to the router; it is never the router because of the file), an endpoint over the key the file's would
+    become. On Zenoh every endpoint of ``streams`` (option -> (owner node, topic)) the command line did not give
+    becomes the cell's key unless it is ``zenoh:`` or ``none`` (:func:`~aioadept.apps.cellbus.on_cell_key`).
+    ValueError naming the option, or :class:`~aioadept.configfile.ConfigError` naming the file and the key."""
+    if "transport" not in given:
+        values["transport"] = bus.transport
+    if values.get("transport") != "zenoh":
+        return
+    from aioadept.apps.cellbus import check_chunk, on_cell_key
+    from aioadept.errors import BusError
+
+    if "cell" not in given:
+        values["cell"] = bus.cell
+    if not given & {"zenoh_connect", "zenoh_listen"}:
+        if bus.zenoh_router.rpartition(":")[2] == "0":
+            raise ConfigError(f"{source} [bus]: zenoh_router = {bus.zenoh_router!r}: port 0 is the free port a "
+                              f"starter picks for the router it runs itself; a node started on its own needs the "
+                              f"router's port (or --zenoh-connect)")
+        values["zenoh_connect"] = bus.zenoh_router
+    try:
+        check_chunk(values["cell"], "--cell")
+    except BusError as exc:
+        raise ValueError(str(exc)) from None
+    for key, (owner, topic) in streams.items():
+        if key not in given:
+            values[key] = on_cell_key(values[key], values["cell"], owner, topic)

@@ -15,7 +15,7 @@ import sys
 
 from aioadept import defaults
 from aioadept.cli.options import (ArgumentParser, DefaultsHelpFormatter, add_node_transport_options,
-                                  apply_node_transport, description)
+                                  apply_cell_bus, apply_node_transport, description)
 from aioadept.geometry import NULL, Pose
 from aioadept.robots import viper_s850 as kin
 from aioadept.sim.line import CartesianLimits
@@ -67,8 +67,10 @@ def build_parser() -> argparse.ArgumentParser:
                                 formatter_class=DefaultsHelpFormatter)
     p.add_argument("--config", metavar="FILE",
                    help="cell file (examples/cell.toml): its [robot] table gives host, port, time_scale, "
-                        "monitor_speed, state_endpoint and sim_args (the whole file is checked as demo checks it); "
-                        "options given here override it")
+                        "monitor_speed, state_endpoint and sim_args, its [bus] table the transport (on zenoh: the "
+                        "cell, the router to connect to, and the state stream on the cell's key, as the demo's "
+                        "application expects it); the whole file is checked as demo checks it; options given here "
+                        "override it")
     p.add_argument("--host", default=defaults.ROBOT_HOST, help="address to bind")
     p.add_argument("--port", type=int, default=DEFAULT_PORT, help="TCP port (0: pick a free one)")
     p.add_argument("--time-scale", type=float, default=1.0, dest="time_scale",
@@ -239,7 +241,8 @@ _ROBOT_TABLE = (("host", "host"), ("port", "port"), ("time_scale", "time_scale")
 
 
 def parse_args(parser: argparse.ArgumentParser, argv: list[str] | None) -> argparse.Namespace:
-    """Defaults < the cell file's ``[robot]`` table (``--config``) < the command line. A bad file: one line, exit 2."""
+    """Defaults < the cell file's ``[robot]`` and ``[bus]`` tables (``--config``) < the command line. A bad file: one
+    line, exit 2."""
     argv = list(sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(argv)
     from aioadept.configfile import report
@@ -256,6 +259,15 @@ def parse_args(parser: argparse.ArgumentParser, argv: list[str] | None) -> argpa
         parser.set_defaults(**{dest: getattr(robot, key) for key, dest in _ROBOT_TABLE},
                             stop_port=str(robot.stop_port) if robot.stop_port else "auto")
         args = parser.parse_args([*robot.sim_args, *argv])
+        # [bus]: the transport and keys of the demo's application (a --state-endpoint of the command line's, one
+        # that differs from the file's, is kept as given).
+        given = {k for k in ("transport", "cell", "zenoh_connect", "zenoh_listen") if getattr(args, k)}
+        if args.state_endpoint != robot.state_endpoint:
+            given.add("state_endpoint")
+        try:
+            apply_cell_bus(vars(args), cell.bus, given, {"state_endpoint": ("sim", "state")}, args.config)
+        except ValueError as exc:
+            raise SystemExit(report("aioadept sim", exc)) from None
     if args.world:
         from aioadept.worldfile import load_world
 

@@ -40,7 +40,10 @@ DEFAULTS["source"] = ["virtual"]
 def build_parser() -> argparse.ArgumentParser:
     p = ArgumentParser(prog="aioadept vision", description=description(__doc__),
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--config", metavar="FILE", help="TOML file with any of these options (CLI overrides it)")
+    p.add_argument("--config", metavar="FILE",
+                   help="TOML file with any of these options, or a cell file (examples/cell.toml): its [vision] "
+                        "table, [robot] state_endpoint, and [bus] (the transport; on zenoh the cell, the router to "
+                        "connect to and the cell's keys, as the demo's application uses them); CLI overrides it")
     p.add_argument("--source", action="append", metavar="SPEC",
                    help="virtual | gige:ADDRESS (a GigE Vision camera's IPv4 address, opened by address, never by "
                         "discovery; needs the [gige] extra) | folder:PATH | opencv:SPEC (device index, video file or "
@@ -147,15 +150,23 @@ def load_config(path: str) -> dict[str, Any]:
     """Options from a TOML file, checked against the one vision schema (:class:`VisionOptions`); raises
     :class:`aioadept.configfile.ConfigError` naming the file and the key.
 
-    A file with a ``[vision]`` (or ``[robot]``, ``[focus]``, ``[run]``) table is read as a cell file (``examples/cell.toml``: the whole file is checked as
-    ``demo`` checks it; the node takes ``[vision]``, and the robot's ``state_endpoint`` unless ``[vision]`` has its
-    own; a starter's ``start`` is ignored and ``vision_args`` come before the command line's). Otherwise the options
-    are the top-level keys, with ``_`` or ``-``.
+    A file with a ``[vision]`` (or ``[robot]``, ``[focus]``, ``[run]``, ``[bus]``) table is read as a cell file
+    (``examples/cell.toml``: the whole file is checked as ``demo`` checks it; the node takes ``[vision]``, and the
+    robot's ``state_endpoint`` unless ``[vision]`` has its own; a starter's ``start`` is ignored and ``vision_args``
+    come before the command line's; :func:`resolve_options` applies its ``[bus]``). Otherwise the options are the
+    top-level keys, with ``_`` or ``-``.
     """
+    return _load_config(path)[0]
+
+
+def _load_config(path: str) -> tuple[dict[str, Any], Any]:
+    """:func:`load_config`'s options, and the cell file's ``[bus]`` table (a
+    :class:`~aioadept.apps.cellbus.BusSection`; None for a file of options only)."""
     from aioadept.configfile import load_toml
 
     data = load_toml(path)  # the file named, and the line of bad TOML (the reader every --config shares)
-    if set(data) & {"robot", "vision", "focus", "run"}:  # a cell file: one schema, checked as demo checks it
+    bus = None
+    if set(data) & {"robot", "vision", "focus", "run", "bus"}:  # a cell file: one schema, checked as demo checks it
         from aioadept.apps.cell import CellConfig
 
         cfg = CellConfig.from_dict(data, source=str(path))
@@ -169,12 +180,13 @@ def load_config(path: str) -> dict[str, Any]:
             out["vision_args"] = list(cfg.vision.vision_args)
         if cfg.calibration is not None and "calibration" not in out:  # the locator's camera: this cell's own
             out["calibration"] = str(path)
+        bus = cfg.bus
     else:
         opts = VisionOptions.from_table(data, str(path))
         out = {k: v for k, v in opts.to_dict().items() if k in {str(k).replace("-", "_") for k in data}}
     if isinstance(out.get("source"), str):
         out["source"] = [out["source"]]
-    return out
+    return out, bus
 
 
 def resolve_options(argv: list[str]) -> argparse.Namespace:
@@ -183,9 +195,11 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
     args = parser.parse_args(argv)
     merged = dict(DEFAULTS)
     merged.update(transport="zeromq", cell=None, zenoh_connect=None, zenoh_listen=None, node=None)
+    bus = None
     if args.config:
         try:
-            merged.update(load_config(args.config))
+            options, bus = _load_config(args.config)
+            merged.update(options)
         except (OSError, ValueError, tomllib.TOMLDecodeError) as exc:  # one line naming the file and the key
             from aioadept.configfile import report
 
@@ -193,9 +207,23 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
         extra = merged.pop("vision_args", None)
         if extra:  # the cell file's further arguments, overridden by the command line's
             args = parser.parse_args([*extra, *argv])
+    given = set()
     for key, value in vars(args).items():
         if key != "config" and value is not None:
             merged[key] = value
+            given.add(key)
+    streams = {"request_endpoint": (defaults.REQUEST_ENDPOINT, "vision", "request"),
+               "response_endpoint": (defaults.RESPONSE_ENDPOINT, "vision", "response"),
+               "state_endpoint": (defaults.STATE_ENDPOINT, "sim", "state")}
+    if bus is not None:  # the cell file's [bus]: the transport and keys of the demo's application
+        from aioadept.cli.options import apply_cell_bus
+
+        try:
+            apply_cell_bus(merged, bus, given, {k: v[1:] for k, v in streams.items()}, args.config)
+        except ValueError as exc:
+            from aioadept.configfile import report
+
+            raise SystemExit(report("aioadept vision", exc)) from None
     if merged["policy"] not in ("nearest", "after"):
         parser.error(f"policy must be nearest or after, got {merged['policy']!r}")
     if merged["inline"]:
@@ -235,10 +263,7 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
     from aioadept.cli.options import apply_node_transport
 
     try:
-        apply_node_transport(merged, "vision", {
-            "request_endpoint": (defaults.REQUEST_ENDPOINT, "vision", "request"),
-            "response_endpoint": (defaults.RESPONSE_ENDPOINT, "vision", "response"),
-            "state_endpoint": (defaults.STATE_ENDPOINT, "sim", "state")})
+        apply_node_transport(merged, "vision", streams)
     except ValueError as exc:
         parser.error(str(exc))
     from aioadept.bus.endpoints import is_none, parse_endpoint
