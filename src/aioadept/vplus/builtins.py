@@ -280,7 +280,7 @@ def namespace(rt: Runtime) -> dict[str, Any]:
     cond_tick = rt.cond_tick
 
     def halt(T: Task, prog: str, line: int) -> None:
-        raise VPlusHalt(f"(HALTED) {prog}, line {line}")
+        raise VPlusHalt(f"(HALTED) {prog}, line {line}", program=prog, line=line, brakes=True)
 
     def stop(T: Task) -> None:
         T.stop_cycle = True
@@ -365,7 +365,7 @@ def namespace(rt: Runtime) -> dict[str, Any]:
     def abort(T: Task, nums: tuple) -> None:
         for n in nums or (0,):
             if int(n) == T.num:
-                raise VPlusHalt("")
+                raise VPlusHalt("", brakes=True)
             rt.abort(int(n))
 
     def kill(T: Task, nums: tuple) -> None:
