@@ -38,6 +38,7 @@ USER_SKILLS = '''	CALL rs.addskill("halt_now", 0)
 	CALL rs.addskill("boom", 0)
 	CALL rs.addskill("rdboom", 0)
 	CALL rs.addskill("cbboom", 0)
+	CALL rs.addskill("shutdown", 0)
 .END
 
 .PROGRAM halt_now()
@@ -62,6 +63,11 @@ USER_SKILLS = '''	CALL rs.addskill("halt_now", 0)
 
 .PROGRAM rdboom()
 ; never runs: the patched READ (PATCH) raises when it reads this skill's line
+.END
+
+.PROGRAM shutdown()
+; the clean way out: both of the server's loops end (rs.halt)
+	CALL rs.halt()
 .END
 
 .PROGRAM cbboom()
@@ -231,3 +237,14 @@ async def test_when_the_server_dies_the_arm_stops_clients_learn_and_the_process_
     assert not last.in_motion
     assert last.joints_deg[0] < TARGET_J1_DEG - 20, last.joints_deg     # braked, not run to its target
     assert states[-2].joints_deg == last.joints_deg
+
+
+@pytest.mark.timeout(60)
+async def test_a_clean_rs_halt_is_no_death_the_last_acks_go_out_and_the_exit_status_is_0(tmp_path):
+    async with vplus_sim(tmp_path) as sim:
+        async with RobotClient("127.0.0.1", sim.port) as robot:
+            await robot.cmdexec(Skill("shutdown"))              # acked: the reader flushes before it ends
+            rc = await asyncio.wait_for(sim.proc.wait(), 15)
+        err = (await sim.proc.stderr.read()).decode()
+    assert rc == 0, err
+    assert [ln for ln in err.splitlines() if ln.strip()] == ["aioadept sim: every V+ task has ended"]
