@@ -7,6 +7,7 @@ One test per way of dying, each through a real child process, real TCP and the r
 
 - a V+ runtime error halts the executor (a user skill whose own REACTE trap fails);
 - the executor's task ends without an error (a user skill that HALTs) while the reader runs on;
+- the executor's task PAUSEs (nothing in the sim can PROCEED it);
 - a Python exception inside a task (the reader's READ; an emulator bug there becomes the task's error);
 - a Python exception in the scheduler, outside any task;
 - a Python exception in an I/O callback of the emulator's TCP device (asyncio's exception handler).
@@ -39,6 +40,7 @@ USER_SKILLS = '''	CALL rs.addskill("halt_now", 0)
 	CALL rs.addskill("rdboom", 0)
 	CALL rs.addskill("cbboom", 0)
 	CALL rs.addskill("shutdown", 0)
+	CALL rs.addskill("pause_now", 0)
 .END
 
 .PROGRAM halt_now()
@@ -63,6 +65,11 @@ USER_SKILLS = '''	CALL rs.addskill("halt_now", 0)
 
 .PROGRAM rdboom()
 ; never runs: the patched READ (PATCH) raises when it reads this skill's line
+.END
+
+.PROGRAM pause_now()
+; a user skill that PAUSEs (for a debugger at the controller's terminal): nothing in the sim can PROCEED it
+	PAUSE
 .END
 
 .PROGRAM shutdown()
@@ -182,6 +189,8 @@ WAYS = [
                                   "in crash.trap"], id="vplus-error-halts-the-executor"),
     pytest.param("halt_now", False, ["V+ task 0 (rs.main) halted by HALT at", "rsconfig.V2:", "in halt_now",
                                      "task 2 (rs.reader)"], id="executor-task-ends"),
+    pytest.param("pause_now", False, ["V+ task 0 (rs.main) paused by PAUSE at", "rsconfig.V2:", "in pause_now",
+                                      "nothing can PROCEED it"], id="executor-task-pauses"),
     pytest.param("rdboom", False, ["V+ task 2 (rs.reader) stopped:", "*Emulator internal error*",
                                    "RuntimeError: injected reader fault", "rserver.V2:", "in rs."],
                  id="python-exception-in-the-reader-task"),

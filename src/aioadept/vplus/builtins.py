@@ -289,6 +289,10 @@ def namespace(rt: Runtime) -> dict[str, Any]:
     def pause(T: Task, prog: str, line: int) -> Generator:
         rt.console(T.num, f"(PAUSED) {prog}, line {line}")
         T.paused = True
+        if rt.on_task_pause is not None:
+            where = rt.module.programs.get(prog)
+            T.halted_at = (where.file if where is not None else None, prog, line)
+            rt.on_task_pause(T)
         while T.paused:
             yield rt.now + 3600.0
         return None

@@ -95,6 +95,7 @@ async def run(args: argparse.Namespace, options: Any) -> int:
         publisher, lambda: robot_state_sample(ctl, clock.now, wall0, io_cursor), options.state_rate_hz,
         world_sample=world_sample))
     emu.rt.on_task_end = sup.on_task_end
+    emu.rt.on_task_pause = sup.on_task_pause
     loop.set_exception_handler(sup.on_loop_error)
     try:
         emu.execute(0, args.run)
@@ -133,7 +134,8 @@ REST_WAIT_S = 3.0
 class Supervisor:
     """Never a server that only looks alive: decides, each time a V+ task stops, whether the program has died.
 
-    - A task stops with an error (any task, any time): the server is dead.
+    - A task stops with an error (any task, any time): the server is dead. So is a task that PAUSEs: nothing
+      here can PROCEED it.
     - Before READY, the ``--run`` program's tasks may end (a launcher that EXECUTEs others); when none is left,
       the program ended before it opened a socket.
     - After READY, a task that ends without an error while others run on (HALT in a skill, a loop that
@@ -177,6 +179,16 @@ class Supervisor:
             if T.robot_attached:
                 self._brake()     # the arm's program has ended: whatever comes next, no motion goes on
             asyncio.get_running_loop().call_later(GRACE_S, self._after_grace, T)
+
+    def on_task_pause(self, T: Any) -> None:
+        """PAUSE: only PROCEED would resume the task, and nothing here can give it: as good as HALT."""
+        if self.closing or self.why is not None:
+            return
+        how = f"paused by PAUSE at {_where(*T.halted_at)} (nothing can PROCEED it here)"
+        if T.num == 0 and not self.listening:
+            self.die(f"{self.run} stopped before it opened a socket: {how}")
+        else:
+            self.die(f"V+ task {T.num} ({T.program}) {how}: the server cannot serve")
 
     def _after_grace(self, T: Any) -> None:
         rt = self.emu.rt

@@ -109,7 +109,7 @@ class Task:
     cond_wait: bool = False            # blocked in WAIT cond: re-tested when another task made progress
     event_wait: bool = False           # blocked in WAIT.EVENT with the event mask: woken by SET.EVENT / its I/O
     motion_wait: bool = False          # blocked in a motion instruction: woken by a BRAKE
-    halted_at: tuple[str | None, str, int] | None = None   # HALT: (file, program, line)
+    halted_at: tuple[str | None, str, int] | None = None   # HALT or PAUSE: (file, program, line)
 
 
 class Runtime:
@@ -144,6 +144,8 @@ class Runtime:
         self.on_task_end: Callable[[Task], None] | None = None
         """Called when a task stops running (done, error, aborted), before its robot and LUNs are released:
         ``aioadept sim --vplus`` decides there whether the server has died (aioadept.vplus.cli)."""
+        self.on_task_pause: Callable[[Task], None] | None = None
+        """Called when a task executes PAUSE (only PROCEED resumes it: ``Emulator.proceed``, no one in the CLI)."""
         self.realtime = not self.clock.virtual
         self.slice_end = math.inf          # real time: when the running task's slice ends (time.monotonic)
         self._load_data()
