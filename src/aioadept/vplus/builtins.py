@@ -280,7 +280,7 @@ def namespace(rt: Runtime) -> dict[str, Any]:
     cond_tick = rt.cond_tick
 
     def halt(T: Task, prog: str, line: int) -> None:
-        raise VPlusHalt(f"(HALTED) {prog}, line {line}")
+        raise VPlusHalt(f"(HALTED) {prog}, line {line}", program=prog, line=line, brakes=True)
 
     def stop(T: Task) -> None:
         T.stop_cycle = True
@@ -289,6 +289,10 @@ def namespace(rt: Runtime) -> dict[str, Any]:
     def pause(T: Task, prog: str, line: int) -> Generator:
         rt.console(T.num, f"(PAUSED) {prog}, line {line}")
         T.paused = True
+        if rt.on_task_pause is not None:
+            where = rt.module.programs.get(prog)
+            T.halted_at = (where.file if where is not None else None, prog, line)
+            rt.on_task_pause(T)
         while T.paused:
             yield rt.now + 3600.0
         return None
@@ -365,7 +369,7 @@ def namespace(rt: Runtime) -> dict[str, Any]:
     def abort(T: Task, nums: tuple) -> None:
         for n in nums or (0,):
             if int(n) == T.num:
-                raise VPlusHalt("")
+                raise VPlusHalt("", brakes=True)
             rt.abort(int(n))
 
     def kill(T: Task, nums: tuple) -> None:

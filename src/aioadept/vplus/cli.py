@@ -40,6 +40,7 @@ async def run(args: argparse.Namespace, options: Any) -> int:
     the Python backend."""
     from aioadept.sim.server import publish_robot_states, robot_state_sample, world_state_sample
     from aioadept.vplus import Emulator, RealClock
+    from aioadept.vplus import iodev
     from aioadept.vplus.iodev import Network
     from aioadept.vplus.loader import load_files
     from aioadept.vplus.parse import norm
@@ -72,19 +73,18 @@ async def run(args: argparse.Namespace, options: Any) -> int:
         publisher = Publisher(options.state_endpoint, bind=True, curve=options.state_curve)
         state = publisher.actual_endpoint
 
-    listening = [False]
+    stop = asyncio.Event()
+    sup = Supervisor(emu, args.run, stop)
 
     def on_listen(vport: int, host: str, port: int) -> None:
         from aioadept.bus.zenoh import announce_ready
 
-        listening[0] = True
-
+        sup.listening = True
         announce_ready()  # --transport zenoh: the node's liveliness token (no-op on ZeroMQ)
         print(f"READY host={host} port={port} vport={vport} state={state}", flush=True)
 
     emu.rt.devices = Network(args.host, port_map, on_listen, faults=options.faults)
     loop = asyncio.get_running_loop()
-    stop = asyncio.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, stop.set)
     # the emulator's clock is the controller's time: the stream samples the arm at that time
@@ -94,61 +94,171 @@ async def run(args: argparse.Namespace, options: Any) -> int:
     states = None if publisher is None else asyncio.ensure_future(publish_robot_states(
         publisher, lambda: robot_state_sample(ctl, clock.now, wall0, io_cursor), options.state_rate_hz,
         world_sample=world_sample))
-    status = [0]
-    watcher = asyncio.ensure_future(_watch(emu, args.run, listening, stop, status))
+    emu.rt.on_task_end = sup.on_task_end
+    emu.rt.on_task_pause = sup.on_task_pause
+    loop.set_exception_handler(sup.on_loop_error)
     try:
         emu.execute(0, args.run)
         await emu.serve(stop)
+    except Exception as exc:  # noqa: BLE001 - an emulator bug outside any task: one line, not a traceback
+        sup.die(f"emulator internal error {_python_error(exc)}; every V+ task was aborted")
     finally:
-        watcher.cancel()
+        sup.closing = True
         for sig in (signal.SIGINT, signal.SIGTERM):
             loop.remove_signal_handler(sig)
+        iodev.close_all(emu.rt)
         for n in list(emu.rt.tasks):
             emu.rt.abort(n)
         if states is not None:
+            # the stream shows the braked arm come to rest before it ends (bounded: a stop takes well under this)
+            t_end = loop.time() + REST_WAIT_S
+            while ctl.trajectory.in_motion(clock.now) and loop.time() < t_end:
+                await asyncio.sleep(0.01)
+            await asyncio.sleep(2.0 / options.state_rate_hz)
             states.cancel()
             await asyncio.gather(states, return_exceptions=True)
         if publisher is not None:
             publisher.close()
-    return status[0]
+        loop.set_exception_handler(None)
+    return sup.status
 
 
-async def _watch(emu: Any, run: str, listening: list[bool], stop: asyncio.Event, status: list[int]) -> None:
-    """Never hang silently: when the --run program stops with an error before a socket is open, or no task is
-    left to run, say why on stderr (one line) and stop the emulator; the exit status is 1 unless every task ended
-    normally after the program was serving (a clean ``rs.halt``)."""
-    rt = emu.rt
-    while not stop.is_set():
-        await asyncio.sleep(0.05)
-        main = rt.tasks.get(0)
-        failed = [T for T in rt.tasks.values() if T.state == "error"]
-        if main is not None and main.state == "error" and not listening[0]:
-            why = f"{run} stopped before it opened a socket: {_explain(main.error)}"
-        elif not rt.active():
-            if failed:
-                why = f"V+ task {failed[0].num} stopped: {_explain(failed[0].error)}"
-            elif not listening[0]:
-                why = f"{run} ended before it opened a socket (no V+ task is running)"
+GRACE_S = 0.5
+"""After READY, how long the other tasks may run on after one task ended without an error before the server
+counts as dead. ``rs.halt`` ends both of the shipped server's loops within one ``rs.poll`` (16 ms)."""
+
+REST_WAIT_S = 3.0
+"""On the way out, the longest wait for the braked arm to come to rest (so the state stream shows it)."""
+
+
+class Supervisor:
+    """Never a server that only looks alive: decides, each time a V+ task stops, whether the program has died.
+
+    - A task stops with an error (any task, any time): the server is dead. So is a task that PAUSEs: nothing
+      here can PROCEED it.
+    - Before READY, the ``--run`` program's tasks may end (a launcher that EXECUTEs others); when none is left,
+      the program ended before it opened a socket.
+    - After READY, a task that ends without an error while others run on (HALT in a skill, a loop that
+      returned) is dead too unless every task has ended within :data:`GRACE_S` (a clean ``rs.halt``): a reader
+      without its executor queues commands nobody runs, an executor without its reader serves nobody.
+    - A Python exception outside the tasks (the scheduler, an I/O callback): dead.
+
+    Death: the arm is braked at once, ``stop`` is set (``run`` then closes every connection and aborts every
+    task), stderr gets one line saying which task and program died, where and why, and the exit status is 1.
+    Every task ended after READY: one line, exit status 0.
+    """
+
+    def __init__(self, emu: Any, run: str, stop: asyncio.Event) -> None:
+        self.emu = emu
+        self.run = run
+        self.stop = stop
+        self.listening = False
+        self.closing = False          # the shutdown's own aborts are no death
+        self.status = 0
+        self.why: str | None = None
+
+    def on_task_end(self, T: Any) -> None:
+        if self.closing or self.why is not None:
+            return
+        rt = self.emu.rt
+        if T.state == "error":
+            if T.num == 0 and not self.listening:
+                self.die(f"{self.run} stopped before it opened a socket: {_explain(T.error)}")
             else:
-                print("aioadept sim: every V+ task has ended", file=sys.stderr, flush=True)
-                stop.set()
-                return
-        else:
-            continue
-        print(f"aioadept sim: {why}", file=sys.stderr, flush=True)
-        status[0] = 1
-        stop.set()
-        return
+                self.die(f"V+ task {T.num} ({T.program}) stopped: {_explain(T.error)}")
+            return
+        if not any(t is not T and t.state == "running" for t in rt.tasks.values()):
+            if not self.listening:
+                self.die(f"{self.run} ended before it opened a socket (no V+ task is running)")
+            else:
+                self.why = "every V+ task has ended"
+                print(f"aioadept sim: {self.why}", file=sys.stderr, flush=True)
+                self.stop.set()
+            return
+        if self.listening:
+            if T.robot_attached:
+                self._brake()     # the arm's program has ended: whatever comes next, no motion goes on
+            asyncio.get_running_loop().call_later(GRACE_S, self._after_grace, T)
 
+    def on_task_pause(self, T: Any) -> None:
+        """PAUSE: only PROCEED would resume the task, and nothing here can give it: as good as HALT."""
+        if self.closing or self.why is not None:
+            return
+        how = f"paused by PAUSE at {_where(*T.halted_at)} (nothing can PROCEED it here)"
+        if T.num == 0 and not self.listening:
+            self.die(f"{self.run} stopped before it opened a socket: {how}")
+        else:
+            self.die(f"V+ task {T.num} ({T.program}) {how}: the server cannot serve")
+
+    def _after_grace(self, T: Any) -> None:
+        rt = self.emu.rt
+        if self.closing or self.why is not None or rt.tasks.get(T.num) is not T:
+            return                # already decided, or the task was started again
+        others = [t for t in rt.tasks.values() if t.state == "running"]
+        if not others:
+            return                # the last task's end has decided
+        how = "was aborted" if T.state == "aborted" else "ended"
+        if T.halted_at is not None:
+            how = f"halted by HALT at {_where(*T.halted_at)}"
+        runs = ", ".join(f"task {t.num} ({t.program})" for t in others)
+        self.die(f"V+ task {T.num} ({T.program}) {how} while {runs} ran on: the server cannot serve")
+
+    def on_loop_error(self, loop: asyncio.AbstractEventLoop, context: dict) -> None:
+        """asyncio's exception handler: an exception in an I/O callback of the emulator is its death. (A peer's
+        socket error is no exception here: asyncio reports OSError on a transport only in debug mode.)"""
+        exc = context.get("exception")
+        if exc is None or isinstance(exc, (OSError, asyncio.CancelledError)) or self.closing:
+            loop.default_exception_handler(context)
+            return
+        self.die(f"emulator internal error {_python_error(exc)} ({context.get('message', 'in a callback')}); "
+                 f"every V+ task was aborted")
+
+    def die(self, why: str) -> None:
+        if self.why is not None:
+            return
+        self._brake()
+        self.why = why
+        self.status = 1
+        print(f"aioadept sim: {why}", file=sys.stderr, flush=True)
+        self.stop.set()
+
+    def _brake(self) -> None:
+        robot = self.emu.rt.robot
+        if robot is not None:
+            robot.brake(self.emu.rt.now)
+
+
+def _where(file: str | None, program: str | None, line: int | None) -> str:
+    """``rsconfig.V2:85 in crash.trap``, or what of it is known."""
+    if file and line:
+        return f"{file}:{line} in {program}" if program else f"{file}:{line}"
+    if program:
+        return f"{program}, line {line}" if line else program
+    return "an unknown place"
+
+
+def _python_error(exc: BaseException) -> str:
+    """``RuntimeError: text at runtime.py:312``: the exception and the innermost Python line it came from."""
+    import os
+    import traceback
+
+    tb = traceback.extract_tb(exc.__traceback__)
+    at = f" at {os.path.basename(tb[-1].filename)}:{tb[-1].lineno}" if tb else ""
+    text = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {text}{at}" if text else f"{type(exc).__name__}{at}"
 
 
 def _explain(err: Any) -> str:
-    """A task's error, and for an undefined program the likely cause: its module was not loaded. (V+ reports an
-    undefined program only when the CALL executes, so a program the run never reaches is not an error: the
-    shipped server calls rs.state only with the state stream on.)"""
+    """A task's error and where (``*Division by 0* at rsconfig.V2:85 in crash.trap``), and for an undefined
+    program the likely cause: its module was not loaded. (V+ reports an undefined program only when the CALL
+    executes, so a program the run never reaches is not an error: the shipped server calls rs.state only with the
+    state stream on.)"""
     from aioadept.vplus import errors as E
 
-    text = str(err)
+    if getattr(err, "program", None) is not None:
+        text = f"{err.message} at {_where(err.file, err.program, err.line)}"
+    else:
+        text = str(err)
     if getattr(err, "code", None) == E.UNDEFINED_PROGRAM:
         name = str(err.message).replace("*Undefined program*", "").strip()
         text += f": no loaded file defines {name} (load its module too)"

@@ -93,4 +93,15 @@ class VPlusError(Exception):
 
 
 class VPlusHalt(BaseException):
-    """HALT / ABORT / KILL ending a task's program (not an error)."""
+    """HALT / ABORT / STOP ending a task's program (not an error).
+
+    ``program`` and ``line``: where HALT executed (None for the others). ``brakes``: the task's robot motion is
+    braked (HALT, ABORT of the own task; not STOP, which only ends the program's cycles).
+    """
+
+    def __init__(self, text: str = "", *, program: str | None = None, line: int | None = None,
+                 brakes: bool = False) -> None:
+        super().__init__(text)
+        self.program = program
+        self.line = line
+        self.brakes = brakes

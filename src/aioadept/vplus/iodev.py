@@ -330,12 +330,17 @@ class TcpLun:
                     mine.append(e)
         self.events = deque(others + mine)
 
-    def close(self) -> None:
+    def close(self, *, graceful: bool = False) -> None:
+        """Close the LUN: its connections (``graceful``: each after what it has buffered is sent; else at once,
+        a reset) and its server socket."""
         net = self.rt.devices
         if net is not None:
             net.flush()          # what WRITE returned from is sent before the connection goes
         for tr in list(self.conns.values()):
-            tr.abort()
+            if graceful:
+                tr.close()
+            else:
+                tr.abort()
         self.conns.clear()
         if self.server is not None:
             self.server.close()
@@ -657,6 +662,20 @@ def write(rt: Any):
                 yield rt.next_tick()
 
     return io_write
+
+
+def close_all(rt: Any) -> None:
+    """Every TCP connection and server of every task, closed: the program has died (aioadept.vplus.cli), so no
+    client may wait on for an ack that cannot come. What WRITE queued is sent first, and each connection ends
+    after it (not with a reset, which may cost the client acks that had already arrived)."""
+    for T in list(rt.tasks.values()):
+        for dev in list(T.luns.values()):
+            if isinstance(dev, TcpLun):
+                dev.close(graceful=True)
+    net = rt.devices
+    if net is not None:
+        for tr in list(net.server_transports):
+            tr.close()
 
 
 def release_task(rt: Any, T: Any) -> None:

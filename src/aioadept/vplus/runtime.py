@@ -109,6 +109,7 @@ class Task:
     cond_wait: bool = False            # blocked in WAIT cond: re-tested when another task made progress
     event_wait: bool = False           # blocked in WAIT.EVENT with the event mask: woken by SET.EVENT / its I/O
     motion_wait: bool = False          # blocked in a motion instruction: woken by a BRAKE
+    halted_at: tuple[str | None, str, int] | None = None   # HALT or PAUSE: (file, program, line)
 
 
 class Runtime:
@@ -140,6 +141,11 @@ class Runtime:
         self.devices: Any = None           # the TCP device layer (aioadept.vplus.tcp.Network)
         self.input: deque[str] = deque()
         self.on_wake: Callable[[], None] | None = None   # real time: poke the scheduler loop
+        self.on_task_end: Callable[[Task], None] | None = None
+        """Called when a task stops running (done, error, aborted), before its robot and LUNs are released:
+        ``aioadept sim --vplus`` decides there whether the server has died (aioadept.vplus.cli)."""
+        self.on_task_pause: Callable[[Task], None] | None = None
+        """Called when a task executes PAUSE (only PROCEED resumes it: ``Emulator.proceed``, no one in the CLI)."""
         self.realtime = not self.clock.virtual
         self.slice_end = math.inf          # real time: when the running task's slice ends (time.monotonic)
         self._load_data()
@@ -251,15 +257,21 @@ class Runtime:
             T.robot_attached = False
             self.robot.detach(T.num)
 
-    def _end_task(self, T: Task, state: str, err: VPlusError | None = None) -> None:
+    def _end_task(self, T: Task, state: str, err: VPlusError | None = None, *, brake: bool = False) -> None:
+        """The task stops running. ``brake`` (an error, HALT, ABORT): the motion of the robot it has attached is
+        braked: no motion goes on that no program commands any more (docs/vplus.md, "When a task stops")."""
         T.state = state
         T.error = err
+        if brake and T.robot_attached and self.robot is not None:
+            self.robot.brake(self.now)
         if T.gen is not None:
             gen, T.gen = T.gen, None
             try:
                 gen.close()
             except BaseException:  # noqa: BLE001 - a program's cleanup must not take the scheduler down
                 pass
+        if self.on_task_end is not None:
+            self.on_task_end(T)
         self._release(T)
 
     def abort(self, num: int) -> None:
@@ -267,10 +279,8 @@ class Runtime:
         T = self.tasks.get(num)
         if T is None or T.state not in ("running", "paused"):
             return
-        if T.robot_attached and self.robot is not None:
-            self.robot.brake(self.now)      # V+ ABORT stops the task's robot motion
         self.console(num, f"(task {num}) aborted")
-        self._end_task(T, "aborted")
+        self._end_task(T, "aborted", brake=True)      # V+ ABORT stops the task's robot motion
 
     def kill(self, num: int) -> None:
         self.abort(num)
@@ -336,25 +346,27 @@ class Runtime:
                 w = T.gen.send(None)
             except StopIteration:
                 T.gen = None
-                T.state = "done"
-                self._release(T)
+                self._end_task(T, "done")
                 continue
             except VPlusHalt as h:
                 T.gen = None
-                self._end_task(T, "done")
+                if h.program is not None:
+                    prog = self.module.programs.get(h.program)
+                    T.halted_at = (prog.file if prog is not None else None, h.program, h.line or 0)
                 if str(h):
                     self.console(T.num, str(h))
+                self._end_task(T, "done", brake=h.brakes)
                 continue
             except VPlusError as e:
                 T.gen = None
                 self.console(T.num, f"{e} (task {T.num})")
-                self._end_task(T, "error", e)
+                self._end_task(T, "error", e, brake=True)
                 continue
             except Exception as e:  # noqa: BLE001 - an emulator bug stops the task, not the emulator
                 T.gen = None
                 err = VPlusError(E.INTERNAL, f"*Emulator internal error* {type(e).__name__}: {e}")
                 self.console(T.num, f"{err} (task {T.num})")
-                self._end_task(T, "error", err)
+                self._end_task(T, "error", err, brake=True)
                 continue
             if w < 0:
                 preempted += 1
