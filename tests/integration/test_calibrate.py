@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import importlib.util
+import os
 import subprocess
 import sys
 import time
@@ -168,3 +170,41 @@ def test_bad_input_is_one_line_and_exit_2_before_anything_moves(tmp_path):
         assert res.returncode == 2, (args, res.stderr)
         lines = [ln for ln in res.stderr.strip().splitlines() if ln.strip()]
         assert len(lines) == 1 and word in lines[0], (args, res.stderr)
+
+
+@pytest.mark.timeout(90)
+@pytest.mark.skipif(importlib.util.find_spec("zenoh") is None, reason="the [zenoh] extra (eclipse-zenoh) is not installed")
+async def test_calibrate_from_a_zenoh_cell_file_meets_the_locator_on_the_cells_keys(tmp_path):
+    """[bus] transport = "zenoh" in the cell file: the requests go to aioadept/<cell>/vision/request through the
+    cell's router (this test process), not to the file's ZeroMQ addresses (nobody listens there)."""
+    from aioadept.vision.acquisition import Acquisition
+    from aioadept.vision.locate_node import LocatorNode, locate_responder
+
+    from bustransports import free_port, start_zenoh_router
+
+    router = start_zenoh_router()
+    name = f"cal{os.getpid()}"
+    async with running_sim(time_scale=20.0) as sim:
+        cell_file = tmp_path / "cell.toml"
+        cell_file.write_text(
+            f'[robot]\nhost = "{sim.host}"\nport = {sim.port}\nstart_sim = false\n'
+            f'[vision]\nstart = false\nrequest_endpoint = "tcp://127.0.0.1:{free_port()}"\n'
+            f'response_endpoint = "tcp://127.0.0.1:{free_port()}"\n'
+            f'[bus]\ntransport = "zenoh"\ncell = "{name}"\nzenoh_router = "{router}"\nstart_router = false\n',
+            encoding="utf-8")
+        with Acquisition([ToolMarkerCamera(sim.controller)], fps=None) as acq:
+            node = LocatorNode(acq, NOMINAL, policy="after", timeout_s=2.0)
+            try:
+                async with locate_responder(f"zenoh:aioadept/{name}/vision/request",
+                                            f"zenoh:aioadept/{name}/vision/response", node) as responder:
+                    proc = await asyncio.create_subprocess_exec(
+                        sys.executable, "-m", "aioadept", "calibrate", "--config", str(cell_file), "--marker",
+                        str(MARKER), "--centre", "450,0,300", "--views", "6", "--speed", "50",
+                        stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE)
+                    out, err = await proc.communicate()
+                    served = responder.handled
+            finally:
+                node.close()
+    assert proc.returncode == 0, err.decode()
+    assert served >= 6
+    check(CameraCalibration.from_table(tomllib.loads(out.decode())["calibration"]))

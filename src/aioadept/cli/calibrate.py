@@ -31,7 +31,8 @@ RANGES = {"views": Range(3, 200, integer=True), "marker": Range(0, 999, integer=
 
 def build_parser() -> argparse.ArgumentParser:
     p = ArgumentParser(prog=PROG, description=description(__doc__))
-    p.add_argument("--config", type=Path, help="cell file: robot address, vision endpoints, the nominal "
+    p.add_argument("--config", type=Path, help="cell file: robot address, vision endpoints, [bus] (on Zenoh: the "
+                                                "cell's keys and router), the nominal "
                                                 "[calibration] (intrinsics, table); defaults without it")
     add_robot_option(p)
     p.add_argument("--request-endpoint", help=with_default("PUB for locate requests (the node's READY line prints "
@@ -71,13 +72,15 @@ def main(argv: list[str] | None = None) -> int:
                         format="%(levelname)s %(name)s: %(message)s")
     from aioadept.apps.calibrate import CalibrationError, calibration_poses, check_poses
     from aioadept.apps.cell import CellConfig
+    from aioadept.apps.cellbus import with_transport, zenoh_session
     from aioadept.geometry import Pose
     from aioadept.vision.calibration import CameraCalibration
 
     try:
         for key, rng in RANGES.items():
             rng.check("--" + key.replace("_", "-"), getattr(args, key), sep=" ")
-        cfg = CellConfig.from_toml(args.config) if args.config else CellConfig()
+        # [bus] transport = "zenoh": the vision node's requests on the cell's keys, through the cell's router
+        cfg = with_transport(CellConfig.from_toml(args.config) if args.config else CellConfig())
         nominal = cfg.calibration if cfg.calibration is not None else CameraCalibration()
         host, port = parse_robot_address(args.robot) if args.robot else (cfg.robot.host, cfg.robot.port)
         if args.centre:
@@ -111,8 +114,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         # Ctrl-C, SIGTERM, SIGHUP: stop the arm first (written in the signal callback, its ack awaited), start no
         # motion, exit 130 (1 if the stop was not confirmed), as the focus app does.
-        code = run_interruptible(lambda intr: _run(intr, runs, host, port, request, response, poses, nominal, args,
-                                                   cfg), prog=PROG)
+        with zenoh_session(cfg, "calibrate"):
+            code = run_interruptible(lambda intr: _run(intr, runs, host, port, request, response, poses, nominal,
+                                                       args, cfg), prog=PROG)
     except Exception as exc:  # the run failed: one line, the robot stays where it is
         if args.verbose:
             raise
