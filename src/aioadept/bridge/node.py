@@ -321,7 +321,8 @@ class Bridge:
         import zmq
         import zmq.asyncio
 
-        from aioadept.bus.zenoh import PREFIX, make_zenoh_socket
+        from aioadept.bus.zenoh import PREFIX
+        from aioadept.bus.zenohsocket import make_zenoh_socket
 
         ctx = zmq.asyncio.Context.instance()
         sub = ctx.socket(zmq.SUB)

@@ -19,7 +19,7 @@ reader hands every queued message straight to its owner, without a task switch o
 our overhead over a raw ping-pong, benchmarks/bench_bus.py). Without ``loop.add_reader`` (e.g. the Windows
 proactor loop) it falls back to a task awaiting zmq.asyncio.
 
-An endpoint written ``zenoh:KEY`` gets a :class:`~aioadept.bus.zenoh.ZenohSocket` instead (the same calls, over
+An endpoint written ``zenoh:KEY`` gets a :class:`~aioadept.bus.zenohsocket.ZenohSocket` instead (the same calls, over
 Eclipse Zenoh): :func:`make_socket` creates it, :func:`attach` declares it, :class:`SocketReader` is woken by its
 callback instead of a file descriptor, :func:`close_socket` undeclares it.
 """
@@ -82,7 +82,7 @@ def make_socket(kind: int, *, context: zmq.Context | None = None, flavour: Flavo
 
     An ``endpoint`` given here that is ``zenoh:KEY`` makes a Zenoh socket (:mod:`aioadept.bus.zenoh`) instead."""
     if endpoint is not None and is_zenoh(endpoint):
-        from aioadept.bus.zenoh import make_zenoh_socket
+        from aioadept.bus.zenohsocket import make_zenoh_socket
 
         subs = [as_topic(t) for t in topics] if kind == zmq.SUB else []
         return make_zenoh_socket(kind, endpoint, flavour=flavour, hwm=hwm, topics=subs,  # type: ignore[return-value]
@@ -153,7 +153,7 @@ def open_socket(kind: int, endpoint: str, *, bind: bool, context: zmq.Context | 
 
 
 def is_zenoh_socket(sock: object) -> bool:
-    """Whether ``sock`` is a :class:`~aioadept.bus.zenoh.ZenohSocket` (checked without importing Zenoh)."""
+    """Whether ``sock`` is a :class:`~aioadept.bus.zenohsocket.ZenohSocket` (checked without importing Zenoh)."""
     return hasattr(sock, "set_reader")
 
 

@@ -1,6 +1,7 @@
 """Eclipse Zenoh as the bus's second transport, behind the same API as ZeroMQ (the ``[zenoh]`` extra).
 
-Where it sits: the socket layer (:mod:`aioadept.bus.sockets`) opens a :class:`ZenohSocket` instead of a ZeroMQ
+Where it sits: the socket layer (:mod:`aioadept.bus.sockets`) opens a
+:class:`~aioadept.bus.zenohsocket.ZenohSocket` instead of a ZeroMQ
 socket for an endpoint written ``zenoh:KEY`` (``zenoh:aioadept/<cell>/<node>/<topic>``), so publishers, subscribers,
 the :class:`~aioadept.bus.Communicator` and the :class:`~aioadept.bus.Responder` run unchanged over either transport:
 same frames, same Protobuf payloads, same request/response pairing (docs/bus.md, "Zenoh").
@@ -12,9 +13,7 @@ same frames, same Protobuf payloads, same request/response pairing (docs/bus.md,
   Zenoh queries: the pairing contract (re-publication with the same id, the responder's answer cache, drop-oldest
   with an error answer, ``t_deadline``, the paper-style send()/recv()) is written once, above the transport, and
   keeps its tests on both.
-- Zenoh calls back on a thread of its own. A callback only appends to a bounded deque (overflow: the oldest message is
-  dropped and counted, so a stalled reader keeps the newest state) and wakes the loop with one
-  ``call_soon_threadsafe``; it never blocks and never touches asyncio objects.
+- Zenoh calls back on a thread of its own: :mod:`aioadept.bus.zenohsocket` hands each message to the loop.
 - One Zenoh session per process, opened on first use with :func:`configure`'s options: multicast scouting and
   gossip OFF, so nothing is discovered or announced beyond the endpoints written down (``tcp/127.0.0.1:PORT`` in
   the defaults and tests). A process either listens (``mode="router"``: it routes between the others) or connects
@@ -25,17 +24,12 @@ same frames, same Protobuf payloads, same request/response pairing (docs/bus.md,
 
 from __future__ import annotations
 
-import asyncio
-import collections
 import json
 import logging
 import re
 import threading
-from collections.abc import AsyncIterator, Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Literal
-
-import zmq
 
 from aioadept.errors import BusError
 
@@ -45,7 +39,6 @@ __all__ = [
     "PREFIX",
     "MODES",
     "ZenohOptions",
-    "ZenohSocket",
     "close_session",
     "configure",
     "announce_as",
@@ -262,236 +255,3 @@ def declare_node(cell: str, node: str) -> Any:
     with _lock:
         _tokens.append(token)
     return token
-
-
-# ------------------------------------------------------------------------------------------------- sockets
-
-
-class ZenohSocket:
-    """The part of a ZeroMQ PUB or SUB socket the bus uses, over one Zenoh key.
-
-    ``flavour`` as in :mod:`aioadept.bus.sockets`: ``plain`` (read with ``recv_multipart(zmq.NOBLOCK)`` after the
-    wake-up callback set by :meth:`set_reader`), ``asyncio`` (``await recv_multipart()``) or ``thread``
-    (``poll``/blocking ``recv_multipart``). A SUB keeps at most ``hwm`` messages; beyond that the oldest is
-    dropped (``dropped`` counts them). ``max_bytes`` (ZeroMQ's MAXMSGSIZE) drops bigger messages.
-    """
-
-    def __init__(self, kind: int, key: str, *, flavour: str = "plain", hwm: int = 1000,
-                 topics: Iterable[bytes] = (), max_bytes: int | None = None) -> None:
-        if kind not in (zmq.PUB, zmq.SUB):
-            raise BusError(f"the Zenoh transport has PUB and SUB sockets only, not {kind}")
-        self.kind = kind
-        self.key = check_key(key, wildcards=kind == zmq.SUB)
-        self.flavour = flavour
-        self.closed = False
-        self.dropped = 0
-        self._topics: list[bytes] = list(topics)
-        self._max_bytes = max_bytes
-        self._queue: collections.deque[list[bytes]] = collections.deque(maxlen=max(1, hwm))
-        self._cond = threading.Condition()
-        self._loop: asyncio.AbstractEventLoop | None = None
-        self._on_ready: Any = None
-        self._scheduled = False
-        self._waiter: asyncio.Future | None = None
-        self._entity: Any = None
-
-    @property
-    def endpoint(self) -> str:
-        return PREFIX + self.key
-
-    def declare(self) -> str:
-        """Declare the Zenoh publisher or subscriber; returns the endpoint in use."""
-        zenoh = _zenoh()
-        s = session()
-        try:
-            if self.kind == zmq.PUB:
-                self._entity = s.declare_publisher(self.key, express=True)
-            else:
-                # indirect (Zenoh's default): the callback runs on a Python thread of its own, not on Zenoh's
-                # network thread; taking the GIL on the network thread stalled Zenoh's own I/O behind our event loop
-                # (request/response p50 about 1.4x slower in benchmarks/bench_bus.py).
-                self._entity = s.declare_subscriber(self.key, zenoh.handlers.Callback(self._on_sample,
-                                                                                      indirect=True))
-        except Exception as exc:
-            self.closed = True
-            raise BusError(f"cannot declare a Zenoh {'publisher' if self.kind == zmq.PUB else 'subscriber'} on "
-                           f"{self.key!r}: {exc}") from exc
-        return self.endpoint
-
-    # -- options (the ZeroMQ ones the bus sets) ------------------------------------------------------------
-
-    def setsockopt(self, option: int, value: Any) -> None:
-        if option == zmq.SUBSCRIBE:
-            self._topics.append(bytes(value))
-        elif option == zmq.UNSUBSCRIBE:
-            self._topics.remove(bytes(value))
-        elif option == zmq.MAXMSGSIZE:
-            self._max_bytes = None if value < 0 else int(value)
-        elif option in (zmq.RCVHWM, zmq.SNDHWM):
-            self._queue = collections.deque(self._queue, maxlen=max(1, int(value)))
-        # LINGER and the rest mean nothing here.
-
-    # -- sending -------------------------------------------------------------------------------------------
-
-    def send(self, payload: bytes, flags: int = 0) -> None:
-        self._put(payload, None)
-
-    def send_multipart(self, frames: Any, flags: int = 0) -> None:
-        frames = list(frames)
-        if len(frames) == 1:
-            self._put(frames[0], None)
-        elif len(frames) == 2:
-            self._put(frames[1], frames[0])
-        else:
-            raise BusError(f"the Zenoh transport carries 1 or 2 frames, not {len(frames)}")
-
-    def _put(self, payload: bytes, topic: bytes | None) -> None:
-        if self.closed:
-            raise zmq.ZMQError(zmq.ENOTSOCK, "Zenoh socket closed")
-        if self.kind != zmq.PUB:
-            raise zmq.ZMQError(zmq.ENOTSUP, "send on a SUB socket")
-        try:
-            if topic is None:
-                self._entity.put(bytes(payload))
-            else:
-                self._entity.put(bytes(payload), attachment=bytes(topic))
-        except Exception as exc:
-            raise zmq.ZMQError(zmq.EFAULT, f"Zenoh put on {self.key!r} failed: {exc}") from exc
-
-    # -- receiving -----------------------------------------------------------------------------------------
-
-    def _accepts(self, frames: list[bytes]) -> bool:
-        if self._max_bytes is not None and sum(map(len, frames)) > self._max_bytes:
-            return False
-        first = frames[0]
-        return any(first.startswith(t) for t in self._topics)
-
-    def _on_sample(self, sample: Any) -> None:
-        # On a Zenoh thread: append and wake, nothing else (never block, never touch asyncio objects).
-        try:
-            payload = sample.payload.to_bytes()
-            att = sample.attachment
-            frames = [payload] if att is None else [att.to_bytes(), payload]
-        except Exception as exc:  # pragma: no cover - a malformed sample from Zenoh itself
-            log.debug("Zenoh sample on %s unreadable: %r", self.key, exc)
-            return
-        if self.closed or not self._accepts(frames):
-            return
-        queue = self._queue
-        if len(queue) == queue.maxlen:
-            self.dropped += 1
-        queue.append(frames)  # one atomic step under the GIL: no lock on the hot path
-        if self.flavour == "thread":
-            with self._cond:
-                self._cond.notify()
-            return
-        loop = self._loop
-        if loop is not None and not self._scheduled:
-            # At most one wake-up queued: _wake clears the flag before it drains, so a message appended after the
-            # drain started schedules a new one (a rare double wake-up is harmless).
-            self._scheduled = True
-            try:
-                loop.call_soon_threadsafe(self._wake)
-            except RuntimeError:  # the loop is closed: nobody reads any more
-                pass
-
-    def _wake(self) -> None:
-        # On the loop's thread.
-        self._scheduled = False
-        waiter, self._waiter = self._waiter, None
-        if waiter is not None and not waiter.done():
-            waiter.set_result(None)
-        if self._on_ready is not None and not self.closed:
-            self._on_ready()
-
-    def set_reader(self, loop: asyncio.AbstractEventLoop, on_ready: Any) -> None:
-        """Call ``on_ready()`` on ``loop`` whenever messages have arrived (None: stop)."""
-        with self._cond:
-            self._loop = loop if on_ready is not None else self._loop
-            self._on_ready = on_ready
-            pending = bool(self._queue)
-        if pending and on_ready is not None:
-            loop.call_soon(self._wake)
-
-    def _pop(self) -> list[bytes] | None:
-        try:
-            return self._queue.popleft()
-        except IndexError:
-            return None
-
-    def recv_multipart(self, flags: int = 0) -> Any:
-        if self.flavour == "asyncio":
-            return self._recv_async()
-        return self._recv_sync(block=not flags & zmq.NOBLOCK)
-
-    def _recv_sync(self, *, block: bool, timeout_s: float | None = None) -> list[bytes]:
-        if not block:
-            try:
-                return self._queue.popleft()
-            except IndexError:
-                if self.closed:
-                    raise zmq.ZMQError(zmq.ENOTSOCK, "Zenoh socket closed") from None
-                raise zmq.Again() from None
-        with self._cond:
-            while not self._queue:
-                if self.closed:
-                    raise zmq.ZMQError(zmq.ENOTSOCK, "Zenoh socket closed")
-                if not block:
-                    raise zmq.Again()
-                if not self._cond.wait(timeout_s):
-                    raise zmq.Again()
-            return self._queue.popleft()
-
-    async def _recv_async(self) -> list[bytes]:
-        loop = asyncio.get_running_loop()
-        with self._cond:
-            self._loop = loop
-        while True:
-            frames = self._pop()
-            if frames is not None:
-                return frames
-            if self.closed:
-                raise zmq.ZMQError(zmq.ENOTSOCK, "Zenoh socket closed")
-            self._waiter = loop.create_future()
-            if self._queue:  # arrived between the pop and the waiter
-                continue
-            try:
-                await self._waiter
-            finally:
-                self._waiter = None
-
-    def poll(self, timeout_ms: int = -1, flags: int = zmq.POLLIN) -> int:
-        with self._cond:
-            if not self._queue and not self.closed:
-                self._cond.wait(None if timeout_ms < 0 else timeout_ms / 1000)
-            return zmq.POLLIN if self._queue else 0
-
-    def close(self, linger: int | None = None) -> None:
-        if self.closed:
-            return
-        self.closed = True
-        entity, self._entity = self._entity, None
-        if entity is not None:
-            try:
-                entity.undeclare()
-            except Exception as exc:
-                log.debug("Zenoh undeclare %s: %r", self.key, exc)
-        with self._cond:
-            self._cond.notify_all()
-        waiter, self._waiter = self._waiter, None
-        if waiter is not None and not waiter.done():
-            waiter.cancel()
-
-    def __repr__(self) -> str:
-        return f"<ZenohSocket {'PUB' if self.kind == zmq.PUB else 'SUB'} {self.key}{' closed' if self.closed else ''}>"
-
-
-def make_zenoh_socket(kind: int, endpoint: str, *, flavour: str = "plain", hwm: int = 1000,
-                      topics: Iterable[bytes] = (), options: Mapping[int, int] = {}) -> ZenohSocket:
-    """A :class:`ZenohSocket` for ``endpoint`` (not declared yet: :meth:`ZenohSocket.declare`)."""
-    max_bytes = options.get(zmq.MAXMSGSIZE)
-    unknown = set(options) - {zmq.MAXMSGSIZE}
-    if unknown:
-        raise BusError(f"socket options {sorted(unknown)} have no meaning on the Zenoh transport")
-    return ZenohSocket(kind, key_of(endpoint), flavour=flavour, hwm=hwm, topics=topics,
-                       max_bytes=None if max_bytes is None or max_bytes < 0 else max_bytes)
