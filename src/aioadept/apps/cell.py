@@ -133,7 +133,10 @@ class CellConfig:
                 parts[name] = typ(**check_section(typ, data.get(name, {}), where))  # FocusParams checks its ranges
                 check_ranges(parts[name])
                 if typ is BusSection:
-                    parts[name].check(where)
+                    bus = parts[name]
+                    if bus.zenoh_config and Path(source).is_file():  # relative to the cell file, as its other files
+                        bus.zenoh_config = str(Path(source).parent / bus.zenoh_config)
+                    bus.check(where)
             except ConfigError:
                 raise
             except ValueError as exc:

@@ -31,6 +31,10 @@ class BusSection:
     start_router: bool = True
     """The starter (``aioadept demo``/``focus``) is the router, listening on ``zenoh_router``; false: connect to a
     router that runs elsewhere."""
+    zenoh_config: str = ""
+    """A Zenoh configuration file (JSON5) every process of the cell opens its session with: credentials, TLS,
+    access control (:attr:`aioadept.bus.zenoh.ZenohOptions.config_file`; docs/security.md). Relative to the cell
+    file. Empty: none."""
 
     def check(self, where: str) -> None:
         """ValueError naming the key for a value out of its choices."""
@@ -51,6 +55,20 @@ class BusSection:
                 zb.check_locator(self.zenoh_router)
         except BusError as exc:
             raise ValueError(f"zenoh_router: {exc}") from None
+        if self.zenoh_config and self.zenoh:
+            try:
+                zb.ZenohOptions.client(config_file=self.zenoh_config)  # loads it: one line now, not at start
+            except BusError as exc:
+                raise ValueError(f"zenoh_config: {exc}") from None
+
+    def options(self, *, router: bool) -> Any:
+        """This cell's :class:`~aioadept.bus.zenoh.ZenohOptions`: the router's (listening on ``zenoh_router``) or
+        a client's of it, with ``zenoh_config``."""
+        from aioadept.bus import zenoh as zb
+
+        config = self.zenoh_config or None
+        return (zb.ZenohOptions.router(self.zenoh_router, config_file=config) if router
+                else zb.ZenohOptions.client(self.zenoh_router, config_file=config))
 
     @property
     def zenoh(self) -> bool:
@@ -103,7 +121,8 @@ def transport_argv(cfg: Any) -> list[str]:
     """The ``--transport`` options a node of ``cfg`` is started with (none on ZeroMQ)."""
     if not cfg.bus.zenoh:
         return []
-    return ["--transport", "zenoh", "--cell", cfg.bus.cell, "--zenoh-connect", cfg.bus.zenoh_router]
+    argv = ["--transport", "zenoh", "--cell", cfg.bus.cell, "--zenoh-connect", cfg.bus.zenoh_router]
+    return argv + (["--zenoh-config", cfg.bus.zenoh_config] if cfg.bus.zenoh_config else [])
 
 
 @contextlib.contextmanager
@@ -115,8 +134,7 @@ def zenoh_session(cfg: Any, node: str = "app"):
         return
     from aioadept.bus import zenoh as zb
 
-    zb.configure(zb.ZenohOptions.router(cfg.bus.zenoh_router) if cfg.bus.start_router
-                 else zb.ZenohOptions.client(cfg.bus.zenoh_router))
+    zb.configure(cfg.bus.options(router=cfg.bus.start_router))
     try:
         zb.declare_node(cfg.bus.cell, node)
         yield

@@ -63,7 +63,7 @@ MODES = ("router", "client", "peer")
 PIN = "eclipse-zenoh==1.10.2"
 
 _CHUNK = re.compile(r"^[A-Za-z0-9_.\-]+$")
-_LOCATOR = re.compile(r"^tcp/(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.\-]+):(?P<port>[0-9]{1,5})$")
+_LOCATOR = re.compile(r"^(?:tcp|tls)/(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.\-]+):(?P<port>[0-9]{1,5})$")
 
 
 def is_zenoh(endpoint: str | None) -> bool:
@@ -103,11 +103,12 @@ def endpoint_for(cell: str, node: str, topic: str) -> str:
 
 
 def check_locator(text: str) -> str:
-    """``tcp/HOST:PORT`` or raises :class:`BusError` (one line naming it)."""
+    """``tcp/HOST:PORT`` (or ``tls/HOST:PORT``, with TLS set in a :attr:`ZenohOptions.config_file`) or raises
+    :class:`BusError` (one line naming it)."""
     m = _LOCATOR.match(text.strip())
     if m is None or not 0 < int(m["port"]) <= 0xFFFF:
-        raise BusError(f"Zenoh endpoint {text!r}: expected tcp/HOST:PORT with a port 1..65535, e.g. "
-                       f"{DEFAULT_ROUTER!r}")
+        raise BusError(f"Zenoh endpoint {text!r}: expected tcp/HOST:PORT (or tls/HOST:PORT) with a port 1..65535, "
+                       f"e.g. {DEFAULT_ROUTER!r}")
     return text.strip()
 
 
@@ -137,6 +138,11 @@ class ZenohOptions:
     about half of the default's here. Every process of a cell must agree: a Zenoh router or peer of another kind
     (``zenohd``, ROS 2's rmw_zenoh) needs ``transport/unicast/lowlatency: true`` and ``qos/enabled: false``, or
     every aioadept process ``lowlatency=False``."""
+    config_file: str | None = None
+    """A Zenoh configuration file (JSON5, Zenoh's own format) for what these options do not say: who may connect
+    (``transport/auth/usrpwd``), TLS (``transport/link/tls``, with ``tls/HOST:PORT`` endpoints), access control
+    (``access_control``). Mode, endpoints, scouting and the low-latency setting are these options', set on top of
+    the file's, so a file cannot turn multicast scouting or gossip back on (docs/security.md, "Zenoh")."""
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -147,19 +153,32 @@ class ZenohOptions:
             raise BusError("a Zenoh router needs a listen endpoint (tcp/127.0.0.1:PORT)")
         if self.mode == "client" and not self.connect:
             raise BusError("a Zenoh client needs a router to connect to (tcp/127.0.0.1:PORT)")
+        if self.config_file is not None:
+            self._file_config()  # a missing or malformed file is one line now, before anything starts
 
     @classmethod
-    def router(cls, listen: str = DEFAULT_ROUTER, *, lowlatency: bool = True) -> ZenohOptions:
-        return cls(mode="router", connect=(), listen=(listen,), lowlatency=lowlatency)
+    def router(cls, listen: str = DEFAULT_ROUTER, *, lowlatency: bool = True,
+               config_file: str | None = None) -> ZenohOptions:
+        return cls(mode="router", connect=(), listen=(listen,), lowlatency=lowlatency, config_file=config_file)
 
     @classmethod
-    def client(cls, connect: str = DEFAULT_ROUTER, *, lowlatency: bool = True) -> ZenohOptions:
-        return cls(mode="client", connect=(connect,), listen=(), lowlatency=lowlatency)
+    def client(cls, connect: str = DEFAULT_ROUTER, *, lowlatency: bool = True,
+               config_file: str | None = None) -> ZenohOptions:
+        return cls(mode="client", connect=(connect,), listen=(), lowlatency=lowlatency, config_file=config_file)
+
+    def _file_config(self) -> Any:
+        zenoh = _zenoh()
+        try:
+            return zenoh.Config.from_file(self.config_file)
+        except Exception as exc:  # zenoh.ZError: no such file, not JSON5, a key Zenoh does not know
+            reason = " ".join(str(exc).split(" at /")[0].split())  # one line; Zenoh appends its source location
+            raise BusError(f"Zenoh config file {self.config_file}: {reason}") from None
 
     def config(self) -> Any:
-        """The ``zenoh.Config``: these endpoints, no multicast scouting, no gossip."""
+        """The ``zenoh.Config``: :attr:`config_file`'s, if any, with these endpoints, no multicast scouting, no
+        gossip."""
         zenoh = _zenoh()
-        cfg = zenoh.Config()
+        cfg = self._file_config() if self.config_file is not None else zenoh.Config()
         cfg.insert_json5("mode", json.dumps(self.mode))
         cfg.insert_json5("connect/endpoints", json.dumps(list(self.connect)))
         cfg.insert_json5("listen/endpoints", json.dumps(list(self.listen)))
@@ -199,7 +218,10 @@ def session() -> Any:
     with _lock:
         if _session is None:
             zenoh = _zenoh()
-            zenoh.init_log_from_env_or("error")
+            # Zenoh's own log is off unless RUST_LOG asks for it: its lines (on stdout, in colour) would break the
+            # one line a node writes for a failure (e.g. a router that refuses our credentials); what goes wrong
+            # reaches the user as our BusError. RUST_LOG=zenoh=debug shows Zenoh's side (docs/troubleshooting.md).
+            zenoh.init_log_from_env_or("off")
             try:
                 _session = zenoh.open(_options.config())
             except Exception as exc:  # zenoh.ZError: e.g. a router that does not answer, a port in use

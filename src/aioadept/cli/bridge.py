@@ -17,7 +17,7 @@ import signal
 import sys
 
 from aioadept import defaults
-from aioadept.cli.options import DefaultsHelpFormatter, description
+from aioadept.cli.options import DefaultsHelpFormatter, add_zenoh_config_option, description
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -33,6 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the Zenoh router to connect to (default tcp/127.0.0.1:7447)")
     p.add_argument("--zenoh-listen", metavar="tcp/HOST:PORT", dest="zenoh_listen",
                    help="be the router, listening here, instead of connecting to one")
+    add_zenoh_config_option(p)
     p.add_argument("--state-endpoint", default="none", dest="state_endpoint",
                    help="the controller's ZeroMQ state stream to relay (as aioadept sim --state-endpoint), or none")
     p.add_argument("--ack-timeout", type=float, default=60.0, dest="ack_timeout_s",
@@ -63,8 +64,8 @@ def _options(args: argparse.Namespace):  # -> (host, port, stop_port, ZenohOptio
     if args.zenoh_listen and args.zenoh_connect:
         raise ValueError("give --zenoh-listen (be the router) or --zenoh-connect (use one), not both")
     try:
-        opts = (zb.ZenohOptions.router(args.zenoh_listen) if args.zenoh_listen
-                else zb.ZenohOptions.client(args.zenoh_connect or zb.DEFAULT_ROUTER))
+        opts = (zb.ZenohOptions.router(args.zenoh_listen, config_file=args.zenoh_config) if args.zenoh_listen
+                else zb.ZenohOptions.client(args.zenoh_connect or zb.DEFAULT_ROUTER, config_file=args.zenoh_config))
     except BusError as exc:
         raise ValueError(str(exc)) from None
     state = args.state_endpoint.strip()

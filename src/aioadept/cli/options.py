@@ -183,13 +183,21 @@ def add_robot_option(p: argparse.ArgumentParser) -> None:
 
 TRANSPORTS = defaults.TRANSPORTS
 
-_ZENOH_OPTIONS = ("cell", "zenoh_connect", "zenoh_listen", "node")
+_ZENOH_OPTIONS = ("cell", "zenoh_connect", "zenoh_listen", "zenoh_config", "node")
 
 
 def add_transport_option(p: argparse.ArgumentParser) -> None:
     """``--transport zeromq|zenoh`` (default: the cell file's, else zeromq)."""
     p.add_argument("--transport", choices=TRANSPORTS,
                    help="bus transport: zeromq (default; the paper's wire) or zenoh (the [zenoh] extra; docs/bus.md)")
+
+
+def add_zenoh_config_option(p: argparse.ArgumentParser, prefix: str = "") -> None:
+    """``--zenoh-config FILE``: the Zenoh configuration file the session opens with (credentials, TLS, access
+    control; :attr:`aioadept.bus.zenoh.ZenohOptions.config_file`)."""
+    p.add_argument("--zenoh-config", metavar="FILE", dest="zenoh_config",
+                   help=prefix + "a Zenoh configuration file (JSON5) for credentials, TLS, access control; "
+                                 "scouting stays off whatever it says (docs/security.md)")
 
 
 def add_node_transport_options(p: argparse.ArgumentParser) -> None:
@@ -201,6 +209,7 @@ def add_node_transport_options(p: argparse.ArgumentParser) -> None:
                    help="--transport zenoh: the Zenoh router to connect to (default tcp/127.0.0.1:7447)")
     p.add_argument("--zenoh-listen", metavar="tcp/HOST:PORT",
                    help="--transport zenoh: be the router, listening here, instead of connecting to one")
+    add_zenoh_config_option(p, "--transport zenoh: ")
     p.add_argument("--node", metavar="NAME",
                    help="--transport zenoh: this node's name in its liveliness token aioadept/CELL/NAME (default: "
                         "sim, vision or state; a cell of several robots names each, e.g. r1, cam1)")
@@ -227,7 +236,9 @@ def apply_node_transport(values: dict, node: str, streams: dict[str, tuple[str, 
         listen, connect = values.get("zenoh_listen"), values.get("zenoh_connect")
         if listen and connect:
             raise BusError("give --zenoh-listen (be the router) or --zenoh-connect (use one), not both")
-        zb.configure(zb.ZenohOptions.router(listen) if listen else zb.ZenohOptions.client(connect or zb.DEFAULT_ROUTER))
+        config = values.get("zenoh_config") or None
+        zb.configure(zb.ZenohOptions.router(listen, config_file=config) if listen
+                     else zb.ZenohOptions.client(connect or zb.DEFAULT_ROUTER, config_file=config))
         name = check_chunk(values.get("node") or node, "--node")
         zb.announce_as(cell, name)
     except BusError as exc:
@@ -266,6 +277,8 @@ def apply_cell_bus(values: dict, bus: "BusSection", given: set[str], streams: di
                               f"starter picks for the router it runs itself; a node started on its own needs the "
                               f"router's port (or --zenoh-connect)")
         values["zenoh_connect"] = bus.zenoh_router
+    if "zenoh_config" not in given and bus.zenoh_config:
+        values["zenoh_config"] = bus.zenoh_config
     try:
         check_chunk(values["cell"], "--cell")
     except BusError as exc:

@@ -18,7 +18,7 @@ import signal
 import sys
 
 from aioadept import defaults
-from aioadept.cli.options import ArgumentParser, DefaultsHelpFormatter, description
+from aioadept.cli.options import ArgumentParser, DefaultsHelpFormatter, add_zenoh_config_option, description
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -33,6 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the Zenoh router to connect to, e.g. rmw_zenohd's (default tcp/127.0.0.1:7447)")
     p.add_argument("--zenoh-listen", metavar="tcp/HOST:PORT", dest="zenoh_listen",
                    help="be the router, listening here, instead of connecting to one")
+    add_zenoh_config_option(p)
     p.add_argument("--no-lowlatency", action="store_false", dest="lowlatency",
                    help="Zenoh's default unicast transport instead of the low-latency one aioadept's nodes use: "
                         "needed with a router that is not low-latency, e.g. ROS 2's rmw_zenohd as installed")
@@ -49,8 +50,9 @@ def _options(args: argparse.Namespace):  # -> (topic key, ZenohOptions)
         raise ValueError("give --zenoh-listen (be the router) or --zenoh-connect (use one), not both")
     try:
         key = ros2.topic_key(args.topic, domain_id=args.domain)
-        opts = (zb.ZenohOptions.router(args.zenoh_listen, lowlatency=args.lowlatency) if args.zenoh_listen
-                else zb.ZenohOptions.client(args.zenoh_connect or zb.DEFAULT_ROUTER, lowlatency=args.lowlatency))
+        kw = {"lowlatency": args.lowlatency, "config_file": args.zenoh_config}
+        opts = (zb.ZenohOptions.router(args.zenoh_listen, **kw) if args.zenoh_listen
+                else zb.ZenohOptions.client(args.zenoh_connect or zb.DEFAULT_ROUTER, **kw))
         if zb.is_zenoh(args.state_endpoint):
             zb.key_of(args.state_endpoint)
     except BusError as exc:

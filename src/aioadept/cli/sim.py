@@ -261,7 +261,7 @@ def parse_args(parser: argparse.ArgumentParser, argv: list[str] | None) -> argpa
         args = parser.parse_args([*robot.sim_args, *argv])
         # [bus]: the transport and keys of the demo's application (a --state-endpoint of the command line's, one
         # that differs from the file's, is kept as given).
-        given = {k for k in ("transport", "cell", "zenoh_connect", "zenoh_listen") if getattr(args, k)}
+        given = {k for k in ("transport", "cell", "zenoh_connect", "zenoh_listen", "zenoh_config") if getattr(args, k)}
         if args.state_endpoint != robot.state_endpoint:
             given.add("state_endpoint")
         try:

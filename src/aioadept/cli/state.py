@@ -58,7 +58,7 @@ def parse_args(parser: argparse.ArgumentParser, argv: list[str] | None) -> argpa
         robot = f"{cell.robot.host}:{defaults.STATE_STREAM_PORT}"
         parser.set_defaults(robot=robot, state_endpoint=cell.robot.state_endpoint)
         args = parser.parse_args(argv)
-        given = {k for k in ("transport", "cell", "zenoh_connect", "zenoh_listen") if getattr(args, k)}
+        given = {k for k in ("transport", "cell", "zenoh_connect", "zenoh_listen", "zenoh_config") if getattr(args, k)}
         if args.state_endpoint != cell.robot.state_endpoint:
             given.add("state_endpoint")
         apply_cell_bus(vars(args), cell.bus, given, {k: v[1:] for k, v in STREAMS.items()}, args.config)

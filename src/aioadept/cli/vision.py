@@ -194,7 +194,7 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
     parser = build_parser()
     args = parser.parse_args(argv)
     merged = dict(DEFAULTS)
-    merged.update(transport="zeromq", cell=None, zenoh_connect=None, zenoh_listen=None, node=None)
+    merged.update(transport="zeromq", cell=None, zenoh_connect=None, zenoh_listen=None, zenoh_config=None, node=None)
     bus = None
     if args.config:
         try:
