@@ -6,7 +6,10 @@ controller (:meth:`aioadept.sim.controller.Controller.move_line`) plans it with 
 
 A straight line is planned once, when its instruction runs: the tool's path (position linear, orientation turning
 on the shortest rotation about one fixed axis, slerp) is sampled every :data:`LINE_STEP_MM` / :data:`LINE_STEP_DEG`
-and each sample is solved with the inverse kinematics, continuing from the previous one. Any sample out of reach,
+and each sample is solved with the inverse kinematics, continuing from the previous one: all samples at once in
+numpy arrays (:func:`_plan_batch`, :mod:`aioadept.robots.viper_s850_batch`), because the plan runs on the sim
+server's event loop and a ``stop`` read meanwhile waits for it; :func:`plan_line` is the one-sample-at-a-time
+reference it gives the same result as. Any sample out of reach,
 past a joint limit, or whose joints jump (a configuration change or a swing through a singularity) refuses the
 whole line before anything moves. The joints between two samples are interpolated linearly: the samples are so
 close that the tool stays within micrometres of the line (tests/unit/sim/test_straight_line.py measures it).
