@@ -69,9 +69,11 @@ def solutions(flange: np.ndarray) -> Solutions:
     rho = np.hypot(wc[:, 0], wc[:, 1])
     v = (wc[:, 2] - D1_MM)[:, None]
     two = np.array([1.0, -1.0])
-    # axis 1: shoulder +1, -1
+    out = np.empty((n, 2, 2, 2, 6))
+    # axis 1: shoulder +1, -1. j1 = atan2(+-y, +-x), so its cosine and sine are +-(x, y) / rho.
     j1 = np.arctan2(two * wc[:, 1:2], two * wc[:, 0:1])
-    c1, s1 = np.cos(j1), np.sin(j1)
+    with np.errstate(invalid="ignore", divide="ignore"):  # rho = 0 (on the J1 axis) is doubtful anyway
+        c1, s1 = two * (wc[:, 0] / rho)[:, None], two * (wc[:, 1] / rho)[:, None]
     u = two * rho[:, None] - A1_MM
     d = (u * u + v * v - A2_MM ** 2 - _L3_MM ** 2) / (2.0 * A2_MM * _L3_MM)
     ok = np.abs(d) <= 1.0 + 1e-9
@@ -81,26 +83,29 @@ def solutions(flange: np.ndarray) -> Solutions:
     ang = np.pi / 2 - j3 + _BETA
     j2 = _wrap(np.arctan2(_L3_MM * np.sin(ang), A2_MM + _L3_MM * np.cos(ang)) - np.arctan2(v, u)[..., None])
     j3 = _wrap(j3)
-    # rw = Ry(-(j2 + j3)) @ Rz(-j1) @ rot, the rotation the wrist makes: its rows 0 and 2, and rw[1, 2]
-    a0 = c1[..., None] * rot[:, None, 0, :] + s1[..., None] * rot[:, None, 1, :]  # (N, 2, 3)
-    a2 = rot[:, None, None, 2, :]
-    c23, s23 = np.cos(j2 + j3)[..., None], np.sin(j2 + j3)[..., None]
-    rw0 = c23 * a0[:, :, None, :] - s23 * a2
-    rw2 = s23 * a0[:, :, None, :] + c23 * a2
-    rw12 = -s1 * rot[:, None, 0, 2] + c1 * rot[:, None, 1, 2]
-    sp = np.hypot(rw2[..., 0], rw2[..., 1])
-    # axis 3: wrist +1 (sin j5 > 0), -1
-    j5 = two * np.arctan2(sp, rw2[..., 2])[..., None]
-    j4 = np.arctan2(two * rw12[:, :, None, None], two * rw0[..., 2, None])  # in (-pi, pi]: wrapping is a no-op
-    j6 = np.arctan2(two * rw2[..., 1, None], -two * rw2[..., 0, None])
-    shape = (n, 2, 2, 2)
-    out = np.stack([np.broadcast_to(j1[:, :, None, None], shape), np.broadcast_to(j2[..., None], shape),
-                    np.broadcast_to(j3[..., None], shape), j4, j5, j6], axis=-1)
-    reached = np.broadcast_to(ok[:, :, None, None], shape).reshape(n, 8)
+    # rw = Ry(-(j2 + j3)) @ Rz(-j1) @ rot, the rotation the wrist makes: only the entries j4, j5, j6 are read from
+    c23, s23 = np.cos(j2 + j3), np.sin(j2 + j3)
+    a0 = [(c1 * rot[:, None, 0, i] + s1 * rot[:, None, 1, i])[..., None] for i in range(3)]  # (Rz(-j1) rot)[0, i]
+    rw02 = c23 * a0[2] - s23 * rot[:, None, None, 2, 2]
+    rw20, rw21, rw22 = (s23 * a0[i] + c23 * rot[:, None, None, 2, i] for i in range(3))
+    rw12 = (-s1 * rot[:, None, 0, 2] + c1 * rot[:, None, 1, 2])[..., None]
+    sp = np.hypot(rw20, rw21)
+    # axis 3: wrist +1 (sin j5 > 0), -1: the other wrist solution is (j4 + 180, -j5, j6 + 180)
+    j5 = np.arctan2(sp, rw22)
+    j4 = np.arctan2(rw12, rw02)  # in (-pi, pi]: wrapping is a no-op
+    j6 = np.arctan2(rw21, -rw20)
+    out[..., 0] = j1[:, :, None, None]
+    out[..., 1] = j2[..., None]
+    out[..., 2] = j3[..., None]
+    out[..., 0, 3], out[..., 1, 3] = j4, np.where(j4 > 0.0, j4 - np.pi, j4 + np.pi)
+    out[..., 0, 4], out[..., 1, 4] = j5, -j5
+    out[..., 0, 5], out[..., 1, 5] = j6, np.where(j6 > 0.0, j6 - np.pi, j6 + np.pi)
+    reached = np.broadcast_to(ok[:, :, None, None], (n, 2, 2, 2)).reshape(n, 8)
     doubtful = ((rho < 1e-6) | (np.abs(np.abs(d) - (1.0 + 1e-9)) < DOUBT).any(axis=1)
                 # the wrist singularity: there J4 follows the seed, the scalar code's special case
                 | ((sp < 2.0 * kin.WRIST_SINGULAR_SIN) & ok[..., None]).any(axis=(1, 2)))
-    return Solutions(np.degrees(out).reshape(n, 8, 6), reached.copy(), doubtful)
+    np.degrees(out, out=out)
+    return Solutions(out.reshape(n, 8, 6), reached.copy(), doubtful)
 
 
 @dataclass(frozen=True, slots=True, eq=False)

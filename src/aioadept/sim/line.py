@@ -216,6 +216,8 @@ def _line_poses(m0: np.ndarray, m1: np.ndarray, turn: np.ndarray, s: np.ndarray)
 
 BATCH_MIN_SAMPLES = 16
 """Lines with fewer samples are solved one sample at a time: the array planner's fixed cost is not worth it."""
+BATCH_WINDOW = 1024
+"""Samples solved per pass of the array planner (every line inside the Viper's workspace fits in two)."""
 _MAX_SHORT_RUNS = 16
 """Checks of a guess that fail before the end of the line (each costs a pass over the rest of it) before the array
 planner solves the rest one sample at a time: its cost stays within a few passes of the reference loop's, whatever
@@ -233,7 +235,7 @@ def _plan_batch(start_deg: Sequence[float], start_m: np.ndarray, target_m: np.nd
     at once: ``choose`` from the guessed previous sample takes that same solution, and the step passes the jump
     limit. Up to the first sample where the check fails (or is in doubt) the guess is what the one-by-one loop
     computes; that sample is solved with the scalar ``solve`` (which raises the reference's error, if any), and the
-    guessing starts again from it.
+    guessing starts again from it. The samples are solved :data:`BATCH_WINDOW` at a time.
     """
     length = float(np.linalg.norm(target_m[:3, 3] - start_m[:3, 3]))
     turn = _rot_log(start_m[:3, :3].T @ target_m[:3, :3])
@@ -242,25 +244,30 @@ def _plan_batch(start_deg: Sequence[float], start_m: np.ndarray, target_m: np.nd
     if n < BATCH_MIN_SAMPLES:
         return None
     s = np.linspace(0.0, 1.0, n + 1)
-    tool_poses = _line_poses(start_m, target_m, turn, s[1:])  # sample k at index k - 1
-    flange = tool_poses if tool_m is None else tool_poses @ inverse_transform(tool_m)
-    sols = kb.solutions(flange)
+    inv_tool = None if tool_m is None else inverse_transform(tool_m)
     joints = np.empty((n + 1, 6))
     joints[0] = start_deg
-    k = 0  # joints[:k + 1] are planned; sample k + 1 is next
+    k = hi = 0  # joints[:k + 1] are planned; sample k + 1 is next; the window holds samples lo + 1 .. hi
     short_runs = 0
     while k < n and short_runs <= _MAX_SHORT_RUNS:
-        if not sols.doubtful[k]:
-            first = kb.choose(joints[k:k + 1], sols.joints_deg[k:k + 1], sols.reached[k:k + 1], joint_limits)
+        if k == hi:
+            # The next window: a refusal part-way does not pay for solving the whole of a long line first.
+            lo, hi = k, min(n, k + BATCH_WINDOW)
+            poses = _line_poses(start_m, target_m, turn, s[lo + 1:hi + 1])
+            sols = kb.solutions(poses if inv_tool is None else poses @ inv_tool)
+        i = k - lo
+        if not sols.doubtful[i]:
+            first = kb.choose(joints[k:k + 1], sols.joints_deg[i:i + 1], sols.reached[i:i + 1], joint_limits)
             if not first.doubtful[0]:
-                k += _check_run(joints, k, int(first.branch[0]), sols, tool_poses, tool_m, joint_limits, jump)
-                if k == n:
-                    break
+                k += _check_run(joints, k, int(first.branch[0]), sols, i, poses, tool_m, joint_limits, jump)
+                if k == hi:
+                    continue
                 short_runs += 1
         k += 1  # sample k + 1 by the scalar inverse kinematics, as the reference loop does
-        joints[k] = _solve_sample(solve, tool_poses[k - 1], joints[k - 1], float(s[k]), length)
+        joints[k] = _solve_sample(solve, poses[k - 1 - lo], joints[k - 1], float(s[k]), length)
     for k in range(k + 1, n + 1):
-        joints[k] = _solve_sample(solve, tool_poses[k - 1], joints[k - 1], float(s[k]), length)
+        m = target_m if k == n else _line_pose(start_m, target_m, turn, float(s[k]))
+        joints[k] = _solve_sample(solve, m, joints[k - 1], float(s[k]), length)
     return LinePath(s, joints, length, rotation, start_m.copy(), target_m.copy())
 
 
@@ -272,17 +279,18 @@ def _solve_sample(solve: Callable[[np.ndarray, tuple[float, ...]], Sequence[floa
         raise _fail_at(exc, s, length) from exc
 
 
-def _check_run(joints: np.ndarray, k: int, branch: int, sols: kb.Solutions, tool_poses: np.ndarray,
+def _check_run(joints: np.ndarray, k: int, branch: int, sols: kb.Solutions, i: int, poses: np.ndarray,
                tool_m: np.ndarray | None, joint_limits: kin.JointLimits, jump: kin.JumpLimit) -> int:
-    """Guess samples k + 1 .. n on ``branch`` from ``joints[k]``, check them, write the run that holds into
-    ``joints``; return its length (0 when the guess fails at once)."""
-    a = sols.joints_deg[k:, branch]  # (K, 6), each angle in (-180, 180]
+    """Guess the samples from k + 1 to the end of the window on ``branch``, continuing from ``joints[k]``, check
+    them, write the run that holds into ``joints``; return its length (0 when the guess fails at once). ``sols``
+    and ``poses`` are the window's, sample k + 1 at index ``i``."""
+    a = sols.joints_deg[i:, branch]  # (K, 6), each angle in (-180, 180]
     # Unwrapped from joints[k]: the equivalent of each sample nearest the one before (what choose re-checks).
     turns = np.round((np.vstack([joints[k:k + 1], a[:-1]]) - a) / 360.0)
     guess = a + 360.0 * np.cumsum(turns, axis=0)
     seeds = np.vstack([joints[k:k + 1], guess[:-1]])
-    got = kb.choose(seeds, sols.joints_deg[k:], sols.reached[k:], joint_limits)
-    good = (~got.doubtful & ~sols.doubtful[k:] & (got.branch == branch)
+    got = kb.choose(seeds, sols.joints_deg[i:], sols.reached[i:], joint_limits)
+    good = (~got.doubtful & ~sols.doubtful[i:] & (got.branch == branch)
             & (np.abs(got.joints_deg - guess) <= kb.DOUBT).all(axis=1))
     # The jump limit, as _check_jump: within the floor, or within what the Cartesian size of the step allows.
     moved = np.abs(got.joints_deg - seeds).max(axis=1)
@@ -291,7 +299,7 @@ def _check_run(joints: np.ndarray, k: int, branch: int, sols: kb.Solutions, tool
         seed_m = kb.flange_matrices(seeds[big])
         if tool_m is not None:
             seed_m = seed_m @ tool_m
-        allowed = kb.jump_allowed_deg(seed_m, tool_poses[k + big], jump)
+        allowed = kb.jump_allowed_deg(seed_m, poses[i + big], jump)
         good[big] = moved[big] < allowed - kb.DOUBT
     bad = np.flatnonzero(~good)
     f = int(bad[0]) if len(bad) else len(good)

@@ -109,8 +109,9 @@ def test_choose_takes_what_inverse_takes_from_each_seed():
     assert agreed > 400 and refused > 5
 
 
-@pytest.mark.parametrize("tool", [Pose(), TOOL])
-def test_random_lines_are_planned_and_refused_as_the_reference_does(tool, scalar_calls):
+@pytest.mark.parametrize(("tool", "window"), [(Pose(), line.BATCH_WINDOW), (TOOL, line.BATCH_WINDOW), (TOOL, 50)])
+def test_random_lines_are_planned_and_refused_as_the_reference_does(tool, window, scalar_calls, monkeypatch):
+    monkeypatch.setattr(line, "BATCH_WINDOW", window)  # 50: most lines take several windows
     rng = np.random.default_rng(7)
     seen = {"planned": 0, "refused": 0}
     for _ in range(60):
