@@ -219,9 +219,9 @@ BATCH_MIN_SAMPLES = 16
 BATCH_WINDOW = 1024
 """Samples solved per pass of the array planner (every line inside the Viper's workspace fits in two)."""
 _MAX_SHORT_RUNS = 16
-"""Checks of a guess that fail before the end of the line (each costs a pass over the rest of it) before the array
-planner solves the rest one sample at a time: its cost stays within a few passes of the reference loop's, whatever
-the line."""
+"""Checks of a guess that fail before the end of their window (each costs a pass over the rest of it) before the
+array planner solves the rest of the line one sample at a time: its cost stays within a few passes of the
+reference loop's, whatever the line."""
 
 
 def _plan_batch(start_deg: Sequence[float], start_m: np.ndarray, target_m: np.ndarray, tool_m: np.ndarray | None,
