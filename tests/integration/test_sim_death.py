@@ -1,0 +1,188 @@
+"""When the Python sim's server dies after READY (``aioadept sim``, no ``--vplus``), nothing is left half alive: the
+arm is braked, every client's connection ends and its pending commands fail with ConnectionLost (which IDs are known
+done, which unknown), the state stream shows the arm at rest before it ends, and the process exits 1 with one
+stderr line naming the task that died and the exception, with the file:line it was raised at (docs/sim.md, "When
+the server dies").
+
+One test per way of dying, each through a real child process, real TCP and the real ZeroMQ state stream; the bug is
+injected with the test-only ``--fault raise=POINT`` (aioadept.sim.server.RAISE_POINTS), which raises the first
+time that point is passed while the arm moves:
+
+- the executor (the timer that runs the controller's queue) while a motion runs;
+- a connection's reader, on a line it has read;
+- the world's update (the feeder's step), whichever task runs it;
+- a loop callback, outside any guard: the exception reaches asyncio's exception handler.
+
+And one way that is no death: the state stream failing to send (as a full or broken socket would) drops samples,
+logs once, and the server serves on.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import signal
+import sys
+from pathlib import Path
+
+import pytest
+
+from aioadept import Skill
+from aioadept.bus.messages import ROBOT_STATE_TOPIC, RobotState
+from aioadept.bus.pubsub import Subscriber
+from aioadept.client import RobotClient
+from aioadept.commands import Break, MoveJoints, SetSpeed
+from aioadept.errors import ConnectionLost
+
+TARGET_J1_DEG = 60.0
+
+WORLD = """
+[world]
+table_z_mm = 380.0
+[[world.parts]]
+id = 5
+shape = "cylinder"
+size_mm = [30, 40]
+x_mm = 480.0
+y_mm = 0.0
+[world.feeder]
+x_mm = 480.0
+y_mm = 0.0
+sensor = 1002
+queue = 3
+interval_s = 0.5
+"""
+
+
+class Sim:
+    def __init__(self, proc: asyncio.subprocess.Process, port: int, state: str) -> None:
+        self.proc, self.port, self.state = proc, port, state
+
+
+@contextlib.asynccontextmanager
+async def sim_process(*args: str):
+    argv = [sys.executable, "-m", "aioadept", "sim", "--port", "0", "--state-endpoint", "tcp://127.0.0.1:0",
+            "--state-rate-hz", "100", *args]
+    proc = await asyncio.create_subprocess_exec(*argv, stdout=asyncio.subprocess.PIPE,
+                                                stderr=asyncio.subprocess.PIPE, start_new_session=True)
+    try:
+        assert proc.stdout is not None
+        async with asyncio.timeout(30):
+            line = (await proc.stdout.readline()).decode()
+        assert line.startswith("READY"), f"no READY: {line!r} {(await proc.stderr.read()).decode()}"
+        fields = dict(f.split("=", 1) for f in line.split()[1:])
+        yield Sim(proc, int(fields["port"]), fields["state"])
+    finally:
+        if proc.returncode is None:
+            proc.kill()
+            await proc.wait()
+
+
+async def record(sub: Subscriber, into: list[RobotState], proc: asyncio.subprocess.Process) -> None:
+    """Every state sample until the process has exited and the stream is quiet."""
+    while True:
+        try:
+            _, data = await asyncio.wait_for(sub.recv(), 0.5)
+        except TimeoutError:
+            if proc.returncode is not None:
+                return
+            continue
+        into.append(RobotState.from_bytes(data))
+
+
+# (fault point, extra options, what the stderr line names: the task that died)
+WAYS = [
+    pytest.param("executor", [], ["the executor died of"], id="executor-while-a-motion-runs"),
+    pytest.param("reader", [], ["the reader of client 127.0.0.1:"], id="a-connections-reader"),
+    pytest.param("world", ["--world", "WORLD"], [], id="the-worlds-update"),
+    pytest.param("callback", [], ["an event loop callback (SimServer._on_timer"], id="loop-exception-handler"),
+]
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize(("point", "options", "says"), WAYS)
+async def test_when_the_server_dies_the_arm_stops_clients_learn_and_the_process_exits_1(
+        tmp_path: Path, point: str, options: list[str], says: list[str]) -> None:
+    if "WORLD" in options:
+        (tmp_path / "cell.toml").write_text(WORLD)
+        options = [str(tmp_path / "cell.toml") if o == "WORLD" else o for o in options]
+    async with sim_process("--fault", f"raise={point}", *options) as sim:
+        states: list[RobotState] = []
+        async with Subscriber(sim.state, topics=[ROBOT_STATE_TOPIC]) as sub:
+            recorder = asyncio.ensure_future(record(sub, states, sim.proc))
+            async with RobotClient("127.0.0.1", sim.port) as robot:
+                # A joint move of several seconds, acked at once (forward processing): the arm is moving.
+                await robot.cmdexec(SetSpeed(5), MoveJoints([TARGET_J1_DEG, -90, 180, 0, 90, 0],
+                                                            break_move=False))
+                await asyncio.sleep(0.3)
+                # wait_sig polls its input every 16 ms: the executor's timer runs while the arm moves.
+                pending = robot.submit(Skill("wait_sig", 1001, 5), Break())
+                t0 = asyncio.get_running_loop().time()
+                with pytest.raises(ConnectionLost) as lost:
+                    await pending.wait(timeout_s=10)
+                t_lost = asyncio.get_running_loop().time() - t0
+            rc = await asyncio.wait_for(sim.proc.wait(), 15)
+            await asyncio.wait_for(recorder, 10)
+        err = (await sim.proc.stderr.read()).decode()
+
+    # the client: its pending commands failed promptly, each known done or unresolved
+    assert t_lost < 3.0, t_lost
+    wait_id, break_id = pending.ids
+    assert set(lost.value.unresolved) == {wait_id, break_id}, lost.value   # neither could have completed
+    assert lost.value.acked == ()
+
+    # the process: exit 1, one line on stderr naming the task, the exception and where it was raised
+    assert rc == 1, err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1, err
+    line = lines[0]
+    assert line.startswith("aioadept sim: "), line
+    assert f"InjectedFault: injected {point} fault at server.py:" in line, line
+    assert line.endswith("the arm was braked and every connection closed"), line
+    for part in says:
+        assert part in line, (part, line)
+    if point == "world":  # the feeder steps wherever the I/O advances: in wait_sig (the executor) or a sample
+        assert ("the world's update (run by the state publisher) died of" in line
+                or "the world's update (run by the executor" in line), line
+
+    # the arm: it moved, then stopped well short of its target, and the stream shows it at rest before it ended
+    assert states, "no state sample arrived"
+    assert max(s.joints_deg[0] for s in states) > 0.5, "the arm never moved"
+    last = states[-1]
+    assert not last.in_motion, last
+    assert last.joints_deg[0] < TARGET_J1_DEG - 20, last.joints_deg     # braked, not run to its target
+    assert states[-2].joints_deg == last.joints_deg
+
+
+@pytest.mark.timeout(60)
+async def test_a_state_stream_that_cannot_send_is_no_death_samples_are_dropped_and_logged_once() -> None:
+    async with sim_process("--fault", "raise=state-send") as sim:
+        states: list[RobotState] = []
+        async with Subscriber(sim.state, topics=[ROBOT_STATE_TOPIC]) as sub:
+            recorder = asyncio.ensure_future(record(sub, states, sim.proc))
+            async with RobotClient("127.0.0.1", sim.port) as robot:
+                here0 = await robot.here()
+                # about a second of motion, during which every sample fails to send
+                await robot.cmdexec(SetSpeed(20), MoveJoints([10, -90, 180, 0, 90, 0], break_move=False))
+                mid = await robot.here()                       # the server serves on meanwhile
+                await robot.cmdexec(Break())                   # and its motion completes
+                end = await robot.here()
+                async with asyncio.timeout(5):                 # samples flow again once the arm is at rest
+                    while not (states and states[-1].joints_deg[0] > 9.99):
+                        await asyncio.sleep(0.02)
+                await asyncio.sleep(0.1)
+            sim.proc.send_signal(signal.SIGTERM)
+            rc = await asyncio.wait_for(sim.proc.wait(), 15)
+            await asyncio.wait_for(recorder, 10)
+        err = (await sim.proc.stderr.read()).decode()
+
+    assert rc == 0, err
+    assert abs(here0.y) < 1e-6 and end.y > 80, (here0, mid, end)    # J1 turned 10 deg
+    # the stream had a gap while the arm moved: no sample between the start and the end of the motion
+    assert not any(s.in_motion for s in states), [s for s in states if s.in_motion][:1]
+    assert states[-1].joints_deg[0] == pytest.approx(10.0, abs=1e-6)
+    # two lines, not a traceback per sample: when it began (and why), and when it ended (and how much was lost)
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 2, err
+    assert "state stream: a sample was not sent (BusError: injected state-send fault)" in lines[0], lines
+    assert "state stream: sending again after" in lines[1] and "dropped samples" in lines[1], lines
