@@ -186,3 +186,19 @@ async def test_a_state_stream_that_cannot_send_is_no_death_samples_are_dropped_a
     assert len(lines) == 2, err
     assert "state stream: a sample was not sent (BusError: injected state-send fault)" in lines[0], lines
     assert "state stream: sending again after" in lines[1] and "dropped samples" in lines[1], lines
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize(("argv", "says"), [
+    (["--fault", "raise=execute"], "raise=execute: not a fault point (executor, reader, world, callback, state-send)"),
+    (["--fault", "raise=world"], "fault raise=world needs a world (--world)"),
+    (["--vplus", "x.V2", "--run", "x", "--fault", "raise=reader"], "--fault raise=POINT tests the Python sim's"),
+])
+async def test_a_fault_that_cannot_act_is_one_line_and_exit_2(argv: list[str], says: str) -> None:
+    proc = await asyncio.create_subprocess_exec(sys.executable, "-m", "aioadept", "sim", "--port", "0", *argv,
+                                                stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE)
+    out, err = await asyncio.wait_for(proc.communicate(), 30)
+    lines = [ln for ln in err.decode().splitlines() if ln.strip()]
+    assert proc.returncode == 2, err
+    assert len(lines) == 1 and says in lines[0], err
+    assert out == b""

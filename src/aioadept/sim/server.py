@@ -404,6 +404,8 @@ class SimServer:
                 conn.timer.cancel()
                 conn.timer = None
             conn.writer.transport.abort()
+            if conn.idle is not None:  # a stop probe waiting for its stop's ack: it will never come
+                conn.idle.set()
         self.dead.set()
 
     def on_loop_error(self, loop: asyncio.AbstractEventLoop, context: dict[str, Any]) -> None:
