@@ -569,8 +569,12 @@ class SimServer:
             if conn.timer is not None:
                 conn.timer.cancel()
             if not self._closed and self.death is None:
-                self.controller.disconnect(conn.id, self.now())
-                self._reschedule()
+                try:
+                    self.controller.disconnect(conn.id, self.now())
+                except Exception as exc:  # noqa: BLE001 - as in _handle: the executor's state is unknown now
+                    self.die(f"the executor (as client {conn.peer} left)", exc)
+                if not self._check_world(f"the executor, as client {conn.peer} left"):
+                    self._reschedule()
             writer.close()
             with contextlib.suppress(Exception):
                 await writer.wait_closed()
