@@ -119,7 +119,8 @@ async def test_when_the_server_dies_the_arm_stops_clients_learn_and_the_process_
         states: list[RobotState] = []
         async with Subscriber(sim.state, topics=[ROBOT_STATE_TOPIC]) as sub:
             recorder = asyncio.ensure_future(record(sub, states, sim.proc))
-            async with RobotClient("127.0.0.1", sim.port) as robot:
+            async with RobotClient("127.0.0.1", sim.port) as robot, RobotClient("127.0.0.1", sim.port) as idle:
+                await idle.here()                                  # a second client, connected and idle
                 # A joint move of several seconds, acked at once (forward processing): the arm is moving.
                 await robot.cmdexec(SetSpeed(5), MoveJoints([TARGET_J1_DEG, -90, 180, 0, 90, 0],
                                                             break_move=False))
@@ -131,6 +132,9 @@ async def test_when_the_server_dies_the_arm_stops_clients_learn_and_the_process_
                 with pytest.raises(ConnectionLost) as lost:
                     await pending.wait(timeout_s=10)
                 t_lost = asyncio.get_running_loop().time() - t0
+                # the idle client's connection has ended too: nothing more is sent to a dead server
+                with pytest.raises(ConnectionLost, match=f"connection to 127.0.0.1:{sim.port} (is )?lost"):
+                    await idle.here()
             rc = await asyncio.wait_for(sim.proc.wait(), 15)
             await asyncio.wait_for(recorder, 10)
         err = (await sim.proc.stderr.read()).decode()

@@ -85,7 +85,7 @@ class Faults:
     ``ack_delay_s``: every ack is written this much later (order kept). ``drop_after``: a connection is closed by
     the server right after its Nth message has been handled (acks already due are flushed first; its queued
     commands are discarded). ``silent``: commands execute but no ack is ever written. ``raise_at`` (for tests
-    only): a bug of the server itself, a ``RuntimeError`` raised at that point of :data:`RAISE_POINTS`.
+    only): a bug of the server itself, an :class:`InjectedFault` raised at that point of :data:`RAISE_POINTS`.
     """
 
     ack_delay_s: float = 0.0
