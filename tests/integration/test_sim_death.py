@@ -212,3 +212,27 @@ async def test_a_fault_that_cannot_act_is_one_line_and_exit_2(argv: list[str], s
     assert proc.returncode == 2, err
     assert len(lines) == 1 and says in lines[0], err
     assert out == b""
+
+
+@pytest.mark.timeout(30)
+async def test_in_process_the_server_dies_the_same_way_and_says_so() -> None:
+    # running_sim (aioadept.testing): no CLI, no exit status; the server brakes, closes, and sets dead/death.
+    from aioadept.sim.server import Faults, InjectedFault
+    from aioadept.testing.sim import running_sim
+
+    async with running_sim(faults=Faults(raise_at="executor"), state_endpoint=None) as sim:
+        async with RobotClient(sim.host, sim.port) as robot:
+            await robot.cmdexec(SetSpeed(5), MoveJoints([TARGET_J1_DEG, -90, 180, 0, 90, 0], break_move=False))
+            await asyncio.sleep(0.3)
+            with pytest.raises(ConnectionLost):
+                await robot.submit(Skill("wait_sig", 1001, 5), Break()).wait(timeout_s=10)
+        await asyncio.wait_for(sim.dead.wait(), 5)
+        task, exc = sim.death
+        assert task == "the executor" and isinstance(exc, InjectedFault), sim.death
+        t_rest = sim.controller.trajectory.t_rest_s
+        assert t_rest < sim.now() + 1.0                                   # braked: at rest within a second
+        assert sim.controller.joints_at(t_rest)[0] < TARGET_J1_DEG - 20   # short of the target
+        async with asyncio.timeout(5):                                    # and it serves nobody any more
+            with pytest.raises(OSError):
+                _, w = await asyncio.open_connection(sim.host, sim.port)
+                w.close()

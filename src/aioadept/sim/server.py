@@ -330,6 +330,7 @@ class SimServer:
             self.stop_port = self._stop_server.sockets[0].getsockname()[1]
         if self._publisher is not None:
             self._state_task = asyncio.create_task(self._publish_state(), name="sim-state")
+            self._state_task.add_done_callback(self._state_task_ended)
 
     async def close(self) -> None:
         """Stop serving: close the listener and every connection, cancel timers and tasks, close the publisher."""
@@ -845,6 +846,12 @@ class SimServer:
         self._publisher.publish_nowait(ROBOT_STATE_TOPIC, robot.to_bytes())
         if world is not None:
             self._publisher.publish_nowait(WORLD_STATE_TOPIC, world.to_bytes())
+
+    def _state_task_ended(self, task: asyncio.Task[None]) -> None:
+        # A failure outside the per-sample guards (a bug of the loop itself) would end the stream silently: the
+        # subscribers would see a server whose arm no longer reports, while it still moves it.
+        if not task.cancelled() and task.exception() is not None:
+            self.die("the state publisher", task.exception())  # type: ignore[arg-type]
 
     async def _publish_state(self) -> None:
         """The state stream's task. A sample that cannot be sent is dropped (the stream observes the arm, it does
