@@ -114,7 +114,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--state-rate-hz", type=float, default=100.0, dest="state_rate_hz",
                    help="robot state samples per second")
     p.add_argument("--fault", action="append", default=[], metavar="SPEC",
-                   help="inject a fault: ack-delay=SECONDS, drop-after=N (messages), silent (repeatable)")
+                   help="inject a fault: ack-delay=SECONDS, drop-after=N (messages), silent (repeatable); for "
+                        "tests only: raise=POINT, a bug of the server itself (executor, reader, world, callback, "
+                        "state-send; docs/sim.md)")
     p.add_argument("--tool", type=_six, default=None, metavar="X,Y,Z,YAW,PITCH,ROLL",
                    help="TOOL transform (mm, degrees); default NULL")
     p.add_argument("--joints", type=_six, default=None, metavar="J1,...,J6",
@@ -203,22 +205,40 @@ def options_from_args(args: argparse.Namespace) -> SimOptions:
 
 
 async def run(options: SimOptions) -> int:
+    """Serve until SIGINT/SIGTERM (exit status 0) or until a task of the server dies (:meth:`SimServer.die`: the
+    arm braked, every connection closed, the stream showing the arm at rest; then one line on stderr naming the
+    task and the exception with the file:line it was raised at, exit status 1)."""
     loop = asyncio.get_running_loop()
     stop = asyncio.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, stop.set)
+    sim = SimServer(options)
     try:
-        async with SimServer(options) as sim:
+        async with sim:
+            loop.set_exception_handler(sim.on_loop_error)  # after start: a bind error is no death
             state = sim.state_endpoint or "none"
             stop_port = sim.stop_port if sim.stop_port is not None else "none"
             from aioadept.bus.zenoh import announce_ready
 
             announce_ready()  # --transport zenoh: the node's liveliness token (no-op on ZeroMQ)
             print(f"READY host={sim.host} port={sim.port} state={state} stop_port={stop_port}", flush=True)
-            await stop.wait()
+            stopped, died = asyncio.ensure_future(stop.wait()), asyncio.ensure_future(sim.dead.wait())
+            try:
+                await asyncio.wait({stopped, died}, return_when=asyncio.FIRST_COMPLETED)
+            finally:
+                for t in (stopped, died):
+                    t.cancel()
     finally:
+        loop.set_exception_handler(None)
         for sig in (signal.SIGINT, signal.SIGTERM):
             loop.remove_signal_handler(sig)
+    if sim.death is not None:
+        from aioadept.vplus.cli import _python_error  # the one place that formats an exception for this line
+
+        task, exc = sim.death
+        print(f"aioadept sim: {task} died of {_python_error(exc)}; the arm was braked and every connection "
+              f"closed", file=sys.stderr, flush=True)
+        return 1
     return 0
 
 
@@ -295,6 +315,8 @@ def main(argv: list[str] | None = None) -> int:
                              f"serves the connections: {instead}")
         from aioadept.vplus import cli as vplus_cli
 
+        if any(f.partition("=")[0] == "raise" for f in args.fault):
+            parser.error("--fault raise=POINT tests the Python sim's server; with --vplus the V+ program serves")
         try:
             vplus_cli.parse_port_map(args.map_port)
             apply_node_transport(vars(args), "sim", {"state_endpoint": (DEFAULT_STATE_ENDPOINT, "sim", "state")})

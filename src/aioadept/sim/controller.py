@@ -389,6 +389,9 @@ class Controller:
         except RobotError as exc:
             self._emit(entry, Status.ERROR, now, now, (exc.code, exc.message))
             return
+        except Exception as exc:  # as in _start: a user skill's bug is its error ack, not the server's death
+            self._emit(entry, Status.ERROR, now, now, (ErrorCode.SKILL_FAILED, f"{type(exc).__name__}: {exc}"))
+            return
         if isinstance(result, Generator):
             result.close()
             self._emit(entry, Status.ERROR, now, now, (ErrorCode.INTERNAL, "immediate skill must not wait"))

@@ -15,7 +15,14 @@ It owns everything with I/O and leaves the behaviour to the pure :class:`aioadep
 
 The clock is ``TIMER(-3)``: real seconds since the server started (acks show it with 1 ms resolution). The time
 scale speeds up motions only, never this clock. Fault injection (:class:`Faults`) delays acks, drops a connection
-after N messages, or makes the server silent, for testing clients against a misbehaving controller.
+after N messages, or makes the server silent, for testing clients against a misbehaving controller; ``raise=POINT``
+(for tests only) raises an exception inside the server itself, to test what happens when it has a bug.
+
+When a task of the server dies of an unexpected exception (:meth:`SimServer.die`), nothing is left half alive: the
+arm is braked, every connection is closed at once (the clients' pending commands fail with ConnectionLost), the
+state stream shows the arm come to rest and then ends, and :attr:`SimServer.dead` is set (``aioadept sim`` exits 1
+with one line saying which task died of what, where). What is fatal and what is not: docs/sim.md, "When the server
+dies".
 """
 
 from __future__ import annotations
@@ -58,29 +65,47 @@ LINE_MAX_FACTOR = 6
 """A line still incomplete this many line timeouts after its first byte is cut, however its bytes trickle in."""
 
 
+RAISE_POINTS = {
+    "executor": "the executor's timer, as it runs the controller (as if Controller.step raised)",
+    "reader": "a connection's reader, on a line it has read (before the controller sees it)",
+    "world": "the world's update (World.step, the feeder), wherever it is called from",
+    "callback": "a loop callback of the server, outside any guard: the exception reaches asyncio's handler",
+    "state-send": "sending a state sample (as if ZeroMQ refused it); every sample while the arm moves",
+}
+"""The points where ``Faults(raise_at=...)`` (``--fault raise=POINT``) raises: the first time the point is passed
+while the arm is moving and a command is in hand (running or queued), so that a test can have the arm moving and
+commands pending when the server dies (``state-send``: every sample while the arm moves). For tests of the server's
+own death; never in a cell."""
+
+
 @dataclass(frozen=True, slots=True)
 class Faults:
     """Misbehaviour to inject.
 
     ``ack_delay_s``: every ack is written this much later (order kept). ``drop_after``: a connection is closed by
     the server right after its Nth message has been handled (acks already due are flushed first; its queued
-    commands are discarded). ``silent``: commands execute but no ack is ever written.
+    commands are discarded). ``silent``: commands execute but no ack is ever written. ``raise_at`` (for tests
+    only): a bug of the server itself, an :class:`InjectedFault` raised at that point of :data:`RAISE_POINTS`.
     """
 
     ack_delay_s: float = 0.0
     drop_after: int | None = None
     silent: bool = False
+    raise_at: str | None = None
 
     def __post_init__(self) -> None:
         if self.ack_delay_s < 0:
             raise ValueError("ack_delay_s: must be >= 0")
         if self.drop_after is not None and self.drop_after < 1:
             raise ValueError("drop_after: must be >= 1")
+        if self.raise_at is not None and self.raise_at not in RAISE_POINTS:
+            raise ValueError(f"raise={self.raise_at}: not a fault point ({', '.join(RAISE_POINTS)})")
 
     @classmethod
     def parse(cls, specs: Sequence[str]) -> Faults:
-        """From CLI words: ``ack-delay=0.5``, ``drop-after=3``, ``silent``. Raises ``ValueError``."""
-        delay, drop, silent = 0.0, None, False
+        """From CLI words: ``ack-delay=0.5``, ``drop-after=3``, ``silent``, ``raise=POINT``. Raises
+        ``ValueError``."""
+        delay, drop, silent, raise_at = 0.0, None, False, None
         for spec in specs:
             key, _, value = spec.partition("=")
             if key == "ack-delay":
@@ -89,9 +114,20 @@ class Faults:
                 drop = int(value)
             elif key == "silent" and not value:
                 silent = True
+            elif key == "raise":
+                raise_at = value
             else:
-                raise ValueError(f"unknown fault {spec!r} (ack-delay=S, drop-after=N, silent)")
-        return cls(delay, drop, silent)
+                raise ValueError(f"unknown fault {spec!r} (ack-delay=S, drop-after=N, silent, raise=POINT)")
+        return cls(delay, drop, silent, raise_at)
+
+
+class InjectedFault(RuntimeError):
+    """The exception ``Faults(raise_at=...)`` raises: a stand-in for a bug of the server."""
+
+
+REST_WAIT_S = 3.0
+"""After a death, the longest the state stream goes on to show the braked arm come to rest (a stop from full speed
+takes well under this)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -168,6 +204,8 @@ class SimOptions:
             raise ValueError("state_rate_hz: must be > 0")
         for addr in self.allow:
             ipaddress.ip_address(addr)  # ValueError for a malformed address
+        if self.faults.raise_at == "world" and self.world is None:
+            raise ValueError("fault raise=world needs a world (--world)")
         feeder = self.world.feeder if self.world is not None else None
         if feeder is not None and feeder.sensor == self.hand.closed_switch:
             raise ValueError(f"world feeder sensor {feeder.sensor} is the hand's closed-fully switch; give it "
@@ -227,7 +265,8 @@ class _Conn:
 class SimServer:
     """The simulated RobotServer on TCP. ``async with SimServer(SimOptions(port=0)) as sim: sim.port``.
 
-    ``controller`` is the pure controller it drives (inspect it in tests, register skills on it).
+    ``controller`` is the pure controller it drives (inspect it in tests, register skills on it). ``dead`` is
+    set when one of its tasks has died (:meth:`die`); ``death`` then says which, and of what.
     """
 
     def __init__(self, options: SimOptions = SimOptions(), *, controller: Controller | None = None) -> None:
@@ -254,6 +293,13 @@ class SimServer:
         self._state_task: asyncio.Task[None] | None = None
         self._ids = itertools.count(1)
         self._closed = False
+        self.death: tuple[str, BaseException] | None = None
+        """(the task that died, its exception), once :meth:`die` has been called."""
+        self.dead = asyncio.Event()
+        self._send_failures = _SendFailures()
+        self._fault_fired = False
+        self._world_error: BaseException | None = None
+        self._guard_world()
 
     # -- lifecycle -----------------------------------------------------------------------------------------
     async def start(self) -> None:
@@ -284,6 +330,7 @@ class SimServer:
             self.stop_port = self._stop_server.sockets[0].getsockname()[1]
         if self._publisher is not None:
             self._state_task = asyncio.create_task(self._publish_state(), name="sim-state")
+            self._state_task.add_done_callback(self._state_task_ended)
 
     async def close(self) -> None:
         """Stop serving: close the listener and every connection, cancel timers and tasks, close the publisher."""
@@ -296,6 +343,8 @@ class SimServer:
             self._stop_server.close()
         if self._timer is not None:
             self._timer.cancel()
+        if self.death is not None and self._publisher is not None:
+            await self._show_rest()
         if self._state_task is not None:
             self._state_task.cancel()
             await asyncio.gather(self._state_task, return_exceptions=True)
@@ -327,6 +376,115 @@ class SimServer:
     async def serve_forever(self) -> None:
         """Serve until cancelled."""
         await asyncio.Event().wait()
+
+    # -- death ---------------------------------------------------------------------------------------------
+    def die(self, task: str, exc: BaseException) -> None:
+        """``task`` died of ``exc`` (an unexpected exception: a bug): brake the arm, run nothing more, close every
+        connection at once, stop listening, and set :attr:`dead`. The owner then calls :meth:`close`, which lets
+        the state stream show the arm come to rest before it ends. Only the first death counts."""
+        if self.death is not None:
+            return
+        self.death = (task, exc)
+        if self._timer is not None:  # the executor runs nothing more
+            self._timer.cancel()
+            self._timer = None
+        # The sim's stop: the arm decelerates to rest as on a stop, and a deferred OPEN/CLOSE does not act.
+        with contextlib.suppress(Exception):  # the model may be what is broken; the rest must still happen
+            self.controller.io.pending_hand = None
+        try:
+            self.controller.trajectory.stop(self.now())
+        except Exception:  # noqa: BLE001 - nothing else can stop it; the connections still close
+            log.debug("brake failed", exc_info=True)
+        for server in (self._server, self._stop_server):
+            if server is not None:
+                server.close()
+        # Abort, not close: the clients learn now (their pending commands fail with ConnectionLost), not after
+        # unsent acks of a server that no longer serves.
+        for conn in list(self._conns.values()):
+            if conn.timer is not None:
+                conn.timer.cancel()
+                conn.timer = None
+            conn.writer.transport.abort()
+            if conn.idle is not None:  # a stop probe waiting for its stop's ack: it will never come
+                conn.idle.set()
+        self.dead.set()
+
+    def on_loop_error(self, loop: asyncio.AbstractEventLoop, context: dict[str, Any]) -> None:
+        """An exception handler for the loop (``loop.set_exception_handler``, as ``aioadept sim`` does): an
+        exception that reached asyncio's handler is the server's death. A peer's socket error is none (asyncio
+        reports OSError on a transport only in debug mode), nor is anything after :meth:`close`."""
+        exc = context.get("exception")
+        if exc is None or isinstance(exc, (OSError, asyncio.CancelledError)) or self._closed:
+            loop.default_exception_handler(context)
+            return
+        message = str(context.get("message", ""))
+        what = message.removeprefix("Exception in callback ")
+        task = context.get("task") or context.get("future")
+        if isinstance(task, asyncio.Task):
+            what = f"task {task.get_name()}"
+        self.die(f"an event loop callback ({what})", exc)
+
+    def _fault(self, point: str) -> None:
+        """``Faults(raise_at=point)``: raise here the first time the arm is moving with a command in hand (tests of
+        :meth:`die`; :data:`RAISE_POINTS`)."""
+        if self.options.faults.raise_at != point or self._fault_fired:
+            return
+        ctl = self.controller
+        if (ctl.busy or ctl.queued()) and ctl.trajectory.in_motion(self.now()):
+            self._fault_fired = True
+            raise InjectedFault(f"injected {point} fault")
+
+    def _guard_world(self) -> None:
+        """Watch the world's update (the I/O's hooks into it: the feeder's step, the hand grasping or releasing).
+        It runs inside whatever advances the I/O: a skill (whose exceptions the controller answers as the skill's
+        error ack, rightly for a user's skill), the executor or a state sample. A world that fails is the sim's
+        model failing, not a skill: the server dies, whoever ran it (``raise=world`` injects it here)."""
+        io = self.controller.io
+        for name in ("on_advance", "on_drive"):
+            hook = getattr(io, name)
+            if hook is None:
+                continue
+
+            def guarded(*args: Any, _hook: Callable[..., None] = hook) -> None:
+                try:
+                    self._fault("world")
+                    _hook(*args)
+                except Exception as exc:
+                    if self._world_error is None:
+                        self._world_error = exc
+                    raise
+
+            setattr(io, name, guarded)
+
+    def _check_world(self, by: str) -> bool:
+        """After the controller ran: the world failed inside it (perhaps caught as a skill's error): die."""
+        if self._world_error is None:
+            return False
+        self.die(f"the world's update (run by {by})", self._world_error)
+        return True
+
+    async def _show_rest(self) -> None:
+        """After a death: publish the braked arm until it is at rest (at most :data:`REST_WAIT_S`) and two
+        samples more, so a subscriber's last sample shows it at rest. The state task may be the one that died,
+        so this loop publishes on its own; a sample that fails is skipped quietly (the one line is written)."""
+        if self._state_task is not None:
+            self._state_task.cancel()
+            await asyncio.gather(self._state_task, return_exceptions=True)
+            self._state_task = None
+        assert self._loop is not None
+        period = 1.0 / self.options.state_rate_hz
+        t_end = self._loop.time() + REST_WAIT_S
+        extra = 2
+        while extra > 0 and self._loop.time() < t_end:
+            try:
+                moving = self.controller.trajectory.in_motion(self.now())
+            except Exception:  # noqa: BLE001
+                moving = False
+            if not moving:
+                extra -= 1
+            with contextlib.suppress(Exception):
+                self._send_state(self.robot_state(), self.world_state())
+            await asyncio.sleep(period)
 
     # -- the clock ----------------------------------------------------------------------------------------
     def now(self) -> float:
@@ -373,7 +531,7 @@ class SimServer:
         refusal = self._admit(str(peer[0]))
         if stop_port and refusal == "too many clients":
             refusal = None  # the stop port has its own limit (max_stop_probes) and never refuses a newcomer
-        if (refusal is not None and refusal != "too many clients") or self._closed:
+        if (refusal is not None and refusal != "too many clients") or self._closed or self.death is not None:
             # Not on the allow list (or shutting down): refused at once; nothing it sends is read.
             self.rejected_total += 1
             with contextlib.suppress(OSError):
@@ -405,13 +563,19 @@ class SimServer:
                 await self._serve_lines(conn, reader, writer)
         except (ConnectionError, OSError) as exc:
             log.info("client %s: %s", conn.peer, exc)
+        except Exception as exc:  # noqa: BLE001 - a bug of the reader, the path every line (a stop too) takes
+            self.die(f"the reader of client {conn.peer}", exc)
         finally:
             self._conns.pop(conn.id, None)
             if conn.timer is not None:
                 conn.timer.cancel()
-            if not self._closed:
-                self.controller.disconnect(conn.id, self.now())
-                self._reschedule()
+            if not self._closed and self.death is None:
+                try:
+                    self.controller.disconnect(conn.id, self.now())
+                except Exception as exc:  # noqa: BLE001 - as in _handle: the executor's state is unknown now
+                    self.die(f"the executor (as client {conn.peer} left)", exc)
+                if not self._check_world(f"the executor, as client {conn.peer} left"):
+                    self._reschedule()
             writer.close()
             with contextlib.suppress(Exception):
                 await writer.wait_closed()
@@ -454,8 +618,11 @@ class SimServer:
                     if conn.id not in self._conns or writer.is_closing():
                         return
                     now = self.now()
+                self._fault("reader")
                 conn.messages += 1
                 self._handle(item, conn, now)
+                if self.death is not None:
+                    return
                 if drop_after is not None and conn.messages >= drop_after:
                     self._reschedule()
                     log.info("fault: dropping %s after %d messages", conn.peer, conn.messages)
@@ -466,11 +633,18 @@ class SimServer:
                 await asyncio.sleep(0)  # a full turn: yield before reading more of this peer's backlog
 
     def _handle(self, item: bytes | Oversize | CommandMessage, conn: _Conn, now: float) -> None:
+        if self.death is not None:
+            return
         try:
             out = self.controller.handle(item, conn.id, now)
-        except Exception:  # the controller's own bug: keep serving the others
-            log.exception("controller failed on %r", item)
-            out = []
+        except Exception as exc:  # noqa: BLE001
+            # The controller's own bug (a skill's is an error ack already): its state is unknown now, a pending
+            # break may never be answered and a stop may not act. Serving on would be a server that only looks
+            # alive.
+            self.die(f"the executor (handling a line from client {conn.peer})", exc)
+            return
+        if self._check_world(f"the executor, handling a line from client {conn.peer}"):
+            return
         self._dispatch(out)
 
     async def _serve_stop_probe(self, conn: _Conn, reader: asyncio.StreamReader,
@@ -617,19 +791,25 @@ class SimServer:
             self._timer.cancel()
             self._timer = None
         self._timer_at = wake
-        if wake is not None and not self._closed:
+        if wake is not None and not self._closed and self.death is None:
             assert self._loop is not None
             self._timer = self._loop.call_at(self._t0 + wake, self._on_timer, wake)
 
     def _on_timer(self, wake: float) -> None:
         self._timer = None
         self._timer_at = None
+        if self.death is not None:
+            return
         try:
+            self._fault("executor")
             # asyncio may run a timer up to one clock tick early; the event is due at its own time.
             out = self.controller.step(max(self.now(), wake))
-        except Exception:
-            log.exception("controller step failed")
-            out = []
+        except Exception as exc:  # noqa: BLE001 - as in _handle: the executor's state is unknown now
+            self.die("the executor", exc)
+            return
+        if self._check_world("the executor"):
+            return
+        self._fault("callback")  # outside the guard: what reaches the loop's exception handler
         if out and self._publisher is not None:
             # A motion ended (or another event was acked): publish the state now, ahead of the acks, so a
             # subscriber sees the robot at rest before any request that follows the ack, not up to one stream
@@ -648,21 +828,48 @@ class SimServer:
         return world_state_sample(self.controller, self.now(), self._wall0, self._world_cursor)
 
     def _publish_state_now(self) -> None:
+        try:
+            robot, world = self.robot_state(), self.world_state()
+        except Exception as exc:  # noqa: BLE001 - the robot model, not the stream, is broken (see _publish_state)
+            if not self._check_world("the executor, sampling the state at a motion's end"):
+                self.die("the executor (sampling the state at a motion's end)", exc)
+            return
+        self._send_failures.send(lambda: self._send_state(robot, world))
+
+    def _send_state(self, robot: Any, world: Any) -> None:
+        from aioadept.bus.errors import BusError
         from aioadept.bus.messages import ROBOT_STATE_TOPIC, WORLD_STATE_TOPIC
 
         assert self._publisher is not None
-        try:
-            self._publisher.publish_nowait(ROBOT_STATE_TOPIC, self.robot_state().to_bytes())
-            world = self.world_state()
-            if world is not None:
-                self._publisher.publish_nowait(WORLD_STATE_TOPIC, world.to_bytes())
-        except Exception:
-            log.exception("state publish failed")
+        if self.options.faults.raise_at == "state-send" and self.controller.trajectory.in_motion(self.now()):
+            raise BusError("injected state-send fault")
+        self._publisher.publish_nowait(ROBOT_STATE_TOPIC, robot.to_bytes())
+        if world is not None:
+            self._publisher.publish_nowait(WORLD_STATE_TOPIC, world.to_bytes())
+
+    def _state_task_ended(self, task: asyncio.Task[None]) -> None:
+        # A failure outside the per-sample guards (a bug of the loop itself) would end the stream silently: the
+        # subscribers would see a server whose arm no longer reports, while it still moves it.
+        if not task.cancelled() and task.exception() is not None:
+            self.die("the state publisher", task.exception())  # type: ignore[arg-type]
 
     async def _publish_state(self) -> None:
+        """The state stream's task. A sample that cannot be sent is dropped (the stream observes the arm, it does
+        not drive it: acks and stops go on; subscribers see the gap in ``t_s``). A sample that cannot be computed
+        is the robot model's bug, the one the executor runs on: that is the server's death."""
         assert self._publisher is not None
-        await publish_robot_states(self._publisher, self.robot_state, self.options.state_rate_hz,
-                                   world_sample=self.world_state if self.controller.world is not None else None)
+        loop = asyncio.get_running_loop()
+        period = 1.0 / self.options.state_rate_hz
+        next_t = loop.time()
+        while self.death is None:
+            try:
+                robot, world = self.robot_state(), self.world_state()
+            except Exception as exc:  # noqa: BLE001
+                if not self._check_world("the state publisher"):
+                    self.die("the state publisher (computing a sample)", exc)
+                return
+            self._send_failures.send(lambda: self._send_state(robot, world))
+            next_t = await _next_period(loop, next_t, period)
 
 
 def robot_state_sample(controller: Controller, now: float, wall0: float,
@@ -706,28 +913,63 @@ def world_state_sample(controller: Controller, now: float, wall0: float,
     return WorldState(now, wall0 + now, snap.parts, events, snap.sensors_on)
 
 
+class _SendFailures:
+    """The state stream's failures to send, logged once per run of them (not one traceback per sample, 100 a
+    second): the first failure says what failed, the first success after it how many samples were dropped."""
+
+    __slots__ = ("dropped", "first")
+
+    def __init__(self) -> None:
+        self.dropped = 0
+        self.first: str | None = None
+
+    def send(self, send: Callable[[], None]) -> None:
+        try:
+            send()
+        except Exception as exc:  # noqa: BLE001 - a full or closed socket, a transport error: drop the sample
+            if not self.dropped:
+                self.first = f"{type(exc).__name__}: {exc}"
+                log.warning("state stream: a sample was not sent (%s); dropping samples until one is",
+                            self.first)
+            self.dropped += 1
+            return
+        if self.dropped:
+            log.warning("state stream: sending again after %d dropped samples (%s)", self.dropped, self.first)
+            self.dropped, self.first = 0, None
+
+
+async def _next_period(loop: asyncio.AbstractEventLoop, next_t: float, period: float) -> float:
+    """Sleep until ``next_t + period`` and return that time: a fixed schedule, not sleep(period) after the
+    work, so the rate does not drift; a schedule fallen behind (suspended, overloaded) skips the missed samples."""
+    next_t += period
+    delay = next_t - loop.time()
+    if delay < -period:
+        next_t = loop.time()
+        delay = 0.0
+    await asyncio.sleep(max(delay, 0.0))
+    return next_t
+
+
 async def publish_robot_states(publisher: Any, sample: Callable[[], Any], rate_hz: float, *,
                                world_sample: Callable[[], Any] | None = None) -> None:
     """Publish ``sample()`` on ``robot.state`` (and ``world_sample()``, if given, on ``world.state``) at
-    ``rate_hz`` until cancelled (the sim's state stream)."""
+    ``rate_hz`` until cancelled (the V+ backend's state stream; :class:`SimServer` has its own loop, which
+    also tells a model's failure from the stream's). A sample that fails is dropped; failures to send are logged
+    once per run of them."""
     from aioadept.bus.messages import ROBOT_STATE_TOPIC, WORLD_STATE_TOPIC
 
     loop = asyncio.get_running_loop()
     period = 1.0 / rate_hz
     next_t = loop.time()
+    failures = _SendFailures()
+
+    def send() -> None:
+        publisher.publish_nowait(ROBOT_STATE_TOPIC, sample().to_bytes())
+        if world_sample is not None:
+            world = world_sample()
+            if world is not None:
+                publisher.publish_nowait(WORLD_STATE_TOPIC, world.to_bytes())
+
     while True:
-        try:
-            publisher.publish_nowait(ROBOT_STATE_TOPIC, sample().to_bytes())
-            if world_sample is not None:
-                world = world_sample()
-                if world is not None:
-                    publisher.publish_nowait(WORLD_STATE_TOPIC, world.to_bytes())
-        except Exception:
-            log.exception("state publish failed")
-        # A fixed schedule, not sleep(period) after the work, so the rate does not drift.
-        next_t += period
-        delay = next_t - loop.time()
-        if delay < -period:  # fell behind (suspended, overloaded): skip the missed samples
-            next_t = loop.time()
-            delay = 0.0
-        await asyncio.sleep(max(delay, 0.0))
+        failures.send(send)
+        next_t = await _next_period(loop, next_t, period)
