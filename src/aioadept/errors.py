@@ -180,3 +180,16 @@ class GraphError(AdeptError, ValueError):
 
 class ObjectNotFound(VisionError):
     """The sharpness pipeline found no region that looks like the calibration object in the image."""
+
+
+def one_line(exc: BaseException) -> str:
+    """``RuntimeError: text at runtime.py:312``: an unexpected exception (a bug) and the innermost Python line it
+    came from, on one line, for the one stderr line a dying server writes (``aioadept sim``, with or without
+    ``--vplus``)."""
+    import os
+    import traceback
+
+    tb = traceback.extract_tb(exc.__traceback__)
+    at = f" at {os.path.basename(tb[-1].filename)}:{tb[-1].lineno}" if tb else ""
+    text = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {text}{at}" if text else f"{type(exc).__name__}{at}"

@@ -233,10 +233,10 @@ async def run(options: SimOptions) -> int:
         for sig in (signal.SIGINT, signal.SIGTERM):
             loop.remove_signal_handler(sig)
     if sim.death is not None:
-        from aioadept.vplus.cli import _python_error  # the one place that formats an exception for this line
+        from aioadept.errors import one_line
 
         task, exc = sim.death
-        print(f"aioadept sim: {task} died of {_python_error(exc)}; the arm was braked and every connection "
+        print(f"aioadept sim: {task} died of {one_line(exc)}; the arm was braked and every connection "
               f"closed", file=sys.stderr, flush=True)
         return 1
     return 0

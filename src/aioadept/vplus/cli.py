@@ -18,6 +18,9 @@ import sys
 import time
 from typing import Any
 
+from aioadept.errors import one_line
+from aioadept.sim.server import REST_WAIT_S
+
 
 def parse_port_map(specs: list[str]) -> dict[int, int]:
     """``["1234=0", "5000=15000"]`` -> ``{1234: 0, 5000: 15000}``; raises ``ValueError``."""
@@ -101,7 +104,7 @@ async def run(args: argparse.Namespace, options: Any) -> int:
         emu.execute(0, args.run)
         await emu.serve(stop)
     except Exception as exc:  # noqa: BLE001 - an emulator bug outside any task: one line, not a traceback
-        sup.die(f"emulator internal error {_python_error(exc)}; every V+ task was aborted")
+        sup.die(f"emulator internal error {one_line(exc)}; every V+ task was aborted")
     finally:
         sup.closing = True
         for sig in (signal.SIGINT, signal.SIGTERM):
@@ -126,9 +129,6 @@ async def run(args: argparse.Namespace, options: Any) -> int:
 GRACE_S = 0.5
 """After READY, how long the other tasks may run on after one task ended without an error before the server
 counts as dead. ``rs.halt`` ends both of the shipped server's loops within one ``rs.poll`` (16 ms)."""
-
-REST_WAIT_S = 3.0
-"""On the way out, the longest wait for the braked arm to come to rest (so the state stream shows it)."""
 
 
 class Supervisor:
@@ -210,7 +210,7 @@ class Supervisor:
         if exc is None or isinstance(exc, (OSError, asyncio.CancelledError)) or self.closing:
             loop.default_exception_handler(context)
             return
-        self.die(f"emulator internal error {_python_error(exc)} ({context.get('message', 'in a callback')}); "
+        self.die(f"emulator internal error {one_line(exc)} ({context.get('message', 'in a callback')}); "
                  f"every V+ task was aborted")
 
     def die(self, why: str) -> None:
@@ -235,17 +235,6 @@ def _where(file: str | None, program: str | None, line: int | None) -> str:
     if program:
         return f"{program}, line {line}" if line else program
     return "an unknown place"
-
-
-def _python_error(exc: BaseException) -> str:
-    """``RuntimeError: text at runtime.py:312``: the exception and the innermost Python line it came from."""
-    import os
-    import traceback
-
-    tb = traceback.extract_tb(exc.__traceback__)
-    at = f" at {os.path.basename(tb[-1].filename)}:{tb[-1].lineno}" if tb else ""
-    text = " ".join(str(exc).split())
-    return f"{type(exc).__name__}: {text}{at}" if text else f"{type(exc).__name__}{at}"
 
 
 def _explain(err: Any) -> str:
