@@ -34,6 +34,8 @@ from aioadept.client import RobotClient
 from aioadept.commands import Break, MoveJoints, SetSpeed
 from aioadept.errors import ConnectionLost
 
+from deathwatch import record
+
 TARGET_J1_DEG = 60.0
 
 WORLD = """
@@ -76,18 +78,6 @@ async def sim_process(*args: str):
         if proc.returncode is None:
             proc.kill()
             await proc.wait()
-
-
-async def record(sub: Subscriber, into: list[RobotState], proc: asyncio.subprocess.Process) -> None:
-    """Every state sample until the process has exited and the stream is quiet."""
-    while True:
-        try:
-            _, data = await asyncio.wait_for(sub.recv(), 0.5)
-        except TimeoutError:
-            if proc.returncode is not None:
-                return
-            continue
-        into.append(RobotState.from_bytes(data))
 
 
 # wait_sig polls its input every 16 ms (the executor's timer runs, the I/O advances) while the arm moves; a second

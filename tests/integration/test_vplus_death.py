@@ -32,6 +32,8 @@ from aioadept.client import RobotClient
 from aioadept.commands import Break, MoveJoints, SetSpeed
 from aioadept.errors import ConnectionLost
 
+from deathwatch import record
+
 VPLUS = Path(__file__).resolve().parents[2] / "vplus"
 
 USER_SKILLS = '''	CALL rs.addskill("halt_now", 0)
@@ -169,18 +171,6 @@ async def vplus_sim(tmp_path: Path):
         if proc.returncode is None:
             proc.kill()
             await proc.wait()
-
-
-async def record(sub: Subscriber, into: list[RobotState], proc: asyncio.subprocess.Process) -> None:
-    """Every state sample until the process has exited and the stream is quiet."""
-    while True:
-        try:
-            _, data = await asyncio.wait_for(sub.recv(), 0.5)
-        except TimeoutError:
-            if proc.returncode is not None:
-                return
-            continue
-        into.append(RobotState.from_bytes(data))
 
 
 # (trigger skill, the trigger's own ack may have come (it ran before the fault), what the stderr line says)
