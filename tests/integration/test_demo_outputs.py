@@ -156,6 +156,8 @@ def test_an_experiment_run_whose_recording_the_full_disk_cut_short_is_still_anal
     assert "Traceback" not in proc.stderr, proc.stderr
     found = json.loads(next(ln for ln in lines if ln.startswith("LISTING "))[len("LISTING "):])
     assert found["empty"] == [], found
+    # One run folder with its run.json (failed once in a loaded full suite with none: say what there was then)
+    assert len(found["not_written"]) == 1, (found, proc.stdout[-3000:], proc.stderr[-3000:])
     ((_run, not_written),) = found["not_written"].items()
     assert "run.rrd" in not_written, not_written
     # A run lacking only its recording is analysed: its iterations are in the analysis's table. The summary is
