@@ -665,7 +665,9 @@ class RobotClient:
             out.__class__ = ExecResult
             return out  # type: ignore[no-any-return]
         stops = self._stops
-        per_command = await self._prepare(commands)
+        per_command = self._calls_per_command(commands)
+        if self._state is not _CONNECTED:
+            await self._ensure_connected()
         messages: list[MessageResult] = []
         acked: list[str] = []
         for k, calls in enumerate(per_command):
@@ -687,16 +689,17 @@ class RobotClient:
             acked.extend(sub.ids)
         return _make_exec(tuple(messages), commands, tuple(len(c) for c in per_command))
 
-    async def _prepare(self, commands: tuple[Command, ...]) -> list[tuple[SkillCall, ...]]:
-        """The skill calls of each command (validated), with the connection made ready to send them."""
+    @staticmethod
+    def _calls_per_command(commands: tuple[Command, ...]) -> list[tuple[SkillCall, ...]]:
+        """The skill calls of each command (validated). A plain function, not a coroutine: a batch's path awaits
+        only when the connection must be made ready (``_ensure_connected``); an awaited coroutine costs ~0.07 us
+        more than a call, on the path between an ack and the next write."""
         try:
             per_command = list(map(_CALLS_OF_COMMAND, commands))  # the common case, in C
         except AttributeError:
             per_command = [_calls_of((c,)) for c in commands]
         if not per_command:
             raise ValueError("commands: at least one command is required")
-        if self._state is not _CONNECTED:
-            await self._ensure_connected()
         return per_command
 
     async def cmdexec_joined(self, *commands: Command, timeout_s: float | None = None) -> ExecResult:
@@ -707,7 +710,9 @@ class RobotClient:
         if timeout_s is not None:
             _check_timeout("timeout_s", timeout_s)
         stops = self._stops
-        per_command = await self._prepare(commands)
+        per_command = self._calls_per_command(commands)
+        if self._state is not _CONNECTED:
+            await self._ensure_connected()
         calls = list(chain.from_iterable(per_command))
         if not calls:
             raise ValueError("commands: nothing to send")

@@ -377,10 +377,12 @@ class IdAllocator:
     2**32 - 1 IDs repeat, which a truly random ID does not; ``00000000`` (:data:`NO_ID`) is never issued.
     """
 
-    __slots__ = ("_next",)
+    __slots__ = ("_next", "_run_hi", "_run")
 
     def __init__(self, start: int) -> None:
         self._next = start & 0xFFFFFFFF
+        self._run_hi = -1  # the first 6 digits (n >> 8) of the IDs in _run; -1: none yet
+        self._run: list[str] = []
 
     def next(self) -> str:
         n = self._next
@@ -396,15 +398,27 @@ class IdAllocator:
         if n == 0 or end > 0x100000000:  # 00000000 is skipped: one at a time
             return [self.next() for _ in range(count)]
         self._next = end & 0xFFFFFFFF
-        # IDs in a run of 256 share their first 6 digits: format those once per run and append the last two
-        # from a table (about 3x faster than formatting every ID).
+        # IDs in a run of 256 share their first 6 digits: all 256 IDs of the current run are formatted once, and a
+        # batch is a slice of that list (a batch of 10 costs one slice instead of a formatting loop: ~0.1 us, not ~1 us,
+        # on the client's per-batch path; the run's 256 strings cost ~0.03 us per ID, once).
+        lo = n & 0xFF
+        if lo + count <= 256:
+            if n >> 8 != self._run_hi:
+                self._new_run(n >> 8)
+            return self._run[lo:lo + count]
         out: list[str] = []
         while n < end:
             stop = min((n | 0xFF) + 1, end)
-            prefix = "%06x" % (n >> 8)
-            out += [prefix + h for h in _HEX2[n & 0xFF:((stop - 1) & 0xFF) + 1]]
+            if n >> 8 != self._run_hi:
+                self._new_run(n >> 8)
+            out += self._run[n & 0xFF:((stop - 1) & 0xFF) + 1]
             n = stop
         return out
+
+    def _new_run(self, hi: int) -> None:
+        prefix = "%06x" % hi
+        self._run_hi = hi
+        self._run = [prefix + h for h in _HEX2]
 
 
 _HEX2 = tuple("%02x" % k for k in range(256))

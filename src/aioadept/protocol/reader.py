@@ -47,7 +47,7 @@ class AckReader:
     """Cuts a byte stream into acks: :meth:`feed` bytes, get :class:`Ack`, :class:`BadAck` and
     :class:`~aioadept.protocol.Oversize` values in stream order, whatever the split of the stream."""
 
-    __slots__ = ("_framer", "_pose_text", "_pose", "_times_text", "_times", "last_lines")
+    __slots__ = ("_framer", "_pose_text", "_pose", "_times_text", "_times", "_tail", "last_lines")
 
     def __init__(self, max_line: int = MAX_ACK_LINE) -> None:
         self._framer = LineFramer(max_line=max_line)
@@ -55,6 +55,9 @@ class AckReader:
         self._pose: Pose | None = None
         self._times_text: bytes | None = None
         self._times = (0.0, 0.0)
+        # Everything after the ID of the last plain `done` ack taken by feed()'s fast path (":done:TIMES:POSE"),
+        # whose times and pose are _times and _pose; None when they may not match (after parse()).
+        self._tail: bytes | None = None
         self.last_lines: list[bytes | Oversize] = []
         """The lines behind the values of the last :meth:`feed`, index for index (the bytes as received)."""
 
@@ -70,6 +73,7 @@ class AckReader:
     def parse(self, line: bytes) -> Ack:
         """One complete line (without delimiter) -> Ack, exactly as :func:`parse_ack`, remembering the pose and
         times text for the next. Raises :class:`RemoteProtocolError`."""
+        self._tail = None
         parts = line.split(b":")
         if len(parts) != 4 or parts[3] != self._pose_text or parts[1] != b"done":
             ack = parse_ack(line)
@@ -108,6 +112,7 @@ class AckReader:
         pose_text, pose = self._pose_text, self._pose
         times_text = self._times_text
         t_start, t_done = self._times
+        tail = self._tail
         twin = _ACK_TWIN
         ack_cls = Ack
         isfinite = math.isfinite
@@ -117,6 +122,24 @@ class AckReader:
                 if type(item) is not bytes:
                     append(item)
                     continue
+                # The same ack as the previous one but for its ID (acks written in one millisecond, the robot at
+                # rest): one comparison instead of splitting the line; the ID is checked as parse_ack does.
+                if item[ID_LENGTH:] == tail:
+                    mid_b = item[:ID_LENGTH]
+                    if mid_b.isalnum():
+                        if twin is not None:  # _make_ack(...) inline
+                            ack = twin()
+                            ack.id = mid_b.decode("ascii")
+                            ack.status = _DONE
+                            ack.t_start_s = t_start
+                            ack.t_done_s = t_done
+                            ack.pose = pose
+                            ack.extra = ()
+                            ack.__class__ = ack_cls
+                        else:
+                            ack = _make_ack(mid_b.decode("ascii"), _DONE, t_start, t_done, pose, ())
+                        append(ack)
+                        continue
                 parts = item.split(b":")
                 if len(parts) == 4 and parts[3] == pose_text and parts[1] == b"done":
                     mid_b = parts[0]
@@ -133,6 +156,7 @@ class AckReader:
                             else:
                                 ok = False
                     if ok:
+                        tail = item[ID_LENGTH:]  # validated: this ack's status, times and pose
                         if twin is not None:  # _make_ack(...) inline
                             ack = twin()
                             ack.id = mid_b.decode("ascii")
@@ -152,12 +176,14 @@ class AckReader:
                     append(self.parse(item))
                 except RemoteProtocolError as exc:
                     append(BadAck(item, exc))
+                tail = None  # parse() may have changed the times and pose
                 pose_text, pose = self._pose_text, self._pose
                 times_text = self._times_text
                 t_start, t_done = self._times
         finally:
             if times_text is not self._times_text:  # keep the last times for the next read
                 self._times_text, self._times = times_text, (t_start, t_done)
+            self._tail = tail
         return out
 
     def acks(self, data: bytes) -> list[Ack]:
