@@ -29,7 +29,8 @@ Notes (2-core VM shared with other jobs; see the JSON of your own run, and docs/
   have 1 ms resolution, so acks of one millisecond share them); frozen slotted values built by filling a plain
   twin class with the same slots and setting ``__class__`` (~2x faster than setting slot descriptors, ~4x than
   ``__init__``), inline in the per-ack loop; the registry maps ID -> submission and finds an ack's index as the
-  one after the previous ack's; IDs formatted once per run of 256; the round trip's send/wait path without Python
+  one after the previous ack's; the IDs of a run of 256 formatted once and sliced per batch; an ack that repeats
+  the previous one's text after its ID taken with one comparison; the round trip's send/wait path without Python
   calls it does not need (ID, Submission, default timer, ExecResult, loop clock); no enum member lookups.
 - Result before/after this work (medians of 5 and 7 runs, same VM; table in docs/protocol.md): round trip p50
   1.26x -> 1.19x; pipelined throughput 0.80x -> 0.86x (10) and 0.80x -> 0.93x (100); CPU per pipelined message
