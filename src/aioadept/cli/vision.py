@@ -347,7 +347,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return asyncio.run(serve(opts))
     except (ValueError, OSError, AdeptError) as exc:
-        log.error("%s", exc)
+        # One line, as every node's failure, without the log's timestamp and level. Exit 2 as before: the node cannot
+        # tell a source it was given wrong from one that does not answer (both are VisionError).
+        print(f"aioadept vision: {exc}", file=sys.stderr)
         return 2
 
 
