@@ -163,7 +163,11 @@ def test_an_experiment_run_whose_recording_the_full_disk_cut_short_is_still_anal
     # A run lacking only its recording is analysed: its iterations are in the analysis's table. The summary is
     # written last; on this small a disk it may meet the full disk too (run.mcap, written once run.rrd's space was
     # freed, takes ~23 KiB of it), and is then named as not written, never left cut short.
-    assert found.get("analysed") == [_run], (found, proc.stderr)
+    # On a loaded machine the run takes longer and its tables fill more of the disk: the analysis's own files may
+    # then not fit either; they are named as not written (none is left cut short: "empty" above), never missing
+    # silently.
+    assert found.get("analysed") == [_run] or "iterations.csv (No space left on device)" in proc.stderr, \
+        (found, proc.stderr)
     assert found["n_runs"] == 1 or "summary.json (No space left on device)" in proc.stderr, (found, proc.stderr)
     assert any(ln in ("EXPERIMENT_RC 0", "EXPERIMENT_RC 4") for ln in lines), proc.stdout[-2000:] + proc.stderr
 
@@ -230,6 +234,10 @@ async def test_ctrl_c_during_the_experiments_analysis_keeps_the_runs_and_says_ho
         async with asyncio.timeout(90):  # the analysis has begun once its staging folder exists
             while not list((out / "analysis").glob(".analysis.*.tmp")) and proc.returncode is None:
                 await asyncio.sleep(0.005)
+        if proc.returncode is not None:  # it ended before its analysis began (failed once in a full suite): say how
+            _out, err_b = await proc.communicate()
+            pytest.fail(f"the experiment exited {proc.returncode} before its analysis began:\n"
+                        f"{err_b.decode(errors='replace')[-3000:]}\n{sorted(p.name for p in out.rglob('*'))}")
         os.kill(proc.pid, signal.SIGINT)
         async with asyncio.timeout(30):
             _out, err_b = await proc.communicate()

@@ -36,12 +36,26 @@ def staging(out: Path) -> Iterator[Path]:
     """A fresh folder ``out/.analysis.<pid>.tmp`` for the outputs, removed on the way out whatever happens (an
     interrupted analysis leaves nothing behind)."""
     stage = out / f".analysis.{os.getpid()}.tmp"
-    shutil.rmtree(stage, ignore_errors=True)
-    stage.mkdir()
     try:
+        shutil.rmtree(stage, ignore_errors=True)
+        stage.mkdir()
         yield stage
     finally:
-        shutil.rmtree(stage, ignore_errors=True)
+        _remove_whole(stage)
+
+
+def _remove_whole(stage: Path) -> None:
+    """Remove ``stage`` even when Ctrl-C (KeyboardInterrupt, raised wherever the signal finds the program) lands in
+    the middle of it, then raise that interrupt: a half-removed staging folder was once left behind so."""
+    interrupted = False
+    while True:
+        try:
+            shutil.rmtree(stage, ignore_errors=True)
+            break
+        except KeyboardInterrupt:
+            interrupted = True
+    if interrupted:
+        raise KeyboardInterrupt
 
 
 def publish(stage: Path, out: Path, staged: Mapping[str, Path], known: Iterable[str], *, last: str) -> None:

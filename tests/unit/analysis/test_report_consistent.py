@@ -104,3 +104,32 @@ def test_the_default_analysis_folder_is_ignored_by_git():
     assert ignored.returncode == 0, "analysis/ is not in .gitignore"
     kept = subprocess.run(["git", "check-ignore", "-q", "src/aioadept/analysis/report.py"], cwd=root)
     assert kept.returncode == 1, "the analysis package itself must not be ignored"
+
+
+@pytest.mark.parametrize("where", ["inside", "cleanup"])
+def test_ctrl_c_inside_the_analysis_or_in_its_cleanup_leaves_no_staging_folder(tmp_path, monkeypatch, where):
+    """KeyboardInterrupt lands wherever the signal finds the program: in the analysis, or in the middle of removing
+    the staging folder (a half-removed one was left behind so, found by test_demo_outputs under load)."""
+    import shutil
+
+    from aioadept.analysis import outputs
+
+    real_rmtree = shutil.rmtree
+    calls = []
+
+    def rmtree(path, *a, **kw):
+        calls.append(path)
+        if where == "cleanup" and len(calls) == 2:  # the cleanup's first attempt is interrupted part way
+            real_rmtree(next(iter(sorted(path.iterdir()))), *a, **kw)
+            raise KeyboardInterrupt
+        return real_rmtree(path, *a, **kw)
+
+    monkeypatch.setattr(outputs.shutil, "rmtree", rmtree)
+    with pytest.raises(KeyboardInterrupt):
+        with outputs.staging(tmp_path) as stage:
+            (stage / "a").mkdir()
+            (stage / "a" / "f.png").write_bytes(b"x")
+            (stage / "b.csv").write_text("y")
+            if where == "inside":
+                raise KeyboardInterrupt
+    assert list(tmp_path.iterdir()) == []
