@@ -126,50 +126,40 @@ class AckReader:
                 # rest): one comparison instead of splitting the line; the ID is checked as parse_ack does.
                 if item[ID_LENGTH:] == tail:
                     mid_b = item[:ID_LENGTH]
-                    if mid_b.isalnum():
-                        if twin is not None:  # _make_ack(...) inline
-                            ack = twin()
-                            ack.id = mid_b.decode("ascii")
-                            ack.status = _DONE
-                            ack.t_start_s = t_start
-                            ack.t_done_s = t_done
-                            ack.pose = pose
-                            ack.extra = ()
-                            ack.__class__ = ack_cls
-                        else:
-                            ack = _make_ack(mid_b.decode("ascii"), _DONE, t_start, t_done, pose, ())
-                        append(ack)
-                        continue
-                parts = item.split(b":")
-                if len(parts) == 4 and parts[3] == pose_text and parts[1] == b"done":
-                    mid_b = parts[0]
-                    ok = len(mid_b) == ID_LENGTH and mid_b.isalnum()
-                    if ok and parts[2] != times_text:
-                        # A wrong number of times is a ValueError like a bad float.
-                        try:
-                            ts, td = map(float, parts[2].split(b","))
-                        except ValueError:
-                            ok = False
-                        else:
-                            if isfinite(ts + td):
-                                times_text, t_start, t_done = parts[2], ts, td
-                            else:
+                    ok = mid_b.isalnum()
+                else:
+                    ok = False
+                    parts = item.split(b":")
+                    if len(parts) == 4 and parts[3] == pose_text and parts[1] == b"done":
+                        mid_b = parts[0]
+                        ok = len(mid_b) == ID_LENGTH and mid_b.isalnum()
+                        if ok and parts[2] != times_text:
+                            # A wrong number of times is a ValueError like a bad float.
+                            try:
+                                ts, td = map(float, parts[2].split(b","))
+                            except ValueError:
                                 ok = False
-                    if ok:
-                        tail = item[ID_LENGTH:]  # validated: this ack's status, times and pose
-                        if twin is not None:  # _make_ack(...) inline
-                            ack = twin()
-                            ack.id = mid_b.decode("ascii")
-                            ack.status = _DONE
-                            ack.t_start_s = t_start
-                            ack.t_done_s = t_done
-                            ack.pose = pose
-                            ack.extra = ()
-                            ack.__class__ = ack_cls
-                        else:
-                            ack = _make_ack(mid_b.decode("ascii"), _DONE, t_start, t_done, pose, ())
-                        append(ack)
-                        continue
+                            else:
+                                if isfinite(ts + td):
+                                    times_text, t_start, t_done = parts[2], ts, td
+                                else:
+                                    ok = False
+                        if ok:
+                            tail = item[ID_LENGTH:]  # validated: this ack's status, times and pose
+                if ok:
+                    if twin is not None:  # _make_ack(...) inline
+                        ack = twin()
+                        ack.id = mid_b.decode("ascii")
+                        ack.status = _DONE
+                        ack.t_start_s = t_start
+                        ack.t_done_s = t_done
+                        ack.pose = pose
+                        ack.extra = ()
+                        ack.__class__ = ack_cls
+                    else:
+                        ack = _make_ack(mid_b.decode("ascii"), _DONE, t_start, t_done, pose, ())
+                    append(ack)
+                    continue
                 # The general path: sync the remembered texts both ways around parse().
                 self._times_text, self._times = times_text, (t_start, t_done)
                 try:
