@@ -113,15 +113,9 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:   # one line naming the option, no usage block
         print(f"aioadept bridge: {exc}", file=sys.stderr)
         return 2
-    try:
-        return asyncio.run(run(args, host, port, stop_port, opts))
-    except Exception as exc:  # the controller unreachable, a Zenoh session that cannot open, ...
-        from aioadept.errors import AdeptError
+    from aioadept.cli.options import run_node
 
-        if isinstance(exc, (OSError, AdeptError)):
-            print(f"aioadept bridge: {exc}", file=sys.stderr)
-            return 1
-        raise
+    return run_node("aioadept bridge", run(args, host, port, stop_port, opts))
 
 
 if __name__ == "__main__":  # pragma: no cover

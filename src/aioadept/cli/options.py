@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from aioadept import defaults
 from aioadept.configfile import ConfigError, report
@@ -286,3 +287,18 @@ def apply_cell_bus(values: dict, bus: "BusSection", given: set[str], streams: di
     for key, (owner, topic) in streams.items():
         if key not in given:
             values[key] = on_cell_key(values[key], values["cell"], owner, topic)
+
+
+def run_node(prog: str, main: Any) -> int:
+    """``asyncio.run(main)`` for a node's command (``state``, ``bridge``, ``ros2``): what fails at run time (an
+    endpoint that cannot be bound, a Zenoh session that cannot open, a controller that does not answer: OSError or
+    AdeptError) is one line ``PROG: message`` on stderr and exit 1; anything else is a bug and keeps its traceback."""
+    import asyncio
+
+    from aioadept.errors import AdeptError
+
+    try:
+        return asyncio.run(main)
+    except (OSError, AdeptError) as exc:
+        print(f"{prog}: {exc}", file=sys.stderr)
+        return 1

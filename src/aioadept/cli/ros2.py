@@ -115,15 +115,9 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:   # one line naming the option, no usage block
         print(f"aioadept ros2: {exc}", file=sys.stderr)
         return 2
-    try:
-        return asyncio.run(run(args, opts))
-    except Exception as exc:  # a Zenoh session that cannot open, a state endpoint that cannot be used, ...
-        from aioadept.errors import AdeptError
+    from aioadept.cli.options import run_node
 
-        if isinstance(exc, (OSError, AdeptError)):
-            print(f"aioadept ros2: {exc}", file=sys.stderr)
-            return 1
-        raise
+    return run_node("aioadept ros2", run(args, opts))
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -108,15 +108,9 @@ def main(argv: list[str] | None = None) -> int:
         curve = _state_curve(args)
     except (ValueError, OSError) as exc:   # one line naming the option or the file, no usage block
         return report("aioadept state", exc)
-    try:
-        return asyncio.run(run(host, port, args.state_endpoint, curve))
-    except Exception as exc:  # BusError binding the endpoint, etc.
-        from aioadept.errors import AdeptError
+    from aioadept.cli.options import run_node
 
-        if isinstance(exc, (OSError, AdeptError)):
-            print(f"aioadept state: {exc}", file=sys.stderr)
-            return 1
-        raise
+    return run_node("aioadept state", run(host, port, args.state_endpoint, curve))
 
 
 if __name__ == "__main__":  # pragma: no cover
