@@ -193,7 +193,7 @@ class SocketReader:
         """Start reading on the running loop."""
         loop = self._loop = asyncio.get_running_loop()
         if is_zenoh_socket(self._sock):
-            # Woken by the Zenoh callback (call_soon_threadsafe) instead of a file descriptor; -1 marks "reading".
+            # Woken through the socket's own eventfd (or call_soon_threadsafe) by the Zenoh callback; -1 marks "reading".
             self._fd = -1
             self._sock.set_reader(loop, self._on_readable)  # type: ignore[attr-defined]
             return
@@ -237,7 +237,17 @@ class SocketReader:
 
     def _on_readable(self) -> None:
         sock = self._sock
-        batch: list[list[bytes]] = []
+        if self._fd == -1:  # a Zenoh socket: its queue is taken in one call
+            if sock.closed:
+                return
+            batch = sock.drain(READ_BATCH)  # type: ignore[attr-defined]
+            if len(batch) >= READ_BATCH:
+                assert self._loop is not None
+                self._loop.call_soon(self._on_readable)
+            if batch:
+                self._on_batch(batch)
+            return
+        batch = []
         while self._fd is not None and not sock.closed:
             try:
                 batch.append(sock.recv_multipart(zmq.NOBLOCK))

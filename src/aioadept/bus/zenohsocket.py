@@ -3,8 +3,12 @@
 runs on, the keys and presence are :mod:`aioadept.bus.zenoh`'s.
 
 Zenoh calls back on a thread of its own. A callback only appends to a bounded deque (overflow: the oldest message is
-dropped and counted, so a stalled reader keeps the newest state) and wakes the loop with one
-``call_soon_threadsafe``; it never blocks and never touches asyncio objects.
+dropped and counted, so a stalled reader keeps the newest state) and wakes the loop; it never blocks and never
+touches asyncio objects. The loop's reader (:meth:`ZenohSocket.set_reader`) is woken through an eventfd of the
+socket's own, registered with the loop like a ZeroMQ socket's file descriptor: one ``eventfd_write`` from Zenoh's
+thread, one readable event in the loop. ``call_soon_threadsafe`` (the fallback where there is no eventfd) goes
+through asyncio's self-pipe, a socket pair whose send, drain and extra callback cost about 35 us of a request's round
+trip on the 2-core test machine (benchmarks/bench_bus.py; docs/bus.md, Cost).
 """
 
 from __future__ import annotations
@@ -12,6 +16,7 @@ from __future__ import annotations
 import asyncio
 import collections
 import logging
+import os
 import threading
 from collections.abc import Iterable, Mapping
 from typing import Any
@@ -51,6 +56,7 @@ class ZenohSocket:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._on_ready: Any = None
         self._scheduled = False
+        self._efd: int | None = None  # the reader's wake-up: an eventfd registered with self._loop
         self._waiter: asyncio.Future | None = None
         self._entity: Any = None
 
@@ -134,7 +140,7 @@ class ZenohSocket:
         except Exception as exc:  # pragma: no cover - a malformed sample from Zenoh itself
             log.debug("Zenoh sample on %s unreadable: %r", self.key, exc)
             return
-        if self.closed or not self._accepts(frames):
+        if self.closed or not (self._max_bytes is None and b"" in self._topics or self._accepts(frames)):
             return
         queue = self._queue
         if len(queue) == queue.maxlen:
@@ -149,10 +155,22 @@ class ZenohSocket:
             # At most one wake-up queued: _wake clears the flag before it drains, so a message appended after the
             # drain started schedules a new one (a rare double wake-up is harmless).
             self._scheduled = True
+            efd = self._efd
             try:
-                loop.call_soon_threadsafe(self._wake)
-            except RuntimeError:  # the loop is closed: nobody reads any more
+                if efd is not None:
+                    os.eventfd_write(efd, 1)
+                else:
+                    loop.call_soon_threadsafe(self._wake)
+            except (RuntimeError, OSError):  # the loop or the eventfd is closed: nobody reads any more
                 pass
+
+    def _on_efd(self) -> None:
+        # On the loop's thread: the eventfd is readable.
+        try:
+            os.eventfd_read(self._efd)  # type: ignore[arg-type]
+        except (BlockingIOError, TypeError):  # a double wake-up already drained it / closed meanwhile
+            pass
+        self._wake()
 
     def _wake(self) -> None:
         # On the loop's thread.
@@ -164,13 +182,49 @@ class ZenohSocket:
             self._on_ready()
 
     def set_reader(self, loop: asyncio.AbstractEventLoop, on_ready: Any) -> None:
-        """Call ``on_ready()`` on ``loop`` whenever messages have arrived (None: stop)."""
+        """Call ``on_ready()`` on ``loop`` whenever messages have arrived (None: stop). On the loop's thread."""
+        if on_ready is None:
+            self._on_ready = None
+            self._drop_efd()
+            return
+        if self._efd is None and hasattr(os, "eventfd") and not self.closed:
+            efd = os.eventfd(0, os.EFD_NONBLOCK | os.EFD_CLOEXEC)
+            try:
+                loop.add_reader(efd, self._on_efd)
+            except NotImplementedError:  # a loop without add_reader (Windows' proactor): the self-pipe it is
+                os.close(efd)
+            else:
+                self._efd = efd
         with self._cond:
-            self._loop = loop if on_ready is not None else self._loop
+            self._loop = loop
             self._on_ready = on_ready
             pending = bool(self._queue)
-        if pending and on_ready is not None:
+        if pending:
             loop.call_soon(self._wake)
+
+    def _drop_efd(self) -> None:
+        # On the loop's thread (or after the loop is gone). The callback reads self._efd once per wake-up, so it may
+        # still write to the old number: a write to a closed eventfd fails (OSError, ignored). The number can only
+        # be reused after close, so the reader is removed before the close.
+        efd, self._efd = self._efd, None
+        if efd is None:
+            return
+        loop = self._loop
+        if loop is not None and not loop.is_closed():
+            loop.remove_reader(efd)
+        os.close(efd)
+
+    def drain(self, limit: int) -> list[list[bytes]]:
+        """Take up to ``limit`` messages at once, without blocking (the loop's reader: one call per wake-up where
+        ``recv_multipart(NOBLOCK)`` would cost a call and, at the end, a ``zmq.Again`` per wake-up)."""
+        queue = self._queue
+        if len(queue) <= limit:
+            batch = list(queue)
+            # Only what was copied is removed: the callback may append meanwhile (popleft is atomic under the GIL).
+            for _ in range(len(batch)):
+                queue.popleft()
+            return batch
+        return [queue.popleft() for _ in range(limit)]
 
     def _pop(self) -> list[bytes] | None:
         try:
@@ -235,6 +289,19 @@ class ZenohSocket:
                 entity.undeclare()
             except Exception as exc:
                 log.debug("Zenoh undeclare %s: %r", self.key, exc)
+        loop = self._loop
+        if self._efd is not None:
+            try:
+                on_loop = loop is not None and asyncio.get_running_loop() is loop
+            except RuntimeError:
+                on_loop = False
+            if on_loop or loop is None or loop.is_closed():
+                self._drop_efd()
+            else:  # removing a reader belongs to the loop's thread
+                try:
+                    loop.call_soon_threadsafe(self._drop_efd)
+                except RuntimeError:
+                    self._drop_efd()
         with self._cond:
             self._cond.notify_all()
         waiter, self._waiter = self._waiter, None
