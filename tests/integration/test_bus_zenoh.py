@@ -185,14 +185,21 @@ def _open_fds() -> int:
 
 @pytest.mark.timeout(60)
 async def test_opening_and_closing_many_communicators_and_responders_leaves_no_descriptor_behind(router):
-    # Each reading Zenoh socket owns an eventfd the loop watches (its wake-up): closing must give it back.
-    from aioadept.bus import Responder
+    # Each reading Zenoh socket owns an eventfd the loop watches (its wake-up): closing must give it back,
+    # for a reader (Communicator, Responder) and for an awaited recv (Subscriber) alike.
+    from aioadept.bus import Responder, Subscriber
 
     async def one(i: int) -> None:
         key = f"zenoh:aioadept/fdtest/{i}"
         async with Responder(f"{key}/req", f"{key}/resp", lambda t, rid, a: {"i": i}):
             async with Communicator(f"{key}/req", f"{key}/resp", timeout_s=5.0) as comm:
                 assert (await comm.request("VisionRequest")).attributes == {"i": i}
+        async with Subscriber(f"{key}/state") as sub, Publisher(f"{key}/state", bind=False) as pub:
+            got = asyncio.ensure_future(sub.recv())
+            while not got.done():  # until the subscription has reached the publisher's side
+                pub.publish_nowait("robot.state", b"%d" % i)
+                await asyncio.wait({got}, timeout=0.02)
+            assert got.result() == (b"robot.state", b"%d" % i)
 
     await one(-1)  # the session's own descriptors are opened by now
     before = _open_fds()

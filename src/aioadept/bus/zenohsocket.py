@@ -4,8 +4,9 @@ runs on, the keys and presence are :mod:`aioadept.bus.zenoh`'s.
 
 Zenoh calls back on a thread of its own. A callback only appends to a bounded deque (overflow: the oldest message is
 dropped and counted, so a stalled reader keeps the newest state) and wakes the loop; it never blocks and never
-touches asyncio objects. The loop's reader (:meth:`ZenohSocket.set_reader`) is woken through an eventfd of the
-socket's own, registered with the loop like a ZeroMQ socket's file descriptor: one ``eventfd_write`` from Zenoh's
+touches asyncio objects. The loop (a reader set with :meth:`ZenohSocket.set_reader`, or a task awaiting
+``recv_multipart``) is woken through an eventfd of the socket's own, registered with the loop like a ZeroMQ socket's
+file descriptor: one ``eventfd_write`` from Zenoh's
 thread, one readable event in the loop. ``call_soon_threadsafe`` (the fallback where there is no eventfd) goes
 through asyncio's self-pipe, a socket pair whose send, drain and extra callback cost about 35 us of a request's round
 trip on the 2-core test machine (benchmarks/bench_bus.py; docs/bus.md, Cost).
@@ -56,7 +57,8 @@ class ZenohSocket:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._on_ready: Any = None
         self._scheduled = False
-        self._efd: int | None = None  # the reader's wake-up: an eventfd registered with self._loop
+        self._efd: int | None = None  # the loop's wake-up: an eventfd registered with self._loop
+        self._efd_lock = threading.Lock()
         self._waiter: asyncio.Future | None = None
         self._entity: Any = None
 
@@ -155,13 +157,14 @@ class ZenohSocket:
             # At most one wake-up queued: _wake clears the flag before it drains, so a message appended after the
             # drain started schedules a new one (a rare double wake-up is harmless).
             self._scheduled = True
-            efd = self._efd
             try:
-                if efd is not None:
-                    os.eventfd_write(efd, 1)
-                else:
+                with self._efd_lock:  # so the loop cannot close the eventfd (and its number be reused) mid-write
+                    efd = self._efd
+                    if efd is not None:
+                        os.eventfd_write(efd, 1)
+                if efd is None:
                     loop.call_soon_threadsafe(self._wake)
-            except (RuntimeError, OSError):  # the loop or the eventfd is closed: nobody reads any more
+            except (RuntimeError, OSError):  # the loop is closed: nobody reads any more
                 pass
 
     def _on_efd(self) -> None:
@@ -187,6 +190,17 @@ class ZenohSocket:
             self._on_ready = None
             self._drop_efd()
             return
+        self._watch(loop)
+        self._on_ready = on_ready
+        if self._queue:
+            loop.call_soon(self._wake)
+
+    def _watch(self, loop: asyncio.AbstractEventLoop) -> None:
+        """Have ``loop`` woken when messages arrive: through an eventfd it watches, else call_soon_threadsafe."""
+        if self._loop is not loop:
+            self._drop_efd()
+        with self._cond:
+            self._loop = loop
         if self._efd is None and hasattr(os, "eventfd") and not self.closed:
             efd = os.eventfd(0, os.EFD_NONBLOCK | os.EFD_CLOEXEC)
             try:
@@ -195,18 +209,13 @@ class ZenohSocket:
                 os.close(efd)
             else:
                 self._efd = efd
-        with self._cond:
-            self._loop = loop
-            self._on_ready = on_ready
-            pending = bool(self._queue)
-        if pending:
-            loop.call_soon(self._wake)
+        # A wake-up written to an eventfd dropped before the loop read it would leave the flag set and the loop deaf.
+        self._scheduled = False
 
     def _drop_efd(self) -> None:
-        # On the loop's thread (or after the loop is gone). The callback reads self._efd once per wake-up, so it may
-        # still write to the old number: a write to a closed eventfd fails (OSError, ignored). The number can only
-        # be reused after close, so the reader is removed before the close.
-        efd, self._efd = self._efd, None
+        # On the loop's thread (or after the loop is gone).
+        with self._efd_lock:
+            efd, self._efd = self._efd, None
         if efd is None:
             return
         loop = self._loop
@@ -257,8 +266,8 @@ class ZenohSocket:
 
     async def _recv_async(self) -> list[bytes]:
         loop = asyncio.get_running_loop()
-        with self._cond:
-            self._loop = loop
+        if self._loop is not loop:
+            self._watch(loop)
         while True:
             frames = self._pop()
             if frames is not None:
