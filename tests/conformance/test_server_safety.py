@@ -15,6 +15,7 @@ import pytest
 
 from aioadept.geometry import Pose, poses_close
 from aioadept.protocol import NO_ID, ErrorCode, Status
+from aioadept.protocol.robotstatus import parse_status_fields
 from aioadept.sim import kinematics as kin
 
 HOME = "0,-90,180,0,90,0"
@@ -27,7 +28,8 @@ def pose_of(joints: str) -> Pose:
 # -- item 1: read-only queries from an idle connection are answered by the reader at once ----------------------
 
 @pytest.mark.timeout(90)
-async def test_here_and_hello_from_an_idle_connection_are_answered_while_another_clients_break_waits(server):
+async def test_here_hello_and_status_from_an_idle_connection_are_answered_while_another_clients_break_waits(
+        server):
     mover = await server.connect()
     poller = await server.connect()
     # J1 turns 150 deg at 10 %: about 6 s, during which the mover's break waits (and, in V+, holds task 1).
@@ -36,16 +38,19 @@ async def test_here_and_hello_from_an_idle_connection_are_answered_while_another
     assert speed.ok and move.ok
     brk = asyncio.create_task(mover.ack(30))
     try:
-        await poller.send("bbbb0001:here", "bbbb0002:hello")
-        here, hello = await poller.acks(2, timeout=30)
-        assert not brk.done(), "here and hello were answered while the other client's break still waited"
+        await poller.send("bbbb0001:here", "bbbb0002:hello", "bbbb0003:status")
+        here, hello, status = await poller.acks(3, timeout=30)
+        assert not brk.done(), "here, hello and status were answered while the other client's break still waited"
     finally:
         brk_ack = await brk
     assert (here.id, here.status) == ("bbbb0001", Status.DONE)
     assert (hello.id, hello.status) == ("bbbb0002", Status.DONE)
     assert hello.extra[0] == "1", "protocol version 1"
+    assert (status.id, status.status) == ("bbbb0003", Status.DONE)
+    st = parse_status_fields(status.extra)
+    assert st.moving and st.error_code == 0 and st.power and not st.estop, status.extra  # the mover's arm
     assert (brk_ack.id, brk_ack.status) == ("aaaa0003", Status.DONE)
-    assert here.t_done_s <= brk_ack.t_done_s and hello.t_done_s <= brk_ack.t_done_s
+    assert max(here.t_done_s, hello.t_done_s, status.t_done_s) <= brk_ack.t_done_s
     assert not poses_close(here.pose, pose_of("150,-90,180,0,90,0"), tol_mm=1.0, tol_deg=1.0), \
         "the pose is the current one, not the target's"
     await mover.close()
