@@ -341,16 +341,18 @@ def main(argv: list[str] | None = None) -> int:
         for path in write_figures(opts.figures, focus_offset_mm=opts.focus_offset_mm):
             print(path)
         return 0
-    from aioadept.errors import AdeptError
+    from aioadept.errors import AdeptError, BusError
     from aioadept.vision.service import serve
 
     try:
         return asyncio.run(serve(opts))
     except (ValueError, OSError, AdeptError) as exc:
-        # One line, as every node's failure, without the log's timestamp and level. Exit 2 as before: the node cannot
-        # tell a source it was given wrong from one that does not answer (both are VisionError).
+        # One line, as every node's failure, without the log's timestamp and level. A bus it cannot open or reach
+        # (a Zenoh router that does not answer or refuses it, an address in use) exits 1 as sim and state do; the
+        # rest 2 as before: the node cannot tell a source it was given wrong from one that does not answer (both
+        # are VisionError).
         print(f"aioadept vision: {exc}", file=sys.stderr)
-        return 2
+        return 1 if isinstance(exc, BusError) else 2
 
 
 if __name__ == "__main__":  # pragma: no cover
