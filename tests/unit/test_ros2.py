@@ -214,3 +214,53 @@ def test_a_bad_topic_is_refused_in_the_token_too() -> None:
         ros2.publisher_token_key(ZID, "/joint states")
     with pytest.raises(BusError, match="entity id"):
         ros2.publisher_token_key(ZID, "/joint_states", entity_id=True)
+
+
+class _FakeSession:
+    """Records what JointStatePublisher declares on a Zenoh session, in order (no sockets)."""
+
+    def __init__(self, zid: str, fail_publisher: bool = False) -> None:
+        self.zid, self.fail_publisher, self.log = zid, fail_publisher, []
+        self.info = type("Info", (), {"zid": lambda _self: zid})()
+
+    def liveliness(self):
+        return self
+
+    def declare_token(self, key):
+        self.log.append(("token", key))
+        return _Undeclarable(self.log, ("untoken", key))
+
+    def declare_publisher(self, key, **opts):
+        if self.fail_publisher:
+            raise RuntimeError("refused")
+        self.log.append(("publisher", key, opts))
+        return _Undeclarable(self.log, ("unpublisher", key))
+
+
+class _Undeclarable:
+    def __init__(self, log, entry) -> None:
+        self.log, self.entry = log, entry
+
+    def undeclare(self) -> None:
+        self.log.append(self.entry)
+
+
+def test_the_publisher_declares_node_then_publisher_and_undeclares_in_reverse() -> None:
+    s = _FakeSession(ZID)
+    pub = ros2.JointStatePublisher("/joint_states", domain_id=4, session=s, node_name="viper", namespace="/c1")
+    nn = ros2.node_token_key(ZID, domain_id=4, node_name="viper", namespace="/c1")
+    mp = ros2.publisher_token_key(ZID, "/joint_states", domain_id=4, node_name="viper", namespace="/c1")
+    assert (pub.node_token, pub.publisher_token) == (nn, mp)
+    opts = {"congestion_control": zenoh.CongestionControl.DROP, "reliability": zenoh.Reliability.RELIABLE}
+    assert s.log == [("token", nn), ("publisher", pub.key, opts), ("token", mp)]
+    pub.close()
+    pub.close()  # idempotent
+    assert s.log[3:] == [("untoken", mp), ("unpublisher", pub.key), ("untoken", nn)]
+
+
+def test_a_publisher_that_cannot_be_declared_leaves_no_token() -> None:
+    s = _FakeSession(ZID, fail_publisher=True)
+    with pytest.raises(BusError, match="cannot declare"):
+        ros2.JointStatePublisher("/joint_states", session=s)
+    nn = ros2.node_token_key(ZID)
+    assert s.log == [("token", nn), ("untoken", nn)]
