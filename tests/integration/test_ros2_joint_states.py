@@ -1,7 +1,9 @@
 """``aioadept ros2`` (issue 23, item 5): the robot state on ROS 2's wire, checked by what a ROS 2 subscriber on
 rmw_zenoh does with it: a Zenoh subscriber on the key rmw_zenoh_cpp declares for ``/<topic>`` of type
 ``sensor_msgs/msg/JointState`` (written out here from ROS 2's naming rule and rosbags' type hash, not from our module),
-the payload decoded by rosbags (an independent ROS 2 message library), the attachment read as rmw_zenoh reads it.
+the payload decoded by rosbags (an independent ROS 2 message library), the attachment read as rmw_zenoh reads it;
+and by what rmw_zenoh's graph cache does: a liveliness subscriber on ``@ros2_lv/**``, each token read by the port of
+rmw_zenoh_cpp's own reader (tests/rmw_zenoh_port.py).
 
 Real processes on 127.0.0.1: ``aioadept sim`` (its state stream on ZeroMQ, or on Zenoh), ``aioadept ros2`` (a Zenoh
 client of this test process, which is the router; multicast scouting off). No ROS 2 installation runs here: what

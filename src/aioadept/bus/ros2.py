@@ -12,9 +12,18 @@ whose attachment is the publisher's sequence number (int64, from 1), source time
 rmw_zenoh drops the sample. The type hash is ROS 2's RIHS01 of the message definition (Jazzy, Kilted, Rolling);
 Humble's rmw_zenoh has no hash in its keys and is not served.
 
-What is not done: the graph's liveliness tokens (``@ros2_lv/...``), so ``ros2 topic list`` does not show the topic
-(a subscriber that names the type receives it all the same), and QoS beyond Zenoh's defaults (best effort to a late
-joiner: no history). docs/bus.md, "ROS 2", says what was checked here and how.
+It is also a node of the ROS 2 graph: rmw_zenoh builds its graph (``ros2 node list``, ``ros2 topic list -t``,
+``ros2 topic info``, the type ``ros2 topic echo`` picks when none is given) from liveliness tokens under
+``@ros2_lv/<domain>/``. :class:`JointStatePublisher` holds two while it runs, written as rmw_zenoh_cpp writes them
+(its liveliness_utils.cpp): a node (``NN``) and its publisher (``MP``)::
+
+    @ros2_lv/<domain>/<zid>/0/0/NN/%/<namespace>/<node name>
+    @ros2_lv/<domain>/<zid>/0/1/MP/%/<namespace>/<node name>/<topic>/<DDS type>/<type hash>/::,1:,:,:,,
+
+names with '/' as '%' (``/joint_states``: ``%joint_states``), ``<zid>`` the Zenoh session's id, the topic's type and
+hash those of the data key, the QoS reliable, volatile, keep last 1 (:data:`JOINT_STATE_QOS`: what the publisher
+does). Checked against rmw_zenoh's source and examples, not against a running ROS 2 (docs/bus.md,
+"ROS 2", says what was checked and how); the attachment's GID is random, not rmw_zenoh's hash of the token.
 
 Joint names are the URDF's (:mod:`aioadept.robots.viper_s850_urdf`: ``joint_1`` .. ``joint_6``), positions in
 radians as ROS wants them (the V+ joint angles, converted), stamped with the state's own ``wall_time_s``.

@@ -5,9 +5,10 @@ Follows ``--state-endpoint`` (the sim's or ``aioadept state``'s ZeroMQ stream, o
 each sample on ``<domain>/<topic>/sensor_msgs::msg::dds_::JointState_/RIHS01_...`` with rmw_zenoh's attachment, so
 ``ros2 topic echo /joint_states`` on rmw_zenoh_cpp, connected to the same Zenoh router, prints the arm (joint_1..joint_6
 in radians, the URDF's names). It is node ``--node-name`` in ``--namespace`` of the ROS 2 graph, with one publisher
-(rmw_zenoh's liveliness tokens, held while it runs), so ``ros2 node list`` and ``ros2 topic list`` show it. Multicast scouting is off: it is the router
-(``--zenoh-listen``) or connects to one (``--zenoh-connect``). Prints ``READY ros2=KEY state=ENDPOINT`` once it
-follows; runs until SIGINT/SIGTERM. What was checked and what was not: docs/bus.md, "ROS 2".
+(rmw_zenoh's liveliness tokens, held while it runs), so ``ros2 node list`` and ``ros2 topic list`` show it.
+Multicast scouting is off: it is the router (``--zenoh-listen``) or connects to one (``--zenoh-connect``). Prints
+``READY ros2=KEY state=ENDPOINT node=/NAMESPACE/NAME`` once it follows; runs until SIGINT/SIGTERM. What was checked
+and what was not: docs/bus.md, "ROS 2".
 """
 
 from __future__ import annotations
