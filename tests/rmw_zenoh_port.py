@@ -33,6 +33,9 @@ INFINITE = (9223372036, 854775807)  # RMW_DURATION_INFINITE (sec, nsec)
 # qos.cpp, QoS::QoS: RMW_ZENOH_DEFAULT_*
 DEFAULT_QOS = dict(reliability="reliable", durability="volatile", history="keep_last", depth=42, deadline=INFINITE,
                    lifespan=INFINITE, liveliness="automatic", liveliness_lease_duration=INFINITE)
+# ... and before rmw_zenoh 0.5.0: transient local ("Switch default durability to volatile", ros2/rmw_zenoh#521,
+# backported to jazzy; issue #485 tabulates the old defaults). A token is read with its reader's defaults.
+DEFAULT_QOS_BEFORE_0_5 = dict(DEFAULT_QOS, durability="transient_local")
 
 
 class TokenRefused(ValueError):
@@ -85,14 +88,14 @@ def _str_to_size_t(s: str, default):
     return int(s)
 
 
-def keyexpr_to_qos(keyexpr: str) -> dict:
+def keyexpr_to_qos(keyexpr: str, defaults: dict = DEFAULT_QOS) -> dict:
     parts = _split(keyexpr, ":")
     if len(parts) < 6:
         raise TokenRefused(f"QoS {keyexpr!r}: {len(parts)} ':' parts, 6 needed")
     history, deadline, lifespan, liveliness = (_split(parts[i], ",") for i in (2, 3, 4, 5))
     if len(history) < 2 or len(deadline) < 2 or len(lifespan) < 2 or len(liveliness) < 3:
         raise TokenRefused(f"QoS {keyexpr!r}: a ',' group is short")
-    d = DEFAULT_QOS
+    d = defaults
     try:
         qos = dict(
             history=d["history"] if history[0] == "" else STR_TO_HISTORY[history[0]],
@@ -114,8 +117,8 @@ def _strip_slashes(s: str) -> str:
     return s[start:end]
 
 
-def entity_from_keyexpr(keyexpr: str) -> Entity:
-    """Entity::make(const std::string & keyexpr)."""
+def entity_from_keyexpr(keyexpr: str, qos_defaults: dict = DEFAULT_QOS) -> Entity:
+    """Entity::make(const std::string & keyexpr), by a reader whose QoS::default_qos() is ``qos_defaults``."""
     parts = _split(keyexpr, "/")
     if len(parts) < KEYEXPR_INDEX_MIN + 1:
         raise TokenRefused(f"{len(parts)}/{KEYEXPR_INDEX_MIN + 1} parts: {keyexpr}")
@@ -134,7 +137,7 @@ def entity_from_keyexpr(keyexpr: str) -> Entity:
         name = demangle_name(parts[TOPIC_NAME])
         type_ = demangle_name(parts[TOPIC_TYPE])
         type_hash = demangle_name(parts[TOPIC_HASH])
-        topic_info = TopicInfo(name, type_, type_hash, keyexpr_to_qos(parts[TOPIC_QOS]),
+        topic_info = TopicInfo(name, type_, type_hash, keyexpr_to_qos(parts[TOPIC_QOS], qos_defaults),
                                f"{domain_id}/{_strip_slashes(name)}/{type_}/{type_hash}")
     return Entity(kind, domain_id, parts[ZID], parts[NID], parts[ID], demangle_name(parts[ENCLAVE]),
                   demangle_name(parts[NAMESPACE]), demangle_name(parts[NODE_NAME]), topic_info)

@@ -130,7 +130,7 @@ def test_the_design_docs_publisher_token() -> None:
     talker_qos = ros2.Qos(ros2.Reliability.RELIABLE, ros2.Durability.VOLATILE, ros2.History.KEEP_LAST, 7)
     key = ros2.publisher_token_key("8b20917502ee955ac4476e0266340d5c", "/chatter", domain_id=2, node_id=0,
                                    entity_id=10, node_name="talker", dds_type=STRING_DDS, type_hash=STRING_HASH,
-                                   qos=talker_qos)
+                                   qos=talker_qos, qos_defaults=ros2.RMW_ZENOH_DEFAULT_QOS)
     assert key == DESIGN_MP
 
 
@@ -167,21 +167,33 @@ def test_our_tokens_read_back_through_rmw_zenohs_reader(domain, ns, node, topic)
     assert t.type_hash == ros2.JOINT_STATE_HASH
     # the topic the graph announces is the key the samples are put on
     assert t.topic_keyexpr == ros2.topic_key(topic, domain_id=domain)
-    assert t.qos == dict(rz.DEFAULT_QOS, depth=1)  # reliable, volatile, keep last 1; the rest rmw_zenoh's defaults
+    ours = {"reliability": "reliable", "durability": "volatile", "history": "keep_last", "depth": 1}
+    assert t.qos == dict(rz.DEFAULT_QOS, **ours)  # the rest rmw_zenoh's defaults
+    # ... and the same for a reader from before rmw_zenoh's default durability became volatile
+    old = rz.entity_from_keyexpr(ros2.publisher_token_key(ZID, topic, domain_id=domain, node_name=node,
+                                                          namespace=ns), qos_defaults=rz.DEFAULT_QOS_BEFORE_0_5)
+    assert {k: old.topic_info.qos[k] for k in ours} == ours
 
 
-@pytest.mark.parametrize("qos, text, read", [
-    (ros2.RMW_ZENOH_DEFAULT_QOS, "::,:,:,:,,", {}),
-    (ros2.JOINT_STATE_QOS, "::,1:,:,:,,", {"depth": 1}),
+@pytest.mark.parametrize("qos, defaults, text, read", [
+    (ros2.RMW_ZENOH_DEFAULT_QOS, ros2.RMW_ZENOH_DEFAULT_QOS, "::,:,:,:,,", {}),
+    (ros2.JOINT_STATE_QOS, ros2.RMW_ZENOH_DEFAULT_QOS, "::,1:,:,:,,", {"depth": 1}),
+    (ros2.JOINT_STATE_QOS, None, "1:2:1,1:,:,:,,", {"depth": 1}),   # what our token writes
     # the policies' numbers are rmw/types.h's (the old token comment's "2:1:2,10": best effort, transient local,
     # keep all, depth 10)
     (ros2.Qos(ros2.Reliability.BEST_EFFORT, ros2.Durability.TRANSIENT_LOCAL, ros2.History.KEEP_ALL, 10),
-     "2:1:2,10:,:,:,,", {"reliability": "best_effort", "durability": "transient_local", "history": "keep_all",
-                         "depth": 10}),
+     ros2.RMW_ZENOH_DEFAULT_QOS, "2:1:2,10:,:,:,,",
+     {"reliability": "best_effort", "durability": "transient_local", "history": "keep_all", "depth": 10}),
 ])
-def test_qos_text_is_rmw_zenohs(qos, text, read) -> None:
-    assert qos.keyexpr() == text
+def test_qos_text_is_rmw_zenohs(qos, defaults, text, read) -> None:
+    assert qos.keyexpr(defaults) == text
     assert rz.keyexpr_to_qos(text) == dict(rz.DEFAULT_QOS, **read)
+
+
+def test_our_qos_text_means_the_same_to_an_older_reader() -> None:
+    # an empty durability is transient local to rmw_zenoh < 0.5.0: the reason our token writes every policy
+    assert rz.keyexpr_to_qos("::,1:,:,:,,", rz.DEFAULT_QOS_BEFORE_0_5)["durability"] == "transient_local"
+    assert rz.keyexpr_to_qos(ros2.JOINT_STATE_QOS.keyexpr(), rz.DEFAULT_QOS_BEFORE_0_5)["durability"] == "volatile"
 
 
 def test_the_zenoh_publisher_is_set_as_rmw_zenoh_sets_one_for_our_qos() -> None:

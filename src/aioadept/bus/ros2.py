@@ -18,12 +18,13 @@ It is also a node of the ROS 2 graph: rmw_zenoh builds its graph (``ros2 node li
 (its liveliness_utils.cpp): a node (``NN``) and its publisher (``MP``)::
 
     @ros2_lv/<domain>/<zid>/0/0/NN/%/<namespace>/<node name>
-    @ros2_lv/<domain>/<zid>/0/1/MP/%/<namespace>/<node name>/<topic>/<DDS type>/<type hash>/::,1:,:,:,,
+    @ros2_lv/<domain>/<zid>/0/1/MP/%/<namespace>/<node name>/<topic>/<DDS type>/<type hash>/1:2:1,1:,:,:,,
 
 names with '/' as '%' (``/joint_states``: ``%joint_states``), ``<zid>`` the Zenoh session's id, the topic's type and
 hash those of the data key, the QoS reliable, volatile, keep last 1 (:data:`JOINT_STATE_QOS`: what the publisher
-does). Checked against rmw_zenoh's source and examples, not against a running ROS 2 (docs/bus.md,
-"ROS 2", says what was checked and how); the attachment's GID is random, not rmw_zenoh's hash of the token.
+does), each written out (rmw_zenoh leaves a default empty, but its default durability has changed). Checked against
+rmw_zenoh's source and examples, not against a running ROS 2 (docs/bus.md, "ROS 2", says what was checked and how);
+the attachment's GID is random, not rmw_zenoh's hash of the token.
 
 Joint names are the URDF's (:mod:`aioadept.robots.viper_s850_urdf`: ``joint_1`` .. ``joint_6``), positions in
 radians as ROS wants them (the V+ joint angles, converted), stamped with the state's own ``wall_time_s``.
@@ -119,20 +120,24 @@ class Qos:
     history: History
     depth: int
 
-    def keyexpr(self) -> str:
-        """rmw_zenoh's compact form ``<rel>:<dur>:<hist>,<depth>:<deadline s>,<ns>:<lifespan s>,<ns>:<liveliness>,
-        <lease s>,<ns>``, each value left empty where it equals rmw_zenoh's default (:data:`RMW_ZENOH_DEFAULT_QOS`)."""
-        d = RMW_ZENOH_DEFAULT_QOS
+    def keyexpr(self, defaults: Qos | None = None) -> str:
+        """rmw_zenoh's compact form (qos_to_keyexpr): ``<rel>:<dur>:<hist>,<depth>:<deadline s>,<ns>:<lifespan s>,
+        <ns>:<liveliness>,<lease s>,<ns>``, rmw/types.h's numbers. rmw_zenoh leaves a value empty where it equals
+        its own default (``defaults=RMW_ZENOH_DEFAULT_QOS`` does that); ``None`` writes every policy we declare."""
 
-        def f(v: int, default: int) -> str:
+        def f(v: int, default: int | None) -> str:
             return "" if v == default else str(int(v))
 
-        return (f"{f(self.reliability, d.reliability)}:{f(self.durability, d.durability)}:"
-                f"{f(self.history, d.history)},{f(self.depth, d.depth)}:,:,:,,")
+        d = defaults
+        return (f"{f(self.reliability, d and d.reliability)}:{f(self.durability, d and d.durability)}:"
+                f"{f(self.history, d and d.history)},{f(self.depth, d and d.depth)}:,:,:,,")
 
 
 RMW_ZENOH_DEFAULT_QOS = Qos(Reliability.RELIABLE, Durability.VOLATILE, History.KEEP_LAST, 42)
-"""rmw_zenoh_cpp's QoS::default_qos() (qos.cpp): the values its tokens leave empty."""
+"""rmw_zenoh_cpp's QoS::default_qos() (qos.cpp): the values its tokens leave empty, and a reader fills in for an
+empty field. Not fixed: before rmw_zenoh 0.5.0 (ros2/rmw_zenoh#521, backported to Jazzy) the durability was transient
+local, so an empty durability means volatile to one reader and transient local to another. Our tokens therefore
+write every policy they declare (:func:`publisher_token_key`)."""
 
 JOINT_STATE_QOS = Qos(Reliability.RELIABLE, Durability.VOLATILE, History.KEEP_LAST, 1)
 """What :class:`JointStatePublisher` does, declared as such: a Zenoh publisher set as rmw_zenoh sets one for this QoS
@@ -208,13 +213,16 @@ def node_token_key(zid: str, *, domain_id: int = 0, node_id: int = 0, node_name:
 def publisher_token_key(zid: str, topic: str, *, domain_id: int = 0, node_id: int = 0, entity_id: int = 1,
                         node_name: str = DEFAULT_NODE_NAME, namespace: str = "/", enclave: str = DEFAULT_ENCLAVE,
                         dds_type: str = JOINT_STATE_DDS_TYPE, type_hash: str = JOINT_STATE_HASH,
-                        qos: Qos = JOINT_STATE_QOS) -> str:
+                        qos: Qos = JOINT_STATE_QOS, qos_defaults: Qos | None = None) -> str:
     """The liveliness key rmw_zenoh_cpp declares for a publisher (``MP``) of ``topic`` (taken as fully qualified,
     as :func:`topic_key` takes it): the node's parts with its own entity id, then
-    ``/<topic mangled>/<dds type>/<type hash>/<qos>``. No I/O; BusError for a bad part."""
+    ``/<topic mangled>/<dds type>/<type hash>/<qos>``, the QoS as :meth:`Qos.keyexpr` writes it with
+    ``qos_defaults`` (None: every policy written, read the same by every rmw_zenoh). No I/O; BusError for a bad
+    part."""
     prefix = _entity_key(zid, "MP", domain_id=domain_id, node_id=node_id, entity_id=entity_id, node_name=node_name,
                          namespace=namespace, enclave=enclave)
-    return f"{prefix}/{mangle('/' + _topic_name(topic))}/{mangle(dds_type)}/{mangle(type_hash)}/{qos.keyexpr()}"
+    topic_part = mangle("/" + _topic_name(topic))
+    return f"{prefix}/{topic_part}/{mangle(dds_type)}/{mangle(type_hash)}/{qos.keyexpr(qos_defaults)}"
 
 
 class _Cdr:
