@@ -89,7 +89,7 @@ def topic_key(topic: str, *, domain_id: int = 0, dds_type: str = JOINT_STATE_DDS
 
 ADMIN_SPACE = "@ros2_lv"
 DEFAULT_NODE_NAME = "aioadept_ros2"
-DEFAULT_ENCLAVE = "/"   # rcl's enclave when none is given; mangled, the "%" of design.md's examples
+DEFAULT_ENCLAVE = "/"   # no SROS enclave: mangled "%", design.md's "just % if not set"
 
 
 class Reliability(IntEnum):
