@@ -1,7 +1,9 @@
 """``aioadept ros2`` (issue 23, item 5): the robot state on ROS 2's wire, checked by what a ROS 2 subscriber on
 rmw_zenoh does with it: a Zenoh subscriber on the key rmw_zenoh_cpp declares for ``/<topic>`` of type
 ``sensor_msgs/msg/JointState`` (written out here from ROS 2's naming rule and rosbags' type hash, not from our module),
-the payload decoded by rosbags (an independent ROS 2 message library), the attachment read as rmw_zenoh reads it.
+the payload decoded by rosbags (an independent ROS 2 message library), the attachment read as rmw_zenoh reads it;
+and by what rmw_zenoh's graph cache does: a liveliness subscriber on ``@ros2_lv/**``, each token read by the port of
+rmw_zenoh_cpp's own reader (tests/rmw_zenoh_port.py).
 
 Real processes on 127.0.0.1: ``aioadept sim`` (its state stream on ZeroMQ, or on Zenoh), ``aioadept ros2`` (a Zenoh
 client of this test process, which is the router; multicast scouting off). No ROS 2 installation runs here: what
@@ -24,6 +26,7 @@ from aioadept.commands import MoveJoints, SetSpeed
 from aioadept.testing.nodes import running_node
 
 from bustransports import start_zenoh_router
+from rmw_zenoh_port import demangle_if_ros_type, entity_from_keyexpr
 
 pytestmark = [pytest.mark.skipif(importlib.util.find_spec("zenoh") is None,
                                  reason="the [zenoh] extra (eclipse-zenoh) is not installed"),
@@ -118,10 +121,102 @@ async def test_a_ros2_subscriber_on_rmw_zenohs_key_sees_the_arm_in_radians(tmp_p
         listener.close()
 
 
+class GraphWatcher:
+    """What rmw_zenoh_cpp's graph cache listens to: a liveliness subscriber on the admin space (with the tokens
+    already alive), each change recorded as (PUT | DELETE, key) in arrival order."""
+
+    def __init__(self) -> None:
+        import zenoh
+
+        from aioadept.bus import zenoh as zb
+
+        self.events: list[tuple[str, str]] = []
+        self._sub = zb.session().liveliness().declare_subscriber(
+            "@ros2_lv/**", zenoh.handlers.Callback(self._on, indirect=True), history=True)
+
+    def _on(self, sample) -> None:
+        import zenoh
+
+        kind = "PUT" if sample.kind == zenoh.SampleKind.PUT else "DELETE"
+        self.events.append((kind, str(sample.key_expr)))  # list.append: safe from Zenoh's thread
+
+    def alive(self) -> set[str]:
+        keys: set[str] = set()
+        for kind, key in list(self.events):
+            (keys.add if kind == "PUT" else keys.discard)(key)
+        return keys
+
+    async def until(self, pred, timeout_s: float, what: str):
+        t_end = time.monotonic() + timeout_s
+        while time.monotonic() < t_end:
+            if pred():
+                return
+            await asyncio.sleep(0.02)
+        raise AssertionError(f"{what} not seen in {timeout_s} s; liveliness events: {self.events}")
+
+    def close(self) -> None:
+        self._sub.undeclare()
+
+
+class KeysSeen:
+    """The key expressions JointState samples arrive on, under a domain (``<domain>/**``)."""
+
+    def __init__(self, domain: int) -> None:
+        import zenoh
+
+        from aioadept.bus import zenoh as zb
+
+        self.keys: set[str] = set()
+        self._sub = zb.session().declare_subscriber(f"{domain}/**", zenoh.handlers.Callback(
+            lambda sample: self.keys.add(str(sample.key_expr)), indirect=True))
+
+    def close(self) -> None:
+        self._sub.undeclare()
+
+
+@pytest.mark.timeout(60)
+async def test_the_ros2_graph_sees_the_node_and_its_publisher_while_it_runs(tmp_path) -> None:
+    router = start_zenoh_router()
+    graph = GraphWatcher()
+    data = KeysSeen(5)
+    try:
+        async with running_node("sim", "--port", "0", "--state-rate", "50", "--state-endpoint", "tcp://127.0.0.1:0",
+                                log_path=tmp_path / "sim.log") as sim:
+            async with running_node("ros2", "--state-endpoint", sim.ready["state"], "--zenoh-connect", router,
+                                    "--domain", "5", "--topic", "/lv/joint_states", "--node-name", "viper_state",
+                                    "--namespace", "/cell_a", log_path=tmp_path / "ros2.log") as relay:
+                assert relay.ready["node"] == "/cell_a/viper_state"
+                await graph.until(lambda: len(graph.alive()) == 2 and data.keys, 10, "two tokens and a sample")
+                entities = sorted((entity_from_keyexpr(k) for k in graph.alive()), key=lambda e: e.kind)
+                alive = set(graph.alive())
+        # SIGINT, clean exit (running_node checks the code): both tokens are gone, the publisher's first, as
+        # rmw_zenoh_cpp destroys a node's publisher before the node.
+        await graph.until(lambda: not graph.alive(), 10, "both tokens gone")
+        deletes = [k for kind, k in graph.events if kind == "DELETE"]
+        node, pub = entities
+        assert (node.kind, pub.kind) == ("node", "publisher")
+        assert deletes == [k for k in sorted(alive, key=lambda k: "/NN/" in k)]  # MP, then NN
+        assert (node.domain_id, node.namespace, node.node_name, node.enclave) == (5, "/cell_a", "viper_state", "/")
+        assert (pub.domain_id, pub.namespace, pub.node_name) == (5, "/cell_a", "viper_state")
+        assert pub.zid == node.zid and pub.nid == node.id == node.nid and pub.id != node.id
+        # The publisher's token names what arrives: its topic/type/hash are the key the samples came on, the type
+        # is the one `ros2 topic echo` would pick (rosbags computes the hash independently).
+        t = pub.topic_info
+        assert data.keys == {t.topic_keyexpr} == {rmw_zenoh_key(5, "/lv/joint_states")}
+        assert t.name == "/lv/joint_states" and demangle_if_ros_type(t.type) == TYPE
+        assert (t.qos["reliability"], t.qos["durability"], t.qos["history"], t.qos["depth"]) == \
+            ("reliable", "volatile", "keep_last", 1)
+    finally:
+        graph.close()
+        data.close()
+
+
 @pytest.mark.timeout(30)
 @pytest.mark.parametrize("argv, says", [
     (["--topic", "/joint states"], "ROS 2 topic '/joint states'"),
     (["--domain", "300"], "ROS 2 domain id 300"),
+    (["--node-name", "2nd"], "ROS 2 node name '2nd'"),
+    (["--namespace", "cell1"], "ROS 2 namespace 'cell1'"),
     (["--zenoh-listen", "tcp/127.0.0.1:7999", "--zenoh-connect", "tcp/127.0.0.1:7447"], "not both"),
     (["--zenoh-connect", "127.0.0.1:7447"], "Zenoh endpoint '127.0.0.1:7447'"),
 ])

@@ -12,9 +12,19 @@ whose attachment is the publisher's sequence number (int64, from 1), source time
 rmw_zenoh drops the sample. The type hash is ROS 2's RIHS01 of the message definition (Jazzy, Kilted, Rolling);
 Humble's rmw_zenoh has no hash in its keys and is not served.
 
-What is not done: the graph's liveliness tokens (``@ros2_lv/...``), so ``ros2 topic list`` does not show the topic
-(a subscriber that names the type receives it all the same), and QoS beyond Zenoh's defaults (best effort to a late
-joiner: no history). docs/bus.md, "ROS 2", says what was checked here and how.
+It is also a node of the ROS 2 graph: rmw_zenoh builds its graph (``ros2 node list``, ``ros2 topic list -t``,
+``ros2 topic info``, the type ``ros2 topic echo`` picks when none is given) from liveliness tokens under
+``@ros2_lv/<domain>/``. :class:`JointStatePublisher` holds two while it runs, written as rmw_zenoh_cpp writes them
+(its liveliness_utils.cpp): a node (``NN``) and its publisher (``MP``)::
+
+    @ros2_lv/<domain>/<zid>/0/0/NN/%/<namespace>/<node name>
+    @ros2_lv/<domain>/<zid>/0/1/MP/%/<namespace>/<node name>/<topic>/<DDS type>/<type hash>/1:2:1,1:,:,:,,
+
+names with '/' as '%' (``/joint_states``: ``%joint_states``), ``<zid>`` the Zenoh session's id, the topic's type and
+hash those of the data key, the QoS reliable, volatile, keep last 1 (:data:`JOINT_STATE_QOS`: what the publisher
+does), each written out (rmw_zenoh leaves a default empty, but its default durability has changed). Checked against
+rmw_zenoh's source and examples, not against a running ROS 2 (docs/bus.md, "ROS 2", says what was checked and how);
+the attachment's GID is random, not rmw_zenoh's hash of the token.
 
 Joint names are the URDF's (:mod:`aioadept.robots.viper_s850_urdf`: ``joint_1`` .. ``joint_6``), positions in
 radians as ROS wants them (the V+ joint angles, converted), stamped with the state's own ``wall_time_s``.
@@ -28,12 +38,16 @@ import re
 import struct
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass
+from enum import IntEnum
 from typing import Any
 
 from aioadept.errors import BusError
 
-__all__ = ["JOINT_STATE_DDS_TYPE", "JOINT_STATE_HASH", "JointStatePublisher", "attachment", "encode_joint_state",
-           "topic_key"]
+__all__ = ["ADMIN_SPACE", "DEFAULT_NODE_NAME", "JOINT_STATE_DDS_TYPE", "JOINT_STATE_HASH", "JOINT_STATE_QOS",
+           "RMW_ZENOH_DEFAULT_QOS", "Durability", "History", "JointStatePublisher", "Qos", "Reliability", "attachment",
+           "check_namespace", "check_node_name", "encode_joint_state", "mangle", "node_token_key",
+           "publisher_token_key", "topic_key", "zenoh_publisher_options"]
 
 JOINT_STATE_DDS_TYPE = "sensor_msgs::msg::dds_::JointState_"
 JOINT_STATE_HASH = "RIHS01_a13ee3a330e346c9d87b5aa18d24e11690752bd33a0350f11c5882bc9179260e"
@@ -44,17 +58,171 @@ _ROS_TOKEN = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 _CDR_LE = b"\x00\x01\x00\x00"  # encapsulation: plain CDR, little endian, no options
 
 
-def topic_key(topic: str, *, domain_id: int = 0, dds_type: str = JOINT_STATE_DDS_TYPE,
-              type_hash: str = JOINT_STATE_HASH) -> str:
-    """The key expression rmw_zenoh publishes ``topic`` (a ROS name, e.g. ``/joint_states``) on; BusError for a
-    name ROS would refuse."""
-    if not isinstance(domain_id, int) or not 0 <= domain_id <= 232:
+def _check_domain(domain_id: int) -> None:
+    if not isinstance(domain_id, int) or isinstance(domain_id, bool) or not 0 <= domain_id <= 232:
         raise BusError(f"ROS 2 domain id {domain_id!r}: expected an integer 0..232")
+
+
+def _topic_name(topic: str) -> str:
+    """``topic`` without its outer "/" (``joint_states``), the one form both the data key and the publisher's
+    token are written from; BusError for a name ROS would refuse."""
     name = topic.strip("/")
     if not all(_ROS_TOKEN.match(p) for p in name.split("/")):
         raise BusError(f"ROS 2 topic {topic!r}: expected a name like /joint_states (letters, digits, '_', "
                        f"separated by '/', each part not starting with a digit)")
-    return f"{domain_id}/{name}/{dds_type}/{type_hash}"
+    return name
+
+
+def topic_key(topic: str, *, domain_id: int = 0, dds_type: str = JOINT_STATE_DDS_TYPE,
+              type_hash: str = JOINT_STATE_HASH) -> str:
+    """The key expression rmw_zenoh publishes ``topic`` (a ROS name, e.g. ``/joint_states``) on; BusError for a
+    name ROS would refuse."""
+    _check_domain(domain_id)
+    return f"{domain_id}/{_topic_name(topic)}/{dds_type}/{type_hash}"
+
+
+# -- The ROS 2 graph: rmw_zenoh's liveliness tokens -----------------------------------------------------------------
+# Written as rmw_zenoh_cpp writes them (rmw_zenoh_cpp/src/detail/liveliness_utils.cpp: ADMIN_SPACE and the entity
+# strings, the KeyexprIndex order, Entity::Entity, mangle_name, qos_to_keyexpr; qos.cpp: the defaults qos_to_keyexpr
+# leaves out). A ROS 2 context subscribes to ``@ros2_lv/<domain>/**`` and builds its graph (node list, topic list,
+# a topic's type) from the tokens alive under it.
+
+ADMIN_SPACE = "@ros2_lv"
+DEFAULT_NODE_NAME = "aioadept_ros2"
+DEFAULT_ENCLAVE = "/"   # no SROS enclave: mangled "%", design.md's "just % if not set"
+
+
+class Reliability(IntEnum):
+    """``rmw_qos_reliability_policy_e`` (rmw/types.h): the number is what the token carries."""
+    RELIABLE = 1
+    BEST_EFFORT = 2
+
+
+class Durability(IntEnum):
+    """``rmw_qos_durability_policy_e``."""
+    TRANSIENT_LOCAL = 1
+    VOLATILE = 2
+
+
+class History(IntEnum):
+    """``rmw_qos_history_policy_e``."""
+    KEEP_LAST = 1
+    KEEP_ALL = 2
+
+
+@dataclass(frozen=True, slots=True)
+class Qos:
+    """The QoS a token declares. Deadline, lifespan and liveliness are not fields: we offer none of them, so they
+    stay at rmw_zenoh's defaults (infinite, infinite, automatic: a token's own liveliness), which the token leaves
+    empty."""
+    reliability: Reliability
+    durability: Durability
+    history: History
+    depth: int
+
+    def keyexpr(self, defaults: Qos | None = None) -> str:
+        """rmw_zenoh's compact form (qos_to_keyexpr): ``<rel>:<dur>:<hist>,<depth>:<deadline s>,<ns>:<lifespan s>,
+        <ns>:<liveliness>,<lease s>,<ns>``, rmw/types.h's numbers. rmw_zenoh leaves a value empty where it equals
+        its own default (``defaults=RMW_ZENOH_DEFAULT_QOS`` does that); ``None`` writes every policy we declare."""
+
+        def f(v: int, default: int | None) -> str:
+            return "" if v == default else str(int(v))
+
+        d = defaults
+        return (f"{f(self.reliability, d and d.reliability)}:{f(self.durability, d and d.durability)}:"
+                f"{f(self.history, d and d.history)},{f(self.depth, d and d.depth)}:,:,:,,")
+
+
+RMW_ZENOH_DEFAULT_QOS = Qos(Reliability.RELIABLE, Durability.VOLATILE, History.KEEP_LAST, 42)
+"""rmw_zenoh_cpp's QoS::default_qos() (qos.cpp): the values its tokens leave empty, and a reader fills in for an
+empty field. Not fixed: before rmw_zenoh 0.5.0 (ros2/rmw_zenoh#521, backported to Jazzy) the durability was transient
+local, so an empty durability means volatile to one reader and transient local to another. Our tokens therefore
+write every policy they declare (:func:`publisher_token_key`)."""
+
+JOINT_STATE_QOS = Qos(Reliability.RELIABLE, Durability.VOLATILE, History.KEEP_LAST, 1)
+"""What :class:`JointStatePublisher` does, declared as such: a Zenoh publisher set as rmw_zenoh sets one for this QoS
+(reliable, congestion control DROP: :func:`zenoh_publisher_options`), no cache for a late joiner (volatile), and
+nothing kept but the sample being put (keep last 1; rmw_zenoh itself uses the depth only to size a transient-local
+cache). docs/bus.md, "ROS 2", says why."""
+
+
+def zenoh_publisher_options(qos: Qos) -> dict[str, str]:
+    """The Zenoh publisher settings rmw_zenoh_cpp gives a publisher of ``qos`` (rmw_publisher_data.cpp,
+    PublisherData::make): congestion control DROP, except BLOCK for reliable + keep all; reliability RELIABLE for a
+    reliable one, Zenoh's default otherwise. Names of ``zenoh.CongestionControl`` / ``zenoh.Reliability`` members."""
+    if qos.durability == Durability.TRANSIENT_LOCAL:
+        raise BusError("a transient-local ROS 2 publisher needs a publication cache, which aioadept does not keep")
+    opts = {"congestion_control": "DROP"}
+    if qos.reliability == Reliability.RELIABLE:
+        opts["reliability"] = "RELIABLE"
+        if qos.history == History.KEEP_ALL:
+            opts["congestion_control"] = "BLOCK"
+    return opts
+
+
+def check_node_name(name: str) -> str:
+    """``name`` if ROS 2 accepts it as a node name (rmw_validate_node_name: letters, digits, '_', not starting with a
+    digit, at most 255 characters); BusError otherwise."""
+    if not isinstance(name, str) or not _ROS_TOKEN.match(name) or len(name) > 255:
+        raise BusError(f"ROS 2 node name {name!r}: expected letters, digits and '_', not starting with a digit")
+    return name
+
+
+def check_namespace(namespace: str) -> str:
+    """``namespace`` if ROS 2 accepts it as a node namespace (absolute: ``/`` or ``/a/b``, each part a ROS name
+    token); BusError otherwise."""
+    if not isinstance(namespace, str) or not namespace.startswith("/") or (
+            namespace != "/" and not all(_ROS_TOKEN.match(p) for p in namespace[1:].split("/"))):
+        raise BusError(f"ROS 2 namespace {namespace!r}: expected / or an absolute name like /cell1 (letters, "
+                       f"digits, '_', separated by '/', each part not starting with a digit)")
+    return namespace
+
+
+def mangle(name: str) -> str:
+    """rmw_zenoh's mangle_name: every '/' becomes '%' (a token's chunk cannot hold '/', nor be empty)."""
+    return name.replace("/", "%")
+
+
+_ZID = re.compile(r"^[0-9a-f]{1,32}$")
+
+
+def _entity_key(zid: str, kind: str, *, domain_id: int, node_id: int, entity_id: int, node_name: str,
+                namespace: str, enclave: str) -> str:
+    _check_domain(domain_id)
+    if not isinstance(zid, str) or not _ZID.match(zid):
+        raise BusError(f"Zenoh session id {zid!r}: expected its text form, 1-32 lowercase hex digits")
+    for what, n in (("node id", node_id), ("entity id", entity_id)):
+        if not isinstance(n, int) or isinstance(n, bool) or n < 0:
+            raise BusError(f"rmw_zenoh {what} {n!r}: expected an integer >= 0")
+    check_node_name(node_name)
+    check_namespace(namespace)
+    check_namespace(enclave)  # an enclave is written as a namespace is
+    return "/".join((ADMIN_SPACE, str(domain_id), zid, str(node_id), str(entity_id), kind, mangle(enclave),
+                     mangle(namespace), node_name))
+
+
+def node_token_key(zid: str, *, domain_id: int = 0, node_id: int = 0, node_name: str = DEFAULT_NODE_NAME,
+                   namespace: str = "/", enclave: str = DEFAULT_ENCLAVE) -> str:
+    """The liveliness key rmw_zenoh_cpp declares for a node (``NN``):
+    ``@ros2_lv/<domain>/<zid>/<node id>/<node id>/NN/<enclave>/<namespace>/<node name>``, names mangled.
+    ``zid`` is the Zenoh session's id as text (``str(session.info.zid())``); no I/O. BusError for a bad part."""
+    return _entity_key(zid, "NN", domain_id=domain_id, node_id=node_id, entity_id=node_id, node_name=node_name,
+                       namespace=namespace, enclave=enclave)
+
+
+def publisher_token_key(zid: str, topic: str, *, domain_id: int = 0, node_id: int = 0, entity_id: int = 1,
+                        node_name: str = DEFAULT_NODE_NAME, namespace: str = "/", enclave: str = DEFAULT_ENCLAVE,
+                        dds_type: str = JOINT_STATE_DDS_TYPE, type_hash: str = JOINT_STATE_HASH,
+                        qos: Qos = JOINT_STATE_QOS, qos_defaults: Qos | None = None) -> str:
+    """The liveliness key rmw_zenoh_cpp declares for a publisher (``MP``) of ``topic`` (taken as fully qualified,
+    as :func:`topic_key` takes it): the node's parts with its own entity id, then
+    ``/<topic mangled>/<dds type>/<type hash>/<qos>``, the QoS as :meth:`Qos.keyexpr` writes it with
+    ``qos_defaults`` (None: every policy written, read the same by every rmw_zenoh). No I/O; BusError for a bad
+    part."""
+    prefix = _entity_key(zid, "MP", domain_id=domain_id, node_id=node_id, entity_id=entity_id, node_name=node_name,
+                         namespace=namespace, enclave=enclave)
+    topic_part = mangle("/" + _topic_name(topic))
+    return f"{prefix}/{topic_part}/{mangle(dds_type)}/{mangle(type_hash)}/{qos.keyexpr(qos_defaults)}"
 
 
 class _Cdr:
@@ -129,10 +297,14 @@ def attachment(seq: int, t_ns: int, gid: bytes) -> bytes:
 class JointStatePublisher:
     """Puts each :class:`aioadept.bus.messages.RobotState` given to :meth:`publish` as a ROS 2 JointState on
     ``topic`` in ``domain_id``, through this process's Zenoh session (:func:`aioadept.bus.zenoh.session`, or
-    ``session``). Not thread-safe: publish from one thread."""
+    ``session``), and holds the two liveliness tokens that make it a node of the ROS 2 graph (``node_name`` in
+    ``namespace``, with one publisher: :attr:`node_token`, :attr:`publisher_token`) until :meth:`close`.
+    Not thread-safe: publish from one thread."""
 
     def __init__(self, topic: str = "/joint_states", *, domain_id: int = 0, session: Any = None,
-                 frame_id: str = "") -> None:
+                 frame_id: str = "", node_name: str = DEFAULT_NODE_NAME, namespace: str = "/") -> None:
+        import zenoh
+
         from aioadept.bus import zenoh as zb
         from aioadept.robots.viper_s850_urdf import JOINTS
 
@@ -143,10 +315,25 @@ class JointStatePublisher:
         self.seq = 0
         self.published = 0
         s = session if session is not None else zb.session()
+        zid = str(s.info.zid())
+        # As rmw_zenoh_cpp counts them: one counter per context from 0, the node first, then its publisher.
+        self.node_token = node_token_key(zid, domain_id=domain_id, node_id=0, node_name=node_name,
+                                         namespace=namespace)
+        self.publisher_token = publisher_token_key(zid, topic, domain_id=domain_id, node_id=0, entity_id=1,
+                                                   node_name=node_name, namespace=namespace, qos=JOINT_STATE_QOS)
+        want = zenoh_publisher_options(JOINT_STATE_QOS)
+        opts = {"congestion_control": getattr(zenoh.CongestionControl, want["congestion_control"])}
+        if "reliability" in want:
+            opts["reliability"] = getattr(zenoh.Reliability, want["reliability"])
+        self._pub = self._node_lv = self._pub_lv = None
         try:
-            self._pub = s.declare_publisher(self.key)
+            # rmw_zenoh's order: the node's token when the node is made, the publisher's after its publisher.
+            self._node_lv = s.liveliness().declare_token(self.node_token)
+            self._pub = s.declare_publisher(self.key, **opts)
+            self._pub_lv = s.liveliness().declare_token(self.publisher_token)
         except Exception as exc:
-            raise BusError(f"cannot declare a Zenoh publisher on {self.key!r}: {exc}") from exc
+            self.close()
+            raise BusError(f"cannot declare the ROS 2 node and publisher of {self.key!r} on Zenoh: {exc}") from exc
 
     def publish(self, state: Any) -> None:
         """Put ``state`` (a RobotState: ``joints_deg``, ``wall_time_s``) as a JointState."""
@@ -157,9 +344,13 @@ class JointStatePublisher:
         self.published += 1
 
     def close(self) -> None:
-        pub, self._pub = self._pub, None
-        if pub is not None:
-            try:
-                pub.undeclare()
-            except Exception:
-                pass
+        """Leave the ROS 2 graph (the publisher's token, the publisher, then the node's token, the reverse of their
+        declaration) and stop publishing. Idempotent."""
+        for attr in ("_pub_lv", "_pub", "_node_lv"):
+            entity = getattr(self, attr)
+            setattr(self, attr, None)
+            if entity is not None:
+                try:
+                    entity.undeclare()
+                except Exception:  # a session already closed took it with it
+                    pass

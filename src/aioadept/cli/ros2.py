@@ -3,10 +3,12 @@
 
 Follows ``--state-endpoint`` (the sim's or ``aioadept state``'s ZeroMQ stream, or a ``zenoh:KEY`` stream) and puts
 each sample on ``<domain>/<topic>/sensor_msgs::msg::dds_::JointState_/RIHS01_...`` with rmw_zenoh's attachment, so
-``ros2 topic echo /joint_states sensor_msgs/msg/JointState`` on rmw_zenoh_cpp, connected to the same Zenoh router,
-prints the arm (joint_1..joint_6 in radians, the URDF's names). Multicast scouting is off: it is the router
-(``--zenoh-listen``) or connects to one (``--zenoh-connect``). Prints ``READY ros2=KEY state=ENDPOINT`` once it
-follows; runs until SIGINT/SIGTERM. What was checked and what was not: docs/bus.md, "ROS 2".
+``ros2 topic echo /joint_states`` on rmw_zenoh_cpp, connected to the same Zenoh router, prints the arm (joint_1..joint_6
+in radians, the URDF's names). It is node ``--node-name`` in ``--namespace`` of the ROS 2 graph, with one publisher
+(rmw_zenoh's liveliness tokens, held while it runs), so ``ros2 node list`` and ``ros2 topic list`` show it.
+Multicast scouting is off: it is the router (``--zenoh-listen``) or connects to one (``--zenoh-connect``). Prints
+``READY ros2=KEY state=ENDPOINT node=/NAMESPACE/NAME`` once it follows; runs until SIGINT/SIGTERM. What was checked
+and what was not: docs/bus.md, "ROS 2".
 """
 
 from __future__ import annotations
@@ -29,6 +31,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--topic", default="/joint_states", help="the ROS 2 topic")
     p.add_argument("--domain", type=int, default=0, help="the ROS 2 domain id (ROS_DOMAIN_ID), 0..232")
     p.add_argument("--frame-id", default="", dest="frame_id", help="the JointState's header.frame_id")
+    p.add_argument("--node-name", default="aioadept_ros2", dest="node_name",
+                   help="the ROS 2 node this relay is in the graph (ros2 node list)")
+    p.add_argument("--namespace", default="/", help="the node's namespace, e.g. /cell1 (--topic is not put in it: "
+                                                    "give the topic's full name)")
     p.add_argument("--zenoh-connect", metavar="tcp/HOST:PORT", dest="zenoh_connect",
                    help="the Zenoh router to connect to, e.g. rmw_zenohd's (default tcp/127.0.0.1:7447)")
     p.add_argument("--zenoh-listen", metavar="tcp/HOST:PORT", dest="zenoh_listen",
@@ -50,6 +56,8 @@ def _options(args: argparse.Namespace):  # -> (topic key, ZenohOptions)
         raise ValueError("give --zenoh-listen (be the router) or --zenoh-connect (use one), not both")
     try:
         key = ros2.topic_key(args.topic, domain_id=args.domain)
+        ros2.check_node_name(args.node_name)
+        ros2.check_namespace(args.namespace)
         kw = {"lowlatency": args.lowlatency, "config_file": args.zenoh_config}
         opts = (zb.ZenohOptions.router(args.zenoh_listen, **kw) if args.zenoh_listen
                 else zb.ZenohOptions.client(args.zenoh_connect or zb.DEFAULT_ROUTER, **kw))
@@ -73,11 +81,13 @@ async def run(args: argparse.Namespace, opts) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, stop.set)
     zb.configure(opts)
-    pub = JointStatePublisher(args.topic, domain_id=args.domain, frame_id=args.frame_id)
+    pub = JointStatePublisher(args.topic, domain_id=args.domain, frame_id=args.frame_id, node_name=args.node_name,
+                              namespace=args.namespace)
     bad = 0
     try:
         async with Subscriber(args.state_endpoint, topics=(ROBOT_STATE_TOPIC,)) as sub:
-            print(f"READY ros2={pub.key} state={args.state_endpoint}", flush=True)
+            node = args.namespace.rstrip("/") + "/" + args.node_name
+            print(f"READY ros2={pub.key} state={args.state_endpoint} node={node}", flush=True)
 
             async def follow() -> None:
                 nonlocal bad
