@@ -276,3 +276,33 @@ def test_a_publisher_that_cannot_be_declared_leaves_no_token() -> None:
         ros2.JointStatePublisher("/joint_states", session=s)
     nn = ros2.node_token_key(ZID)
     assert s.log == [("token", nn), ("untoken", nn)]
+
+
+@pytest.mark.parametrize("topic, ns, full", [
+    ("/joint_states", "/", "/joint_states"), ("/joint_states", "/cell1", "/joint_states"),  # absolute: as given
+    ("joint_states", "/", "/joint_states"), ("joint_states", "/cell1", "/cell1/joint_states"),  # relative
+    ("arm/joint_states", "/a/b", "/a/b/arm/joint_states"),
+    ("~/joint_states", "/cell1", "/cell1/viper/joint_states"), ("~", "/", "/viper"),  # private
+])
+def test_a_topic_name_is_expanded_as_a_ros_2_node_expands_it(topic, ns, full) -> None:
+    # rcl_expand_topic_name's rules: robot_state_publisher in namespace /cell1 listens on joint_states, i.e.
+    # /cell1/joint_states, so a relay in the same namespace must publish there with the same relative name.
+    assert ros2.expand_topic_name(topic, node_name="viper", namespace=ns) == full
+
+
+@pytest.mark.parametrize("topic", ["", "/", "joint states", "a//b", "a/", "~x", "1abc", "{node}/js", "/a/2b"])
+def test_a_topic_name_ros_would_refuse_is_refused_before_expansion_hides_it(topic) -> None:
+    with pytest.raises(BusError, match="ROS 2 topic"):
+        ros2.expand_topic_name(topic, node_name="viper", namespace="/cell1")
+
+
+def test_a_relative_topic_goes_into_the_nodes_namespace_on_the_wire_and_in_its_token() -> None:
+    s = _FakeSession(ZID)
+    pub = ros2.JointStatePublisher("joint_states", domain_id=2, session=s, node_name="viper", namespace="/c1")
+    assert pub.topic == "/c1/joint_states"
+    assert pub.key == ros2.topic_key("/c1/joint_states", domain_id=2)
+    assert pub.key.startswith("2/c1/joint_states/")
+    assert pub.publisher_token == ros2.publisher_token_key(ZID, "/c1/joint_states", domain_id=2, node_name="viper",
+                                                           namespace="/c1")
+    assert "/%c1%joint_states/" in pub.publisher_token
+    pub.close()

@@ -46,7 +46,7 @@ from aioadept.errors import BusError
 
 __all__ = ["ADMIN_SPACE", "DEFAULT_NODE_NAME", "JOINT_STATE_DDS_TYPE", "JOINT_STATE_HASH", "JOINT_STATE_QOS",
            "RMW_ZENOH_DEFAULT_QOS", "Durability", "History", "JointStatePublisher", "Qos", "Reliability", "attachment",
-           "check_namespace", "check_node_name", "encode_joint_state", "mangle", "node_token_key",
+           "check_namespace", "check_node_name", "encode_joint_state", "expand_topic_name", "mangle", "node_token_key",
            "publisher_token_key", "topic_key", "zenoh_publisher_options"]
 
 JOINT_STATE_DDS_TYPE = "sensor_msgs::msg::dds_::JointState_"
@@ -178,6 +178,27 @@ def check_namespace(namespace: str) -> str:
     return namespace
 
 
+def expand_topic_name(topic: str, *, node_name: str = DEFAULT_NODE_NAME, namespace: str = "/") -> str:
+    """``topic`` fully qualified as ROS 2 expands a node's topic name (rcl_expand_topic_name; ROS 2 design, "Topic
+    and Service name mapping to DDS"): ``/a/b`` stays; a relative ``a/b`` goes into the node's namespace
+    (``/cell1/a/b``; ``/a/b`` in ``/``); a private ``~`` or ``~/a`` into the node's own (``/cell1/<node>/a``).
+    Substitutions (``{node}``, ``{ns}``) are not taken. BusError for a name ROS would refuse."""
+    check_node_name(node_name)
+    check_namespace(namespace)
+    ns = "" if namespace == "/" else namespace
+    if isinstance(topic, str) and (topic == "~" or topic.startswith("~/")):
+        full = f"{ns}/{node_name}{topic[1:]}"
+    elif isinstance(topic, str) and not topic.startswith("/"):
+        full = f"{ns}/{topic}"
+    else:
+        full = topic
+    if not isinstance(full, str) or full.endswith("/") or "//" in full:
+        raise BusError(f"ROS 2 topic {topic!r}: expected a name like joint_states, /joint_states or ~/joint_states "
+                       f"(letters, digits, '_', separated by '/', each part not starting with a digit)")
+    _topic_name(full)  # the same check as the data key's
+    return full
+
+
 def mangle(name: str) -> str:
     """rmw_zenoh's mangle_name: every '/' becomes '%' (a token's chunk cannot hold '/', nor be empty)."""
     return name.replace("/", "%")
@@ -214,8 +235,8 @@ def publisher_token_key(zid: str, topic: str, *, domain_id: int = 0, node_id: in
                         node_name: str = DEFAULT_NODE_NAME, namespace: str = "/", enclave: str = DEFAULT_ENCLAVE,
                         dds_type: str = JOINT_STATE_DDS_TYPE, type_hash: str = JOINT_STATE_HASH,
                         qos: Qos = JOINT_STATE_QOS, qos_defaults: Qos | None = None) -> str:
-    """The liveliness key rmw_zenoh_cpp declares for a publisher (``MP``) of ``topic`` (taken as fully qualified,
-    as :func:`topic_key` takes it): the node's parts with its own entity id, then
+    """The liveliness key rmw_zenoh_cpp declares for a publisher (``MP``) of ``topic`` (fully qualified, as
+    :func:`expand_topic_name` gives it and :func:`topic_key` takes it): the node's parts with its own entity id, then
     ``/<topic mangled>/<dds type>/<type hash>/<qos>``, the QoS as :meth:`Qos.keyexpr` writes it with
     ``qos_defaults`` (None: every policy written, read the same by every rmw_zenoh). No I/O; BusError for a bad
     part."""
@@ -301,13 +322,15 @@ class JointStatePublisher:
     ``namespace``, with one publisher: :attr:`node_token`, :attr:`publisher_token`) until :meth:`close`.
     Not thread-safe: publish from one thread."""
 
-    def __init__(self, topic: str = "/joint_states", *, domain_id: int = 0, session: Any = None,
+    def __init__(self, topic: str = "joint_states", *, domain_id: int = 0, session: Any = None,
                  frame_id: str = "", node_name: str = DEFAULT_NODE_NAME, namespace: str = "/") -> None:
         import zenoh
 
         from aioadept.bus import zenoh as zb
         from aioadept.robots.viper_s850_urdf import JOINTS
 
+        # A relative or private name goes into the node's namespace, as a ROS 2 node's would.
+        self.topic = topic = expand_topic_name(topic, node_name=node_name, namespace=namespace)
         self.key = topic_key(topic, domain_id=domain_id)
         self.names = tuple(j.name for j in JOINTS)
         self.frame_id = frame_id

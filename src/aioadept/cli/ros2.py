@@ -28,13 +28,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--state-endpoint", default=defaults.STATE_ENDPOINT, dest="state_endpoint",
                    help="the robot.state stream to follow: a ZeroMQ endpoint (as aioadept sim --state-endpoint) or "
                         "zenoh:KEY (a sim with --transport zenoh: zenoh:aioadept/CELL/sim/state)")
-    p.add_argument("--topic", default="/joint_states", help="the ROS 2 topic")
+    p.add_argument("--topic", default="joint_states",
+                   help="the ROS 2 topic, expanded as a node's: joint_states is /NAMESPACE/joint_states, "
+                        "/joint_states stays, ~/joint_states is /NAMESPACE/NODE/joint_states")
     p.add_argument("--domain", type=int, default=0, help="the ROS 2 domain id (ROS_DOMAIN_ID), 0..232")
     p.add_argument("--frame-id", default="", dest="frame_id", help="the JointState's header.frame_id")
     p.add_argument("--node-name", default="aioadept_ros2", dest="node_name",
                    help="the ROS 2 node this relay is in the graph (ros2 node list)")
-    p.add_argument("--namespace", default="/", help="the node's namespace, e.g. /cell1 (--topic is not put in it: "
-                                                    "give the topic's full name)")
+    p.add_argument("--namespace", default="/", help="the node's namespace, e.g. /cell1 (a relative --topic goes "
+                                                    "into it)")
     p.add_argument("--zenoh-connect", metavar="tcp/HOST:PORT", dest="zenoh_connect",
                    help="the Zenoh router to connect to, e.g. rmw_zenohd's (default tcp/127.0.0.1:7447)")
     p.add_argument("--zenoh-listen", metavar="tcp/HOST:PORT", dest="zenoh_listen",
@@ -55,9 +57,10 @@ def _options(args: argparse.Namespace):  # -> (topic key, ZenohOptions)
     if args.zenoh_listen and args.zenoh_connect:
         raise ValueError("give --zenoh-listen (be the router) or --zenoh-connect (use one), not both")
     try:
-        key = ros2.topic_key(args.topic, domain_id=args.domain)
         ros2.check_node_name(args.node_name)
         ros2.check_namespace(args.namespace)
+        topic = ros2.expand_topic_name(args.topic, node_name=args.node_name, namespace=args.namespace)
+        key = ros2.topic_key(topic, domain_id=args.domain)
         kw = {"lowlatency": args.lowlatency, "config_file": args.zenoh_config}
         opts = (zb.ZenohOptions.router(args.zenoh_listen, **kw) if args.zenoh_listen
                 else zb.ZenohOptions.client(args.zenoh_connect or zb.DEFAULT_ROUTER, **kw))
