@@ -292,8 +292,9 @@ def test_a_topic_name_is_expanded_as_a_ros_2_node_expands_it(topic, ns, full) ->
 
 @pytest.mark.parametrize("topic", ["", "/", "joint states", "a//b", "a/", "~x", "1abc", "{node}/js", "/a/2b"])
 def test_a_topic_name_ros_would_refuse_is_refused_before_expansion_hides_it(topic) -> None:
-    with pytest.raises(BusError, match="ROS 2 topic"):
+    with pytest.raises(BusError, match="ROS 2 topic") as err:
         ros2.expand_topic_name(topic, node_name="viper", namespace="/cell1")
+    assert f"ROS 2 topic {topic!r}:" in str(err.value), "the name as the user gave it, not its expansion"
 
 
 def test_a_relative_topic_goes_into_the_nodes_namespace_on_the_wire_and_in_its_token() -> None:

@@ -192,10 +192,14 @@ def expand_topic_name(topic: str, *, node_name: str = DEFAULT_NODE_NAME, namespa
         full = f"{ns}/{topic}"
     else:
         full = topic
+    bad = BusError(f"ROS 2 topic {topic!r}: expected a name like joint_states, /joint_states or ~/joint_states "
+                   f"(letters, digits, '_', separated by '/', each part not starting with a digit)")
     if not isinstance(full, str) or full.endswith("/") or "//" in full:
-        raise BusError(f"ROS 2 topic {topic!r}: expected a name like joint_states, /joint_states or ~/joint_states "
-                       f"(letters, digits, '_', separated by '/', each part not starting with a digit)")
-    _topic_name(full)  # the same check as the data key's
+        raise bad
+    try:
+        _topic_name(full)  # the same check as the data key's, said with the name as given
+    except BusError:
+        raise bad from None
     return full
 
 
