@@ -203,7 +203,10 @@ class BridgeClient:
         def on_reply(rep: Any) -> None:  # a Zenoh thread: copy the bytes, hand over
             ok = rep.ok is not None
             data = (rep.ok.payload if ok else rep.err.payload).to_bytes()
-            loop.call_soon_threadsafe(replies.append, (ok, data))
+            try:
+                loop.call_soon_threadsafe(replies.append, (ok, data))
+            except RuntimeError:  # the loop is closed: nobody waits for it any more
+                pass
 
         def on_done() -> None:  # the query is finalized (all replies in, or none will come)
             try:
@@ -216,7 +219,9 @@ class BridgeClient:
         zenoh = zb._zenoh()
         t_send = loop.time()
         try:
-            zb.session().get(self._key, zenoh.handlers.Callback(on_reply, on_done),
+            # indirect=False: both callbacks only copy and hand over, so they run on Zenoh's own thread; the default
+            # (indirect) starts a Python thread for every query: here through the bridge p50 0.63 -> 0.49 ms.
+            zb.session().get(self._key, zenoh.handlers.Callback(on_reply, on_done, indirect=False),
                              payload=encode_request(ids, calls), attachment=self.app.encode("ascii"),
                              timeout=(wait_s or 24 * 3600.0) + _MARGIN_S)
             for obs in self._observers:
