@@ -17,7 +17,7 @@ import signal
 import sys
 
 from aioadept import defaults
-from aioadept.cli.options import DefaultsHelpFormatter, add_zenoh_config_option, description
+from aioadept.cli.options import DefaultsHelpFormatter, add_zenoh_session_options, description, zenoh_session_options
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -29,11 +29,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the server's stop port: 'auto' (PORT+1), a number, or 'none' (the original AdeptServer)")
     p.add_argument("--cell", default="demo", help="the cell's name in the key expressions")
     p.add_argument("--name", default="robot", help="this robot's name in the key expressions")
-    p.add_argument("--zenoh-connect", metavar="tcp/HOST:PORT", dest="zenoh_connect",
-                   help="the Zenoh router to connect to (default tcp/127.0.0.1:7447)")
-    p.add_argument("--zenoh-listen", metavar="tcp/HOST:PORT", dest="zenoh_listen",
-                   help="be the router, listening here, instead of connecting to one")
-    add_zenoh_config_option(p)
+    add_zenoh_session_options(p)
     p.add_argument("--state-endpoint", default="none", dest="state_endpoint",
                    help="the controller's ZeroMQ state stream to relay (as aioadept sim --state-endpoint), or none")
     p.add_argument("--ack-timeout", type=float, default=60.0, dest="ack_timeout_s",
@@ -44,9 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _options(args: argparse.Namespace):  # -> (host, port, stop_port, ZenohOptions)
     from aioadept.bridge.wire import bridge_key
-    from aioadept.bus import zenoh as zb
     from aioadept.cli.options import parse_robot_address
-    from aioadept.errors import BusError
 
     host, port = parse_robot_address(args.robot)
     stop = args.stop_port.strip().lower()
@@ -61,13 +55,7 @@ def _options(args: argparse.Namespace):  # -> (host, port, stop_port, ZenohOptio
             bridge_key(value, value)
         except ValueError:
             raise ValueError(f"{opt} {value!r}: use 1-64 letters, digits, '_', '.', '-' (one key chunk)") from None
-    if args.zenoh_listen and args.zenoh_connect:
-        raise ValueError("give --zenoh-listen (be the router) or --zenoh-connect (use one), not both")
-    try:
-        opts = (zb.ZenohOptions.router(args.zenoh_listen, config_file=args.zenoh_config) if args.zenoh_listen
-                else zb.ZenohOptions.client(args.zenoh_connect or zb.DEFAULT_ROUTER, config_file=args.zenoh_config))
-    except BusError as exc:
-        raise ValueError(str(exc)) from None
+    opts = zenoh_session_options(args.zenoh_listen, args.zenoh_connect, args.zenoh_config)
     state = args.state_endpoint.strip()
     if state.lower() != "none" and not state.startswith(("tcp://", "ipc://")):
         raise ValueError(f"--state-endpoint {state!r}: the controller's ZeroMQ state stream (tcp://HOST:PORT or "

@@ -201,16 +201,39 @@ def add_zenoh_config_option(p: argparse.ArgumentParser, prefix: str = "") -> Non
                                  "scouting stays off whatever it says (docs/security.md)")
 
 
+def add_zenoh_session_options(p: argparse.ArgumentParser, prefix: str = "", router: str = "") -> None:
+    """``--zenoh-connect``, ``--zenoh-listen`` and ``--zenoh-config``: where this process's Zenoh session meets the
+    cell (read back with :func:`zenoh_session_options`). ``router`` names the usual router in the help."""
+    p.add_argument("--zenoh-connect", metavar="tcp/HOST:PORT", dest="zenoh_connect",
+                   help=prefix + f"the Zenoh router to connect to{router} (default tcp/127.0.0.1:7447)")
+    p.add_argument("--zenoh-listen", metavar="tcp/HOST:PORT", dest="zenoh_listen",
+                   help=prefix + "be the router, listening here, instead of connecting to one")
+    add_zenoh_config_option(p, prefix)
+
+
+def zenoh_session_options(listen: str | None, connect: str | None, config: str | None, *,
+                          lowlatency: bool = True) -> Any:
+    """The :class:`aioadept.bus.zenoh.ZenohOptions` of those three options: the router itself with ``listen``, else
+    a client of ``connect`` (default the local router). ValueError, one line, for both given or a bad value."""
+    from aioadept.bus import zenoh as zb
+    from aioadept.errors import BusError
+
+    if listen and connect:
+        raise ValueError("give --zenoh-listen (be the router) or --zenoh-connect (use one), not both")
+    kw = {"lowlatency": lowlatency, "config_file": config or None}
+    try:
+        return (zb.ZenohOptions.router(listen, **kw) if listen
+                else zb.ZenohOptions.client(connect or zb.DEFAULT_ROUTER, **kw))
+    except BusError as exc:
+        raise ValueError(str(exc)) from None
+
+
 def add_node_transport_options(p: argparse.ArgumentParser) -> None:
     """A node's ``--transport`` and the Zenoh options that go with it."""
     add_transport_option(p)
     p.add_argument("--cell", help="--transport zenoh: the cell's name in the key expressions "
                                   "aioadept/CELL/NODE/TOPIC (default demo)")
-    p.add_argument("--zenoh-connect", metavar="tcp/HOST:PORT",
-                   help="--transport zenoh: the Zenoh router to connect to (default tcp/127.0.0.1:7447)")
-    p.add_argument("--zenoh-listen", metavar="tcp/HOST:PORT",
-                   help="--transport zenoh: be the router, listening here, instead of connecting to one")
-    add_zenoh_config_option(p, "--transport zenoh: ")
+    add_zenoh_session_options(p, "--transport zenoh: ")
     p.add_argument("--node", metavar="NAME",
                    help="--transport zenoh: this node's name in its liveliness token aioadept/CELL/NAME (default: "
                         "sim, vision or state; a cell of several robots names each, e.g. r1, cam1)")
@@ -234,12 +257,8 @@ def apply_node_transport(values: dict, node: str, streams: dict[str, tuple[str, 
     cell = values.get("cell") or zb.DEFAULT_CELL
     try:
         check_chunk(cell, "--cell")
-        listen, connect = values.get("zenoh_listen"), values.get("zenoh_connect")
-        if listen and connect:
-            raise BusError("give --zenoh-listen (be the router) or --zenoh-connect (use one), not both")
-        config = values.get("zenoh_config") or None
-        zb.configure(zb.ZenohOptions.router(listen, config_file=config) if listen
-                     else zb.ZenohOptions.client(connect or zb.DEFAULT_ROUTER, config_file=config))
+        zb.configure(zenoh_session_options(values.get("zenoh_listen"), values.get("zenoh_connect"),
+                                           values.get("zenoh_config")))
         name = check_chunk(values.get("node") or node, "--node")
         zb.announce_as(cell, name)
     except BusError as exc:

@@ -20,7 +20,8 @@ import signal
 import sys
 
 from aioadept import defaults
-from aioadept.cli.options import ArgumentParser, DefaultsHelpFormatter, add_zenoh_config_option, description
+from aioadept.cli.options import (ArgumentParser, DefaultsHelpFormatter, add_zenoh_session_options, description,
+                                  zenoh_session_options)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -37,11 +38,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the ROS 2 node this relay is in the graph (ros2 node list)")
     p.add_argument("--namespace", default="/", help="the node's namespace, e.g. /cell1 (a relative --topic goes "
                                                     "into it)")
-    p.add_argument("--zenoh-connect", metavar="tcp/HOST:PORT", dest="zenoh_connect",
-                   help="the Zenoh router to connect to, e.g. rmw_zenohd's (default tcp/127.0.0.1:7447)")
-    p.add_argument("--zenoh-listen", metavar="tcp/HOST:PORT", dest="zenoh_listen",
-                   help="be the router, listening here, instead of connecting to one")
-    add_zenoh_config_option(p)
+    add_zenoh_session_options(p, router=", e.g. rmw_zenohd's")
     p.add_argument("--no-lowlatency", action="store_false", dest="lowlatency",
                    help="Zenoh's default unicast transport instead of the low-latency one aioadept's nodes use: "
                         "needed with a router that is not low-latency, e.g. ROS 2's rmw_zenohd as installed")
@@ -54,16 +51,13 @@ def _options(args: argparse.Namespace):  # -> (topic key, ZenohOptions)
     from aioadept.bus import zenoh as zb
     from aioadept.errors import BusError
 
-    if args.zenoh_listen and args.zenoh_connect:
-        raise ValueError("give --zenoh-listen (be the router) or --zenoh-connect (use one), not both")
+    opts = zenoh_session_options(args.zenoh_listen, args.zenoh_connect, args.zenoh_config,
+                                 lowlatency=args.lowlatency)
     try:
         ros2.check_node_name(args.node_name)
         ros2.check_namespace(args.namespace)
         topic = ros2.expand_topic_name(args.topic, node_name=args.node_name, namespace=args.namespace)
         key = ros2.topic_key(topic, domain_id=args.domain)
-        kw = {"lowlatency": args.lowlatency, "config_file": args.zenoh_config}
-        opts = (zb.ZenohOptions.router(args.zenoh_listen, **kw) if args.zenoh_listen
-                else zb.ZenohOptions.client(args.zenoh_connect or zb.DEFAULT_ROUTER, **kw))
         if zb.is_zenoh(args.state_endpoint):
             zb.key_of(args.state_endpoint)
     except BusError as exc:
