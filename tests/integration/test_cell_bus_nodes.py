@@ -29,6 +29,7 @@ from aioadept.protocol.statestream import StateSample, encode_state_line
 from aioadept.testing.nodes import running_node
 
 from bustransports import start_zenoh_router
+from rawtcp import raw_server
 
 AIOADEPT = [sys.executable, "-m", "aioadept"]
 NO_ZENOH = importlib.util.find_spec("zenoh") is None
@@ -135,29 +136,16 @@ def test_state_transport_mistakes_are_one_line_with_exit_2(argv, text):
 async def controller_state_port(z0: float = 710.0) -> AsyncIterator[int]:
     """A V+ state port (rsstate.V2's S1 lines) on 127.0.0.1 sending a sample every 20 ms, z falling 0.5 mm each,
     until closed; yields its port."""
-    tasks: list[asyncio.Task] = []
 
     async def serve(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
-        tasks.append(asyncio.current_task())
-        try:
-            for i in itertools.count():
-                writer.write(encode_state_line(StateSample(1.0 + i * 0.02, (0.0, -90.0, 180.0, 0.0, 90.0, 0.0),
-                                                           Pose(480.0, 0.0, z0 - 0.5 * i, 0.0, 180.0, 0.0))))
-                await writer.drain()
-                await asyncio.sleep(0.02)
-        except (ConnectionError, asyncio.CancelledError):
-            pass
-        finally:
-            writer.close()
+        for i in itertools.count():
+            writer.write(encode_state_line(StateSample(1.0 + i * 0.02, (0.0, -90.0, 180.0, 0.0, 90.0, 0.0),
+                                                       Pose(480.0, 0.0, z0 - 0.5 * i, 0.0, 180.0, 0.0))))
+            await writer.drain()
+            await asyncio.sleep(0.02)
 
-    server = await asyncio.start_server(serve, "127.0.0.1", 0)
-    try:
-        yield server.sockets[0].getsockname()[1]
-    finally:
-        server.close()
-        for t in tasks:
-            t.cancel()
-        await asyncio.gather(*tasks, return_exceptions=True)
+    async with raw_server(serve) as port:
+        yield port
 
 
 async def states(endpoint: str, n: int, timeout_s: float = 15.0) -> list[RobotState]:

@@ -28,6 +28,8 @@ from aioadept.protocol import Ack, LineFramer, Status, encode_ack, parse_command
 from aioadept.sim.server import Faults, SimOptions, SimServer
 from aioadept.testing import Reply, ScriptedServer
 
+from rawtcp import raw_server
+
 POSE = Pose(480.014, -0.038, 709.975, 0.0, 179.995, 0.004)
 FAR = [120, -60, 150, 40, 60, 90]  # a joint target several seconds away at 10 %
 
@@ -51,24 +53,11 @@ async def sim_on(port: int = 0, **options):
 
 
 @contextlib.asynccontextmanager
-async def raw_server(handler):
-    """A bare asyncio server on 127.0.0.1:0 running ``handler(reader, writer, lines)`` per connection."""
+async def recording_server(handler):
+    """:func:`rawtcp.raw_server` running ``handler(reader, writer, lines)``, ``lines`` shared by its connections."""
     lines: list[bytes] = []
-
-    async def serve(reader, writer):
-        try:
-            await handler(reader, writer, lines)
-        except (ConnectionError, asyncio.CancelledError):
-            pass
-        finally:
-            writer.close()
-
-    server = await asyncio.start_server(serve, "127.0.0.1", 0)
-    try:
-        yield server.sockets[0].getsockname()[1], lines
-    finally:
-        server.close()
-        await server.wait_closed()
+    async with raw_server(lambda reader, writer: handler(reader, writer, lines)) as port:
+        yield port, lines
 
 
 def at_rest(sim: SimServer) -> bool:
@@ -160,7 +149,7 @@ async def test_stop_without_an_ack_is_ack_timeout_and_the_late_ack_is_only_count
                 await release.wait()
                 writer.write(encode_ack(Ack(msg.id, Status.DONE, 1.0, 1.0, POSE)))
 
-    async with raw_server(slow_stop) as (port, lines):
+    async with recording_server(slow_stop) as (port, lines):
         async with RobotClient("127.0.0.1", port) as robot:
             with pytest.raises(AckTimeout) as info:
                 await robot.stop(timeout_s=0.2)
@@ -184,7 +173,7 @@ async def test_a_stop_not_acked_done_raises_never_returns(status, error):
                        else Ack(msg.id, Status.ABORTED, 1.0, 1.0, POSE))
                 writer.write(encode_ack(ack))
 
-    async with raw_server(answer) as (port, _lines):
+    async with recording_server(answer) as (port, _lines):
         async with RobotClient("127.0.0.1", port) as robot:
             with pytest.raises(error):
                 await robot.stop()
@@ -272,7 +261,7 @@ async def test_a_stop_lost_before_its_ack_is_sent_again_on_a_new_connection_only
                 msg = parse_command(line)
                 writer.write(encode_ack(Ack(msg.id, Status.DONE, 1.0, 1.0, POSE)))
 
-    async with raw_server(first_drops) as (port, lines):
+    async with recording_server(first_drops) as (port, lines):
         async with RobotClient("127.0.0.1", port, auto_reconnect=auto, connect_timeout_s=2.0) as robot:
             if auto:
                 result = await robot.stop(timeout_s=5.0)
@@ -351,7 +340,7 @@ async def test_a_stop_to_a_server_that_accepts_and_never_answers_fails_within_st
         while data := await reader.read(65536):
             lines.append(data)  # reads everything, answers nothing
 
-    async with raw_server(silent) as (port, lines):
+    async with recording_server(silent) as (port, lines):
         async with RobotClient("127.0.0.1", port) as robot:
             assert robot.ack_timeout_s == 60.0 and robot.stop_timeout_s == 5.0
             loop = asyncio.get_running_loop()

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import re
 
 import pytest
@@ -21,6 +20,8 @@ from aioadept.errors import (
 from aioadept.geometry import Pose
 from aioadept.protocol import Ack, AckReader, LineFramer, Status, encode_ack, parse_command
 from aioadept.testing import Reply, ScriptedServer
+
+from rawtcp import raw_server
 
 POSE = Pose(480.014, -0.038, 709.975, 0.0, 179.995, 0.004)
 
@@ -48,26 +49,6 @@ class Recorder:
 
     async def acked(self, skill: str) -> None:
         await self._event(skill).wait()
-
-
-@contextlib.asynccontextmanager
-async def raw_server(handler):
-    """A bare asyncio TCP server on port 0 whose connections run ``handler(reader, writer)``."""
-    tasks: set[asyncio.Task] = set()
-
-    async def serve(reader, writer):
-        tasks.add(asyncio.current_task())
-        try:
-            await handler(reader, writer)
-        finally:
-            writer.close()
-
-    server = await asyncio.start_server(serve, "127.0.0.1", 0)
-    try:
-        yield server.sockets[0].getsockname()[1]
-    finally:
-        server.close()
-        await server.wait_closed()
 
 
 async def read_lines(reader, framer, n):
