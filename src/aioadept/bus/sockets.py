@@ -193,7 +193,7 @@ class SocketReader:
         """Start reading on the running loop."""
         loop = self._loop = asyncio.get_running_loop()
         if is_zenoh_socket(self._sock):
-            # Woken through the socket's own eventfd (or call_soon_threadsafe) by the Zenoh callback; -1 marks "reading".
+            # Woken by the Zenoh callback (through the socket's own eventfd) instead of a ZeroMQ FD; -1: "reading".
             self._fd = -1
             self._sock.set_reader(loop, self._on_readable)  # type: ignore[attr-defined]
             return

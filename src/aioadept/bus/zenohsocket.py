@@ -6,10 +6,10 @@ Zenoh calls back on a thread of its own. A callback only appends to a bounded de
 dropped and counted, so a stalled reader keeps the newest state) and wakes the loop; it never blocks and never
 touches asyncio objects. The loop (a reader set with :meth:`ZenohSocket.set_reader`, or a task awaiting
 ``recv_multipart``) is woken through an eventfd of the socket's own, registered with the loop like a ZeroMQ socket's
-file descriptor: one ``eventfd_write`` from Zenoh's
-thread, one readable event in the loop. ``call_soon_threadsafe`` (the fallback where there is no eventfd) goes
-through asyncio's self-pipe, a socket pair whose send, drain and extra callback cost about 35 us of a request's round
-trip on the 2-core test machine (benchmarks/bench_bus.py; docs/bus.md, Cost).
+file descriptor: one ``eventfd_write`` from Zenoh's thread, one readable event in the loop. ``call_soon_threadsafe``
+(the fallback where there is no eventfd) goes through asyncio's self-pipe, a socket pair whose send, drain and extra
+callback cost about 35 us of a request's round trip on the 2-core test machine (benchmarks/bench_bus.py; docs/bus.md,
+Cost).
 """
 
 from __future__ import annotations
@@ -128,6 +128,8 @@ class ZenohSocket:
     # -- receiving -----------------------------------------------------------------------------------------
 
     def _accepts(self, frames: list[bytes]) -> bool:
+        if self._max_bytes is None and b"" in self._topics:  # the usual case: everything (one test per sample)
+            return True
         if self._max_bytes is not None and sum(map(len, frames)) > self._max_bytes:
             return False
         first = frames[0]
@@ -142,7 +144,7 @@ class ZenohSocket:
         except Exception as exc:  # pragma: no cover - a malformed sample from Zenoh itself
             log.debug("Zenoh sample on %s unreadable: %r", self.key, exc)
             return
-        if self.closed or not (self._max_bytes is None and b"" in self._topics or self._accepts(frames)):
+        if self.closed or not self._accepts(frames):
             return
         queue = self._queue
         if len(queue) == queue.maxlen:
@@ -227,13 +229,8 @@ class ZenohSocket:
         """Take up to ``limit`` messages at once, without blocking (the loop's reader: one call per wake-up where
         ``recv_multipart(NOBLOCK)`` would cost a call and, at the end, a ``zmq.Again`` per wake-up)."""
         queue = self._queue
-        if len(queue) <= limit:
-            batch = list(queue)
-            # Only what was copied is removed: the callback may append meanwhile (popleft is atomic under the GIL).
-            for _ in range(len(batch)):
-                queue.popleft()
-            return batch
-        return [queue.popleft() for _ in range(limit)]
+        # Counted first: the callback may append meanwhile (each popleft is atomic under the GIL).
+        return [queue.popleft() for _ in range(min(len(queue), limit))]
 
     def _pop(self) -> list[bytes] | None:
         try:
