@@ -163,10 +163,7 @@ class BridgeClient:
         alive = sample.kind == zb._zenoh().SampleKind.PUT
         loop = self._loop
         if loop is not None:
-            try:
-                loop.call_soon_threadsafe(self._on_bridge, alive)
-            except RuntimeError:
-                pass
+            _hand_over(loop, self._on_bridge, alive)
 
     def _on_bridge(self, alive: bool) -> None:
         if alive:
@@ -203,16 +200,10 @@ class BridgeClient:
         def on_reply(rep: Any) -> None:  # a Zenoh thread: copy the bytes, hand over
             ok = rep.ok is not None
             data = (rep.ok.payload if ok else rep.err.payload).to_bytes()
-            try:
-                loop.call_soon_threadsafe(replies.append, (ok, data))
-            except RuntimeError:  # the loop is closed: nobody waits for it any more
-                pass
+            _hand_over(loop, replies.append, (ok, data))
 
         def on_done() -> None:  # the query is finalized (all replies in, or none will come)
-            try:
-                loop.call_soon_threadsafe(_settle, fut, ("done", None))
-            except RuntimeError:
-                pass
+            _hand_over(loop, _settle, fut, ("done", None))
 
         self._pending[batch] = (fut, ids)
         wait_s = self.ack_timeout_s if timeout_s is None else timeout_s
@@ -331,6 +322,14 @@ _STOP = SkillCall(STOP_SKILL)
 _HERE = SkillCall(HERE_SKILL)
 _HELLO = SkillCall(HELLO_SKILL)
 _STATUS = SkillCall(STATUS_SKILL)
+
+
+def _hand_over(loop: asyncio.AbstractEventLoop, fn: Any, *args: Any) -> None:
+    """From a Zenoh thread: run ``fn(*args)`` on ``loop``; nothing if the loop is closed (nobody waits any more)."""
+    try:
+        loop.call_soon_threadsafe(fn, *args)
+    except RuntimeError:
+        pass
 
 
 def _settle(fut: asyncio.Future[Any], value: Any) -> None:
