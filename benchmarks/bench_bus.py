@@ -12,7 +12,9 @@ process is the Zenoh router, listening on a free 127.0.0.1 port, and this proces
 code on Zenoh: a raw Zenoh ping-pong between the same two processes with the same session options, each side handing
 the sample from Zenoh's callback thread to its event loop through an eventfd the loop watches (the hop the transport
 cannot avoid: Zenoh has no file descriptor to poll; the leanest hop known, the one ZenohSocket uses) and nothing
-else. Rounds alternate raw / ZeroMQ / raw Zenoh / Zenoh.
+else. And the same again with ``Communicator(queries=True)``: each request a Zenoh query, each answer its reply
+(docs/bus.md, "Requests: publications or Zenoh queries"), shown without a goal. Rounds alternate raw / ZeroMQ / raw
+Zenoh / Zenoh / Zenoh queries.
 
 The ZeroMQ / raw Zenoh / Zenoh runs are measured twice in each round: as above, wherever the scheduler puts the
 threads, and pinned, the requester's process on CPU 0 and the node's on CPU 1 (both started pinned, so every thread
@@ -294,8 +296,8 @@ async def _raw_client(req_ep: str, resp_ep: str, n: int, warmup: int) -> list[fl
         ctx.term()
 
 
-async def _communicator_client(req_ep: str, resp_ep: str, n: int, warmup: int) -> list[float]:
-    async with Communicator(req_ep, resp_ep, timeout_s=10) as comm:
+async def _communicator_client(req_ep: str, resp_ep: str, n: int, warmup: int, queries: bool = False) -> list[float]:
+    async with Communicator(req_ep, resp_ep, timeout_s=10, queries=queries) as comm:
         await comm.request("VisionRequest")  # joins (re-publishing as needed)
         loop = asyncio.get_running_loop()
         samples = []
@@ -343,8 +345,8 @@ def _requester(conn, kind: str, n: int, warmup: int) -> None:
 
 
 def _run_here(kind: str, n: int, warmup: int, node_cpus: set[int] | None) -> list[float]:
-    if kind in ("zenoh", "raw_zenoh"):
-        return _run_zenoh(n, warmup, raw=kind == "raw_zenoh", node_cpus=node_cpus)
+    if kind in ("zenoh", "raw_zenoh", "zenoh_query"):
+        return _run_zenoh(n, warmup, raw=kind == "raw_zenoh", queries=kind == "zenoh_query", node_cpus=node_cpus)
     server = _raw_server if kind == "raw" else _responder_server
     client = _raw_client if kind == "raw" else _communicator_client
     proc, req, resp = _start(server, cpus=node_cpus)
@@ -356,7 +358,8 @@ def _run_here(kind: str, n: int, warmup: int, node_cpus: set[int] | None) -> lis
             proc.kill()
 
 
-def _run_zenoh(n: int, warmup: int, *, raw: bool = False, node_cpus: set[int] | None = None) -> list[float]:
+def _run_zenoh(n: int, warmup: int, *, raw: bool = False, queries: bool = False,
+               node_cpus: set[int] | None = None) -> list[float]:
     from aioadept.bus import zenoh as zb
 
     router = f"tcp/127.0.0.1:{_free_port()}"
@@ -366,7 +369,7 @@ def _run_zenoh(n: int, warmup: int, *, raw: bool = False, node_cpus: set[int] | 
     try:
         if raw:
             return asyncio.run(_raw_zenoh_client(zb.session(), key, n, warmup))
-        return asyncio.run(_communicator_client(req, resp, n, warmup))
+        return asyncio.run(_communicator_client(req, resp, n, warmup, queries))
     finally:
         zb.close_session()
         proc.join(5)
@@ -404,7 +407,7 @@ def main() -> None:
     args = ap.parse_args()
 
     zenoh_version = _zenoh_version()
-    kinds = ["raw", "ours"] + (["raw_zenoh", "zenoh"] if zenoh_version is not None else [])
+    kinds = ["raw", "ours"] + (["raw_zenoh", "zenoh", "zenoh_query"] if zenoh_version is not None else [])
     pinnings = [False, True] if _can_pin() and zenoh_version is not None else [False]
     samples: dict[tuple[str, bool], list[float]] = {(k, p): [] for k in kinds for p in pinnings}
     per_round: dict[tuple[str, bool], list[float]] = {}
@@ -419,6 +422,8 @@ def main() -> None:
                 per_round.setdefault(("ours/raw", pin), []).append(round(medians["ours"] / medians["raw"], 3))
             if "zenoh" in medians:
                 per_round.setdefault(("zenoh/ours", pin), []).append(round(medians["zenoh"] / medians["ours"], 3))
+                per_round.setdefault(("query/ours", pin), []).append(
+                    round(medians["zenoh_query"] / medians["ours"], 3))
     stats = {key: _stats(v) for key, v in samples.items() if v}
     r, o = stats[("raw", False)], stats[("ours", False)]
     verdicts = [verdict("request->response p50, Communicator+Responder vs raw pyzmq", o["p50_us"], r["p50_us"],
@@ -427,6 +432,7 @@ def main() -> None:
     if zenoh_version is not None:
         for pin in pinnings:
             z, oz, zr = stats[("zenoh", pin)], stats[("ours", pin)], stats[("raw_zenoh", pin)]
+            zq = stats[("zenoh_query", pin)]
             where = "each side pinned to a CPU of its own" if pin else "unpinned"
             # The goal is judged pinned where pinning is possible (the module docstring says why); unpinned is shown.
             judged = pin or len(pinnings) == 1
@@ -434,6 +440,8 @@ def main() -> None:
                                     f"{where}", z["p50_us"], oz["p50_us"], unit="us",
                                     goal="ratio <= 1.3" if judged else None,
                                     passed=z["p50_us"] / oz["p50_us"] <= 1.3))
+            verdicts.append(verdict(f"request->response p50, Communicator(queries=True)+Responder over Zenoh (Zenoh "
+                                    f"queries) vs over ZeroMQ, {where}", zq["p50_us"], oz["p50_us"], unit="us"))
             verdicts.append(verdict(f"request->response p50, raw Zenoh asyncio ping-pong (the floor) vs ours over "
                                     f"ZeroMQ, {where}", zr["p50_us"], oz["p50_us"], unit="us"))
             tag = "_pinned" if pin else ""
@@ -444,6 +452,10 @@ def main() -> None:
                 f"zenoh_vs_zeromq_ratio_p50{tag}": round(z["p50_us"] / oz["p50_us"], 3),
                 f"zenoh_vs_zeromq_ratio_p99{tag}": round(z["p99_us"] / oz["p99_us"], 3),
                 f"zenoh_vs_zeromq_ratio_p50_per_round{tag}": per_round[("zenoh/ours", pin)],
+                f"communicator_responder_noop_zenoh_queries{tag}": zq,
+                f"zenoh_queries_vs_zeromq_ratio_p50{tag}": round(zq["p50_us"] / oz["p50_us"], 3),
+                f"zenoh_queries_vs_zeromq_ratio_p50_per_round{tag}": per_round[("query/ours", pin)],
+                f"zenoh_queries_vs_publications_p50{tag}": round(zq["p50_us"] / z["p50_us"], 3),
                 f"zenoh_floor_vs_zeromq_ours_p50{tag}": round(zr["p50_us"] / oz["p50_us"], 3),
                 f"zenoh_ours_vs_floor_p50{tag}": round(z["p50_us"] / zr["p50_us"], 3),
             })

@@ -85,7 +85,7 @@ async def test_stale_and_foreign_responses_are_ignored(bus):
     # A hand-made node: before each right answer it publishes an answer to the previously answered id (stale) and
     # to an id nobody asked for (foreign). It answers every copy it receives, so lost answers are repaired by the
     # communicator's re-publication like with a real node.
-    async with Subscriber(bus.any(), bind=True) as req_sub, Publisher(bus.any()) as resp_pub:
+    async with Subscriber(bus.any(), bind=True, queries=True) as req_sub, Publisher(bus.any()) as resp_pub:
         async def node():
             answered: list[str] = []
             while True:
@@ -112,7 +112,7 @@ async def test_stale_and_foreign_responses_are_ignored(bus):
 
 @pytest.mark.timeout(10)
 async def test_timeout_raises_request_timeout_and_republishes_same_id(bus):
-    async with Subscriber(bus.any(), bind=True) as req_sub, Publisher(bus.any()) as resp_pub:
+    async with Subscriber(bus.any(), bind=True, queries=True) as req_sub, Publisher(bus.any()) as resp_pub:
         async with Communicator(">" + req_sub.actual_endpoint, resp_pub.actual_endpoint,
                                 republish_interval_s=0.01, republish_backoff=1.5) as comm:
             got: list[bytes] = []
@@ -151,7 +151,7 @@ async def test_timeout_raises_request_timeout_and_republishes_same_id(bus):
 
 @pytest.mark.timeout(10)
 async def test_concurrent_requests_are_routed_by_id_when_answered_out_of_order(bus):
-    async with Subscriber(bus.any(), bind=True) as req_sub, Publisher(bus.any()) as resp_pub:
+    async with Subscriber(bus.any(), bind=True, queries=True) as req_sub, Publisher(bus.any()) as resp_pub:
         ids: dict[int, str] = {}
 
         async def node():  # collects all five, answers them in reverse order, then answers any repeat at once
@@ -273,7 +273,7 @@ async def test_paper_style_send_recv_and_topics(bus):
 
 @pytest.mark.timeout(10)
 async def test_close_fails_outstanding_and_state_errors(bus):
-    async with Subscriber(bus.any(), bind=True) as req_sub, Publisher(bus.any()) as resp_pub:
+    async with Subscriber(bus.any(), bind=True, queries=True) as req_sub, Publisher(bus.any()) as resp_pub:
         comm = Communicator(">" + req_sub.actual_endpoint, resp_pub.actual_endpoint)
         with pytest.raises(ClientStateError):
             await comm.request()
@@ -368,7 +368,7 @@ async def test_send_without_recv_leaves_no_pending_entries_on_any_path(bus, monk
             # The outcomes are kept for recv(), in send order.
             assert (await comm.recv()).id == first and (await comm.recv()).id == second
     # Timed out, and closed: nobody ever calls recv().
-    async with Subscriber(bus.any(), bind=True) as req_sub:
+    async with Subscriber(bus.any(), bind=True, queries=True) as req_sub:
         async with Communicator(">" + req_sub.actual_endpoint, bus.nowhere(), timeout_s=0.2) as comm:
             await comm.send(EventMessage("VisionRequest", "000000b1"))
             assert comm.pending_ids == ("000000b1",)
@@ -393,7 +393,7 @@ async def test_send_without_recv_leaves_no_pending_entries_on_any_path(bus, monk
 
 @pytest.mark.timeout(10)
 async def test_a_cancelled_request_leaves_no_pending_entry(bus):
-    async with Subscriber(bus.any(), bind=True) as req_sub:
+    async with Subscriber(bus.any(), bind=True, queries=True) as req_sub:
         async with Communicator(">" + req_sub.actual_endpoint, bus.nowhere(), timeout_s=5) as comm:
             task = asyncio.create_task(comm.request())
             await req_sub.recv()

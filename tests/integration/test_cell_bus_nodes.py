@@ -198,15 +198,22 @@ async def test_state_relays_a_controller_onto_the_cells_zenoh_key_and_declares_i
 
 @needs_zenoh
 @pytest.mark.timeout(150)
-async def test_sim_and_vision_from_a_zenoh_cell_file_serve_the_demos_application(tmp_path):
+async def test_sim_and_vision_from_a_zenoh_cell_file_serve_the_demos_application_asking_by_zenoh_queries(tmp_path):
+    import zenoh
+
+    from aioadept.bus import zenoh as zb
     from aioadept.bus.presence import NodeWatcher
 
     router, cell = start_zenoh_router(), cell_name()
     port, stop_port = free_port(), free_port()
     path = zenoh_cell_file(tmp_path / "cell.toml", cell, router, port=port, stop_port=stop_port, time_scale=20.0)
     with path.open("a") as fh:
-        fh.write(f'[focus]\ndelta_z_mm = 2.0\napproach_speed = 25\n'
+        fh.write('zenoh_queries = true\n'  # (the [bus] table is the file's last so far)
+                 f'[focus]\ndelta_z_mm = 2.0\napproach_speed = 25\n'
                  f'[run]\nout_dir = "{tmp_path / "runs"}"\nanalyze = false\nrecord = false\n')
+    published: list[bytes] = []  # answers published on the response key (with zenoh_queries: none, all are replies)
+    watch_answers = zb.session().declare_subscriber(f"aioadept/{cell}/vision/response",
+                                                    zenoh.handlers.Callback(lambda s: published.append(b"")))
     async with NodeWatcher(cell) as watcher:
         async with running_node("sim", "--config", str(path), log_path=tmp_path / "sim.log") as sim, \
                    running_node("vision", "--config", str(path), log_path=tmp_path / "vision.log") as vision:
@@ -228,6 +235,8 @@ async def test_sim_and_vision_from_a_zenoh_cell_file_serve_the_demos_application
                     demo.kill()
                     await demo.wait()
             assert demo.returncode == 0, out.decode(errors="replace")[-3000:]
+    watch_answers.undeclare()
+    assert published == []  # every answer was the reply to its query
     (run_dir,) = (tmp_path / "runs").iterdir()
     focus = json.loads((run_dir / "focus.json").read_text())
     # The focal plane 20 mm beyond the approach pose is step 10 of 2 mm: the virtual camera followed the sim's

@@ -92,7 +92,7 @@ def test_a_real_benchmark_in_quick_mode_gives_its_verdict(tmp_path: Path) -> Non
     # unpinned and, on a machine with two CPUs, pinned: the goal is judged on the pinned pair only.
     verdicts = data["verdicts"]
     pinned = data["pinned_rounds"]
-    assert len(verdicts) == ((5 if pinned else 3) if data["eclipse_zenoh"] else 1)
+    assert len(verdicts) == ((7 if pinned else 4) if data["eclipse_zenoh"] else 1)
     for v in verdicts:
         assert set(v) == {"name", "figure", "baseline", "unit", "ratio", "goal", "pass"}
         assert v["figure"] > 0 and v["baseline"] > 0
@@ -105,6 +105,10 @@ def test_a_real_benchmark_in_quick_mode_gives_its_verdict(tmp_path: Path) -> Non
         assert ("pinned" in judged[0]["name"]) == pinned
         floors = [v for v in verdicts[1:] if "floor" in v["name"]]
         assert len(floors) == (2 if pinned else 1)
+        # Zenoh queries (Communicator(queries=True)) are measured beside publications, without a goal.
+        queries = [v for v in verdicts[1:] if "queries" in v["name"]]
+        assert len(queries) == (2 if pinned else 1) and all(v["goal"] is None for v in queries)
+        assert data["communicator_responder_noop_zenoh_queries"]["n"] == 200
         assert all(v["goal"] is None and v["pass"] is None for v in floors)
         assert data["raw_zenoh_asyncio_pingpong"]["n"] == 200
         if pinned:

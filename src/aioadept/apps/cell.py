@@ -319,7 +319,8 @@ async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams 
                                stop_port=stop_port_of(cfg)) as rc:
             connected = True
             async with Communicator(opposite(cfg.vision.request_endpoint), opposite(cfg.vision.response_endpoint),
-                                    timeout_s=params.vision_timeout_s, observers=observers) as comm, \
+                                    timeout_s=params.vision_timeout_s, observers=observers,
+                                    queries=cfg.bus.zenoh_queries) as comm, \
                     _guarded(interrupter, rc):
                 marks = recorder if rrd is None else MarkTee(recorder, rrd)
                 if params.mode == "sweep":

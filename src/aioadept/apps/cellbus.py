@@ -35,6 +35,10 @@ class BusSection:
     """A Zenoh configuration file (JSON5) every process of the cell opens its session with: credentials, TLS,
     access control (:attr:`aioadept.bus.zenoh.ZenohOptions.config_file`; docs/security.md). Relative to the cell
     file. Empty: none."""
+    zenoh_queries: bool = False
+    """With ``transport = "zenoh"``: the application asks the vision node with Zenoh queries (each answer the reply
+    to its query) instead of publications on the request and response keys. The node answers both; publications
+    cost less (docs/bus.md, "Requests: publications or Zenoh queries")."""
 
     def check(self, where: str) -> None:
         """ValueError naming the key for a value out of its choices."""

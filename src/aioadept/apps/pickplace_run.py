@@ -187,7 +187,7 @@ async def run_pickplace_once(cfg: CellConfig, run_dir: Path, *, interrupter: Any
                 watch = await stack.enter_async_context(WorldWatch(cfg.robot.state_endpoint))
             comm = await stack.enter_async_context(Communicator(
                 opposite(cfg.vision.request_endpoint), opposite(cfg.vision.response_endpoint),
-                timeout_s=p.locate_timeout_s, observers=observers))
+                timeout_s=p.locate_timeout_s, observers=observers, queries=cfg.bus.zenoh_queries))
             await stack.enter_async_context(_guarded(interrupter, rc))
             loc = (locator or (lambda c, _cfg: BusLocator(c, timeout_s=p.locate_timeout_s)))(comm, cfg)
             if hasattr(loc, "__aenter__"):

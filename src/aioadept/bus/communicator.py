@@ -119,6 +119,11 @@ class Communicator:
     sends and expects; give topics to share endpoints between services. ``curve`` (default None: off) secures
     both sockets with CURVE: normally a :class:`aioadept.bus.security.CurveClient` holding the node's public key
     (docs/security.md).
+
+    ``queries=True``: on Zenoh, send each request (and each re-send) as a Zenoh query on the request key, whose
+    replies arrive with the published answers; the pairing is unchanged. A :class:`Responder` answers both, and so
+    may any Zenoh queryable taking the Protobuf event (a service in another language). Default False: publications,
+    which cost less here (docs/bus.md, "Requests: publications or Zenoh queries"). Meaningless on ZeroMQ.
     """
 
     def __init__(
@@ -136,6 +141,7 @@ class Communicator:
         bind: bool | None = None,
         context: zmq.Context | None = None,
         curve: Curve | None = None,
+        queries: bool = False,
     ) -> None:
         # Parsed here, so a bad endpoint fails at construction with the reason (not at open()).
         parse_endpoint(request_endpoint), parse_endpoint(response_endpoint)
@@ -151,6 +157,7 @@ class Communicator:
         self._request_topic = None if request_topic is None else as_topic(request_topic)
         self._response_topic = None if response_topic is None else as_topic(response_topic)
         self._bind = bind
+        self.queries = queries
         self._context = context
         self._curve = curve
         self._observers: list[Any] = list(observers)
@@ -222,7 +229,8 @@ class Communicator:
         try:
             self._pub, self._actual_req = open_socket(zmq.PUB, self.request_endpoint,
                                                       bind=self._bind is not False,  # None: publishers bind
-                                                      context=self._context, curve=self._curve)
+                                                      context=self._context, curve=self._curve,
+                                                      replies_into=self._sub if self.queries else None)
         except BaseException:
             close_socket(self._sub)
             raise

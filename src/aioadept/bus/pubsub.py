@@ -192,11 +192,17 @@ class Subscriber(_Owned):
 
     ``Subscriber(endpoint)`` connects (subscribers connect, as in EPypes); ``@addr`` or ``bind=True`` binds.
     ``await sub.recv()`` returns ``(topic, payload)``; ``async for topic, payload in sub`` loops until closed.
+
+    ``queries=True`` (a node written by hand, reading a :class:`~aioadept.bus.Communicator`'s requests): on Zenoh,
+    where requests are queries, receive those too, as messages. Each is let go unanswered once read, so answer by
+    publishing on the response endpoint, as on ZeroMQ, where it means nothing.
     """
 
     def __init__(self, endpoint: str, *, topics: Iterable[bytes | str] = (b"",), bind: bool = False,
-                 context: zmq.Context | None = None, rcvhwm: int = 1000, curve: Curve | None = None) -> None:
-        self._sock = make_socket(zmq.SUB, context=context, flavour="asyncio", hwm=rcvhwm, endpoint=endpoint)
+                 context: zmq.Context | None = None, rcvhwm: int = 1000, curve: Curve | None = None,
+                 queries: bool = False) -> None:
+        self._sock = make_socket(zmq.SUB, context=context, flavour="asyncio", hwm=rcvhwm, endpoint=endpoint,
+                                 queries=queries)
         self._topics: list[bytes] = []
         try:
             for t in topics:

@@ -6,6 +6,10 @@ Data path (docs/bus.md)::
                                               -> handler(type, id, attributes)  (inline, worker task or thread)
     requester SUB <--response_endpoint-- PUB <- answer (LRU cache of answers by (type, id))
 
+On Zenoh a request is a query on the request key and its answer the reply to that query (the response PUB is used
+for requests that were published instead); the triage, the cache and the queue are the same (docs/bus.md, "Requests:
+Zenoh queries").
+
 The sockets come from the one socket layer (:mod:`aioadept.bus.sockets`), the queued-or-in-process requests live
 in a :class:`~aioadept.bus.pairing.PendingRegistry`, and Protobuf stays in :mod:`aioadept.bus.messages`.
 """
@@ -42,6 +46,10 @@ DEFAULT_MAX_REQUEST_BYTES = 1 << 20
 
 Handler = Callable[[str, "str | None", dict], "Mapping[str, Any] | None | Awaitable[Mapping[str, Any] | None]"]
 
+Asker = Any
+"""Who gets a request's answer: None (published on the response endpoint) or a Zenoh query
+(:class:`aioadept.bus.zenohsocket.QueryFrames`: ``reply(payload, topic)``, ``drop()``)."""
+
 
 RESPONSE_HWM = 10_000
 """ZeroMQ's send high-water mark of the response PUB. Every request is answered once, a dropped one with an error;
@@ -72,7 +80,8 @@ class Responder:
       against the slow joiner) is answered from the cache, never processed twice.
     - Requests are handled one at a time, in arrival order. A repeat that arrives while its request is still queued
       or being processed is dropped: the answer, published when it is ready, serves it. (Queued repeats could
-      outlive the cached answer under load and be processed again.)
+      outlive the cached answer under load and be processed again.) On Zenoh, where a request is a query, the
+      answer goes to the newest copy's query; the older copies are let go unanswered.
     - ``request_types`` restricts which event types are answered; None answers all. Any other event (a
       ``Shutdown``, a ``VisionResponse`` echoed back, a typo) is ignored: never handled, never queued, never
       answered; ``ignored`` counts them and each is logged at debug level.
@@ -131,7 +140,7 @@ class Responder:
         topics = (b"",) if request_topic is None else (request_topic,)
         self._sub, self._actual_req = open_socket(
             zmq.SUB, request_endpoint, bind=bool(bind),  # None: subscribers connect
-            context=context, topics=topics, curve=curve,
+            context=context, topics=topics, curve=curve, queries=True,
             options={} if max_request_bytes is None else {zmq.MAXMSGSIZE: max_request_bytes})
         try:
             self._pub, self._actual_resp = open_socket(zmq.PUB, response_endpoint, bind=bind is not False,
@@ -147,11 +156,12 @@ class Responder:
         # queue bound instead of being processed one by one as ZeroMQ hands them over (which left the newest request
         # behind everything ZeroMQ had buffered). A lone request still goes straight to an inline handler.
         self._reader = SocketReader(self._sub, self._on_batch, name=f"Responder reader {self._actual_req}")
-        # (type, id, attributes, awaitable the handler already returned or None: call the handler in turn)
-        self._queue: collections.deque[tuple[str, str | None, dict, Any]] = collections.deque()
+        # (type, id, attributes, awaitable the handler already returned or None: call the handler in turn,
+        #  [asker]: who gets the answer, replaced by a repeat's)
+        self._queue: collections.deque[tuple[str, str | None, dict, Any, list[Asker]]] = collections.deque()
         self._busy = False  # the worker is processing a request (keeps arrival order for the at-once path)
-        # (type, id) queued or being processed: a repeat of one of them is not queued again.
-        self._pending: PendingRegistry[tuple[str, str], None] = PendingRegistry("request")
+        # (type, id) queued or being processed -> its [asker]: a repeat of one of them is not queued again.
+        self._pending: PendingRegistry[tuple[str, str], list[Asker]] = PendingRegistry("request")
         self._wakeup: asyncio.Event | None = None
         self._tasks: list[asyncio.Task] = []  # the worker, owned and cancelled by aclose()
         self._executor: ThreadPoolExecutor | None = None
@@ -246,6 +256,10 @@ class Responder:
                 pass
             except Exception:
                 log.exception("Responder task ended with an error")
+        while self._queue:  # queries never answered: their askers learn it now
+            _let_go(self._queue.popleft()[4][0])
+        for holder in self._pending.drain():
+            _let_go(holder[0])
         close_socket(self._sub)
         close_socket(self._pub)
         if self._executor is not None:
@@ -258,53 +272,66 @@ class Responder:
     def _on_batch(self, batch: list[list[bytes]]) -> None:
         alone = len(batch) == 1
         for frames in batch:
-            self._dispatch(frames[-1], alone)
+            # A Zenoh query (QueryFrames) is answered by replying to it; anything else was published.
+            self._dispatch(frames[-1], alone, frames if hasattr(frames, "reply") else None)
 
-    def _dispatch(self, payload: bytes, alone: bool = True) -> None:
+    def _dispatch(self, payload: bytes, alone: bool = True, asker: Asker = None) -> None:
+        # Every path answers the asker, hands it on (queue, pending repeat) or lets it go (_let_go).
         try:
             event_type, rid, attrs = decode_event(payload)
         except BusError as exc:
             log.warning("Responder: ignoring undecodable request on %s: %s", self._actual_req, exc)
+            _let_go(asker)
             return
         if self._request_types is not None and event_type not in self._request_types:
             self.ignored += 1
             log.debug("Responder on %s: ignoring a %r event (id %s): not a request type it serves; %d ignored",
                       self._actual_req, event_type, rid, self.ignored)
+            _let_go(asker)
             return
         bad = self._bad_deadline(attrs)
         if bad is not None:
             self.rejected += 1
-            self._send(encode_event(self._response_type or response_type_for(event_type), rid, {"error": bad}))
+            self._send(encode_event(self._response_type or response_type_for(event_type), rid, {"error": bad}),
+                       asker)
             return
-        if self._answer_from_cache(event_type, rid):
+        if self._answer_from_cache(event_type, rid, asker):
             return
         if self._expired(attrs):
+            _let_go(asker)
             return
-        if rid is not None and (event_type, rid) in self._pending:
-            return  # a repeat of a request still queued or in process: its answer will serve it
+        if rid is not None:
+            holder = self._pending.get((event_type, rid))
+            if holder is not None:
+                # A repeat of a request still queued or in process: its answer will serve it, sent to the newest
+                # copy (a query's asker may have given up on an older one).
+                _let_go(holder[0])
+                holder[0] = asker
+                return
         later = None
         if alone and self._inline and not self._queue and not self._busy:
             try:
                 result = self._handler(event_type, rid, attrs)
             except Exception as exc:
-                self._answer(event_type, rid, self._error_response(event_type, rid, exc))
+                self._answer(event_type, rid, self._error_response(event_type, rid, exc), asker)
                 return
             if not inspect.isawaitable(result):
-                self._answer(event_type, rid, self._encode_result(event_type, rid, result))
+                self._answer(event_type, rid, self._encode_result(event_type, rid, result), asker)
                 return
             later = result
         if len(self._queue) >= self.max_queue:
             self._drop(self._queue.popleft())
+        holder = [asker]
         if rid is not None:
-            self._pending.add((event_type, rid), None)
-        self._queue.append((event_type, rid, attrs, later))
+            self._pending.add((event_type, rid), holder)
+        self._queue.append((event_type, rid, attrs, later, holder))
         assert self._wakeup is not None
         self._wakeup.set()
 
-    def _drop(self, item: tuple[str, str | None, dict, Any]) -> None:
+    def _drop(self, item: tuple[str, str | None, dict, Any, list[Asker]]) -> None:
         """Answer a request taken off the full queue with a ``dropped:`` error, unprocessed (not cached: a re-send
         of the same id is a new request and is served if there is room then)."""
-        event_type, rid, _attrs, later = item
+        event_type, rid, _attrs, later, holder = item
         if later is not None and hasattr(later, "close"):
             later.close()  # an un-awaited coroutine from the handler: never run, no "never awaited" warning
         if rid is not None:
@@ -317,7 +344,8 @@ class Responder:
                         self._actual_req, self.max_queue, self.dropped)
         text = (f"dropped: request queue full ({self.max_queue} waiting); the node serves the newest requests "
                 f"first")
-        self._send(encode_event(self._response_type or response_type_for(event_type), rid, {"error": text}))
+        self._send(encode_event(self._response_type or response_type_for(event_type), rid, {"error": text}),
+                   holder[0])
 
     async def _work(self) -> None:
         queue, wakeup = self._queue, self._wakeup
@@ -326,12 +354,16 @@ class Responder:
             while not queue:
                 wakeup.clear()
                 await wakeup.wait()
-            event_type, rid, attrs, later = queue.popleft()
+            event_type, rid, attrs, later, holder = queue.popleft()
             self._busy = True
             try:
-                if later is None and (self._answer_from_cache(event_type, rid) or self._expired(attrs)):
+                if later is None and self._answer_from_cache(event_type, rid, holder[0]):
                     continue
-                self._answer(event_type, rid, await self._process_async(event_type, rid, attrs, later))
+                if later is None and self._expired(attrs):
+                    _let_go(holder[0])
+                    continue
+                response = await self._process_async(event_type, rid, attrs, later)
+                self._answer(event_type, rid, response, holder[0])  # the newest copy's asker (a repeat's)
             finally:
                 self._busy = False
                 if rid is not None:
@@ -366,7 +398,7 @@ class Responder:
             return True
         return False
 
-    def _answer_from_cache(self, event_type: str, rid: str | None) -> bool:
+    def _answer_from_cache(self, event_type: str, rid: str | None, asker: Asker) -> bool:
         if rid is None:
             return False
         key = (event_type, rid)
@@ -375,15 +407,15 @@ class Responder:
             return False
         self._cache.move_to_end(key)
         self.cache_hits += 1
-        self._send(cached)
+        self._send(cached, asker)
         return True
 
-    def _answer(self, event_type: str, rid: str | None, response: bytes) -> None:
+    def _answer(self, event_type: str, rid: str | None, response: bytes, asker: Asker) -> None:
         if rid is not None:
             self._cache[(event_type, rid)] = response
             if len(self._cache) > self._cache_size:
                 self._cache.popitem(last=False)
-        self._send(response)
+        self._send(response, asker)
 
     def _encode_result(self, event_type: str, rid: str | None, result: Any) -> bytes:
         try:
@@ -420,7 +452,13 @@ class Responder:
             log.warning("Responder handler failed on %s %s: %r", event_type, rid, exc, exc_info=exc)
         return encode_event(self._response_type or response_type_for(event_type), rid, {"error": text})
 
-    def _send(self, payload: bytes) -> None:
+    def _send(self, payload: bytes, asker: Asker = None) -> None:
+        if asker is not None:
+            try:
+                asker.reply(payload, self._response_topic)
+            except Exception as exc:  # the asker's session is gone, or the query already timed out
+                log.debug("Responder on %s: reply to a query failed: %r", self._actual_req, exc)
+            return
         try:
             if self._response_topic is None:
                 self._pub.send(payload, zmq.NOBLOCK)
@@ -430,3 +468,9 @@ class Responder:
             log.debug("Responder: response dropped at the high-water mark")
         except zmq.ZMQError as exc:
             log.error("Responder on %s: publish failed: %r", self._actual_resp, exc)
+
+
+def _let_go(asker: Asker) -> None:
+    """A request that gets no answer: a query is finalized now, so its asker learns that no reply follows."""
+    if asker is not None:
+        asker.drop()

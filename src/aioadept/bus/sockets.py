@@ -76,17 +76,24 @@ def _context(context: zmq.Context | None, flavour: Flavour) -> zmq.Context:
 
 def make_socket(kind: int, *, context: zmq.Context | None = None, flavour: Flavour = "plain", hwm: int = 1000,
                 topics: Iterable[bytes | str] = (), options: Mapping[int, int] = {},
-                endpoint: str | None = None) -> zmq.Socket:
+                endpoint: str | None = None, replies_into: zmq.Socket | None = None,
+                queries: bool = False) -> zmq.Socket:
     """A new socket, not yet bound or connected: ``LINGER 0``, ``hwm`` for its direction (RCVHWM for a SUB,
     SNDHWM otherwise), ``options``, and for a SUB the ``topics`` prefixes. Raises :class:`BusError`.
 
-    An ``endpoint`` given here that is ``zenoh:KEY`` makes a Zenoh socket (:mod:`aioadept.bus.zenoh`) instead."""
+    An ``endpoint`` given here that is ``zenoh:KEY`` makes a Zenoh socket (:mod:`aioadept.bus.zenoh`) instead.
+    Request/response uses Zenoh queries there: ``replies_into`` (a PUB's) is the SUB that receives the replies to the
+    queries it sends (a ZeroMQ SUB there: publications), ``queries`` (a SUB's) answers queries too. ZeroMQ has no
+    queries: both mean nothing to it (its requests and answers are publications)."""
     if endpoint is not None and is_zenoh(endpoint):
         from aioadept.bus.zenohsocket import make_zenoh_socket
 
         subs = [as_topic(t) for t in topics] if kind == zmq.SUB else []
+        if replies_into is not None and not is_zenoh_socket(replies_into):
+            replies_into = None  # answers come back on ZeroMQ: the requests are publications, as there
         return make_zenoh_socket(kind, endpoint, flavour=flavour, hwm=hwm, topics=subs,  # type: ignore[return-value]
-                                 options=options)
+                                 options=options, replies_into=replies_into,  # type: ignore[arg-type]
+                                 queries=queries)
     ctx = _context(context, flavour)
     sock = ctx.socket(kind) if flavour == "asyncio" else zmq.Socket(ctx, kind)
     opt: int = zmq.LINGER
@@ -144,11 +151,13 @@ def attach(sock: zmq.Socket, endpoint: str, bind: bool, curve: Curve | None = No
 
 def open_socket(kind: int, endpoint: str, *, bind: bool, context: zmq.Context | None = None,
                 topics: Iterable[bytes | str] = (), hwm: int = 1000,
-                curve: Curve | None = None, options: Mapping[int, int] = {}) -> tuple[zmq.Socket, str]:
+                curve: Curve | None = None, options: Mapping[int, int] = {},
+                replies_into: zmq.Socket | None = None, queries: bool = False) -> tuple[zmq.Socket, str]:
     """A plain (synchronous) socket on the asyncio context, set up by :func:`make_socket` and :func:`attach`;
     returns ``(socket, actual_endpoint)``. The caller owns it and closes it with :func:`close_socket`.
     Raises :class:`BusError`."""
-    sock = make_socket(kind, context=context, hwm=hwm, topics=topics, options=options, endpoint=endpoint)
+    sock = make_socket(kind, context=context, hwm=hwm, topics=topics, options=options, endpoint=endpoint,
+                       replies_into=replies_into, queries=queries)
     return sock, attach(sock, endpoint, bind, curve)[0]
 
 

@@ -9,10 +9,11 @@ same frames, same Protobuf payloads, same request/response pairing (docs/bus.md,
 - A PUB puts on its key; ``send(payload)`` puts the payload alone (one frame), ``send_multipart([topic, payload])``
   puts the payload with the topic as the sample's attachment (two frames). A SUB subscribes to its key and filters
   on the first frame's prefixes exactly as a ZeroMQ SUB does.
-- Requests and responses stay publications on two keys (``.../vision/request``, ``.../vision/response``) rather than
-  Zenoh queries: the pairing contract (re-publication with the same id, the responder's answer cache, drop-oldest
-  with an error answer, ``t_deadline``, the paper-style send()/recv()) is written once, above the transport, and
-  keeps its tests on both.
+- Requests and responses are publications on two keys (``.../vision/request``, ``.../vision/response``), or with
+  ``Communicator(queries=True)`` Zenoh queries on the request key answered by their replies; a Responder answers
+  both. The pairing contract (re-sending with the same id, the responder's answer cache, drop-oldest with an error
+  answer, ``t_deadline``, the paper-style send()/recv()) is written once, above the transport, and keeps its tests
+  on both (docs/bus.md, "Requests: publications or Zenoh queries").
 - Zenoh calls back on a thread of its own: :mod:`aioadept.bus.zenohsocket` hands each message to the loop.
 - One Zenoh session per process, opened on first use with :func:`configure`'s options: multicast scouting and
   gossip OFF, so nothing is discovered or announced beyond the endpoints written down (``tcp/127.0.0.1:PORT`` in

@@ -10,6 +10,13 @@ file descriptor: one ``eventfd_write`` from Zenoh's thread, one readable event i
 (the fallback where there is no eventfd) goes through asyncio's self-pipe, a socket pair whose send, drain and extra
 callback cost about 35 us of a request's round trip on the 2-core test machine (benchmarks/bench_bus.py; docs/bus.md,
 Cost).
+
+Requests and answers (docs/bus.md, "Requests: publications or Zenoh queries"): a PUB opened with ``replies_into=sub``
+sends each message as a Zenoh query (``get`` on its key, from a declared querier) and hands every reply to ``sub`` as if
+it had been published there; a SUB opened with ``queries=True`` also declares a queryable on its key, and each query
+reaches its reader as a :class:`QueryFrames` (the frames, plus ``reply()`` to answer that one query and ``drop()`` to
+let it go unanswered). The pairing contract (ids, re-sending, the answer cache) stays above, in the Communicator and
+the Responder.
 """
 
 from __future__ import annotations
@@ -27,9 +34,42 @@ import zmq
 from aioadept.bus.zenoh import PREFIX, _zenoh, check_key, key_of, session
 from aioadept.errors import BusError
 
-__all__ = ["ZenohSocket", "make_zenoh_socket"]
+__all__ = ["QUERY_TIMEOUT_S", "QueryFrames", "ZenohSocket", "make_zenoh_socket"]
 
 log = logging.getLogger(__name__)
+
+QUERY_TIMEOUT_S = 10.0
+"""How long a query sent by a ``replies_into`` PUB waits for replies (Zenoh's default). The requester re-sends an
+unanswered request with the same id long before that, and the responder answers the newest copy."""
+
+
+class QueryFrames(list):
+    """The frames of one Zenoh query (``[payload]`` or ``[topic, payload]``, the topic from its attachment), with
+    what answering it takes. A list, so a reader that does not know about queries reads it like any message."""
+
+    __slots__ = ("_query", "_key")
+
+    def __init__(self, frames: list[bytes], query: Any, key: str) -> None:
+        super().__init__(frames)
+        self._query = query
+        self._key = key
+
+    def reply(self, payload: bytes, topic: bytes | None = None) -> None:
+        """Answer this query (once: the query is finalized, so the asker knows no more replies follow)."""
+        query, self._query = self._query, None
+        if query is None:
+            raise BusError("this query was already answered or let go")
+        try:
+            query.reply(self._key, payload, attachment=topic)
+        finally:
+            query.drop()
+
+    def drop(self) -> None:
+        """Finalize the query unanswered (idempotent). Letting go of the last reference does the same in CPython;
+        this says so where it happens."""
+        query, self._query = self._query, None
+        if query is not None:
+            query.drop()
 
 
 class ZenohSocket:
@@ -39,13 +79,25 @@ class ZenohSocket:
     wake-up callback set by :meth:`set_reader`), ``asyncio`` (``await recv_multipart()``) or ``thread``
     (``poll``/blocking ``recv_multipart``). A SUB keeps at most ``hwm`` messages; beyond that the oldest is
     dropped (``dropped`` counts them). ``max_bytes`` (ZeroMQ's MAXMSGSIZE) drops bigger messages.
+
+    ``replies_into`` (a PUB): send each message as a query and hand its replies to that SUB. ``queries`` (a SUB):
+    answer queries on the key too, each read as a :class:`QueryFrames`.
     """
 
     def __init__(self, kind: int, key: str, *, flavour: str = "plain", hwm: int = 1000,
-                 topics: Iterable[bytes] = (), max_bytes: int | None = None) -> None:
+                 topics: Iterable[bytes] = (), max_bytes: int | None = None,
+                 replies_into: ZenohSocket | None = None, queries: bool = False) -> None:
         if kind not in (zmq.PUB, zmq.SUB):
             raise BusError(f"the Zenoh transport has PUB and SUB sockets only, not {kind}")
+        if replies_into is not None and (kind != zmq.PUB or not isinstance(replies_into, ZenohSocket)
+                                         or replies_into.kind != zmq.SUB):
+            raise BusError("replies_into: a Zenoh PUB sends queries whose replies go to a Zenoh SUB")
+        if queries and kind != zmq.SUB:
+            raise BusError("queries: only a Zenoh SUB answers queries")
         self.kind = kind
+        self._replies_into = replies_into
+        self._queries = queries
+        self._queryable: Any = None
         self.key = check_key(key, wildcards=kind == zmq.SUB)
         self.flavour = flavour
         self.closed = False
@@ -71,7 +123,16 @@ class ZenohSocket:
         zenoh = _zenoh()
         s = session()
         try:
-            if self.kind == zmq.PUB:
+            if self.kind == zmq.PUB and self._replies_into is not None:
+                # ALL: every responder on the key is asked, as every subscriber gets a publication; NONE: each reply
+                # is handed over as it arrives (the default consolidation may hold replies until the query ends).
+                self._entity = s.declare_querier(self.key, target=zenoh.QueryTarget.ALL,
+                                                 consolidation=zenoh.ConsolidationMode.NONE,
+                                                 timeout=QUERY_TIMEOUT_S, express=True)
+                # One handler for every get. On Zenoh's own thread (indirect=False): it only copies and wakes the
+                # loop, where the default (indirect) would start a Python thread per query.
+                self._reply_handler = zenoh.handlers.Callback(self._replies_into._on_reply, indirect=False)
+            elif self.kind == zmq.PUB:
                 self._entity = s.declare_publisher(self.key, express=True)
             else:
                 # indirect (Zenoh's default): the callback runs on a Python thread of its own, not on Zenoh's
@@ -79,10 +140,14 @@ class ZenohSocket:
                 # (request/response p50 about 1.4x slower in benchmarks/bench_bus.py).
                 self._entity = s.declare_subscriber(self.key, zenoh.handlers.Callback(self._on_sample,
                                                                                       indirect=True))
+                if self._queries:
+                    self._queryable = s.declare_queryable(self.key, zenoh.handlers.Callback(self._on_query,
+                                                                                            indirect=True))
         except Exception as exc:
-            self.closed = True
-            raise BusError(f"cannot declare a Zenoh {'publisher' if self.kind == zmq.PUB else 'subscriber'} on "
-                           f"{self.key!r}: {exc}") from exc
+            self.close()
+            what = ("querier" if self._replies_into is not None else "publisher" if self.kind == zmq.PUB
+                    else "subscriber")
+            raise BusError(f"cannot declare a Zenoh {what} on {self.key!r}: {exc}") from exc
         return self.endpoint
 
     # -- options (the ZeroMQ ones the bus sets) ------------------------------------------------------------
@@ -118,12 +183,16 @@ class ZenohSocket:
         if self.kind != zmq.PUB:
             raise zmq.ZMQError(zmq.ENOTSUP, "send on a SUB socket")
         try:
-            if topic is None:
+            if self._replies_into is not None:
+                self._entity.get(self._reply_handler, payload=bytes(payload),
+                                 attachment=None if topic is None else bytes(topic))
+            elif topic is None:
                 self._entity.put(bytes(payload))
             else:
                 self._entity.put(bytes(payload), attachment=bytes(topic))
         except Exception as exc:
-            raise zmq.ZMQError(zmq.EFAULT, f"Zenoh put on {self.key!r} failed: {exc}") from exc
+            verb = "query" if self._replies_into is not None else "put"
+            raise zmq.ZMQError(zmq.EFAULT, f"Zenoh {verb} on {self.key!r} failed: {exc}") from exc
 
     # -- receiving -----------------------------------------------------------------------------------------
 
@@ -144,6 +213,31 @@ class ZenohSocket:
         except Exception as exc:  # pragma: no cover - a malformed sample from Zenoh itself
             log.debug("Zenoh sample on %s unreadable: %r", self.key, exc)
             return
+        self._deliver(frames)
+
+    def _on_reply(self, reply: Any) -> None:
+        # On Zenoh's thread: a reply to a query sent by the PUB whose replies_into this is.
+        sample = reply.ok
+        if sample is None:
+            log.debug("Zenoh query on %s answered with an error: %r", self.key, reply.err)
+            return
+        self._on_sample(sample)
+
+    def _on_query(self, query: Any) -> None:
+        # On a Zenoh thread, as _on_sample. A query that is not kept (closed, filtered, or pushed out of a full queue)
+        # is finalized when its last reference goes, so its asker learns at once that no reply follows.
+        try:
+            payload = b"" if query.payload is None else query.payload.to_bytes()
+            att = query.attachment
+            key = self.key if "*" not in self.key else str(query.key_expr)  # a reply's key is concrete
+            frames = QueryFrames([payload] if att is None else [att.to_bytes(), payload], query, key)
+        except Exception as exc:  # pragma: no cover - a malformed query from Zenoh itself
+            log.debug("Zenoh query on %s unreadable: %r", self.key, exc)
+            query.drop()
+            return
+        self._deliver(frames)
+
+    def _deliver(self, frames: list[bytes]) -> None:
         if self.closed or not self._accepts(frames):
             return
         queue = self._queue
@@ -289,12 +383,17 @@ class ZenohSocket:
         if self.closed:
             return
         self.closed = True
-        entity, self._entity = self._entity, None
-        if entity is not None:
-            try:
-                entity.undeclare()
-            except Exception as exc:
-                log.debug("Zenoh undeclare %s: %r", self.key, exc)
+        for entity in (self._entity, self._queryable):
+            if entity is not None:
+                try:
+                    entity.undeclare()
+                except Exception as exc:
+                    log.debug("Zenoh undeclare %s: %r", self.key, exc)
+        self._entity = self._queryable = None
+        while self._queue:  # queries never read: finalized now, not whenever the socket is collected
+            frames = self._queue.popleft()
+            if isinstance(frames, QueryFrames):
+                frames.drop()
         loop = self._loop
         if self._efd is not None:
             try:
@@ -319,11 +418,13 @@ class ZenohSocket:
 
 
 def make_zenoh_socket(kind: int, endpoint: str, *, flavour: str = "plain", hwm: int = 1000,
-                      topics: Iterable[bytes] = (), options: Mapping[int, int] = {}) -> ZenohSocket:
+                      topics: Iterable[bytes] = (), options: Mapping[int, int] = {},
+                      replies_into: ZenohSocket | None = None, queries: bool = False) -> ZenohSocket:
     """A :class:`ZenohSocket` for ``endpoint`` (not declared yet: :meth:`ZenohSocket.declare`)."""
     max_bytes = options.get(zmq.MAXMSGSIZE)
     unknown = set(options) - {zmq.MAXMSGSIZE}
     if unknown:
         raise BusError(f"socket options {sorted(unknown)} have no meaning on the Zenoh transport")
     return ZenohSocket(kind, key_of(endpoint), flavour=flavour, hwm=hwm, topics=topics,
-                       max_bytes=None if max_bytes is None or max_bytes < 0 else max_bytes)
+                       max_bytes=None if max_bytes is None or max_bytes < 0 else max_bytes,
+                       replies_into=replies_into, queries=queries)

@@ -147,7 +147,7 @@ async def _run(intr, runs, host, port, request, response, poses, nominal, args, 
 
     async with RobotClient(host, port, connect_timeout_s=cfg.robot.connect_timeout_s,
                            ack_timeout_s=cfg.robot.ack_timeout_s) as robot, intr.guard(robot), \
-            Communicator(request, response, timeout_s=args.vision_timeout) as comm:
+            Communicator(request, response, timeout_s=args.vision_timeout, queries=cfg.bus.zenoh_queries) as comm:
         runs.append(await calibrate(robot, comm, poses, nominal, marker=args.marker, marker_mm=args.marker_mm,
                                     speed=args.speed, vision_timeout_s=args.vision_timeout))
     return 0
