@@ -25,9 +25,13 @@ the cores, and each wake-up that crosses cores costs tens of microseconds, so un
 (per round 0.7-3.1 x ZeroMQ in one run). Pinned, both transports are measured without that noise: the goal is
 judged there; the unpinned ratio is printed beside it, without a goal (docs/bus.md, Cost).
 
-Prints one JSON object. Usage: ``python benchmarks/bench_bus.py [--n 3000] [--warmup 300] [--rounds 3]``.
+Prints one JSON object. Usage: ``python benchmarks/bench_bus.py [--n 2000] [--warmup 300] [--rounds 5]``.
 Targets: ours p50 <= 1.3 x raw p50 (unpinned); ours over Zenoh p50 <= 1.3 x ours over ZeroMQ p50 (issue 23; pinned
-where the machine has two CPUs to pin to, else unpinned). The raw Zenoh floor over ours on ZeroMQ is printed beside
+where the machine has two CPUs to pin to, else unpinned). Each Zenoh verdict's ratio is the median of the rounds'
+ratios (each round's Zenoh p50 over the same round's ZeroMQ p50, measured one after the other), as bench_client and
+bench_multi_cell judge theirs: on this VM a whole process now and then runs about twice as slow for a run (docs/bus.md,
+Cost), and a pooled p50 takes that round in whole whereas the median of five paired rounds sets it aside. The pooled
+ratio is in the JSON beside it. The raw Zenoh floor over ours on ZeroMQ is printed beside
 each: when the floor alone is near 1.3, the goal is out of reach of any Python asyncio layer, whatever the bus does.
 """
 
@@ -401,9 +405,10 @@ def _can_pin() -> bool:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--n", type=int, default=3000, help="measured round trips per round")
+    ap.add_argument("--n", type=int, default=2000, help="measured round trips per round")
     ap.add_argument("--warmup", type=int, default=300)
-    ap.add_argument("--rounds", type=int, default=3, help="alternating raw/ours rounds; samples are pooled")
+    ap.add_argument("--rounds", type=int, default=5,
+                    help="alternating rounds; samples are pooled, and the Zenoh verdicts take the median round")
     args = ap.parse_args()
 
     zenoh_version = _zenoh_version()
@@ -424,6 +429,7 @@ def main() -> None:
                 per_round.setdefault(("zenoh/ours", pin), []).append(round(medians["zenoh"] / medians["ours"], 3))
                 per_round.setdefault(("query/ours", pin), []).append(
                     round(medians["zenoh_query"] / medians["ours"], 3))
+                per_round.setdefault(("floor/ours", pin), []).append(round(medians["raw_zenoh"] / medians["ours"], 3))
     stats = {key: _stats(v) for key, v in samples.items() if v}
     r, o = stats[("raw", False)], stats[("ours", False)]
     verdicts = [verdict("request->response p50, Communicator+Responder vs raw pyzmq", o["p50_us"], r["p50_us"],
@@ -436,14 +442,16 @@ def main() -> None:
             where = "each side pinned to a CPU of its own" if pin else "unpinned"
             # The goal is judged pinned where pinning is possible (the module docstring says why); unpinned is shown.
             judged = pin or len(pinnings) == 1
+            ratio = statistics.median(per_round[("zenoh/ours", pin)])
             verdicts.append(verdict(f"request->response p50, Communicator+Responder over Zenoh vs over ZeroMQ, "
-                                    f"{where}", z["p50_us"], oz["p50_us"], unit="us",
-                                    goal="ratio <= 1.3" if judged else None,
-                                    passed=z["p50_us"] / oz["p50_us"] <= 1.3))
+                                    f"{where}, median round", z["p50_us"], oz["p50_us"], unit="us", ratio=ratio,
+                                    goal="ratio <= 1.3" if judged else None, passed=ratio <= 1.3))
             verdicts.append(verdict(f"request->response p50, Communicator(queries=True)+Responder over Zenoh (Zenoh "
-                                    f"queries) vs over ZeroMQ, {where}", zq["p50_us"], oz["p50_us"], unit="us"))
+                                    f"queries) vs over ZeroMQ, {where}, median round", zq["p50_us"], oz["p50_us"],
+                                    unit="us", ratio=statistics.median(per_round[("query/ours", pin)])))
             verdicts.append(verdict(f"request->response p50, raw Zenoh asyncio ping-pong (the floor) vs ours over "
-                                    f"ZeroMQ, {where}", zr["p50_us"], oz["p50_us"], unit="us"))
+                                    f"ZeroMQ, {where}, median round", zr["p50_us"], oz["p50_us"], unit="us",
+                                    ratio=statistics.median(per_round[("floor/ours", pin)])))
             tag = "_pinned" if pin else ""
             out.update({
                 f"communicator_responder_noop{tag}" if pin else "communicator_responder_noop_same_rounds": oz,
@@ -452,6 +460,7 @@ def main() -> None:
                 f"zenoh_vs_zeromq_ratio_p50{tag}": round(z["p50_us"] / oz["p50_us"], 3),
                 f"zenoh_vs_zeromq_ratio_p99{tag}": round(z["p99_us"] / oz["p99_us"], 3),
                 f"zenoh_vs_zeromq_ratio_p50_per_round{tag}": per_round[("zenoh/ours", pin)],
+                f"zenoh_vs_zeromq_ratio_p50_median_round{tag}": ratio,
                 f"communicator_responder_noop_zenoh_queries{tag}": zq,
                 f"zenoh_queries_vs_zeromq_ratio_p50{tag}": round(zq["p50_us"] / oz["p50_us"], 3),
                 f"zenoh_queries_vs_zeromq_ratio_p50_per_round{tag}": per_round[("query/ours", pin)],
