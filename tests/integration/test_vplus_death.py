@@ -181,7 +181,7 @@ WAYS = [
                                      "task 2 (rs.reader)"], id="executor-task-ends"),
     pytest.param("pause_now", False, ["V+ task 0 (rs.main) paused by PAUSE at", "rsconfig.V2:", "in pause_now",
                                       "nothing can PROCEED it"], id="executor-task-pauses"),
-    pytest.param("rdboom", False, ["V+ task 2 (rs.reader) stopped:", "*Emulator internal error*",
+    pytest.param("rdboom", False, ["V+ task 2 (rs.reader) halted by HALT at", "in rs.rdtrap (its error trap, called for", "*Emulator internal error*",
                                    "RuntimeError: injected reader fault", "rserver.V2:", "in rs."],
                  id="python-exception-in-the-reader-task"),
     pytest.param("boom", True, ["emulator internal error RuntimeError: injected scheduler fault",
@@ -247,3 +247,38 @@ async def test_a_clean_rs_halt_is_no_death_the_last_acks_go_out_and_the_exit_sta
         err = (await sim.proc.stderr.read()).decode()
     assert rc == 0, err
     assert [ln for ln in err.splitlines() if ln.strip()] == ["aioadept sim: every V+ task has ended"]
+
+
+@pytest.mark.timeout(90)
+async def test_an_error_in_the_reader_brakes_the_arm_and_no_command_queued_behind_the_motion_runs(tmp_path):
+    # On a controller nobody else brakes the arm when the reader (the task that reads every stop) dies: its own
+    # error trap, rs.rdtrap, must brake it and keep task 1 from running on through the queue. Here the supervisor
+    # would brake everything GRACE_S (0.5 s) after the reader halts; a queued motion started meanwhile would show
+    # in the state stream as the arm turning back.
+    async with vplus_sim(tmp_path) as sim:
+        states: list[RobotState] = []
+        async with Subscriber(sim.state, topics=[ROBOT_STATE_TOPIC]) as sub:
+            recorder = asyncio.ensure_future(record(sub, states, sim.proc))
+            async with RobotClient("127.0.0.1", sim.port) as robot:
+                await robot.cmdexec(SetSpeed(5))
+                # task 1 waits in the first move (it breaks: its ack comes at the end); the second waits in the queue
+                moves = robot.submit(MoveJoints([TARGET_J1_DEG, -90, 180, 0, 90, 0]),
+                                     MoveJoints([-TARGET_J1_DEG, -90, 180, 0, 90, 0]))
+                await asyncio.sleep(0.5)
+                fault = robot.submit(Skill("rdboom"))
+                for pending in (fault, moves):  # neither move is acked: the first was braked, the second never ran
+                    with pytest.raises(ConnectionLost):
+                        await pending.wait(timeout_s=10)
+            rc = await asyncio.wait_for(sim.proc.wait(), 15)
+            await asyncio.wait_for(recorder, 10)
+        err = (await sim.proc.stderr.read()).decode()
+    assert rc == 1, err
+    assert "in rs.rdtrap (its error trap, called for" in err, err
+    assert any(line.startswith("[2] [rs] reader failed: V+ ") for line in sim.out), sim.out
+    j1 = [s.joints_deg[0] for s in states]
+    peak = max(j1)
+    assert 0.5 < peak < TARGET_J1_DEG - 20, j1          # it moved, and was braked well short of the first target
+    after = j1[j1.index(peak):]
+    assert min(after) > peak - 0.01, after             # and never turned back toward the second (which, SPEED
+    #                                                    applying to one motion only, would run at full speed)
+    assert not states[-1].in_motion

@@ -200,6 +200,8 @@ class Supervisor:
         how = "was aborted" if T.state == "aborted" else "ended"
         if T.halted_at is not None:
             how = f"halted by HALT at {_where(*T.halted_at)}"
+            if T.trapped is not None and T.halted_at[1].lower() == T.trapped[0].lower():
+                how += f" (its error trap, called for {_explain(T.trapped[1])})"
         runs = ", ".join(f"task {t.num} ({t.program})" for t in others)
         self.die(f"V+ task {T.num} ({T.program}) {how} while {runs} ran on: the server cannot serve")
 

@@ -110,6 +110,7 @@ class Task:
     event_wait: bool = False           # blocked in WAIT.EVENT with the event mask: woken by SET.EVENT / its I/O
     motion_wait: bool = False          # blocked in a motion instruction: woken by a BRAKE
     halted_at: tuple[str | None, str, int] | None = None   # HALT or PAUSE: (file, program, line)
+    trapped: tuple[str, VPlusError] | None = None  # (REACTE program, error) of the last error it trapped
 
 
 class Runtime:
@@ -468,6 +469,7 @@ class Runtime:
         T.last_error = err.code
         if T.reacte is not None and not T.in_reaction:
             handler, T.reacte = T.reacte, None      # V+: REACTE is disarmed when it triggers
+            T.trapped = (handler, err)
             T.in_reaction = True
             try:
                 yield from self.call(T, handler, ())
