@@ -6,9 +6,9 @@ Data path (docs/bus.md)::
                                               -> handler(type, id, attributes)  (inline, worker task or thread)
     requester SUB <--response_endpoint-- PUB <- answer (LRU cache of answers by (type, id))
 
-On Zenoh a request is a query on the request key and its answer the reply to that query (the response PUB is used
-for requests that were published instead); the triage, the cache and the queue are the same (docs/bus.md, "Requests:
-Zenoh queries").
+On Zenoh a request may also come as a query on the request key, and its answer is then the reply to that query
+(not published); the triage, the cache and the queue are the same (docs/bus.md, "Requests: publications or Zenoh
+queries").
 
 The sockets come from the one socket layer (:mod:`aioadept.bus.sockets`), the queued-or-in-process requests live
 in a :class:`~aioadept.bus.pairing.PendingRegistry`, and Protobuf stays in :mod:`aioadept.bus.messages`.
