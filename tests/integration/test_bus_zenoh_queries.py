@@ -185,3 +185,27 @@ async def test_a_hand_written_node_reads_queries_with_a_subscriber_and_answers_b
                 assert (await comm.request("VisionRequest", {"v": "hi"})).attributes == {"echo": "hi"}
         finally:
             task.cancel()
+
+
+@pytest.mark.timeout(30)
+@pytest.mark.parametrize("queries", [False, True], ids=["publications", "queries"])
+async def test_a_timeout_says_when_nothing_on_the_bus_takes_the_requests(keys, queries):
+    # The usual mistake in a cell spread over machines (a node in another cell, or on another router) gives a
+    # timeout that says so; a node that is there but slow does not.
+    from aioadept.errors import RequestTimeout
+
+    req, resp = keys
+    async with Communicator(req, resp, queries=queries, timeout_s=0.5) as comm:
+        with pytest.raises(RequestTimeout) as nobody:
+            await comm.request("VisionRequest")
+        assert f"nothing on the bus takes requests on {req}" in str(nobody.value)
+        assert ("queryable" if queries else "subscriber") in str(nobody.value)
+
+        async def never(event_type, rid, attrs):
+            await asyncio.Event().wait()
+
+        async with Responder(req, resp, never):
+            await asyncio.sleep(0.2)  # its subscription and queryable reach the communicator's side
+            with pytest.raises(RequestTimeout) as slow:
+                await comm.request("VisionRequest")
+            assert "nothing on the bus" not in str(slow.value)

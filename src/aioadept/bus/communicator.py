@@ -53,7 +53,7 @@ from aioadept.bus.pairing import (
 from aioadept.bus.pubsub import DEFAULT_REQUEST_ENDPOINT, DEFAULT_RESPONSE_ENDPOINT
 from aioadept.bus.responder import DEFAULT_MAX_QUEUE, DEFAULT_MAX_REQUEST_BYTES, Handler, Responder
 from aioadept.bus.security import Curve
-from aioadept.bus.sockets import SocketReader, as_topic, close_socket, open_socket
+from aioadept.bus.sockets import SocketReader, as_topic, close_socket, nobody_takes, open_socket
 from aioadept.errors import BusEncodeError, BusError, ClientStateError, RequestTimeout
 
 __all__ = [
@@ -339,9 +339,16 @@ class Communicator:
     def _expire(self, pend: _Pending, timeout: float) -> None:
         self._settle(pend)
         if not pend.future.done():
+            why = ""
+            if self._pub is not None and nobody_takes(self._pub):
+                # Zenoh knows it: a node that is down, or in another cell, or behind another router (the usual
+                # mistake in a cell spread over machines) shows here instead of as a silent timeout.
+                what = "queryable" if self.queries else "subscriber"
+                why = (f"; nothing on the bus takes requests on {self._actual_req} (no Zenoh {what} matches): is "
+                       f"the node running, in this cell, connected to this router?")
             pend.future.set_exception(RequestTimeout(
                 f"no response to {pend.event_type} {pend.id} within {timeout:g} s (published {pend.publishes} "
-                f"times)", request_id=pend.id, publishes=pend.publishes))
+                f"times){why}", request_id=pend.id, publishes=pend.publishes))
 
     async def _finish(self, pend: _Pending) -> Response:
         try:

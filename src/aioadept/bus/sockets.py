@@ -166,6 +166,12 @@ def is_zenoh_socket(sock: object) -> bool:
     return hasattr(sock, "set_reader")
 
 
+def nobody_takes(sock: zmq.Socket) -> bool:
+    """True when the transport knows that nothing takes what ``sock`` sends: a Zenoh PUB with no matching
+    subscriber (or queryable, sending queries). ZeroMQ cannot tell: False."""
+    return is_zenoh_socket(sock) and sock.matched() is False  # type: ignore[attr-defined]
+
+
 def close_socket(sock: zmq.Socket) -> None:
     """Close a socket at once (linger 0), releasing its CURVE authenticator share if any. Idempotent."""
     if is_zenoh_socket(sock):

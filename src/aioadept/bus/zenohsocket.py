@@ -194,6 +194,17 @@ class ZenohSocket:
             verb = "query" if self._replies_into is not None else "put"
             raise zmq.ZMQError(zmq.EFAULT, f"Zenoh {verb} on {self.key!r} failed: {exc}") from exc
 
+    def matched(self) -> bool | None:
+        """A PUB: whether anything on the network takes what it sends (a subscriber, or sending queries a
+        queryable, whose key matches), from Zenoh's matching status; None when that is not known."""
+        if self.kind != zmq.PUB or self._entity is None:
+            return None
+        try:
+            status = self._entity.matching_status
+        except Exception:  # pragma: no cover - a closed session
+            return None
+        return bool(getattr(status, "matching", status))  # a MatchingStatus, or a bool in older bindings
+
     # -- receiving -----------------------------------------------------------------------------------------
 
     def _accepts(self, frames: list[bytes]) -> bool:
