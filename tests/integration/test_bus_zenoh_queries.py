@@ -47,6 +47,20 @@ async def _ask(endpoint: str, payload: bytes) -> list[bytes]:
     return await asyncio.to_thread(lambda: [r.ok.payload.to_bytes() for r in replies if r.ok is not None])
 
 
+class Held:
+    """A Responder handler that holds every request until ``release`` is set; ``started``: one has arrived."""
+
+    def __init__(self, answer: dict) -> None:
+        self.answer = answer
+        self.started = asyncio.Event()
+        self.release = asyncio.Event()
+
+    async def __call__(self, event_type: str, rid: str | None, attrs: dict) -> dict:
+        self.started.set()
+        await self.release.wait()
+        return self.answer
+
+
 @pytest.mark.timeout(30)
 async def test_any_zenoh_querier_asks_a_responder_with_the_protobuf_event_and_gets_the_answer_as_the_reply(keys):
     req, resp = keys
@@ -120,22 +134,15 @@ async def test_a_query_the_responder_will_not_answer_is_finalized_at_once(keys):
 @pytest.mark.timeout(30)
 async def test_a_repeat_while_in_process_gets_the_answer_and_the_older_copy_is_let_go(keys):
     req, resp = keys
-    release = asyncio.Event()
-    started = asyncio.Event()
-
-    async def slow(event_type, rid, attrs):
-        started.set()
-        await release.wait()
-        return {"done": 1}
-
+    slow = Held({"done": 1})
     payload = encode_event("VisionRequest", "0badcafe", {})
     async with Responder(req, resp, slow) as node:
         first = asyncio.ensure_future(_ask(req, payload))
-        await asyncio.wait_for(started.wait(), 10)
+        await asyncio.wait_for(slow.started.wait(), 10)
         second = asyncio.ensure_future(_ask(req, payload))
         # The older copy is let go as soon as the repeat arrives: its asker learns that no reply follows.
         assert await asyncio.wait_for(first, 10) == []
-        release.set()
+        slow.release.set()
         assert [decode_event(r) for r in await asyncio.wait_for(second, 10)] == [
             ("VisionResponse", "0badcafe", {"done": 1})]
         assert node.handled == 1
@@ -144,17 +151,10 @@ async def test_a_repeat_while_in_process_gets_the_answer_and_the_older_copy_is_l
 @pytest.mark.timeout(30)
 async def test_a_query_pushed_off_a_full_queue_is_answered_dropped_and_closing_lets_the_waiting_ones_go(keys):
     req, resp = keys
-    release = asyncio.Event()
-    started = asyncio.Event()
-
-    async def slow(event_type, rid, attrs):
-        started.set()
-        await release.wait()
-        return {}
-
+    slow = Held({})
     async with Responder(req, resp, slow, max_queue=1) as node:
         busy = asyncio.ensure_future(_ask(req, encode_event("VisionRequest", "000000a1", {})))
-        await asyncio.wait_for(started.wait(), 10)
+        await asyncio.wait_for(slow.started.wait(), 10)
         queued = asyncio.ensure_future(_ask(req, encode_event("VisionRequest", "000000a2", {})))
         while not node._queue:  # the second one waits behind the first
             await asyncio.sleep(0.01)
@@ -201,10 +201,7 @@ async def test_a_timeout_says_when_nothing_on_the_bus_takes_the_requests(keys, q
         assert f"nothing on the bus takes requests on {req}" in str(nobody.value)
         assert ("queryable" if queries else "subscriber") in str(nobody.value)
 
-        async def never(event_type, rid, attrs):
-            await asyncio.Event().wait()
-
-        async with Responder(req, resp, never):
+        async with Responder(req, resp, Held({})):  # there, and never answering
             await asyncio.sleep(0.2)  # its subscription and queryable reach the communicator's side
             with pytest.raises(RequestTimeout) as slow:
                 await comm.request("VisionRequest")
