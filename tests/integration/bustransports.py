@@ -1,6 +1,7 @@
 """The bus tests' transports: the same test runs over ZeroMQ and over Zenoh (issue 23, item 1).
 
-A test that takes the ``bus`` fixture (``tests/integration/conftest.py``) runs once per transport and asks it for
+A test that takes the ``bus`` fixture (``tests/integration/conftest.py``) runs once per transport (and once more on
+Zenoh with requests sent as queries) and asks it for
 endpoints instead of writing ``tcp://`` addresses:
 
 - ``bus.any()``: a fresh endpoint the first side opens (ZeroMQ: ``tcp://127.0.0.1:*``, the OS picks the port;
@@ -18,7 +19,9 @@ import itertools
 import os
 import socket
 
-TRANSPORTS = ("zeromq", "zenoh")
+TRANSPORTS = ("zeromq", "zenoh", "zenoh-queries")
+"""``zenoh-queries``: Zenoh with every Communicator sending its requests as queries (``queries=True``), so the whole
+pairing contract is tested on that path too (docs/bus.md, "Requests: publications or Zenoh queries")."""
 
 _run = os.urandom(4).hex()
 _counter = itertools.count()
@@ -36,7 +39,7 @@ class BusEndpoints:
 
     @property
     def zenoh(self) -> bool:
-        return self.name == "zenoh"
+        return self.name.startswith("zenoh")
 
     def any(self) -> str:
         if self.zenoh:
