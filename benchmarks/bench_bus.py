@@ -16,7 +16,7 @@ else. And the same again with ``Communicator(queries=True)``: each request a Zen
 (docs/bus.md, "Requests: publications or Zenoh queries"), shown without a goal. Rounds alternate raw / ZeroMQ / raw
 Zenoh / Zenoh / Zenoh queries.
 
-The ZeroMQ / raw Zenoh / Zenoh runs are measured twice in each round: as above, wherever the scheduler puts the
+The ZeroMQ / raw Zenoh / Zenoh / Zenoh queries runs are measured twice in each round: as above, wherever the scheduler puts the
 threads, and pinned, the requester's process on CPU 0 and the node's on CPU 1 (both started pinned, so every thread
 ZeroMQ or Zenoh starts stays with its process), as Zenoh's own latency benchmarks run z_ping and z_pong under
 taskset. Why both: a Zenoh process hands each message through three threads (Zenoh's network thread, its Python
@@ -31,8 +31,8 @@ where the machine has two CPUs to pin to, else unpinned). Each Zenoh verdict's r
 ratios (each round's Zenoh p50 over the same round's ZeroMQ p50, measured one after the other), as bench_client and
 bench_multi_cell judge theirs: on this VM a whole process now and then runs about twice as slow for a run (docs/bus.md,
 Cost), and a pooled p50 takes that round in whole whereas the median of five paired rounds sets it aside. The pooled
-ratio is in the JSON beside it. The raw Zenoh floor over ours on ZeroMQ is printed beside
-each: when the floor alone is near 1.3, the goal is out of reach of any Python asyncio layer, whatever the bus does.
+ratio is in the JSON beside it. The raw Zenoh floor over ours on ZeroMQ is printed beside each: when the floor alone
+is near 1.3, the goal is out of reach of any Python asyncio layer, whatever the bus does.
 """
 
 from __future__ import annotations
@@ -399,6 +399,10 @@ def _stats(samples: list[float]) -> dict[str, float]:
             "mean_us": round(statistics.fmean(s) * 1e6, 1), "min_us": round(s[0] * 1e6, 1)}
 
 
+_PAIRS = (("ours", "raw"), ("zenoh", "ours"), ("zenoh_query", "ours"), ("raw_zenoh", "ours"))
+"""(figure, baseline) of each per-round ratio: ours over raw pyzmq; the Zenoh kinds over ours on ZeroMQ."""
+
+
 def _can_pin() -> bool:
     return hasattr(os, "sched_setaffinity") and {0, 1} <= os.sched_getaffinity(0)
 
@@ -423,13 +427,9 @@ def main() -> None:
                 got = _run(kind, args.n, args.warmup, pin=pin)
                 samples[(kind, pin)] += got
                 medians[kind] = statistics.median(got)
-            if not pin:
-                per_round.setdefault(("ours/raw", pin), []).append(round(medians["ours"] / medians["raw"], 3))
-            if "zenoh" in medians:
-                per_round.setdefault(("zenoh/ours", pin), []).append(round(medians["zenoh"] / medians["ours"], 3))
-                per_round.setdefault(("query/ours", pin), []).append(
-                    round(medians["zenoh_query"] / medians["ours"], 3))
-                per_round.setdefault(("floor/ours", pin), []).append(round(medians["raw_zenoh"] / medians["ours"], 3))
+            for kind, baseline in _PAIRS:  # each figure over its baseline of the same round (where both ran)
+                if kind in medians and baseline in medians:
+                    per_round.setdefault((kind, pin), []).append(round(medians[kind] / medians[baseline], 3))
     stats = {key: _stats(v) for key, v in samples.items() if v}
     r, o = stats[("raw", False)], stats[("ours", False)]
     verdicts = [verdict("request->response p50, Communicator+Responder vs raw pyzmq", o["p50_us"], r["p50_us"],
@@ -442,16 +442,16 @@ def main() -> None:
             where = "each side pinned to a CPU of its own" if pin else "unpinned"
             # The goal is judged pinned where pinning is possible (the module docstring says why); unpinned is shown.
             judged = pin or len(pinnings) == 1
-            ratio = statistics.median(per_round[("zenoh/ours", pin)])
+            ratio = statistics.median(per_round[("zenoh", pin)])
             verdicts.append(verdict(f"request->response p50, Communicator+Responder over Zenoh vs over ZeroMQ, "
                                     f"{where}, median round", z["p50_us"], oz["p50_us"], unit="us", ratio=ratio,
                                     goal="ratio <= 1.3" if judged else None, passed=ratio <= 1.3))
             verdicts.append(verdict(f"request->response p50, Communicator(queries=True)+Responder over Zenoh (Zenoh "
                                     f"queries) vs over ZeroMQ, {where}, median round", zq["p50_us"], oz["p50_us"],
-                                    unit="us", ratio=statistics.median(per_round[("query/ours", pin)])))
+                                    unit="us", ratio=statistics.median(per_round[("zenoh_query", pin)])))
             verdicts.append(verdict(f"request->response p50, raw Zenoh asyncio ping-pong (the floor) vs ours over "
                                     f"ZeroMQ, {where}, median round", zr["p50_us"], oz["p50_us"], unit="us",
-                                    ratio=statistics.median(per_round[("floor/ours", pin)])))
+                                    ratio=statistics.median(per_round[("raw_zenoh", pin)])))
             tag = "_pinned" if pin else ""
             out.update({
                 f"communicator_responder_noop{tag}" if pin else "communicator_responder_noop_same_rounds": oz,
@@ -459,11 +459,11 @@ def main() -> None:
                 f"raw_zenoh_asyncio_pingpong{tag}": zr,
                 f"zenoh_vs_zeromq_ratio_p50{tag}": round(z["p50_us"] / oz["p50_us"], 3),
                 f"zenoh_vs_zeromq_ratio_p99{tag}": round(z["p99_us"] / oz["p99_us"], 3),
-                f"zenoh_vs_zeromq_ratio_p50_per_round{tag}": per_round[("zenoh/ours", pin)],
+                f"zenoh_vs_zeromq_ratio_p50_per_round{tag}": per_round[("zenoh", pin)],
                 f"zenoh_vs_zeromq_ratio_p50_median_round{tag}": ratio,
                 f"communicator_responder_noop_zenoh_queries{tag}": zq,
                 f"zenoh_queries_vs_zeromq_ratio_p50{tag}": round(zq["p50_us"] / oz["p50_us"], 3),
-                f"zenoh_queries_vs_zeromq_ratio_p50_per_round{tag}": per_round[("query/ours", pin)],
+                f"zenoh_queries_vs_zeromq_ratio_p50_per_round{tag}": per_round[("zenoh_query", pin)],
                 f"zenoh_queries_vs_publications_p50{tag}": round(zq["p50_us"] / z["p50_us"], 3),
                 f"zenoh_floor_vs_zeromq_ours_p50{tag}": round(zr["p50_us"] / oz["p50_us"], 3),
                 f"zenoh_ours_vs_floor_p50{tag}": round(z["p50_us"] / zr["p50_us"], 3),
@@ -477,7 +477,7 @@ def main() -> None:
         "ratio_p50": round(o["p50_us"] / r["p50_us"], 3),
         "ratio_p99": round(o["p99_us"] / r["p99_us"], 3),
         "ratio_mean": round(o["mean_us"] / r["mean_us"], 3),
-        "ratio_p50_per_round": per_round[("ours/raw", False)],
+        "ratio_p50_per_round": per_round[("ours", False)],
         "cpu_count": os.cpu_count(),
         "load_avg_1min": round(os.getloadavg()[0], 2),
         "target_ratio_p50": 1.3,

@@ -256,10 +256,10 @@ class Responder:
                 pass
             except Exception:
                 log.exception("Responder task ended with an error")
-        while self._queue:  # queries never answered: their askers learn it now
+        # Queries never answered: their askers learn it now. (The one in process, if any, went with the worker:
+        # its last reference is gone, which finalizes it.)
+        while self._queue:
             _let_go(self._queue.popleft()[4][0])
-        for holder in self._pending.drain():
-            _let_go(holder[0])
         close_socket(self._sub)
         close_socket(self._pub)
         if self._executor is not None:

@@ -82,8 +82,8 @@ def make_socket(kind: int, *, context: zmq.Context | None = None, flavour: Flavo
     SNDHWM otherwise), ``options``, and for a SUB the ``topics`` prefixes. Raises :class:`BusError`.
 
     An ``endpoint`` given here that is ``zenoh:KEY`` makes a Zenoh socket (:mod:`aioadept.bus.zenoh`) instead.
-    Request/response uses Zenoh queries there: ``replies_into`` (a PUB's) is the SUB that receives the replies to the
-    queries it sends (a ZeroMQ SUB there: publications), ``queries`` (a SUB's) answers queries too. ZeroMQ has no
+    Requests may be Zenoh queries there: ``replies_into`` (a PUB's) is the SUB that receives the replies to the
+    queries it sends (a ZeroMQ SUB there: publications), ``queries`` (a SUB's) receives queries too. ZeroMQ has no
     queries: both mean nothing to it (its requests and answers are publications)."""
     if endpoint is not None and is_zenoh(endpoint):
         from aioadept.bus.zenohsocket import make_zenoh_socket
