@@ -4,14 +4,23 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: venv demo demo-multi test bench docs proto clean toxiproxy chromium gige
+.PHONY: venv venv-install demo demo-multi test bench docs proto clean toxiproxy chromium gige
 
+# Two makes started at once (two terminals on a fresh clone) must not install into one .venv together: the
+# install runs under a lock, and a make that waited for it finds the stamp fresh and installs nothing.
 $(STAMP): pyproject.toml requirements.lock
-	$(PY) -m venv $(VENV)
-	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -r requirements.lock
-	$(BIN)/pip install --quiet --no-deps -e .
-	touch $(STAMP)
+	@flock $(VENV).lock $(MAKE) --no-print-directory venv-install
+
+venv-install:
+	@if [ -f $(STAMP) ] && [ $(STAMP) -nt pyproject.toml ] && [ $(STAMP) -nt requirements.lock ]; then :; else \
+	  set -e; \
+	  echo "creating $(VENV) with the pinned dependencies (requirements.lock)" >&2; \
+	  $(PY) -m venv $(VENV); \
+	  $(BIN)/pip install --quiet --upgrade pip; \
+	  $(BIN)/pip install --quiet -r requirements.lock; \
+	  $(BIN)/pip install --quiet --no-deps -e .; \
+	  touch $(STAMP); \
+	fi
 
 venv: $(STAMP)
 
@@ -55,7 +64,7 @@ gige: $(STAMP)
 
 # pytest exits 5 when it collected no tests: that is a failure, not a pass.
 test: $(STAMP) toxiproxy chromium gige
-	$(BIN)/python -m pytest -q $(ARGS); rc=$$?; \
+	$(BIN)/python -m pytest -q -rs $(ARGS); rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "no tests were collected" >&2; exit 1; fi; exit $$rc
 
 # Every benchmarks/bench_*.py in turn, each JSON kept under runs/bench-*/, then one verdict table
