@@ -1,4 +1,4 @@
-"""The Viper s850's inverse kinematics over many poses at once (numpy arrays), for the straight-line planner.
+"""A Viper's inverse kinematics over many poses at once (numpy arrays), for the straight-line planner.
 
 Pure numpy, no I/O. :func:`aioadept.sim.line.plan_tool_line` solves a line's hundreds of samples with these
 instead of calling :func:`aioadept.robots.viper_s850.inverse` once per sample (about 36 us each; a 300 mm line
@@ -23,11 +23,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aioadept.robots import viper_s850 as kin
-from aioadept.robots.viper_s850 import A1_MM, A2_MM, A3_MM, D1_MM, D4_MM, D6_MM, JointLimits, JumpLimit
-
-_L3_MM = math.hypot(A3_MM, D4_MM)
-_BETA = math.atan2(A3_MM, D4_MM)
+from aioadept.robots import viper as kin
+from aioadept.robots.base import JointLimits, JumpLimit
+from aioadept.robots.viper import VIPER_S850, Viper
 
 BRANCHES: tuple[tuple[int, int, int], ...] = tuple(
     (sh, el, wr) for sh in (1, -1) for el in (1, -1) for wr in (1, -1))
@@ -59,10 +57,11 @@ def _wrap(a: np.ndarray) -> np.ndarray:
     return np.where(a > np.pi, a - 2.0 * np.pi, np.where(a <= -np.pi, a + 2.0 * np.pi, a))
 
 
-def solutions(flange: np.ndarray) -> Solutions:
+def solutions(flange: np.ndarray, model: Viper = VIPER_S850) -> Solutions:
     """All eight solutions of each 4x4 flange pose in ``flange`` (N, 4, 4), as ``_solutions_rad`` computes them.
 
     The branches are array axes (shoulder, elbow, wrist), so the work is a fixed number of numpy calls."""
+    A1_MM, D1_MM, A2_MM, D6_MM, _L3_MM, _BETA = model.a1, model.d1, model.a2, model.d6, model.l3, model.beta  # noqa: N806
     n = len(flange)
     rot = flange[:, :3, :3]
     wc = flange[:, :3, 3] - D6_MM * rot[:, :, 2]
@@ -122,11 +121,13 @@ class Choice:
     doubtful: np.ndarray
 
 
-def choose(seeds_deg: np.ndarray, sols: np.ndarray, reached: np.ndarray, limits: JointLimits) -> Choice:
+def choose(seeds_deg: np.ndarray, sols: np.ndarray, reached: np.ndarray, limits: JointLimits,
+           model: Viper = VIPER_S850) -> Choice:
     """The solution :func:`~aioadept.robots.viper_s850.inverse` takes for pose k from ``seeds_deg[k]`` (M, 6),
     given its solutions ``sols`` (M, 8, 6) and ``reached`` (M, 8) from :func:`solutions`: the seed's configuration
     (each flag free within its band of the singularity), every joint at its equivalent nearest the seed within
     ``limits``, the least total motion; the first branch wins a tie. Every seed must lie within ``limits``."""
+    A1_MM, A2_MM, A3_MM, D4_MM, _BETA = model.a1, model.a2, model.a3, model.d4, model.beta  # noqa: N806
     m = len(seeds_deg)
     rad = np.radians(seeds_deg)
     j2, j3 = rad[:, 1], rad[:, 2]
@@ -176,29 +177,9 @@ def choose(seeds_deg: np.ndarray, sols: np.ndarray, reached: np.ndarray, limits:
     return Choice(np.where(none, -1, branch), joints, doubtful)
 
 
-def _rz(t: np.ndarray) -> np.ndarray:
-    c, s, z, o = np.cos(t), np.sin(t), np.zeros_like(t), np.ones_like(t)
-    return np.stack([c, -s, z, s, c, z, z, z, o], axis=-1).reshape(-1, 3, 3)
-
-
-def _ry(t: np.ndarray) -> np.ndarray:
-    c, s, z, o = np.cos(t), np.sin(t), np.zeros_like(t), np.ones_like(t)
-    return np.stack([c, z, s, z, o, z, -s, z, c], axis=-1).reshape(-1, 3, 3)
-
-
-def flange_matrices(joints_deg: np.ndarray) -> np.ndarray:
-    """4x4 flange transforms (M, 4, 4) of joint vectors (M, 6) in degrees, as
-    :func:`~aioadept.robots.viper_s850.flange_matrix` computes one."""
-    j = np.radians(joints_deg)
-    j1, j2, j3 = j[:, 0], j[:, 1], j[:, 2]
-    r = A1_MM + A2_MM * np.cos(j2) - A3_MM * np.cos(j2 + j3) + D4_MM * np.sin(j2 + j3)
-    z = D1_MM - A2_MM * np.sin(j2) + A3_MM * np.sin(j2 + j3) + D4_MM * np.cos(j2 + j3)
-    rot = _rz(j1) @ _ry(j2 + j3) @ _rz(j[:, 3]) @ _ry(j[:, 4]) @ _rz(j[:, 5])
-    m = np.zeros((len(j), 4, 4))
-    m[:, :3, :3] = rot
-    m[:, :3, 3] = np.stack([r * np.cos(j1), r * np.sin(j1), z], axis=1) + D6_MM * rot[:, :, 2]
-    m[:, 3, 3] = 1.0
-    return m
+def flange_matrices(joints_deg: np.ndarray, model: Viper = VIPER_S850) -> np.ndarray:
+    """4x4 flange transforms (M, 4, 4) of joint vectors (M, 6) in degrees: :meth:`Viper.flange_matrices`."""
+    return model.flange_matrices(joints_deg)
 
 
 def jump_allowed_deg(seed_tool: np.ndarray, target_tool: np.ndarray, jump: JumpLimit) -> np.ndarray:

@@ -612,7 +612,7 @@ class Controller:
         speed = self.take_speed_pct()  # a refused motion instruction consumes SPEED too
         least = self.take_duration_s()
         config = self.take_config()
-        if config is not None and config.changes(self.trajectory.end_deg):
+        if config is not None and config.changes(self.trajectory.end_deg, kin.MODEL):
             # V+ changes configuration only in a joint-interpolated motion; a line cannot (UNCONFIRMED code)
             raise RobotError(ErrorCode.OUT_OF_REACH, "configuration change asked for a straight-line motion")
         path = self.plan_line(pose)
