@@ -19,7 +19,7 @@ from typing import Any
 from aioadept.apps.cellbus import BusSection, transport_argv, with_transport, zenoh_session
 from aioadept.apps.focus import FocusParams, FocusResult, ufloop
 from aioadept.apps.pickplace import PickPlaceParams
-from aioadept.apps.processes import NodeProcess, watch
+from aioadept.apps.processes import NodeProcess, run_watched
 from aioadept.apps.runfolder import abandon_run, merged_save_error, run_error, save_run
 from aioadept.commands import SPEED_MAX, SPEED_MIN
 from aioadept.configfile import Range, ranged
@@ -432,23 +432,9 @@ class Cell:
         self.nodes = nodes
 
     async def run(self, coro: Any) -> Any:
-        """Await ``coro``; if a node dies first, cancel it and raise :class:`~aioadept.apps.processes.NodeError`."""
-        main = asyncio.ensure_future(coro)
-        if not self.nodes:
-            return await main
-        watcher = asyncio.create_task(watch(*self.nodes))
-        try:
-            await asyncio.wait({main, watcher}, return_when=asyncio.FIRST_COMPLETED)
-        finally:
-            for t in (main, watcher):
-                if not t.done():
-                    t.cancel()
-            await asyncio.gather(main, watcher, return_exceptions=True)
-        if not main.cancelled() and main.exception() is None:
-            return main.result()
-        if watcher.done() and not watcher.cancelled() and watcher.exception() is not None:
-            raise watcher.exception()  # type: ignore[misc]
-        return main.result()
+        """Await ``coro``; if a node dies first, cancel it and raise :class:`~aioadept.apps.processes.NodeError`
+        (:func:`~aioadept.apps.processes.run_watched`: the run folder names the node)."""
+        return await run_watched(coro, *self.nodes)
 
 
 @contextlib.asynccontextmanager

@@ -16,13 +16,18 @@ import shlex
 import signal
 import sys
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 from aioadept.errors import AdeptError
 
 
 class NodeError(AdeptError):
-    """A node process failed to start or died while the cell was running."""
+    """A node process failed to start or died while the cell was running. ``headline``: what happened, in one line
+    (the message may go on with the tail of the node's log)."""
+
+    def __init__(self, message: str, *, headline: str | None = None) -> None:
+        super().__init__(message)
+        self.headline = headline or message.splitlines()[0]
 
 
 # Process groups of the nodes started and not yet reaped, for kill_all_now() (a signal handler's exit path).
@@ -194,8 +199,36 @@ async def watch(*nodes: NodeProcess) -> None:
     try:
         done, _ = await asyncio.wait(waits, return_when=asyncio.FIRST_COMPLETED)
         node = waits[next(iter(done))]
-        raise NodeError(f"{node.name} exited unexpectedly with code {node.returncode}:\n{node.tail()}")
+        what = f"{node.name} exited unexpectedly with code {node.returncode}"
+        raise NodeError(f"{what}:\n{node.tail()}", headline=what)
     finally:
         for t in waits:
             t.cancel()
         await asyncio.gather(*waits, return_exceptions=True)
+
+
+async def run_watched(coro: Any, *nodes: NodeProcess) -> Any:
+    """Await ``coro``; if one of ``nodes`` exits first, cancel it and raise that node's :class:`NodeError`.
+
+    The cancellation carries the cause (``NodeError: <node> exited unexpectedly with code N``, the words the
+    app's failure line starts with), so a run that saves its folder while it is cancelled names the dead node
+    as its error (:func:`aioadept.apps.runfolder.run_error`), not an interrupt."""
+    main = asyncio.ensure_future(coro)
+    if not nodes:
+        return await main
+    watcher = asyncio.create_task(watch(*nodes))
+    try:
+        await asyncio.wait({main, watcher}, return_when=asyncio.FIRST_COMPLETED)
+    finally:
+        died = watcher.done() and not watcher.cancelled() and watcher.exception() is not None
+        if not main.done():
+            cause = watcher.exception() if died else None
+            main.cancel(None if cause is None else f"{type(cause).__name__}: {cause.headline}")
+        if not watcher.done():
+            watcher.cancel()
+        await asyncio.gather(main, watcher, return_exceptions=True)
+    if not main.cancelled() and main.exception() is None:
+        return main.result()
+    if died:
+        raise watcher.exception()  # type: ignore[misc]
+    return main.result()

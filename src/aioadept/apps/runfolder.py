@@ -21,8 +21,11 @@ def merged_save_error(err: OSError | None, run_dir: Path, not_written: dict[str,
 
 
 def run_error(exc: BaseException) -> str:
-    """What ``run.json``'s ``error`` says of the exception that ended a run: ``interrupted`` for Ctrl-C or a
-    cancellation, else the exception's type and text."""
+    """What ``run.json``'s ``error`` says of the exception that ended a run: the cause a cancellation carries (a
+    node that died: :func:`aioadept.apps.processes.run_watched`), ``interrupted`` for Ctrl-C or a cancellation
+    without one, else the exception's type and text."""
+    if isinstance(exc, asyncio.CancelledError) and exc.args and isinstance(exc.args[0], str) and exc.args[0]:
+        return exc.args[0]
     if isinstance(exc, (asyncio.CancelledError, KeyboardInterrupt)):
         return "interrupted"
     return f"{type(exc).__name__}: {exc}"
