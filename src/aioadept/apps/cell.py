@@ -51,7 +51,14 @@ class RobotSection:
     hello_timeout_s: float = ranged(2.0, Range(0.0, unit="s"))
     """After connecting, send ``hello`` and give up this soon if nothing like a RobotServer answers (a wrong port).
     0: no check (the original V+ AdeptServer, whose task halts on an unknown skill)."""
+    model: str = "viper-s850"
+    """The arm the sim simulates (``aioadept sim --robot-model``; docs/sim.md, Robot models)."""
     sim_args: list[str] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        from aioadept.robots import model
+
+        model(self.model)  # ValueError naming the known models
 
 
 @dataclass(slots=True)
@@ -220,7 +227,8 @@ def sim_argv(cfg: CellConfig, world_file: Path | None = None) -> list[str]:
     else:
         ports = ["--port", str(r.port), "--stop-port", str(stop_port_of(cfg))]
     return ["sim", "--host", r.host, *ports, "--time-scale", str(r.time_scale),
-            "--monitor-speed", str(r.monitor_speed), "--state-endpoint", r.state_endpoint, *world,
+            "--monitor-speed", str(r.monitor_speed), "--state-endpoint", r.state_endpoint, "--robot-model", r.model,
+            *world,
             *transport_argv(cfg), *r.sim_args]
 
 

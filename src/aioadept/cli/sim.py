@@ -39,6 +39,15 @@ def _jump_limit(text: str) -> kin.JumpLimit | None:
         raise argparse.ArgumentTypeError(f"expected FLOOR,PER_MM,PER_DEG (three numbers >= 0) or 'off', got {text!r}") from exc
 
 
+def _robot_model(text: str) -> str:
+    from aioadept.robots import model
+
+    try:
+        return model(text).name
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def _hand(text: str):  # -> aioadept.sim.io.HandConfig
     from aioadept.sim.io import HandConfig
 
@@ -121,6 +130,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="TOOL transform (mm, degrees); default NULL")
     p.add_argument("--joints", type=_six, default=None, metavar="J1,...,J6",
                    help="initial joint angles in degrees (default: home 0,-90,180,0,90,0)")
+    p.add_argument("--robot-model", type=_robot_model, default="viper-s850", dest="robot_model", metavar="NAME",
+                   help="the arm: viper-s850 (default), viper-s650, cobra-s600, cobra-s800 (docs/sim.md, Robot "
+                        "models); the cell file's [robot] model")
     p.add_argument("--hand", type=_hand, default=None, metavar="OPEN,CLOSE,SWITCH[,CLOSE_TIME_S]",
                    help="the hand's open and close valve outputs and closed-fully switch input (0: none), and its "
                         "travel time; default 1,2,1001,0.04")
@@ -201,7 +213,7 @@ def options_from_args(args: argparse.Namespace) -> SimOptions:
                       line_timeout_s=args.line_timeout or None, stop_window_s=args.stop_window,
                       state_endpoint=state, state_rate_hz=args.state_rate_hz, faults=Faults.parse(args.fault),
                       state_curve=_state_curve(args),
-                      tool=Pose(*args.tool) if args.tool else NULL, **extra)
+                      tool=Pose(*args.tool) if args.tool else NULL, robot_model=args.robot_model, **extra)
 
 
 async def run(options: SimOptions) -> int:
@@ -255,7 +267,7 @@ _PYTHON_SERVER_ONLY = (
 
 
 _ROBOT_TABLE = (("host", "host"), ("port", "port"), ("time_scale", "time_scale"),
-                ("monitor_speed", "monitor_speed"), ("state_endpoint", "state_endpoint"))
+                ("monitor_speed", "monitor_speed"), ("state_endpoint", "state_endpoint"), ("model", "robot_model"))
 """The cell file's [robot] keys this node reads: (key, argparse dest), and ``stop_port`` (0 = the port + 1, as
 ``--stop-port auto``). The rest of [robot] is the client's (start_sim, the timeouts)."""
 
@@ -309,6 +321,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.vplus is not None:
         if not args.run:
             parser.error("--vplus needs --run PROGRAM")
+        if args.robot_model != "viper-s850":
+            parser.error(f"--robot-model {args.robot_model}: the V+ emulator runs the viper-s850 only so far "
+                         f"(docs/sim.md, Robot models); the Python sim runs every model")
         for dest, flag, instead in _PYTHON_SERVER_ONLY:
             if getattr(args, dest) != parser.get_default(dest):
                 parser.error(f"{flag} is an option of the Python sim's server; with --vplus the V+ program "

@@ -77,7 +77,9 @@ from aioadept.protocol import (
     parse_command,
     recover_id,
 )
-from aioadept.robots import viper_s850 as kin
+from aioadept.robots import RobotModel
+from aioadept.robots.base import DEFAULT_JUMP_LIMIT, ConfigRequest, JointLimits, JumpLimit
+from aioadept.robots.viper import VIPER_S850
 from aioadept.sim.io import DigitalIO, HandState, IoSnapshot
 from aioadept.sim.line import CartesianLimits, LinePath, plan_tool_line
 from aioadept.sim.motion import MotionLimits, Trajectory
@@ -135,14 +137,24 @@ class ControllerState:
 class Controller:
     """The simulated controller; see the module docstring. All times are server-clock seconds."""
 
-    def __init__(self, *, joints_deg: Sequence[float] = kin.HOME_JOINTS_DEG, tool: Pose = NULL,
+    def __init__(self, *, joints_deg: Sequence[float] | None = None, tool: Pose = NULL,
                  monitor_speed_pct: float = 100.0, time_scale: float = 1.0, instant: bool = False,
-                 motion_limits: MotionLimits = MotionLimits(), joint_limits: kin.JointLimits = kin.VIPER_S850_LIMITS,
+                 motion_limits: MotionLimits | None = None, joint_limits: JointLimits | None = None,
                  max_queued_per_conn: int = 10_000, skills: Iterable[SkillSpec] | None = None,
                  version: str | None = None, max_speed_pct: float = 100.0,
                  min_speed_pct: float = MIN_SPEED_PCT,
-                 jump_limit: kin.JumpLimit | None = kin.DEFAULT_JUMP_LIMIT, io: DigitalIO | None = None,
-                 cartesian_limits: CartesianLimits | None = None, world: World | None = None) -> None:
+                 jump_limit: JumpLimit | None = DEFAULT_JUMP_LIMIT, io: DigitalIO | None = None,
+                 cartesian_limits: CartesianLimits | None = None, world: World | None = None,
+                 model: RobotModel = VIPER_S850) -> None:
+        self.model = model
+        """The arm (:mod:`aioadept.robots`): its kinematics, and the defaults of the joints (its home), the joint
+        limits and the joint speeds."""
+        joints_deg = model.home_deg if joints_deg is None else joints_deg
+        joint_limits = model.limits if joint_limits is None else joint_limits
+        if motion_limits is None:
+            motion_limits = MotionLimits(model.max_speed_deg_s)
+        if len(joints_deg) != model.dof:
+            raise ValueError(f"joints_deg: the {model.name} has {model.dof} joints, got {len(joints_deg)} values")
         if not 0 < monitor_speed_pct <= 100:
             raise ValueError(f"monitor_speed_pct: {monitor_speed_pct} outside (0, 100]")
         if not 0 < max_speed_pct <= 100:
@@ -166,7 +178,7 @@ class Controller:
         self.always_speed_pct = 100.0
         self.pending_speed_pct: float | None = None
         self.accel_pct = 100.0
-        self.config_request: kin.ConfigRequest | None = None
+        self.config_request: ConfigRequest | None = None
         """V+ LEFTY/RIGHTY/ABOVE/BELOW/FLIP/NOFLIP/SINGLE: the configuration the next motion to a pose ends in
         (:meth:`request_config`); consumed by the next motion instruction, as a one-shot SPEED."""
         self.always_duration_s = 0.0
@@ -469,7 +481,7 @@ class Controller:
         cache = self._fk_cache
         if cache is not None and cache[0] == joints and cache[1] == self.tool:
             return cache[2]
-        pose = kin.forward(joints, self.tool)
+        pose = self.model.forward(joints, self.tool)
         self._fk_cache = (joints, self.tool, pose)
         return pose
 
@@ -537,13 +549,13 @@ class Controller:
     def request_config(self, *, shoulder: int = 0, elbow: int = 0, wrist: int = 0, single: bool | None = None) -> None:
         """V+ ``RIGHTY``/``LEFTY`` (shoulder +1/-1), ``ABOVE``/``BELOW`` (elbow +1/-1), ``NOFLIP``/``FLIP`` (wrist
         +1/-1), ``SINGLE``/``MULTIPLE`` (single True/False): the next motion to a pose ends in that configuration
-        (:class:`aioadept.robots.viper_s850.ConfigRequest`). Requests add up until a motion takes them. The Python
+        (:class:`aioadept.robots.base.ConfigRequest`). Requests add up until a motion takes them. The Python
         sim's skills do not call it (the wire protocol has no configuration skill); the model and V+ do."""
-        r = self.config_request or kin.ConfigRequest()
-        self.config_request = kin.ConfigRequest(shoulder or r.shoulder, elbow or r.elbow, wrist or r.wrist,
+        r = self.config_request or ConfigRequest()
+        self.config_request = ConfigRequest(shoulder or r.shoulder, elbow or r.elbow, wrist or r.wrist,
                                                 r.single if single is None else single)
 
-    def take_config(self) -> kin.ConfigRequest | None:
+    def take_config(self) -> ConfigRequest | None:
         """The configuration request for this motion, consumed (as the one-shot speed)."""
         r, self.config_request = self.config_request, None
         return r
@@ -569,10 +581,10 @@ class Controller:
         """Generator for skills: check the path, wait for a motion slot, start the motion (V+ ``MOVE``)."""
         speed = self.take_speed_pct()
         least = self.take_duration_s()
-        target = tuple(float(v) for v in target_deg)
+        target = self._model_joints(target_deg)
         start = self.trajectory.end_deg
         # Both ends inside the limit box: the joint-space segment between them is too (the box is convex).
-        kin.check_joint_path(start, target, limits=self.joint_limits)
+        self.model.check_joint_path(start, target, limits=self.joint_limits)
         # Forward processing is one motion deep: the instruction waits until the motion executing now begins to
         # decelerate (where this one blends in), so its ack says the motion has started.
         while True:
@@ -584,10 +596,19 @@ class Controller:
         self.io.motion_started(self.now_s)  # a deferred OPEN/CLOSE/RELAX acts as the motion starts
         return None
 
+    def _model_joints(self, values: Sequence[float]) -> tuple[float, ...]:
+        """The joint values of a joint motion: the wire's six values carry a four-axis arm's joints first and
+        zeros after them (a value there would move nothing, so it is refused rather than ignored)."""
+        n = self.model.dof
+        extra = [v for v in values[n:] if v != 0.0]
+        if len(values) < n or extra:
+            raise RobotError(ErrorCode.ILLEGAL_VALUE, f"the {self.model.name} has {n} joints: J{n + 1}.. must be 0")
+        return tuple(float(v) for v in values[:n])
+
     def move_pose(self, pose: Pose) -> SkillGen:
         """Generator for skills: inverse kinematics from the planned end, then :meth:`move_joints`."""
         try:
-            target = kin.inverse(pose, self.trajectory.end_deg, self.tool, limits=self.joint_limits,
+            target = self.model.inverse(pose, self.trajectory.end_deg, self.tool, limits=self.joint_limits,
                                  jump=self.jump_limit, config=self.take_config())
         except RobotError:
             self.take_speed_pct()  # the failed motion instruction still consumes SPEED (and DURATION)
@@ -604,7 +625,7 @@ class Controller:
         """The straight line from where the planned motions end to ``pose``, checked along its whole length
         (:func:`aioadept.sim.line.plan_tool_line`); raises ``RobotError`` before anything moves."""
         return plan_tool_line(self.trajectory.end_deg, pose, self.tool, joint_limits=self.joint_limits,
-                              jump=self.jump_limit)
+                              jump=self.jump_limit, model=self.model)
 
     def move_line(self, pose: Pose) -> SkillGen:
         """Generator for skills: V+ ``MOVES``. Consume the one-shot speed, check the whole line (refused before
@@ -612,7 +633,7 @@ class Controller:
         speed = self.take_speed_pct()  # a refused motion instruction consumes SPEED too
         least = self.take_duration_s()
         config = self.take_config()
-        if config is not None and config.changes(self.trajectory.end_deg, kin.MODEL):
+        if config is not None and config.changes(self.trajectory.end_deg, self.model):
             # V+ changes configuration only in a joint-interpolated motion; a line cannot (UNCONFIRMED code)
             raise RobotError(ErrorCode.OUT_OF_REACH, "configuration change asked for a straight-line motion")
         path = self.plan_line(pose)

@@ -27,8 +27,10 @@ import numpy as np
 from aioadept.errors import RobotError
 from aioadept.geometry import NULL, Pose, decompose, inverse_transform
 from aioadept.protocol import ErrorCode
-from aioadept.robots import viper_s850 as kin
+from aioadept.robots import RobotModel
 from aioadept.robots import viper_s850_batch as kb
+from aioadept.robots.base import DEFAULT_JUMP_LIMIT, JointLimits, JumpLimit
+from aioadept.robots.viper import VIPER_S850, Viper
 
 
 LINE_STEP_MM = 1.0
@@ -181,7 +183,7 @@ def plan_line(start_deg: Sequence[float], target_m: np.ndarray, *,
     rotation = math.degrees(float(np.linalg.norm(turn)))
     n = _sample_count(length, rotation, step_mm, step_deg)
     s = np.linspace(0.0, 1.0, n + 1)
-    joints = np.empty((n + 1, 6))
+    joints = np.empty((n + 1, len(start_deg)))
     joints[0] = start_deg
     seed = tuple(float(v) for v in start_deg)
     for k in range(1, n + 1):
@@ -226,7 +228,7 @@ reference loop's, whatever the line."""
 
 def _plan_batch(start_deg: Sequence[float], start_m: np.ndarray, target_m: np.ndarray, tool_m: np.ndarray | None,
                 solve: Callable[[np.ndarray, tuple[float, ...]], Sequence[float]], *,
-                joint_limits: kin.JointLimits, jump: kin.JumpLimit) -> LinePath | None:
+                joint_limits: JointLimits, jump: JumpLimit, model: Viper = VIPER_S850) -> LinePath | None:
     """:func:`plan_line` with the samples solved in arrays (:mod:`aioadept.robots.viper_s850_batch`); the same
     samples, joints to rounding, and the same refusals. None: too few samples, plan with :func:`plan_line`.
 
@@ -245,7 +247,7 @@ def _plan_batch(start_deg: Sequence[float], start_m: np.ndarray, target_m: np.nd
         return None
     s = np.linspace(0.0, 1.0, n + 1)
     inv_tool = None if tool_m is None else inverse_transform(tool_m)
-    joints = np.empty((n + 1, 6))
+    joints = np.empty((n + 1, len(start_deg)))
     joints[0] = start_deg
     k = hi = 0  # joints[:k + 1] are planned; sample k + 1 is next; the window holds samples lo + 1 .. hi
     short_runs = 0
@@ -254,12 +256,12 @@ def _plan_batch(start_deg: Sequence[float], start_m: np.ndarray, target_m: np.nd
             # The next window: a refusal part-way does not pay for solving the whole of a long line first.
             lo, hi = k, min(n, k + BATCH_WINDOW)
             poses = _line_poses(start_m, target_m, turn, s[lo + 1:hi + 1])
-            sols = kb.solutions(poses if inv_tool is None else poses @ inv_tool)
+            sols = kb.solutions(poses if inv_tool is None else poses @ inv_tool, model)
         i = k - lo
         if not sols.doubtful[i]:
-            first = kb.choose(joints[k:k + 1], sols.joints_deg[i:i + 1], sols.reached[i:i + 1], joint_limits)
+            first = kb.choose(joints[k:k + 1], sols.joints_deg[i:i + 1], sols.reached[i:i + 1], joint_limits, model)
             if not first.doubtful[0]:
-                k += _check_run(joints, k, int(first.branch[0]), sols, i, poses, tool_m, joint_limits, jump)
+                k += _check_run(joints, k, int(first.branch[0]), sols, i, poses, tool_m, joint_limits, jump, model)
                 if k == hi:
                     continue
                 short_runs += 1
@@ -280,7 +282,7 @@ def _solve_sample(solve: Callable[[np.ndarray, tuple[float, ...]], Sequence[floa
 
 
 def _check_run(joints: np.ndarray, k: int, branch: int, sols: kb.Solutions, i: int, poses: np.ndarray,
-               tool_m: np.ndarray | None, joint_limits: kin.JointLimits, jump: kin.JumpLimit) -> int:
+               tool_m: np.ndarray | None, joint_limits: JointLimits, jump: JumpLimit, model: Viper) -> int:
     """Guess the samples from k + 1 to the end of the window on ``branch``, continuing from ``joints[k]``, check
     them, write the run that holds into ``joints``; return its length (0 when the guess fails at once). ``sols``
     and ``poses`` are the window's, sample k + 1 at index ``i``."""
@@ -289,14 +291,14 @@ def _check_run(joints: np.ndarray, k: int, branch: int, sols: kb.Solutions, i: i
     turns = np.round((np.vstack([joints[k:k + 1], a[:-1]]) - a) / 360.0)
     guess = a + 360.0 * np.cumsum(turns, axis=0)
     seeds = np.vstack([joints[k:k + 1], guess[:-1]])
-    got = kb.choose(seeds, sols.joints_deg[i:], sols.reached[i:], joint_limits)
+    got = kb.choose(seeds, sols.joints_deg[i:], sols.reached[i:], joint_limits, model)
     good = (~got.doubtful & ~sols.doubtful[i:] & (got.branch == branch)
             & (np.abs(got.joints_deg - guess) <= kb.DOUBT).all(axis=1))
     # The jump limit, as _check_jump: within the floor, or within what the Cartesian size of the step allows.
     moved = np.abs(got.joints_deg - seeds).max(axis=1)
     big = np.flatnonzero(good & (moved > jump.floor_deg - kb.DOUBT))
     if len(big):
-        seed_m = kb.flange_matrices(seeds[big])
+        seed_m = model.flange_matrices(seeds[big])
         if tool_m is not None:
             seed_m = seed_m @ tool_m
         allowed = kb.jump_allowed_deg(seed_m, poses[i + big], jump)
@@ -333,10 +335,10 @@ def line_duration(path: LinePath, speed_fraction: float, *, max_joint_speed_deg_
 
 
 def plan_tool_line(start_deg: Sequence[float], pose: Pose, tool: Pose = NULL, *,
-                   joint_limits: kin.JointLimits = kin.VIPER_S850_LIMITS,
-                   jump: kin.JumpLimit | None = kin.DEFAULT_JUMP_LIMIT, batch: bool = True) -> LinePath:
+                   joint_limits: JointLimits | None = None, jump: JumpLimit | None = DEFAULT_JUMP_LIMIT,
+                   batch: bool = True, model: RobotModel = VIPER_S850) -> LinePath:
     """The straight line of the tool (``tool`` in the flange frame, V+ ``TOOL``) from the joints ``start_deg`` to
-    ``pose``, every sample solved with the Viper's inverse kinematics; raises ``RobotError`` (``OUT_OF_REACH``,
+    ``pose``, every sample solved with ``model``'s inverse kinematics (``joint_limits`` default: the model's); raises ``RobotError`` (``OUT_OF_REACH``,
     ``JOINT_LIMIT``, ``JOINT_JUMP``: a swing through a singularity, or ``ILLEGAL_VALUE``) naming where along the
     line, before anything moves.
 
@@ -346,37 +348,39 @@ def plan_tool_line(start_deg: Sequence[float], pose: Pose, tool: Pose = NULL, *,
     The samples are solved in arrays (a 300 mm line in about 1 ms; it runs on the sim server's event loop, where a
     ``stop`` waits for it). ``batch=False``: one scalar inverse kinematics per sample (:func:`plan_line`), the
     reference the array planner gives the same result as (to rounding: joints within 1e-9 deg, the same refusals).
+    The array planner is the Viper family's; a SCARA's line is solved sample by sample.
     """
-    start_m = kin.flange_matrix(start_deg)
+    limits = model.limits if joint_limits is None else joint_limits
+    start_m = model.flange_matrix(start_deg)
     if tool != NULL:
         start_m = start_m @ tool.to_matrix()
     target_m = pose.to_matrix()
     if not np.isfinite(target_m).all():
         raise RobotError(ErrorCode.ILLEGAL_VALUE, "location is not finite")
-    step_jump = jump if jump is not None else kin.DEFAULT_JUMP_LIMIT
+    step_jump = jump if jump is not None else DEFAULT_JUMP_LIMIT
 
     def solve(m: np.ndarray, seed: tuple[float, ...]) -> tuple[float, ...]:
         sample = decompose(m)
         try:
-            return kin.inverse(sample, seed, tool, limits=joint_limits, jump=step_jump)
+            return model.inverse(sample, seed, tool, limits=limits, jump=step_jump)
         except RobotError as exc:
             if exc.code != ErrorCode.JOINT_JUMP:
                 raise
             # Between two samples 1 mm apart a joint jumps: either it would have to pass its limit (the nearer
             # way round is past it) or the line crosses a singularity. Say which.
-            q = kin.inverse(sample, seed, tool, limits=joint_limits, jump=None)
-            worst = max(range(6), key=lambda i: abs(q[i] - seed[i]))
+            q = model.inverse(sample, seed, tool, limits=limits, jump=None)
+            worst = max(range(len(q)), key=lambda i: abs(q[i] - seed[i]))
             near = q[worst] + 360.0 * round((seed[worst] - q[worst]) / 360.0)
-            if abs(near - seed[worst]) < abs(q[worst] - seed[worst]) - 1e-6 and joint_limits.violations(
+            if abs(near - seed[worst]) < abs(q[worst] - seed[worst]) - 1e-6 and limits.violations(
                     [*seed[:worst], near, *seed[worst + 1:]]):
                 raise RobotError(ErrorCode.JOINT_LIMIT, f"J{worst + 1} {near:.1f} past its limit") from exc
             why = exc.message.rpartition("; ")[2] if "; " in exc.message else "singularity"
             raise RobotError(ErrorCode.JOINT_JUMP, f"J{worst + 1} jumps {abs(q[worst] - seed[worst]):.1f} deg "
                                                    f"in a step: {why}") from exc
 
-    if batch:
+    if batch and isinstance(model, Viper):
         path = _plan_batch(start_deg, start_m, target_m, None if tool == NULL else tool.to_matrix(), solve,
-                           joint_limits=joint_limits, jump=step_jump)
+                           joint_limits=limits, jump=step_jump, model=model)
         if path is not None:
             return path
     return plan_line(start_deg, target_m, solve=solve, line_start_m=start_m)

@@ -12,7 +12,7 @@ Model:
   position linear and orientation on the shortest rotation (:mod:`aioadept.sim.line`, :class:`LineSegment`): the same
   trapezoid, on the path parameter; 100 % speed is :class:`CartesianLimits` (tool mm/s and deg/s), slowed down
   as a whole where a joint would exceed its own limit. A stop during a line decelerates along the line.
-- **Speed.** The joint speed limits are ``MAX_JOINT_SPEED_DEG_S`` times the speed fraction
+- **Speed.** The joint speed limits are the model's joint speeds times the speed fraction
   (program speed x monitor speed). With ``SCALE.ACCEL`` (on, as V+ defaults) the acceleration limits scale the same
   way, so the ramp time stays at ``ramp_s`` (0.1 s by default: a_max = v_max / 0.1 s).
 - **Blending.** A motion added while another is executing starts when the previous one begins to decelerate: the
@@ -31,20 +31,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aioadept.robots.viper_s850 import MAX_JOINT_SPEED_DEG_S
+from aioadept.robots.viper import VIPER_S850
 from aioadept.sim.line import CartesianLimits, LinePath, line_duration
 
 
 @dataclass(frozen=True, slots=True)
 class MotionLimits:
-    """Per-joint speed limits (deg/s at 100 %) and the ramp time to full speed (s)."""
+    """Per-joint speed limits (deg/s at 100 %; mm/s for a prismatic joint) and the ramp time to full speed (s).
+    The default is the Viper s850's; a controller of another model builds its own from ``model.max_speed_deg_s``."""
 
-    max_speed_deg_s: tuple[float, ...] = MAX_JOINT_SPEED_DEG_S
+    max_speed_deg_s: tuple[float, ...] = VIPER_S850.max_speed_deg_s
     ramp_s: float = 0.1
 
     def __post_init__(self) -> None:
-        if len(self.max_speed_deg_s) != 6 or min(self.max_speed_deg_s) <= 0:
-            raise ValueError("max_speed_deg_s: expected 6 positive speeds")
+        if not self.max_speed_deg_s or min(self.max_speed_deg_s) <= 0:
+            raise ValueError("max_speed_deg_s: expected a positive speed per joint")
         if self.ramp_s <= 0:
             raise ValueError("ramp_s: must be > 0")
 
@@ -133,13 +134,13 @@ class StopSegment:
         tau = min(max(t_s - self.t0_s, 0.0), self.duration_s)
         v0 = np.asarray(self.v0_deg_s)
         if self.duration_s <= 0.0:
-            return np.zeros(6)
+            return np.zeros(len(v0))
         return v0 * tau - 0.5 * v0 * tau * tau / self.duration_s
 
     def velocity(self, t_s: float) -> np.ndarray:
         tau = max(t_s - self.t0_s, 0.0)
         if tau >= self.duration_s:
-            return np.zeros(6)
+            return np.zeros(len(self.v0_deg_s))
         return np.asarray(self.v0_deg_s) * (1.0 - tau / self.duration_s)
 
 
@@ -183,8 +184,8 @@ class Trajectory:
 
     def __init__(self, joints_deg: Sequence[float], *, limits: MotionLimits = MotionLimits(),
                  time_scale: float = 1.0, instant: bool = False, cartesian: CartesianLimits | None = None) -> None:
-        if len(joints_deg) != 6:
-            raise ValueError("joints_deg: expected 6 values")
+        if len(joints_deg) != len(limits.max_speed_deg_s):
+            raise ValueError(f"joints_deg: expected {len(limits.max_speed_deg_s)} values (one per joint speed)")
         if not time_scale > 0:
             raise ValueError("time_scale: must be > 0")
         self.limits = limits
@@ -208,7 +209,7 @@ class Trajectory:
 
     def velocity(self, t_s: float) -> tuple[float, ...]:
         """Joint velocities (deg/s, real time) at ``t_s``."""
-        v = np.zeros(6)
+        v = np.zeros(len(self._base))
         for seg in self._segments:
             if isinstance(seg, StopSegment) or seg.t0_s < t_s < seg.t_end_s:
                 v += seg.velocity(t_s)
@@ -424,5 +425,5 @@ class LineStopSegment:
     def velocity(self, t_s: float) -> np.ndarray:
         tau = max(t_s - self.t0_s, 0.0)
         if tau >= self.duration_s:
-            return np.zeros(6)
+            return np.zeros(self.path.joints_deg.shape[1])
         return self.path.slope(self._s(t_s)) * self.r0 * (1.0 - tau / self.duration_s)

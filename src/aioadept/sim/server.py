@@ -44,6 +44,7 @@ from aioadept.errors import RemoteProtocolError
 from aioadept.protocol import (
     MAX_LINE, NO_ID, STOP_SKILL, Ack, CommandMessage, ErrorCode, LineFramer, Oversize, encode_ack, parse_command,
 )
+from aioadept.robots import model as robot_model
 from aioadept.robots import viper_s850 as kin
 from aioadept.sim.controller import Controller, Outgoing
 from aioadept.sim.io import HAND_TIME_S, DigitalIO, HandConfig
@@ -171,7 +172,10 @@ class SimOptions:
     state_rate_hz: float = 100.0
     faults: Faults = field(default_factory=Faults)
     tool: Pose = NULL
-    joints_deg: tuple[float, ...] = kin.HOME_JOINTS_DEG
+    joints_deg: tuple[float, ...] | None = None
+    """The joints at start; None: the model's home."""
+    robot_model: str = "viper-s850"
+    """The arm (:func:`aioadept.robots.model`): its kinematics, limits, speeds and home."""
     hand: HandConfig = HandConfig()
     """Where the hand is wired (valve outputs, closed-fully switch) and its travel time (aioadept.sim.io)."""
     hand_time_s: float = HAND_TIME_S
@@ -182,6 +186,7 @@ class SimOptions:
     """The parts, feeder and pallet of the cell (aioadept.sim.world; the cell file's [world]); None: no world."""
 
     def __post_init__(self) -> None:
+        robot_model(self.robot_model)  # ValueError naming the known models
         if not self.time_scale > 0:
             raise ValueError("time_scale: must be > 0")
         if not 0 < self.monitor_speed_pct <= 100:
@@ -218,7 +223,8 @@ class SimOptions:
                           jump_limit=self.jump_limit, max_queued_per_conn=self.max_queued,
                           io=DigitalIO(self.hand, hand_time_s=self.hand_time_s),
                           cartesian_limits=self.cartesian_limits,
-                          world=None if self.world is None else World(self.world))
+                          world=None if self.world is None else World(self.world),
+                          model=robot_model(self.robot_model))
 
 
 class _NotAStop(Exception):

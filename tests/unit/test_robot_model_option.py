@@ -1,0 +1,42 @@
+"""The arm is chosen in one place: ``--robot-model`` or the cell file's ``[robot] model`` (the sim a cell starts gets
+it), a wrong name is one line naming the file or option and the known models."""
+
+from __future__ import annotations
+
+import pytest
+
+from aioadept.apps.cell import CellConfig, sim_argv
+from aioadept.cli.sim import build_parser, options_from_args, parse_args
+from aioadept.configfile import report
+
+
+def _cell(tmp_path, model: str):
+    p = tmp_path / "cell.toml"
+    p.write_text(f'[robot]\nmodel = "{model}"\n')
+    return p
+
+
+def test_the_cell_files_model_reaches_the_sim_it_starts(tmp_path):
+    cfg = CellConfig.from_toml(_cell(tmp_path, "cobra-s800"))
+    argv = sim_argv(cfg)
+    assert argv[argv.index("--robot-model") + 1] == "cobra-s800"
+    args = parse_args(build_parser(), ["--config", str(_cell(tmp_path, "cobra-s800"))])
+    options = options_from_args(args)
+    assert options.robot_model == "cobra-s800"
+    ctl = options.make_controller()
+    assert ctl.model.name == "cobra-s800" and len(ctl.joints_deg) == 4
+
+
+def test_the_command_line_wins_over_the_cell_file(tmp_path):
+    args = parse_args(build_parser(), ["--config", str(_cell(tmp_path, "cobra-s800")), "--robot-model",
+                                       "viper-s650"])
+    assert options_from_args(args).make_controller().model.name == "viper-s650"
+
+
+def test_an_unknown_model_in_the_cell_file_is_one_line(tmp_path, capsys):
+    path = _cell(tmp_path, "puma-560")
+    with pytest.raises(ValueError) as info:
+        CellConfig.from_toml(path)
+    assert report("aioadept sim", info.value) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(path) in err[0] and "[robot]: unknown robot model 'puma-560'" in err[0]
