@@ -40,3 +40,15 @@ def test_an_unknown_model_in_the_cell_file_is_one_line(tmp_path, capsys):
     assert report("aioadept sim", info.value) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and str(path) in err[0] and "[robot]: unknown robot model 'puma-560'" in err[0]
+
+
+def test_joints_of_a_four_axis_arm_come_first_and_the_rest_must_be_zero(capsys):
+    args = parse_args(build_parser(), ["--robot-model", "cobra-s600", "--joints", "10,90,50,20,0,0"])
+    assert options_from_args(args).make_controller().joints_deg == (10.0, 90.0, 50.0, 20.0)
+    from aioadept.cli.sim import main
+
+    with pytest.raises(SystemExit) as info:
+        main(["--robot-model", "cobra-s600", "--joints", "10,90,50,20,5,0"])
+    assert info.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "the cobra-s600 has 4 joints: J5.. must be 0" in err

@@ -129,7 +129,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tool", type=_six, default=None, metavar="X,Y,Z,YAW,PITCH,ROLL",
                    help="TOOL transform (mm, degrees); default NULL")
     p.add_argument("--joints", type=_six, default=None, metavar="J1,...,J6",
-                   help="initial joint angles in degrees (default: home 0,-90,180,0,90,0)")
+                   help="initial joint values in degrees, a SCARA's J3 in mm, J5 and J6 0 on a four-axis arm "
+                        "(default: the model's home, 0,-90,180,0,90,0 on a Viper)")
     p.add_argument("--robot-model", type=_robot_model, default="viper-s850", dest="robot_model", metavar="NAME",
                    help="the arm: viper-s850 (default), viper-s650, cobra-s600, cobra-s800 (docs/sim.md, Robot "
                         "models); the cell file's [robot] model")

@@ -122,6 +122,16 @@ class ConfigRequest:
         return not matches(c, Configuration(self.shoulder, self.elbow, self.wrist))
 
 
+def model_joints(name: str, dof: int, values: Sequence[float]) -> tuple[float, ...]:
+    """The joint values of an arm with ``dof`` joints from the six the wire (and ``--joints``) carries: a four-axis
+    arm's joints first and zeros after them. A non-zero value there would move nothing, so it is refused (``ValueError``
+    naming the model) rather than dropped."""
+    if len(values) < dof or any(v != 0.0 for v in values[dof:]):
+        raise ValueError(f"the {name} has {dof} joints: J{dof + 1}.. must be 0" if len(values) > dof
+                         else f"the {name} has {dof} joints, got {len(values)} values")
+    return tuple(float(v) for v in values[:dof])
+
+
 def sign(v: float, eps: float) -> int:
     return 0 if abs(v) < eps else (1 if v > 0 else -1)
 

@@ -78,7 +78,7 @@ from aioadept.protocol import (
     recover_id,
 )
 from aioadept.robots import RobotModel
-from aioadept.robots.base import DEFAULT_JUMP_LIMIT, ConfigRequest, JointLimits, JumpLimit
+from aioadept.robots.base import DEFAULT_JUMP_LIMIT, ConfigRequest, JointLimits, JumpLimit, model_joints
 from aioadept.robots.viper import VIPER_S850
 from aioadept.sim.io import DigitalIO, HandState, IoSnapshot
 from aioadept.sim.line import CartesianLimits, LinePath, plan_tool_line
@@ -149,12 +149,10 @@ class Controller:
         self.model = model
         """The arm (:mod:`aioadept.robots`): its kinematics, and the defaults of the joints (its home), the joint
         limits and the joint speeds."""
-        joints_deg = model.home_deg if joints_deg is None else joints_deg
+        joints_deg = model.home_deg if joints_deg is None else model_joints(model.name, model.dof, joints_deg)
         joint_limits = model.limits if joint_limits is None else joint_limits
         if motion_limits is None:
             motion_limits = MotionLimits(model.max_speed_deg_s)
-        if len(joints_deg) != model.dof:
-            raise ValueError(f"joints_deg: the {model.name} has {model.dof} joints, got {len(joints_deg)} values")
         if not 0 < monitor_speed_pct <= 100:
             raise ValueError(f"monitor_speed_pct: {monitor_speed_pct} outside (0, 100]")
         if not 0 < max_speed_pct <= 100:
@@ -599,11 +597,10 @@ class Controller:
     def _model_joints(self, values: Sequence[float]) -> tuple[float, ...]:
         """The joint values of a joint motion: the wire's six values carry a four-axis arm's joints first and
         zeros after them (a value there would move nothing, so it is refused rather than ignored)."""
-        n = self.model.dof
-        extra = [v for v in values[n:] if v != 0.0]
-        if len(values) < n or extra:
-            raise RobotError(ErrorCode.ILLEGAL_VALUE, f"the {self.model.name} has {n} joints: J{n + 1}.. must be 0")
-        return tuple(float(v) for v in values[:n])
+        try:
+            return model_joints(self.model.name, self.model.dof, values)
+        except ValueError as exc:
+            raise RobotError(ErrorCode.ILLEGAL_VALUE, str(exc)) from None
 
     def move_pose(self, pose: Pose) -> SkillGen:
         """Generator for skills: inverse kinematics from the planned end, then :meth:`move_joints`."""

@@ -45,6 +45,7 @@ from aioadept.protocol import (
     MAX_LINE, NO_ID, STOP_SKILL, Ack, CommandMessage, ErrorCode, LineFramer, Oversize, encode_ack, parse_command,
 )
 from aioadept.robots import model as robot_model
+from aioadept.robots.base import model_joints
 from aioadept.robots import viper_s850 as kin
 from aioadept.sim.controller import Controller, Outgoing
 from aioadept.sim.io import HAND_TIME_S, DigitalIO, HandConfig
@@ -186,7 +187,9 @@ class SimOptions:
     """The parts, feeder and pallet of the cell (aioadept.sim.world; the cell file's [world]); None: no world."""
 
     def __post_init__(self) -> None:
-        robot_model(self.robot_model)  # ValueError naming the known models
+        arm = robot_model(self.robot_model)  # ValueError naming the known models
+        if self.joints_deg is not None:
+            model_joints(arm.name, arm.dof, self.joints_deg)  # ValueError: J5, J6 given to a four-axis arm
         if not self.time_scale > 0:
             raise ValueError("time_scale: must be > 0")
         if not 0 < self.monitor_speed_pct <= 100:
