@@ -4,6 +4,7 @@ down, another pitch refused before anything moves). The V+ emulator runs the Vip
 
 from __future__ import annotations
 
+import asyncio
 import math
 
 import pytest
@@ -118,6 +119,36 @@ async def test_a_cobra_refuses_what_a_scara_cannot_do_and_nothing_moves(start_se
         assert (brk.pose.yaw, brk.pose.pitch) == (0.0, 180.0)
         assert math.remainder(brk.pose.roll - home.roll - 45.0, 360.0) == pytest.approx(0.0, abs=1e-3)
         await c.close()
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("name", NAMES)
+async def test_a_stop_from_another_connection_halts_each_model_and_nothing_moves_after(start_server, name):
+    """The stop path on every model: J1 across most of its range at 10 % is a motion of seconds; a stop from a
+    second connection aborts the waiting break, is done once the arm rests short of the target, and the arm
+    stays there."""
+    m = model(name)
+    target = list(m.home_deg)
+    target[0] = m.limits.max_deg[0] - 5.0
+    async with start_server("python", "--robot-model", name) as srv:
+        a, b = await srv.connect(), await srv.connect()
+        await a.send("dddd0001:set_speed:10", f"dddd0002:move_joints:{_wire_joints(m, target)}", "dddd0003:break")
+        speed, move = await a.acks(2)
+        assert speed.ok and move.ok, (speed, move)
+        await asyncio.sleep(0.3)
+        await b.send("eeee0001:stop")
+        brk, stop = await a.ack(20), await b.ack(20)
+        assert (brk.id, brk.status) == ("dddd0003", Status.ABORTED)
+        assert (stop.id, stop.status) == ("eeee0001", Status.DONE)
+        await b.send("eeee0002:here")
+        rest = await b.ack()
+        assert not poses_close(rest.pose, m.forward(target), tol_mm=1.0, tol_deg=1.0), "stopped short"
+        await asyncio.sleep(0.5)
+        await b.send("eeee0003:here")
+        again = await b.ack()
+        assert again.extra == rest.extra and poses_close(again.pose, rest.pose, tol_mm=1e-6, tol_deg=1e-6)
+        await a.close()
+        await b.close()
 
 
 def test_an_unknown_model_is_one_line_naming_the_known_ones(capsys):
