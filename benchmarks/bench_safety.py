@@ -219,12 +219,12 @@ async def crowd_trials(port: int, sport: int, trials: int, kind: str | None) -> 
     try:
         await asyncio.sleep(0.3)  # the last mover's slot is free again
         mover = await Conn.open(port)
-        # at 10 % the arm is at rest moments after the stop, so the done ack times the stop's way in, not the braking
-        mover.writer.write(b"30000000:set_speed:10\r\n")
-        await asyncio.wait_for(mover.until(b"30000000"), 30)
         for i in range(trials):
             m = b"%08x" % (0x30000001 + i)
-            mover.writer.write(m + b":move_joints:%d,-90,180,0,90,0\r\n" % (150 if i % 2 == 0 else -150))
+            # at 10 % (set_speed is for the next motion only) the arm is at rest moments after the stop, so the
+            # done ack times the stop's way in, not the braking
+            mover.writer.write(b"%08x:set_speed:10\r\n" % (0x31000001 + i) + m
+                               + b":move_joints:%d,-90,180,0,90,0\r\n" % (150 if i % 2 == 0 else -150))
             await asyncio.wait_for(mover.until(m), 30)
             await asyncio.sleep(0.05)  # moving
             out.append(await stop_through("127.0.0.1", sport, within_s=30.0) * 1e3)
