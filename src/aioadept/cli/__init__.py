@@ -18,6 +18,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "state": ("aioadept.cli.state", "relay a V+ controller's state stream onto the robot.state topic"),
     "bridge": ("aioadept.cli.bridge", "share one robot connection between applications over Zenoh"),
     "ros2": ("aioadept.cli.ros2", "put the robot state as a ROS 2 JointState on rmw_zenoh's key expression"),
+    "opcua": ("aioadept.cli.opcua", "serve the robot as an OPC UA server (Robotics companion specification)"),
     "send": ("aioadept.cli.send", "send commands to a robot server and print the acks"),
     "vision": ("aioadept.cli.vision", "run the image acquisition + processing node"),
     "focus": ("aioadept.cli.focus", "run focus-plane calibration against a robot server and vision node"),
@@ -30,7 +31,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
-EXTRAS: dict[str, str] = {"cv2": "vision", "scipy": "analysis", "matplotlib": "analysis"}
+EXTRAS: dict[str, str] = {"cv2": "vision", "scipy": "analysis", "matplotlib": "analysis", "asyncua": "opcua"}
 """Top-level modules of the optional extras (pyproject.toml) -> the extra that installs them."""
 
 

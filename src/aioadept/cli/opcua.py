@@ -1,0 +1,193 @@
+"""``aioadept opcua``: the robot as a plant's OPC UA client sees one, per the Robotics companion specification
+(OPC 40010-1): a MotionDeviceSystem with the robot's axes, controller and safety state.
+
+Follows the robot.state stream on ``--state-endpoint`` (the sim's, or a controller's through ``aioadept state``) and
+asks the robot server at ``--robot`` for ``hello`` and ``status`` (docs/protocol.md 4.7), and serves them as an OPC UA
+server at ``--endpoint``: each axis's ActualPosition and ActualSpeed (degrees, degrees per second) with the robot's
+time as source timestamp, the E-stop, the server's name and version. What V+ does not say (the operating mode, a
+protective stop, serial numbers nobody gave) is left Bad, never made up; a stream that stalls turns the live values
+Uncertain within a second, and they are Good again when it comes back. Read-only. No security yet: it binds only
+to loopback unless ``--insecure`` says otherwise. Prints ``READY opcua=ENDPOINT state=ENDPOINT robot=HOST:PORT``
+once it serves; runs until SIGINT/SIGTERM. docs/opcua.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import ipaddress
+import logging
+import signal
+import sys
+import time
+from urllib.parse import urlsplit
+
+from aioadept import defaults
+from aioadept.cli.options import ArgumentParser, DefaultsHelpFormatter, description
+
+DEFAULT_ENDPOINT = "opc.tcp://127.0.0.1:4840"
+STATUS_PERIOD_S = 0.5
+"""How often the robot server is asked for ``status`` (an answer at once, even during another client's motion)."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from aioadept.opcua.mapping import STALE_AFTER_S, Identity
+
+    ident = Identity()
+    p = ArgumentParser(prog="aioadept opcua", description=description(__doc__), formatter_class=DefaultsHelpFormatter)
+    p.add_argument("--robot", default=f"{defaults.ROBOT_HOST}:{defaults.ROBOT_PORT}", metavar="HOST[:PORT]",
+                   help="the robot server (aioadept sim, or the V+ server): asked for hello and status")
+    p.add_argument("--state-endpoint", default=defaults.STATE_ENDPOINT, dest="state_endpoint",
+                   help="the robot.state stream to follow (a ZeroMQ endpoint, as aioadept sim --state-endpoint)")
+    p.add_argument("--endpoint", default=DEFAULT_ENDPOINT,
+                   help="the OPC UA endpoint to serve, opc.tcp://HOST:PORT")
+    p.add_argument("--insecure", action="store_true",
+                   help="serve on an address other than loopback although the server has no security (every "
+                        "client on that network reads the cell)")
+    p.add_argument("--name", default=ident.name, help="the robot's MotionDevice browse name")
+    p.add_argument("--manufacturer", default=ident.manufacturer, help="the robot's manufacturer")
+    p.add_argument("--model", default=ident.model, help="the robot's model")
+    p.add_argument("--serial-number", default="", dest="serial_number",
+                   help="the robot's serial number (none: the variable is Bad)")
+    p.add_argument("--controller-model", default="", dest="controller_model",
+                   help="the controller's model, e.g. SmartController EX (none: the variable is Bad)")
+    p.add_argument("--stale-after", type=float, default=STALE_AFTER_S, dest="stale_after", metavar="SECONDS",
+                   help="a state stream silent this long has stalled: its values turn Uncertain")
+    p.add_argument("--log-level", default="WARNING", dest="log_level", help="logging level on stderr")
+    return p
+
+
+def check_endpoint(endpoint: str, insecure: bool) -> str:
+    """``endpoint`` if it is ``opc.tcp://HOST:PORT`` and HOST is loopback (or ``insecure``); ValueError naming it
+    otherwise."""
+    parts = urlsplit(endpoint)
+    try:
+        port = parts.port
+    except ValueError:
+        port = None
+    if parts.scheme != "opc.tcp" or not parts.hostname or port is None:
+        raise ValueError(f"--endpoint {endpoint!r}: expected opc.tcp://HOST:PORT")
+    if not insecure and not _loopback(parts.hostname):
+        raise ValueError(f"--endpoint {endpoint!r}: {parts.hostname} is not loopback, and this server has no "
+                         f"security: every client on that network would read the cell. Bind 127.0.0.1, or say "
+                         f"--insecure")
+    return endpoint
+
+
+def _loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+async def follow_state(endpoint: str, view, cell) -> None:
+    """Each robot.state sample into ``view`` and out to the OPC UA variables at once."""
+    from aioadept.bus.messages import ROBOT_STATE_TOPIC, RobotState
+    from aioadept.bus.pubsub import Subscriber
+    from aioadept.errors import BusError
+
+    log = logging.getLogger("aioadept.opcua")
+    bad = 0
+    async with Subscriber(endpoint, topics=(ROBOT_STATE_TOPIC,)) as sub:
+        async for _topic, payload in sub:
+            try:
+                state = RobotState.from_bytes(payload)
+                view.on_state(state, time.monotonic())
+            except (BusError, ValueError) as exc:  # one bad sample is skipped, never fatal; said once
+                bad += 1
+                if bad == 1:
+                    log.warning("skipping a robot.state sample: %s", exc)
+                continue
+            await cell.refresh(time.monotonic())
+
+
+async def watch(cell, period_s: float = 0.1) -> None:
+    """Refresh on a clock too, so a stream that stopped turns its values Uncertain without a sample to say so."""
+    while True:
+        await asyncio.sleep(period_s)
+        await cell.refresh(time.monotonic())
+
+
+async def poll_robot(host: str, port: int, view, cell) -> None:
+    """``hello`` once per connection and ``status`` every :data:`STATUS_PERIOD_S`; reconnects while the server is
+    away (its values turn Uncertain meanwhile)."""
+    from aioadept.client import RobotClient
+    from aioadept.errors import AdeptError
+
+    log = logging.getLogger("aioadept.opcua")
+    while True:
+        try:
+            async with RobotClient(host, port, connect_timeout_s=2.0, ack_timeout_s=2.0) as robot:
+                view.on_hello(await robot.hello())
+                while True:
+                    view.on_status(await robot.status(), time.time())
+                    await cell.refresh(time.monotonic())
+                    await asyncio.sleep(STATUS_PERIOD_S)
+        except (AdeptError, OSError, TimeoutError) as exc:
+            log.info("robot server %s:%d: %s", host, port, exc)
+            view.on_status(None)
+            view.on_hello(None)
+            await cell.refresh(time.monotonic())
+            await asyncio.sleep(1.0)
+
+
+async def run(args: argparse.Namespace, host: str, port: int) -> int:
+    from aioadept.opcua.mapping import Identity, RobotView
+    from aioadept.opcua.server import CellServer
+
+    loop = asyncio.get_running_loop()
+    stop = asyncio.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(sig, stop.set)
+    identity = Identity(name=args.name, manufacturer=args.manufacturer, model=args.model,
+                        serial_number=args.serial_number, controller_model=args.controller_model)
+    view = RobotView(identity, stale_after_s=args.stale_after)
+    cell = CellServer(args.endpoint, [view])
+    tasks: list[asyncio.Task] = []
+    try:
+        await cell.start()
+        tasks = [asyncio.create_task(follow_state(args.state_endpoint, view, cell), name="opcua-state"),
+                 asyncio.create_task(watch(cell), name="opcua-watch"),
+                 asyncio.create_task(poll_robot(host, port, view, cell), name="opcua-robot")]
+        print(f"READY opcua={args.endpoint} state={args.state_endpoint} robot={host}:{port}", flush=True)
+        stopped = asyncio.create_task(stop.wait())
+        done, _ = await asyncio.wait({*tasks, stopped}, return_when=asyncio.FIRST_COMPLETED)
+        stopped.cancel()
+        for t in done:
+            if t is not stopped and not t.cancelled() and t.exception() is not None:
+                raise t.exception()  # type: ignore[misc]
+    finally:
+        for t in tasks:
+            t.cancel()
+        await asyncio.gather(*tasks, return_exceptions=True)
+        await cell.stop()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            loop.remove_signal_handler(sig)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    from aioadept.cli.options import parse_robot_address, report, run_node
+
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
+                        format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    # asyncua says much about the nodesets it imports, and logs a failed bind with its traceback before raising
+    # it (said here in one line): its own log only with --log-level DEBUG.
+    debug = logging.getLogger().level <= logging.DEBUG
+    logging.getLogger("asyncua").setLevel(logging.DEBUG if debug else logging.CRITICAL)
+    try:
+        host, port = parse_robot_address(args.robot, defaults.ROBOT_PORT)
+        check_endpoint(args.endpoint, args.insecure)
+        if not args.stale_after > 0:
+            raise ValueError(f"--stale-after {args.stale_after!r}: expected seconds > 0")
+    except ValueError as exc:   # one line naming the option, no usage block
+        return report("aioadept opcua", exc)
+    return run_node("aioadept opcua", run(args, host, port))
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,288 @@
+"""The asyncua side of ``aioadept opcua``: load the OPC Foundation's DI, IA and Robotics nodesets, instantiate one
+``MotionDeviceSystemType`` with a ``MotionDevice`` per robot, and write the readings of :mod:`aioadept.opcua.mapping`
+into its variables.
+
+The address space (browse names in the Robotics or DI namespace where the type declares them, this server's own
+names in :data:`~aioadept.opcua.mapping.INSTANCE_NS`)::
+
+    Objects/DeviceSet/MotionDeviceSystem                     MotionDeviceSystemType
+        MotionDevices/<robot>                                MotionDeviceType (identity, SpeedOverride)
+            Axes/Axis1..6                                    AxisType (MotionProfile ROTARY;
+                ParameterSet/ActualPosition, ActualSpeed      degrees, degrees per second)
+            PowerTrains/PowerTrain1..6                       PowerTrainType, Moves -> its axis
+                Motor                                        MotorType (nothing known: Bad)
+        Controllers/<robot>Controller                        ControllerType, Controls -> the robot
+            Software/RobotServer                             SoftwareType (the server's hello)
+            TaskControls/RobotServer                         TaskControlType (the program: the robot server)
+        SafetyStates/<robot>SafetyState                      SafetyStateType (EmergencyStop from status)
+
+Only Mandatory children and the instances the types' placeholders need are made, plus ActualSpeed (Optional).
+Every variable is read-only to clients.
+"""
+
+from __future__ import annotations
+
+import datetime
+import logging
+import xml.etree.ElementTree as ET
+from collections.abc import Sequence
+from importlib import resources
+from typing import Any
+
+from asyncua import Node, Server, ua
+from asyncua.common.instantiate_util import instantiate
+
+from aioadept.opcua.mapping import (DEGREE, DEGREE_CELSIUS, DEGREE_PER_SECOND, DI_NS, INSTANCE_NS, NODESETS, ROBOTICS_NS,
+                                    AxisMotionProfile, EngineeringUnit, Identity, Quality, Reading, RobotView)
+
+__all__ = ["CellServer", "STATUS_CODES", "load_nodesets", "without_design_tool_only"]
+
+log = logging.getLogger(__name__)
+
+STATUS_CODES = {q: getattr(ua.StatusCodes, q.value) for q in Quality}
+"""Each :class:`~aioadept.opcua.mapping.Quality` as the OPC UA status code its name is."""
+
+_UANODESET = "http://opcfoundation.org/UA/2011/03/UANodeSet.xsd"
+# The Robotics and DI namespaces' type ids (OPC 40010-1 and OPC 10000-100, normative).
+_ROBOTICS_TYPES = {"MotionDeviceSystemType": 1002, "ControllerType": 1003, "MotionDeviceType": 1004,
+                   "TaskControlType": 1011, "SafetyStateType": 1013, "MotorType": 1019, "AxisType": 16601,
+                   "PowerTrainType": 16794, "Controls": 4002, "Moves": 18178, "IsDrivenBy": 18180,
+                   "HasSafetyStates": 18182}
+_DI_SOFTWARE_TYPE = 15106
+_DI_DEVICE_SET = 5001
+_PLACEHOLDERS = (ua.ObjectIds.ModellingRule_MandatoryPlaceholder, ua.ObjectIds.ModellingRule_OptionalPlaceholder)
+
+
+def without_design_tool_only(xml_text: str) -> str:
+    """The nodeset ``xml_text`` without its nodes marked ``DesignToolOnly="true"`` (examples for a modelling tool,
+    with no parent: a server does not instantiate them, and asyncua's importer refuses a parentless object)."""
+    ET.register_namespace("", _UANODESET)
+    root = ET.fromstring(xml_text)
+    for node in [e for e in root if e.get("DesignToolOnly") == "true"]:
+        root.remove(node)
+    return ET.tostring(root, encoding="unicode")
+
+
+async def load_nodesets(server: Server) -> None:
+    """Import the package's DI, IA and Robotics nodesets into ``server`` (in that order: each needs the ones
+    before it)."""
+    folder = resources.files("aioadept.opcua") / "nodesets"
+    for name in NODESETS:
+        await server.import_xml(xmlstring=without_design_tool_only((folder / name).read_text(encoding="utf-8")))
+
+
+def _time(epoch_s: float | None) -> datetime.datetime | None:
+    if epoch_s is None:
+        return None
+    return datetime.datetime.fromtimestamp(epoch_s, datetime.timezone.utc)
+
+
+def _eu(unit: EngineeringUnit) -> ua.EUInformation:
+    return ua.EUInformation(NamespaceUri="http://www.opcfoundation.org/UA/units/un/cefact", UnitId=unit.unit_id,
+                            DisplayName=ua.LocalizedText(unit.symbol), Description=ua.LocalizedText(unit.name))
+
+
+class CellServer:
+    """An OPC UA server of one cell: ``robots`` (one :class:`~aioadept.opcua.mapping.RobotView` each, in
+    :attr:`views`) as MotionDevices of one MotionDeviceSystem. :meth:`start` builds and opens it at ``endpoint``;
+    :meth:`refresh` writes what changed in the views since the last call; :meth:`stop` closes it."""
+
+    def __init__(self, endpoint: str, views: Sequence[RobotView]) -> None:
+        names = [v.identity.name for v in views]
+        if not names or len(set(names)) != len(names):
+            raise ValueError(f"robots {names}: expected at least one, each with its own name")
+        self.endpoint = endpoint
+        self.views = list(views)
+        self.server = Server()
+        self.system: Node | None = None
+        self._vars: list[dict[tuple, Node]] = []
+        self._written: dict[ua.NodeId, tuple] = {}
+        self._idx: dict[str, int] = {}
+        self._started = False
+
+    # -- building -----------------------------------------------------------------------------------------------
+
+    async def start(self) -> None:
+        s = self.server
+        await s.init()
+        s.set_endpoint(self.endpoint)
+        s.set_server_name("aioadept opcua")
+        s.set_security_policy([ua.SecurityPolicyType.NoSecurity])
+        await load_nodesets(s)
+        for uri in (DI_NS, ROBOTICS_NS):
+            self._idx[uri] = await s.get_namespace_index(uri)
+        self._idx[INSTANCE_NS] = await s.register_namespace(INSTANCE_NS)
+        await self._build()
+        await self.refresh(float("-inf"))
+        await s.start()
+        self._started = True
+
+    async def stop(self) -> None:
+        """Close the server (nothing to do if it never started). Idempotent."""
+        if self._started:
+            self._started = False
+            await self.server.stop()
+
+    def _type(self, name: str) -> Node:
+        return self.server.get_node(ua.NodeId(_ROBOTICS_TYPES[name], self._idx[ROBOTICS_NS]))
+
+    def _qn(self, name: str, uri: str = INSTANCE_NS) -> ua.QualifiedName:
+        return ua.QualifiedName(name, self._idx[uri])
+
+    async def _make(self, parent: Node, type_node: Node, sid: str, name: str) -> Node:
+        """An instance of ``type_node`` under ``parent``, node id ``sid`` (a string in this server's namespace),
+        browse name ``name``: its Mandatory children only, and none of its placeholders (those are for us to
+        fill, with our own names)."""
+        nodes = await instantiate(parent, type_node, nodeid=ua.NodeId(sid, self._idx[INSTANCE_NS]),
+                                  bname=self._qn(name), dname=ua.LocalizedText(name), instantiate_optional=False)
+        placeholders = [n for n in nodes[1:] if (await n.read_browse_name()).Name.startswith("<")]
+        if placeholders:
+            await self.server.delete_nodes(placeholders, recursive=True)
+        return nodes[0]
+
+    async def _child(self, node: Node, *path: tuple[str, str]) -> Node:
+        return await node.get_child([self._qn(name, uri) for uri, name in path])
+
+    async def _set(self, node: Node, value: Any, vtype: ua.VariantType, quality: Quality = Quality.GOOD) -> None:
+        """Write a fixed value; None (nothing known) is written as no value, with ``quality`` saying why."""
+        await self.server.write_attribute_value(node.nodeid, ua.DataValue(
+            ua.Variant() if value is None else ua.Variant(value, vtype),
+            StatusCode=ua.StatusCode(STATUS_CODES[quality])))
+
+    async def _text(self, node: Node, reading: Reading, localized: bool) -> None:
+        value = reading.value
+        if localized and value is not None:
+            value = ua.LocalizedText(value)
+        await self._set(node, value, ua.VariantType.LocalizedText if localized else ua.VariantType.String,
+                        reading.quality)
+
+    async def _nameplate(self, node: Node, manufacturer: str, model: str, product_code: str, serial: str,
+                         identity: Identity) -> None:
+        """DI's Manufacturer, Model (LocalizedText), ProductCode, SerialNumber (String): a text not known is Bad."""
+        for name, value, localized in (("Manufacturer", manufacturer, True), ("Model", model, True),
+                                       ("ProductCode", product_code, False), ("SerialNumber", serial, False)):
+            await self._text(await self._child(node, (DI_NS, name)), identity.text(value), localized)
+
+    async def _build(self) -> None:
+        s = self.server
+        device_set = s.get_node(ua.NodeId(_DI_DEVICE_SET, self._idx[DI_NS]))
+        system = self.system = await self._make(device_set, self._type("MotionDeviceSystemType"), "MotionDeviceSystem",
+                                                "MotionDeviceSystem")
+        r = ROBOTICS_NS
+        devices = await self._child(system, (r, "MotionDevices"))
+        controllers = await self._child(system, (r, "Controllers"))
+        safety = await self._child(system, (r, "SafetyStates"))
+        for view in self.views:
+            self._vars.append(await self._build_robot(view.identity, devices, controllers, safety))
+
+    async def _build_robot(self, ident: Identity, devices: Node, controllers: Node, safety: Node) -> dict[tuple, Node]:
+        r = ROBOTICS_NS
+        n = ident.name
+        live: dict[tuple, Node] = {}
+        dev = await self._make(devices, self._type("MotionDeviceType"), f"MotionDeviceSystem.{n}", n)
+        await self._nameplate(dev, ident.manufacturer, ident.model, ident.product_code, ident.serial_number, ident)
+        await self._set(await self._child(dev, (r, "MotionDeviceCategory")), int(ident.category),
+                        ua.VariantType.Int32)
+        live[("device", "SpeedOverride")] = await self._child(dev, (DI_NS, "ParameterSet"), (r, "SpeedOverride"))
+        axes = await self._child(dev, (r, "Axes"))
+        trains = await self._child(dev, (r, "PowerTrains"))
+        for i in range(1, ident.axes + 1):
+            axis = await self._make(axes, self._type("AxisType"), f"MotionDeviceSystem.{n}.Axis{i}", f"Axis{i}")
+            await self._set(await self._child(axis, (r, "MotionProfile")), int(AxisMotionProfile.ROTARY),
+                            ua.VariantType.Int32)
+            params = await self._child(axis, (DI_NS, "ParameterSet"))
+            pos = await self._child(params, (r, "ActualPosition"))
+            await self._units(pos, DEGREE)
+            speed = await self._optional_analog(params, f"MotionDeviceSystem.{n}.Axis{i}.ActualSpeed", "ActualSpeed")
+            await self._units(speed, DEGREE_PER_SECOND)
+            live[("axis", i, "ActualPosition")] = pos
+            live[("axis", i, "ActualSpeed")] = speed
+            train = await self._make(trains, self._type("PowerTrainType"), f"MotionDeviceSystem.{n}.PowerTrain{i}",
+                                     f"PowerTrain{i}")
+            await train.add_reference(axis.nodeid, self._type("Moves").nodeid, forward=True, bidirectional=True)
+            await axis.add_reference(train.nodeid, self._type("IsDrivenBy").nodeid, forward=True, bidirectional=True)
+            motor = await self._make(train, self._type("MotorType"), f"MotionDeviceSystem.{n}.PowerTrain{i}.Motor",
+                                     "Motor")
+            await self._nameplate(motor, "", "", "", "", ident)
+            temp = await self._child(motor, (DI_NS, "ParameterSet"), (r, "MotorTemperature"))
+            await self._set(temp, None, ua.VariantType.Double, Quality.NOT_EXPOSED)
+            await self._units(temp, DEGREE_CELSIUS)
+        ctl = await self._make(controllers, self._type("ControllerType"), f"MotionDeviceSystem.{n}Controller",
+                               f"{n}Controller")
+        await self._nameplate(ctl, ident.manufacturer, ident.controller_model, "", ident.controller_serial_number,
+                              ident)
+        await ctl.add_reference(dev.nodeid, self._type("Controls").nodeid, forward=True, bidirectional=True)
+        software = await self._child(ctl, (r, "Software"))
+        sw = await self._make(software, self.server.get_node(ua.NodeId(_DI_SOFTWARE_TYPE, self._idx[DI_NS])),
+                              f"MotionDeviceSystem.{n}Controller.Software.RobotServer", "RobotServer")
+        await self._text(await self._child(sw, (DI_NS, "Manufacturer")), ident.text("aioadept"), True)
+        live[("software", "Model")] = await self._child(sw, (DI_NS, "Model"))
+        live[("software", "SoftwareRevision")] = await self._child(sw, (DI_NS, "SoftwareRevision"))
+        tasks = await self._child(ctl, (r, "TaskControls"))
+        task = await self._make(tasks, self._type("TaskControlType"),
+                                f"MotionDeviceSystem.{n}Controller.TaskControls.RobotServer", "RobotServer")
+        await self._text(await self._child(task, (DI_NS, "ComponentName")), ident.text("robot server"), True)
+        tparams = await self._child(task, (DI_NS, "ParameterSet"))
+        for name in ("TaskProgramName", "TaskProgramLoaded"):
+            live[("task", name)] = await self._child(tparams, (r, name))
+        user = await self._child(ctl, (r, "CurrentUser"), (r, "Level"))
+        await self._set(user, None, ua.VariantType.String, Quality.NOT_EXPOSED)
+        state = await self._make(safety, self._type("SafetyStateType"), f"MotionDeviceSystem.{n}SafetyState",
+                                 f"{n}SafetyState")
+        await ctl.add_reference(state.nodeid, self._type("HasSafetyStates").nodeid, forward=True, bidirectional=True)
+        sparams = await self._child(state, (DI_NS, "ParameterSet"))
+        for name in ("EmergencyStop", "ProtectiveStop", "OperationalMode"):
+            live[("safety", name)] = await self._child(sparams, (r, name))
+        return live
+
+    async def _optional_analog(self, params: Node, sid: str, name: str) -> Node:
+        """The Optional AnalogUnitType variable ``name`` of AxisType's ParameterSet, made as its declaration says
+        (Double, read-only)."""
+        nodes = await instantiate(params, self.server.get_node(ua.NodeId(ua.ObjectIds.AnalogUnitType)),
+                                  nodeid=ua.NodeId(sid, self._idx[INSTANCE_NS]), bname=self._qn(name, ROBOTICS_NS),
+                                  dname=ua.LocalizedText(name), instantiate_optional=False)
+        node = nodes[0]
+        await node.write_attribute(ua.AttributeIds.DataType,
+                                   ua.DataValue(ua.Variant(ua.NodeId(ua.ObjectIds.Double), ua.VariantType.NodeId)))
+        await node.write_attribute(ua.AttributeIds.ValueRank,
+                                   ua.DataValue(ua.Variant(ua.ValueRank.Scalar, ua.VariantType.Int32)))
+        return node
+
+    async def _units(self, node: Node, unit: EngineeringUnit) -> None:
+        eu = await node.get_child(ua.QualifiedName("EngineeringUnits", 0))
+        await self._set(eu, _eu(unit), ua.VariantType.ExtensionObject)
+
+    # -- live values --------------------------------------------------------------------------------------------
+
+    async def refresh(self, now_s: float) -> int:
+        """Write every live variable whose reading changed since it was last written; returns how many."""
+        written = 0
+        for view, nodes in zip(self.views, self._vars):
+            for key, reading in view.readings(now_s).items():
+                node = nodes[key]
+                mark = (reading.value, reading.quality, reading.source_time_s)
+                if self._written.get(node.nodeid) == mark:
+                    continue
+                self._written[node.nodeid] = mark
+                await self.server.write_attribute_value(node.nodeid, self._data_value(key, reading))
+                written += 1
+        return written
+
+    @staticmethod
+    def _data_value(key: tuple, reading: Reading) -> ua.DataValue:
+        """The DataValue of a live reading: its value in the variable's data type (none when there is none), the
+        status code of its quality, the robot's time as the source timestamp."""
+        v = reading.value
+        if v is None:
+            variant = ua.Variant()
+        elif isinstance(v, bool):
+            variant = ua.Variant(v, ua.VariantType.Boolean)
+        elif key == ("software", "Model"):
+            variant = ua.Variant(ua.LocalizedText(v), ua.VariantType.LocalizedText)
+        elif isinstance(v, str):
+            variant = ua.Variant(v, ua.VariantType.String)
+        else:
+            variant = ua.Variant(float(v), ua.VariantType.Double)
+        return ua.DataValue(variant, StatusCode=ua.StatusCode(STATUS_CODES[reading.quality]),
+                            SourceTimestamp=_time(reading.source_time_s),
+                            ServerTimestamp=datetime.datetime.now(datetime.timezone.utc))
