@@ -235,3 +235,19 @@ def test_the_urdf_computes_our_flange_within_a_micrometre(m):
             composed = composed @ step
         np.testing.assert_allclose(composed[:3, 3], ours[:3, 3] / 1000.0, rtol=0, atol=1e-9)
         np.testing.assert_allclose(composed[:3, :3], ours[:3, :3], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("name", [n for n in NAMES if n.startswith("cobra")])
+def test_a_scara_refuses_unwinding_j4_for_a_small_turn(name):
+    """J4 at 355 deg and a target 10 deg further round: the nearer equivalent is past the limit, the other one is
+    350 deg back, far more than a 10 deg turn of the tool justifies: refused (JOINT_JUMP), as on the Viper."""
+    m = model(name)
+    q = list(m.home_deg)
+    q[3] = m.limits.max_deg[3] - 5.0
+    target = list(q)
+    target[3] += 10.0  # past the limit: the pose of J4 = -355 + ... is reachable only by unwinding
+    pose = m.forward(target)
+    with pytest.raises(RobotError) as e:
+        m.inverse(pose, q)
+    assert e.value.code == ErrorCode.JOINT_JUMP and "J4 would turn" in str(e.value)
+    assert m.inverse(pose, q, jump=None)[3] == pytest.approx(target[3] - 360.0)

@@ -185,6 +185,23 @@ def move_size(seed: np.ndarray, target: np.ndarray) -> tuple[float, float]:
     return distance, rotation
 
 
+def jump_excess(model: Any, sol: Sequence[float], cur: Sequence[float], m_flange: np.ndarray, tool: Pose,
+                jump: JumpLimit) -> tuple[int, float, float, float, float] | None:
+    """None if ``sol`` moves no joint more than ``jump`` allows for the tool's move from ``cur`` to the flange
+    ``m_flange`` (composed with ``tool``); else (worst joint index, its motion, distance mm, rotation deg, allowed)."""
+    moves = [abs(a - b) for a, b in zip(sol, cur)]
+    worst = max(range(len(moves)), key=moves.__getitem__)
+    if moves[worst] <= jump.floor_deg:
+        return None  # within the floor whatever the Cartesian size: skip the forward kinematics
+    seed, target = model.flange_matrix(cur), m_flange
+    if tool != NULL:
+        t = tool.to_matrix()
+        seed, target = seed @ t, target @ t
+    distance, rotation = move_size(seed, target)
+    allowed = jump.allowed_deg(distance, rotation)
+    return None if moves[worst] <= allowed else (worst, moves[worst], distance, rotation, allowed)
+
+
 def check_joint_path(start_deg: Sequence[float], end_deg: Sequence[float], limits: JointLimits) -> None:
     """Check a joint-interpolated path against the limits; raise ``RobotError(JOINT_LIMIT)`` if it leaves them.
 

@@ -39,7 +39,7 @@ from aioadept.robots.base import (
     JointLimits,
     JumpLimit,
     UrdfJoint,
-    move_size,
+    jump_excess,
     nearest_solution,
     sign,
 )
@@ -192,19 +192,11 @@ class Scara(ArmMethods):
             limits.check([v if self.prismatic[i] else v + 360.0 * round((cur[i] - v) / 360.0)
                           for i, v in enumerate(sol)])
             raise RobotError(ErrorCode.JOINT_LIMIT, "no solution within the joint limits")
-        if jump is not None and not changing:
-            moves = [abs(a - b) for a, b in zip(best, cur)]
-            worst = max(range(4), key=moves.__getitem__)
-            if moves[worst] > jump.floor_deg:
-                seed, target = self.flange_matrix(cur), m
-                if tool != NULL:
-                    t = tool.to_matrix()
-                    seed, target = seed @ t, target @ t
-                distance, rotation = move_size(seed, target)
-                allowed = jump.allowed_deg(distance, rotation)
-                if moves[worst] > allowed:
-                    raise RobotError(ErrorCode.JOINT_JUMP, f"J{worst + 1} would turn {moves[worst]:.1f} deg for "
-                                                           f"{distance:.2f} mm {rotation:.2f} deg (max {allowed:.1f})")
+        excess = None if jump is None or changing else jump_excess(self, best, cur, m, tool, jump)
+        if excess is not None:
+            worst, moved, distance, rotation, allowed = excess
+            raise RobotError(ErrorCode.JOINT_JUMP, f"J{worst + 1} would turn {moved:.1f} deg for {distance:.2f} mm "
+                                                   f"{rotation:.2f} deg (max {allowed:.1f})")
         return tuple(best)
 
     # -- description ---------------------------------------------------------------------------------------------

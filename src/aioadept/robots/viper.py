@@ -50,7 +50,7 @@ from aioadept.robots.base import (
     JumpLimit,
     UrdfJoint,
     matches,
-    move_size,
+    jump_excess,
     nearest_solution,
     sign,
     wrap_pi,
@@ -327,19 +327,10 @@ class Viper(ArmMethods):
     def _check_jump(self, sol: list[float], cur: list[float], m_flange: np.ndarray, tool: Pose,
                     limits: JointLimits, jump: JumpLimit) -> None:
         """Raise ``RobotError(JOINT_JUMP)`` when ``sol`` moves a joint more than ``jump`` allows for this move."""
-        moves = [abs(a - b) for a, b in zip(sol, cur)]
-        worst = max(range(6), key=moves.__getitem__)
-        if moves[worst] <= jump.floor_deg:
-            return  # within the floor whatever the Cartesian size: skip the forward kinematics
-        seed = self.flange_matrix(cur)
-        target = m_flange
-        if tool != NULL:
-            t = tool.to_matrix()
-            seed, target = seed @ t, target @ t
-        distance, rotation = move_size(seed, target)
-        allowed = jump.allowed_deg(distance, rotation)
-        if moves[worst] <= allowed:
+        excess = jump_excess(self, sol, cur, m_flange, tool, jump)
+        if excess is None:
             return
+        worst, moved, distance, rotation, allowed = excess
         why = ""
         if worst in (3, 5) and abs(math.sin(math.radians(cur[4]))) < math.sin(math.radians(2 * WRIST_FREE_DEG)):
             why = "; wrist singularity"
@@ -347,11 +338,11 @@ class Viper(ArmMethods):
             why = "; wrist near J1 axis"
         else:
             near = sol[worst] + 360.0 * round((cur[worst] - sol[worst]) / 360.0)
-            if abs(near - cur[worst]) < moves[worst] - 1e-6 and limits.violations(
+            if abs(near - cur[worst]) < moved - 1e-6 and limits.violations(
                     [*cur[:worst], near, *cur[worst + 1:]]):
                 why = f"; {near:.1f} is past the limit"
         # Short: the error ack carries at most 80 characters of text.
-        raise RobotError(ErrorCode.JOINT_JUMP, f"J{worst + 1} would turn {moves[worst]:.1f} deg for {distance:.2f} "
+        raise RobotError(ErrorCode.JOINT_JUMP, f"J{worst + 1} would turn {moved:.1f} deg for {distance:.2f} "
                                                f"mm {rotation:.2f} deg (max {allowed:.1f}){why}")
 
     # -- description ---------------------------------------------------------------------------------------------
