@@ -18,6 +18,8 @@ The table, as ``examples/cell.toml`` shows it::
                               # one after another: queue, template, interval_s, jitter_mm, jitter_deg, seed
     [world.pallet]            # x_mm, y_mm, yaw_deg, rows, cols, pitch_x_mm, pitch_y_mm
     [world.camera]            # x_mm, y_mm, z_mm, yaw_deg, focal_length_mm, f_number, noise_sigma, width_px, height_px
+    [world.tool_marker]       # marker (an id no part uses), marker_mm, offset_mm: a marker on the tool, for
+                              # aioadept calibrate (the camera draws it at the robot's tool pose)
 
 :func:`world_to_table` gives the same table back (for a JSON file a starter hands to the sim and vision nodes:
 ``aioadept sim --world FILE``, ``aioadept vision --world FILE``); :func:`load_world` reads either.
@@ -33,8 +35,8 @@ from pathlib import Path
 from typing import Any
 
 from aioadept.configfile import ConfigError, Range, check_ranges, check_section, ranged
-from aioadept.worldmodel import (COLOURS, SHAPES, Feeder, Pallet, PartSpec, WorldCamera, WorldConfig, fed_parts,
-                                 label_mm)
+from aioadept.worldmodel import (COLOURS, SHAPES, Feeder, Pallet, PartSpec, ToolMarker, WorldCamera, WorldConfig,
+                                 fed_parts, label_mm)
 
 ARUCO_DICTS = {"DICT_4X4_50": 50, "DICT_4X4_100": 100, "DICT_4X4_250": 250, "DICT_5X5_50": 50,
                "DICT_5X5_100": 100, "DICT_6X6_50": 50, "DICT_6X6_250": 250}
@@ -59,6 +61,7 @@ class _WorldTable:
     feeder: Any = None
     pallet: Any = None
     camera: Any = None
+    tool_marker: Any = None
 
 
 @dataclass(slots=True)
@@ -111,6 +114,13 @@ class _CameraTable:
     noise_sigma: float = ranged(2.0, Range(0.0, 50.0))
     width_px: int = ranged(1024, Range(16, 8192, integer=True, unit="px"))
     height_px: int = ranged(768, Range(16, 8192, integer=True, unit="px"))
+
+
+@dataclass(slots=True)
+class _ToolMarkerTable:
+    marker: int = ranged(0, Range(0, 999, integer=True))
+    marker_mm: float = ranged(40.0, Range(1.0, 500.0, unit="mm"))
+    offset_mm: float = ranged(5.0, Range(-500.0, 500.0, unit="mm"))
 
 
 def _table(typ: type, data: Any, where: str) -> Any:
@@ -213,8 +223,22 @@ def world_from_table(data: Any, where: str = "[world]") -> WorldConfig:
                               f"(table_z_mm {w.table_z_mm:g}) by more than twice the focal length")
         camera = WorldCamera(c.x_mm, c.y_mm, c.z_mm, c.yaw_deg, c.focal_length_mm, c.f_number, c.noise_sigma,
                              int(c.width_px), int(c.height_px))
+    tool_marker = None if w.tool_marker is None else _tool_marker(w.tool_marker, f"{where} tool_marker", w.aruco_dict,
+                                                                  parts)
     return WorldConfig(float(w.table_z_mm), tuple(parts), feeder, pallet, camera, float(w.grip_tolerance_mm),
-                       float(w.snap_mm), float(w.grip_tilt_deg), w.aruco_dict)
+                       float(w.snap_mm), float(w.grip_tilt_deg), w.aruco_dict, tool_marker)
+
+
+def _tool_marker(data: Any, where: str, aruco_dict: str, parts: list[PartSpec]) -> ToolMarker:
+    t = _table(_ToolMarkerTable, data, where)
+    if not isinstance(data, dict) or "marker" not in data:
+        raise ConfigError(f"{where}: marker missing (the ArUco id on the tool)")
+    n_ids = ARUCO_DICTS[aruco_dict]
+    if t.marker >= n_ids:
+        raise ConfigError(f"{where}: marker = {t.marker}: expected an id in 0..{n_ids - 1} of the world's aruco_dict")
+    if any(p.marker == t.marker for p in parts):
+        raise ConfigError(f"{where}: marker = {t.marker}: a part carries it too; the tool needs an id of its own")
+    return ToolMarker(int(t.marker), float(t.marker_mm), float(t.offset_mm))
 
 
 def world_to_table(world: WorldConfig) -> dict[str, Any]:
@@ -233,7 +257,7 @@ def world_to_table(world: WorldConfig) -> dict[str, Any]:
             del d["marker"]
         parts.append(d)
     out["parts"] = parts
-    for key in ("feeder", "pallet", "camera"):
+    for key in ("feeder", "pallet", "camera", "tool_marker"):
         value = getattr(world, key)
         if value is not None:
             out[key] = {k: v for k, v in dataclasses.asdict(value).items() if v is not None}

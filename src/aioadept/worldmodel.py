@@ -132,6 +132,22 @@ class WorldCamera:
 
 
 @dataclass(frozen=True, slots=True)
+class ToolMarker:
+    """An ArUco marker carried by the robot's tool, for ``aioadept calibrate`` (eye-to-hand): a flat plate
+    ``offset_mm`` along the tool's z from the tool point, facing back up the tool axis (so the fixed camera sees it
+    when the tool points down), its x along the tool's x. ``marker_mm``: the marker's side, black border included
+    (printed on a white label one module wider each side)."""
+
+    marker: int
+    marker_mm: float = 40.0
+    offset_mm: float = 5.0
+
+    def mount(self) -> np.ndarray:
+        """The marker's frame in the tool's (4 x 4): z out of the plate, towards the camera."""
+        return Pose(0.0, 0.0, self.offset_mm, 0.0, 180.0, 0.0).to_matrix()
+
+
+@dataclass(frozen=True, slots=True)
 class WorldConfig:
     """The whole world of a cell (the cell file's ``[world]`` table, :mod:`aioadept.worldfile`)."""
 
@@ -145,6 +161,9 @@ class WorldConfig:
     snap_mm: float = 3.0
     grip_tilt_deg: float = 10.0
     aruco_dict: str = "DICT_4X4_50"
+    tool_marker: ToolMarker | None = None
+    """The marker on the tool the world's camera draws at the robot's tool pose (``[world.tool_marker]``), or
+    None."""
 
     def part(self, part_id: int) -> PartSpec:
         for p in self.parts:

@@ -32,8 +32,9 @@ def _state_curve(opts: argparse.Namespace) -> Any:
 def make_sources(opts: argparse.Namespace, pose_at: Any, state_age: Any = None, pose_guess: Any = None, *,
                  world_parts: Any = None, world_age: Any = None) -> list[Any]:
     """Camera objects for the ``--source`` specs (unique camera ids). ``pose_at`` / ``state_age`` / ``pose_guess``:
-    the robot state follower's (``pose_if_at_rest``), for virtual cameras; ``world_parts``: the world state
-    follower's ``parts`` (None: the parts where the cell file puts them) and ``state_age_s``, for the world camera."""
+    the robot state follower's (``pose_if_at_rest``), for virtual cameras (and ``pose_at`` for the world camera's
+    tool marker); ``world_parts``: the world state follower's ``parts`` (None: the parts where the cell file puts
+    them) and ``state_age_s``, for the world camera."""
     from aioadept.vision.sources import ImageFolderSource, OpenCVSource
     from aioadept.vision.virtual_camera import LensOptics, paper_camera
 
@@ -61,7 +62,7 @@ def make_sources(opts: argparse.Namespace, pose_at: Any, state_age: Any = None, 
 
             parts = world_parts if world_parts is not None else (lambda: None)
             sources.append(WorldCameraSource(WorldView(opts.world_config, seed=opts.seed), parts,
-                                             state_age=world_age, camera_id=unique("world"),
+                                             state_age=world_age, tool_at=pose_at, camera_id=unique("world"),
                                              exposure_ms=opts.exposure_ms,
                                              readout_ms=opts.readout_ms))
         elif kind == "folder" and arg:
@@ -102,7 +103,10 @@ async def serve(opts: argparse.Namespace) -> int:
     follower = None
     from aioadept.bus.endpoints import is_none
 
-    if any(s.split(":", 1)[0] == "virtual" for s in opts.source) and not is_none(opts.state_endpoint):
+    # the robot's tool pose: for a virtual camera, and for the world camera's tool marker
+    tool_marker = "world" in opts.source and getattr(opts.world_config, "tool_marker", None) is not None
+    if (tool_marker or any(s.split(":", 1)[0] == "virtual" for s in opts.source)) \
+            and not is_none(opts.state_endpoint):
         follower = RobotStateFollower(opts.state_endpoint, curve=_state_curve(opts)).start()
     world_follower = None
     if "world" in opts.source and not is_none(opts.state_endpoint):

@@ -122,8 +122,10 @@ class WorldView:
             self._labels[key] = img
         return img
 
-    def render_colour(self, parts: Sequence[PartState]) -> np.ndarray:
-        """The scene as a BGR image, sharp and without noise (the recording's view)."""
+    def render_colour(self, parts: Sequence[PartState], tool: Pose | None = None) -> np.ndarray:
+        """The scene as a BGR image, sharp and without noise (the recording's view); ``tool``: where the robot's
+        tool is, to draw the world's tool marker there (drawn last: the tool is above the parts; the arm itself
+        is not drawn)."""
         cam = self.camera
         img = np.empty((cam.height_px, cam.width_px, 3), np.uint8)
         img[:] = TABLE_GREY
@@ -141,6 +143,8 @@ class WorldView:
             if depth <= self.optics.focal_length_mm:
                 continue  # at or behind the lens
             self._draw_part(img, spec, st)
+        if tool is not None:
+            self._draw_tool_marker(img, tool)
         return img
 
     def _draw_part(self, img: np.ndarray, spec: PartSpec, st: PartState) -> None:
@@ -162,11 +166,36 @@ class WorldView:
 
     def _draw_label(self, img: np.ndarray, spec: PartSpec, st: PartState) -> None:
         half = label_mm(spec.marker_mm, self.world.aruco_dict) / 2
-        corners = self.project(self._on_top(spec, st, half)).astype(np.float32)
+        self._warp_label(img, spec.marker, self._on_top(spec, st, half))
+
+    def tool_marker_corners_mm(self, tool: Pose, half: float | None = None) -> np.ndarray:
+        """World coordinates (4 x 3 mm) of the tool marker's corners (OpenCV's order, as
+        :meth:`marker_corners_mm`) with the tool at ``tool``; ``half``: half the side drawn (default the marker's)."""
+        tm = self.world.tool_marker
+        if tm is None:
+            raise ValueError("the world has no [world.tool_marker]")
+        h = tm.marker_mm / 2 if half is None else half
+        local = np.array([[-h, h, 0, 1], [h, h, 0, 1], [h, -h, 0, 1], [-h, -h, 0, 1]], float)
+        return (tool.to_matrix() @ tm.mount() @ local.T).T[:, :3]
+
+    def _draw_tool_marker(self, img: np.ndarray, tool: Pose) -> None:
+        tm = self.world.tool_marker
+        if tm is None:
+            return
+        corners = self.tool_marker_corners_mm(tool, label_mm(tm.marker_mm, self.world.aruco_dict) / 2)
+        normal_towards_camera = self._world_to_cam[2, :3] @ (tool.to_matrix() @ tm.mount())[:3, 2] < 0
+        depth = self._world_to_cam[2] @ np.append(corners.mean(axis=0), 1.0)
+        if normal_towards_camera and depth > self.optics.focal_length_mm:
+            self._warp_label(img, tm.marker, corners)  # its back (plain plate) is not drawn
+
+    def _warp_label(self, img: np.ndarray, marker: int, corners_mm: np.ndarray) -> None:
+        corners = self.project(corners_mm).astype(np.float32)
+        if not np.all(np.isfinite(corners)):
+            return
         side = float(max(np.linalg.norm(corners[1] - corners[0]), np.linalg.norm(corners[3] - corners[0])))
         if side < 6:
             return  # smaller than a few pixels: nothing a detector could read
-        label = self._label(spec.marker, max(24, int(side * 2)))
+        label = self._label(marker, max(24, int(side * 2)))
         n = label.shape[0]
         # the label's outer edges, in OpenCV's convention (pixel centres at integers): -0.5 .. n - 0.5
         src = np.float32([[-0.5, -0.5], [n - 0.5, -0.5], [n - 0.5, n - 0.5], [-0.5, n - 0.5]])
@@ -184,9 +213,9 @@ class WorldView:
         roi = img[y0:y1, x0:x1].astype(np.float32)
         img[y0:y1, x0:x1] = np.round(roi * (1 - alpha) + warped[..., None].astype(np.float32) * alpha).astype(np.uint8)
 
-    def render(self, parts: Sequence[PartState]) -> np.ndarray:
-        """A mono8 frame of the scene with the lens blur and the sensor noise."""
-        grey = cv2.cvtColor(self.render_colour(parts), cv2.COLOR_BGR2GRAY)
+    def render(self, parts: Sequence[PartState], tool: Pose | None = None) -> np.ndarray:
+        """A mono8 frame of the scene with the lens blur and the sensor noise (``tool``: :meth:`render_colour`)."""
+        grey = cv2.cvtColor(self.render_colour(parts, tool), cv2.COLOR_BGR2GRAY)
         if self._kernel.shape[0] > 1:
             grey = cv2.filter2D(grey, -1, self._kernel, borderType=cv2.BORDER_REPLICATE)
         with self._lock:
@@ -240,13 +269,15 @@ class WorldCameraSource(Camera):
     those of the newest sample at the exposure's start: with the stream at 100 Hz, at most one period old.
     ``state_age(t_s)`` (the follower's :meth:`WorldStateFollower.state_age_s`) is stamped on each frame as its
     ``pose_age_s``, so a node with ``max_state_age`` refuses frames of a world stream that went silent (or never
-    came); without it (no stream) the frames carry None and the parts stay where the file puts them."""
+    came); without it (no stream) the frames carry None and the parts stay where the file puts them. ``tool_at``
+    (the robot state follower's ``pose_at``): the tool pose at a time, where the world's tool marker is drawn (None,
+    or no pose yet: no marker)."""
 
     can_trigger = True
 
     def __init__(self, view: WorldView, parts: Callable[[], Sequence[PartState] | None], *,
                  state_age: Callable[[float], float] | None = None,
-                 camera_id: str = "world", clock: Callable[[], float] = time.time,
+                 tool_at: Callable[[float], Pose | None] | None = None, camera_id: str = "world", clock: Callable[[], float] = time.time,
                  exposure_ms: float = DEFAULT_EXPOSURE_MS, readout_ms: float | None = None,
                  sleep: Callable[[float], None] | None = time.sleep) -> None:
         self.view = view
@@ -258,13 +289,15 @@ class WorldCameraSource(Camera):
             gige_readout_ms(view.camera.width_px * view.camera.height_px)
         self._sleep = sleep
         self._state_age = state_age
+        self._tool_at = tool_at if view.world.tool_marker is not None else None
         self._seq = 0
         self._rest = parts_at_rest(view.world)
 
     def grab(self) -> Frame:
         t_s = self._clock()
         parts = self._parts()
-        image = self.view.render(self._rest if parts is None else parts)
+        tool = self._tool_at(t_s) if self._tool_at is not None else None
+        image = self.view.render(self._rest if parts is None else parts, tool)
         exposure_s, readout_s = self.exposure_ms / 1e3, self.readout_ms / 1e3
         if self._sleep is not None:
             left = t_s + exposure_s + readout_s - self._clock()
