@@ -17,7 +17,7 @@ from aioadept import defaults
 from aioadept.cli.options import (ArgumentParser, DefaultsHelpFormatter, add_node_transport_options,
                                   apply_cell_bus, apply_node_transport, description)
 from aioadept.geometry import NULL, Pose
-from aioadept.robots import viper_s850 as kin
+from aioadept.robots.base import JumpLimit
 from aioadept.sim.line import CartesianLimits
 from aioadept.sim.server import DEFAULT_PORT, DEFAULT_STATE_ENDPOINT, Faults, SimOptions, SimServer
 
@@ -29,12 +29,12 @@ def _six(text: str) -> tuple[float, ...]:
     return vals
 
 
-def _jump_limit(text: str) -> kin.JumpLimit | None:
+def _jump_limit(text: str) -> JumpLimit | None:
     if text.strip().lower() == "off":
         return None
     try:
         floor, per_mm, per_deg = (float(v) for v in text.split(","))
-        return kin.JumpLimit(floor, per_mm, per_deg)
+        return JumpLimit(floor, per_mm, per_deg)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(f"expected FLOOR,PER_MM,PER_DEG (three numbers >= 0) or 'off', got {text!r}") from exc
 

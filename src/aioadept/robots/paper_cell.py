@@ -7,7 +7,10 @@ live here, below all three, so vision does not import the apps.
 
 from __future__ import annotations
 
-from aioadept.robots.viper_s850 import HOME_JOINTS_DEG
+from aioadept.robots.viper import VIPER_S850
+
+HOME_JOINTS_DEG: tuple[float, ...] = VIPER_S850.home_deg
+"""The paper's arm at home: where ``init_move`` starts."""
 
 __all__ = ["HOME_JOINTS_DEG", "REL_JOINTS_2_DEG", "REL_JOINTS_DEG", "REL_TOOL"]
 

@@ -45,8 +45,7 @@ from aioadept.protocol import (
     MAX_LINE, NO_ID, STOP_SKILL, Ack, CommandMessage, ErrorCode, LineFramer, Oversize, encode_ack, parse_command,
 )
 from aioadept.robots import model as robot_model
-from aioadept.robots.base import model_joints
-from aioadept.robots import viper_s850 as kin
+from aioadept.robots.base import DEFAULT_JUMP_LIMIT, JumpLimit, model_joints
 from aioadept.sim.controller import Controller, Outgoing
 from aioadept.sim.io import HAND_TIME_S, DigitalIO, HandConfig
 from aioadept.sim.line import CartesianLimits
@@ -142,7 +141,7 @@ class SimOptions:
     instant: bool = False
     monitor_speed_pct: float = 100.0
     max_speed_pct: float = 100.0
-    jump_limit: kin.JumpLimit | None = kin.DEFAULT_JUMP_LIMIT
+    jump_limit: JumpLimit | None = DEFAULT_JUMP_LIMIT
     """IK refuses a Cartesian target whose joint motion is out of proportion to its size (wrist flips); None: off."""
     max_clients: int = 16
     max_queued: int = DEFAULT_MAX_QUEUED
