@@ -251,3 +251,17 @@ def test_a_scara_refuses_unwinding_j4_for_a_small_turn(name):
         m.inverse(pose, q)
     assert e.value.code == ErrorCode.JOINT_JUMP and "J4 would turn" in str(e.value)
     assert m.inverse(pose, q, jump=None)[3] == pytest.approx(target[3] - 360.0)
+
+
+def test_reach_reason_tells_too_far_from_too_close_and_says_nothing_inside(m):
+    """(A Viper's annulus is nearly a disc: the wrist centre is within reach of one shoulder or the other almost
+    down to its J1 axis, so only a SCARA is asked for "too close".)"""
+    here = m.flange_matrix(m.home_deg)
+    assert m.reach_reason(here) is None
+    far = here.copy()
+    far[:3, 3] *= 5.0
+    assert m.reach_reason(far) == "too_far"
+    if m.family == "scara":
+        near = here.copy()
+        near[0, 3] = near[1, 3] = 0.0
+        assert m.reach_reason(near) == "too_close"

@@ -151,6 +151,14 @@ class Scara(ArmMethods):
             out[:, b, 3] = out[:, b, 0] + out[:, b, 1] - phi
         return out, np.repeat(ok[:, None], 2, axis=1)
 
+    def reach_reason(self, flange: np.ndarray) -> str | None:
+        """``"too_far"``/``"too_close"`` when the flange lies outside the annulus J1 and J2 sweep, else None (the
+        orientation, J3's stroke or the configuration is the reason)."""
+        r = math.hypot(flange[0, 3], flange[1, 3])
+        if r > self.a1 + self.a2:
+            return "too_far"
+        return "too_close" if r < abs(self.a1 - self.a2) else None
+
     def inverse(self, pose: Pose, current_joints_deg: Sequence[float], tool: Pose = NULL, *,
                 limits: JointLimits | None = None,
                 jump: JumpLimit | None = DEFAULT_JUMP_LIMIT,

@@ -246,6 +246,17 @@ class Viper(ArmMethods):
                              f"location out of range (wrist centre {wc[0]:.1f},{wc[1]:.1f},{wc[2]:.1f})")
         return out
 
+    def reach_reason(self, flange: np.ndarray) -> str | None:
+        """Why no configuration reaches the flange transform ``flange``: ``"too_far"`` or ``"too_close"`` when the
+        wrist centre lies outside the annulus the upper arm and forearm sweep (for both shoulder choices), None
+        when it lies inside (then the configuration or the orientation is the reason)."""
+        wc = flange[:3, 3] - self.d6 * flange[:3, 2]
+        lo, hi = abs(self.a2 - self.l3), self.a2 + self.l3
+        dists = [math.hypot(s * math.hypot(wc[0], wc[1]) - self.a1, wc[2] - self.d1) for s in (1, -1)]
+        if any(lo <= d <= hi for d in dists):
+            return None
+        return "too_far" if min(dists) > hi else "too_close"
+
     def free_configuration(self, cur: Sequence[float]) -> Configuration:
         """The seed's configuration with 0 (either choice) for each flag within its band of a singularity."""
         j2, j3 = math.radians(cur[1]), math.radians(cur[2])
