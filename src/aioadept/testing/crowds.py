@@ -6,7 +6,8 @@ started and runs until killed. Kinds:
 
 - ``monitors``: N well-behaved monitors, each on a connection of its own sending ``here`` every 0.5 s and reading
   the acks; one whose connection is closed connects again at its next poll.
-- ``storm``: N loops of short-lived connections, as fast as they go: connect, send ``here``, read its ack, close.
+- ``storm``: N loops of short-lived connections, one after the other: connect, send ``here``, read its ack, stay
+  0.5 s (less than the stop port's idle time), close.
 - ``slowloris``: N peers that each trickle a line that never ends (one byte every 0.1 s); one whose connection is
   closed (or refused) connects again at once.
 
@@ -57,7 +58,7 @@ async def monitor(host: str, port: int, period_s: float = 0.5) -> None:
         await asyncio.sleep(period_s)  # connects again at its next poll
 
 
-async def storm(host: str, port: int) -> None:
+async def storm(host: str, port: int, hold_s: float = 0.5) -> None:
     while True:
         try:
             reader, writer = await asyncio.open_connection(host, port)
@@ -68,6 +69,7 @@ async def storm(host: str, port: int) -> None:
             writer.write(_mid() + b":here\r\n")
             async with asyncio.timeout(1):
                 await reader.readuntil(b"\r\n")
+            await asyncio.sleep(hold_s)
         except (OSError, asyncio.IncompleteReadError, TimeoutError):
             pass
         finally:
