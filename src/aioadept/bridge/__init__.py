@@ -8,6 +8,6 @@ See docs/bridge.md. Needs the ``[zenoh]`` extra at run time; importing this pack
 """
 
 from aioadept.bridge.client import BridgeClient, BridgeRefused
-from aioadept.bridge.node import Bridge, BridgeStats
+from aioadept.bridge.node import Bridge, BridgeNameTaken, BridgeStats
 
-__all__ = ["Bridge", "BridgeClient", "BridgeRefused", "BridgeStats"]
+__all__ = ["Bridge", "BridgeClient", "BridgeNameTaken", "BridgeRefused", "BridgeStats"]

@@ -21,32 +21,50 @@ The safety rules it keeps (docs/bridge.md; each has a test in tests/integration/
   already on the controller runs to its end (the protocol has no "withdraw one message", and a ``stop`` would
   abort the other applications' motions too).
 - A malformed query gets an ``err`` reply (``malformed``) and changes nothing.
+- One bridge per name: before it connects to the controller the bridge claims ``aioadept/<cell>/<robot>`` with a
+  liveliness token and refuses to start (:class:`BridgeNameTaken`) if Zenoh shows another bridge's claim or node
+  token for that name; a query goes to one bridge only (the queryable is ``complete``, the client's target
+  ``BEST_MATCHING``), so even two bridges never both run one command (docs/bridge.md, "One bridge per name").
 """
 
 from __future__ import annotations
 
 import asyncio
 import logging
+import secrets
+import time
 from collections import deque
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 from aioadept.bridge.wire import (
     MAX_QUEUED_PER_APP,
+    SERVING,
     BridgeFailure,
     BridgeRequest,
     MalformedRequest,
     apps_key,
+    bridge_key,
+    claim_key,
+    claims_key,
     cmd_key,
     encode_failure,
     parse_request,
     state_key,
 )
 from aioadept.client import RobotClient
-from aioadept.errors import AckTimeout, ClientStateError, CommandAborted, CommandError, ConnectError, ConnectionLost
+from aioadept.errors import (
+    AckTimeout,
+    AdeptError,
+    ClientStateError,
+    CommandAborted,
+    CommandError,
+    ConnectError,
+    ConnectionLost,
+)
 from aioadept.protocol import encode_ack
 
-__all__ = ["Bridge", "BridgeStats"]
+__all__ = ["Bridge", "BridgeNameTaken", "BridgeStats"]
 
 log = logging.getLogger("aioadept.bridge")
 
@@ -63,6 +81,10 @@ class BridgeStats:
     busy: int = 0
 
 
+class BridgeNameTaken(AdeptError):
+    """Another bridge (or another node) holds this robot's name on the Zenoh network: this one does not serve."""
+
+
 @dataclass
 class _Job:
     req: BridgeRequest
@@ -75,14 +97,19 @@ class Bridge:
     """Serve ``robot`` (a connected-or-not :class:`RobotClient`) as ``aioadept/<cell>/<name>`` on this process's
     Zenoh session (:func:`aioadept.bus.zenoh.session`, configured by the caller).
 
-    ``async with Bridge(robot, cell="demo", name="robot") as bridge: await bridge.closed()``. ``state_endpoint``:
-    the controller's ZeroMQ state stream to relay onto ``aioadept/<cell>/<name>/state`` (``None``: no relay).
+    ``async with Bridge(robot, cell="demo", name="robot") as bridge: await bridge.taken.wait()``. Entering raises
+    :class:`BridgeNameTaken` (before connecting to the controller) when another bridge has the name; ``taken`` is
+    set when one that started earlier turns up later (two Zenoh networks joined): this bridge has then stopped
+    serving and says why in ``taken_reason``. ``state_endpoint``: the controller's ZeroMQ state stream to relay onto
+    ``aioadept/<cell>/<name>/state`` (``None``: no relay). ``claim_timeout_s``: how long the start waits for Zenoh's
+    answer on the claims already there.
     """
 
     robot: RobotClient
     cell: str = "demo"
     name: str = "robot"
     state_endpoint: str | None = None
+    claim_timeout_s: float = 2.0
     stats: BridgeStats = field(default_factory=BridgeStats)
 
     def __post_init__(self) -> None:
@@ -95,9 +122,17 @@ class Bridge:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._entities: list[Any] = []
         self._tasks: list[asyncio.Task[None]] = []
-        self._closing = False
+        self._closing = False  # no more queries taken
+        self._closed = False
         self.apps: set[str] = set()
         """Applications whose liveliness token is alive."""
+        self.claim = f"{time.time_ns():020d}-{secrets.token_hex(4)}"
+        """This bridge's claim on the name: sorts by start time (ties: by the random part)."""
+        self._serving = False
+        self._rivals: set[str] = set()  # other claims seen while starting
+        self._queryable: Any = None
+        self.taken = asyncio.Event()
+        self.taken_reason = ""
 
     # ------------------------------------------------------------------------------------------ lifecycle
     async def __aenter__(self) -> Bridge:
@@ -105,32 +140,108 @@ class Bridge:
 
         zenoh = zb._zenoh()
         self._loop = asyncio.get_running_loop()
-        if not self.robot.connected:
-            await self.robot.connect()
         s = zb.session()
         try:
-            self._entities.append(s.declare_queryable(
-                self._key, zenoh.handlers.Callback(self._on_query_thread, indirect=True)))
+            await self._claim_name(s, zenoh)  # before the controller: a second bridge never even connects
+            if not self.robot.connected:
+                await self.robot.connect()
+            # complete=True: a query (target BEST_MATCHING, the client's) goes to ONE complete queryable, so even
+            # two bridges on one name (two Zenoh networks joined) never both run a command.
+            self._queryable = s.declare_queryable(
+                self._key, zenoh.handlers.Callback(self._on_query_thread, indirect=True), complete=True)
+            self._entities.append(self._queryable)
             self._entities.append(s.liveliness().declare_subscriber(
                 apps_key(self.cell, self.name), zenoh.handlers.Callback(self._on_presence_thread), history=True))
-        except Exception:
+        except BaseException:
             await self._undeclare()
+            await self.robot.close()
             raise
         self._tasks.append(self._loop.create_task(self._pump(), name=f"bridge {self._key}"))
         if self.state_endpoint is not None:
             self._tasks.append(self._loop.create_task(self._relay_state(), name=f"bridge state {self._key}"))
+        self._serving = True
+        self._entities.append(s.liveliness().declare_token(claim_key(self.cell, self.name, self.claim) + "/" +
+                                                           SERVING))
         # Last: applications waiting for the bridge see it once it serves.
         self._entities.append(zb.declare_node(self.cell, self.name))
         return self
+
+    async def _claim_name(self, s: Any, zenoh: Any) -> None:
+        """Declare this bridge's claim, then ask Zenoh for every claim and node token on the name: any other one
+        (or one the claims subscriber reports meanwhile) and this bridge refuses. Within one router this holds
+        even for two bridges started at the same instant: each declares before it asks, and the router handles one
+        session's messages in order, so at least one of the two sees the other's claim (both may: then both
+        refuse, and starting again settles it)."""
+        base = bridge_key(self.cell, self.name)
+        self._entities.append(s.liveliness().declare_token(claim_key(self.cell, self.name, self.claim)))
+        self._entities.append(s.liveliness().declare_subscriber(
+            claims_key(self.cell, self.name), zenoh.handlers.Callback(self._on_claim_thread), history=True))
+        found = await _live_keys(s, base + "/**", self.claim_timeout_s)
+        node = base in found
+        for key in found:
+            self._on_claim(key, True)
+        if node or self._rivals:
+            what = (f"another bridge's claim {sorted(self._rivals)[0]}" if self._rivals
+                    else "another node's liveliness token")
+            raise BridgeNameTaken(
+                f"the robot name {base} is taken on this Zenoh network ({what}): a second bridge would run every "
+                "command twice; stop the other bridge first or give another --cell/--name (a bridge that just "
+                "died frees the name when Zenoh drops its link)")
+
+    def _on_claim_thread(self, sample: Any) -> None:
+        from aioadept.bus import zenoh as zb
+
+        alive = sample.kind == zb._zenoh().SampleKind.PUT
+        loop = self._loop
+        if loop is not None:
+            try:
+                loop.call_soon_threadsafe(self._on_claim, str(sample.key_expr), alive)
+            except RuntimeError:
+                pass
+
+    def _on_claim(self, key: str, alive: bool) -> None:
+        prefix = bridge_key(self.cell, self.name) + "/bridge/"
+        if not alive or not key.startswith(prefix):
+            return
+        claim, _, mark = key[len(prefix):].partition("/")
+        if claim == self.claim:
+            return
+        if not self._serving:
+            self._rivals.add(claim)
+        elif mark == SERVING and claim < self.claim:
+            self._back_off(claim)
+        else:  # a later bridge: it saw this one's claim when it asked, and refuses (or backs off, if it serves)
+            log.warning("bridge %s: another bridge (claim %s) is starting on this name; it must refuse",
+                        self._key, claim)
+
+    def _back_off(self, claim: str) -> None:
+        """An earlier bridge serves this name too (two Zenoh networks joined): stop taking queries now, answer the
+        queued ones ``closed`` (never sent); the batch in flight runs to its end. The owner ends the process."""
+        if self.taken.is_set():
+            return
+        self.taken_reason = (f"another bridge (claim {claim}, started before this one's {self.claim}) serves the "
+                             f"robot name {bridge_key(self.cell, self.name)}: this bridge stopped serving")
+        log.error("bridge %s: %s", self._key, self.taken_reason)
+        if self._queryable is not None:
+            try:
+                self._queryable.undeclare()
+            except Exception as exc:
+                log.debug("undeclare: %r", exc)
+        self._closing = True
+        jobs, self._jobs = self._jobs, deque()
+        self._queued.clear()
+        for job in jobs:
+            self._fail(job, BridgeFailure("closed", "this bridge gave the robot name up; not sent"))
+        self.taken.set()
 
     async def __aexit__(self, *exc: object) -> None:
         await self.aclose()
 
     async def aclose(self) -> None:
         """Answer every queued batch ``closed`` (never sent), stop serving, close the controller link."""
-        if self._closing:
+        if self._closed:
             return
-        self._closing = True
+        self._closed = self._closing = True
         for job in self._jobs:
             self._fail(job, BridgeFailure("closed", "the bridge is shutting down; not sent",
                                           unresolved=()))
@@ -343,6 +454,33 @@ class Bridge:
         finally:
             sub.close()
             pub.close()
+
+
+async def _live_keys(s: Any, key: str, timeout_s: float) -> set[str]:
+    """The keys of the liveliness tokens matching ``key`` that Zenoh knows of (a liveliness get, awaited)."""
+    from aioadept.bus import zenoh as zb
+
+    loop = asyncio.get_running_loop()
+    done: asyncio.Future[None] = loop.create_future()
+    keys: set[str] = set()
+
+    def on_reply(rep: Any) -> None:  # a Zenoh thread: hand over
+        if rep.ok is not None:
+            _call_soon(loop, keys.add, str(rep.ok.key_expr))
+
+    def on_done() -> None:
+        _call_soon(loop, lambda: done.done() or done.set_result(None))
+
+    s.liveliness().get(key, zb._zenoh().handlers.Callback(on_reply, on_done), timeout=timeout_s)
+    await asyncio.wait_for(done, timeout_s + 5.0)
+    return keys
+
+
+def _call_soon(loop: asyncio.AbstractEventLoop, fn: Any, *args: Any) -> None:
+    try:
+        loop.call_soon_threadsafe(fn, *args)
+    except RuntimeError:  # the loop is closed
+        pass
 
 
 def _failure_of(exc: BaseException, app_ids: tuple[str, ...], to_app: dict[str, str]) -> BridgeFailure:

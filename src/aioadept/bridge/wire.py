@@ -26,7 +26,8 @@ from aioadept.protocol import STOP_SKILL, SkillCall, parse_command
 from aioadept.protocol.errors import RemoteProtocolError
 
 __all__ = ["ERR_KINDS", "MAX_QUEUED_PER_APP", "BridgeRequest", "BridgeFailure", "MAX_BATCH", "cmd_key", "app_key", "apps_key",
-           "state_key", "bridge_key", "parse_request", "encode_request", "encode_failure", "parse_failure"]
+           "state_key", "bridge_key", "claim_key", "claims_key", "parse_request", "encode_request", "encode_failure",
+           "parse_failure"]
 
 MAX_BATCH = 64
 """At most this many command lines in one query (the servers admit 64 queued messages per connection)."""
@@ -69,6 +70,21 @@ def apps_key(cell: str, robot: str) -> str:
 
 def app_key(cell: str, robot: str, app: str) -> str:
     return bridge_key(cell, robot) + "/apps/" + _chunk("application", app)
+
+
+SERVING = "serving"
+"""The chunk after a claim's key once that bridge serves: ``aioadept/<cell>/<robot>/bridge/<claim>/serving``."""
+
+
+def claim_key(cell: str, robot: str, claim: str) -> str:
+    """A bridge's claim on the robot's name (a liveliness token held for the bridge's life, docs/bridge.md "One
+    bridge per name"); ``claim`` sorts by start time (``<ns since the epoch, 20 digits>-<random>``)."""
+    return bridge_key(cell, robot) + "/bridge/" + _chunk("claim", claim)
+
+
+def claims_key(cell: str, robot: str) -> str:
+    """Every bridge's claim on the robot's name, and their ``serving`` marks (wildcard)."""
+    return bridge_key(cell, robot) + "/bridge/**"
 
 
 @dataclass(frozen=True, slots=True)

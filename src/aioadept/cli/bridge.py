@@ -5,7 +5,8 @@ port too) and serves the robot's commands as Zenoh queries on ``aioadept/<cell>/
 :class:`aioadept.bridge.BridgeClient` s; relays the controller's state stream (``--state-endpoint``, ZeroMQ) onto
 ``aioadept/<cell>/<name>/state``; declares the liveliness token ``aioadept/<cell>/<name>``. Multicast scouting is
 off: it is the router (``--zenoh-listen``) or connects to one (``--zenoh-connect``). Prints
-``READY cmd=KEY state=KEY|none robot=HOST:PORT`` once it serves; runs until SIGINT/SIGTERM.
+``READY cmd=KEY state=KEY|none robot=HOST:PORT`` once it serves; runs until SIGINT/SIGTERM. Refuses to start
+(one line, exit 1) when another bridge already has the name on the Zenoh network.
 """
 
 from __future__ import annotations
@@ -82,8 +83,16 @@ async def run(args: argparse.Namespace, host: str, port: int, stop_port, opts) -
         async with Bridge(robot, cell=args.cell, name=args.name, state_endpoint=relay) as bridge:
             print(f"READY cmd={cmd_key(args.cell, args.name)} "
                   f"state={state_key(args.cell, args.name) if relay else 'none'} robot={host}:{port}", flush=True)
-            await stop.wait()
+            waits = [asyncio.ensure_future(e.wait()) for e in (stop, bridge.taken)]
+            try:
+                await asyncio.wait(waits, return_when=asyncio.FIRST_COMPLETED)
+            finally:
+                for w in waits:
+                    w.cancel()
             logging.getLogger("aioadept.bridge").info("bridge stats: %s", bridge.stats)
+            if bridge.taken.is_set():
+                print(f"aioadept bridge: {bridge.taken_reason}", file=sys.stderr, flush=True)
+                return 1
     finally:
         zb.close_session()
         for sig in (signal.SIGINT, signal.SIGTERM):
