@@ -362,6 +362,8 @@ async def pickplace(rc: Robot, locator: Locator, p: PickPlaceParams, *, pallet: 
             hand_open = True
             cycle.placed = True
             cycle.t_end_s = time.monotonic()
+            # a line per part, as the focus app's per step: a long run shows where it is
+            log.info("part %d of %d placed: slot %d, %.0f ms", k + 1, p.parts, cycle.slot, cycle.cycle_ms)
             if on_cycle is not None:
                 on_cycle(cycle)
     except BaseException as exc:  # the partial result goes with the error (a cancellation's too)
