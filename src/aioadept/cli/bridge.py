@@ -18,7 +18,13 @@ import signal
 import sys
 
 from aioadept import defaults
-from aioadept.cli.options import DefaultsHelpFormatter, add_zenoh_session_options, description, zenoh_session_options
+from aioadept.cli.options import (
+    DefaultsHelpFormatter,
+    add_insecure_option,
+    add_zenoh_session_options,
+    description,
+    zenoh_session_options,
+)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -31,6 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--cell", default="demo", help="the cell's name in the key expressions")
     p.add_argument("--name", default="robot", help="this robot's name in the key expressions")
     add_zenoh_session_options(p)
+    add_insecure_option(p)
     p.add_argument("--state-endpoint", default="none", dest="state_endpoint",
                    help="the controller's ZeroMQ state stream to relay (as aioadept sim --state-endpoint), or none")
     p.add_argument("--ack-timeout", type=float, default=60.0, dest="ack_timeout_s",
@@ -41,7 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _options(args: argparse.Namespace):  # -> (host, port, stop_port, ZenohOptions)
     from aioadept.bridge.wire import bridge_key
-    from aioadept.cli.options import parse_robot_address
+    from aioadept.cli.options import check_listeners, parse_robot_address, zenoh_listener
 
     host, port = parse_robot_address(args.robot)
     stop = args.stop_port.strip().lower()
@@ -57,6 +64,8 @@ def _options(args: argparse.Namespace):  # -> (host, port, stop_port, ZenohOptio
         except ValueError:
             raise ValueError(f"{opt} {value!r}: use 1-64 letters, digits, '_', '.', '-' (one key chunk)") from None
     opts = zenoh_session_options(args.zenoh_listen, args.zenoh_connect, args.zenoh_config)
+    check_listeners("aioadept bridge", zenoh_listener(args, f"command the robot {args.cell}/{args.name}"),
+                    args.insecure)
     state = args.state_endpoint.strip()
     if state.lower() != "none" and not state.startswith(("tcp://", "ipc://")):
         raise ValueError(f"--state-endpoint {state!r}: the controller's ZeroMQ state stream (tcp://HOST:PORT or "
@@ -81,6 +90,7 @@ async def run(args: argparse.Namespace, host: str, port: int, stop_port, opts) -
     relay = None if args.state_endpoint.strip().lower() == "none" else args.state_endpoint
     try:
         async with Bridge(robot, cell=args.cell, name=args.name, state_endpoint=relay) as bridge:
+            print(f"aioadept bridge: {who_may_command(args, opts)}", file=sys.stderr, flush=True)
             print(f"READY cmd={cmd_key(args.cell, args.name)} "
                   f"state={state_key(args.cell, args.name) if relay else 'none'} robot={host}:{port}", flush=True)
             waits = [asyncio.ensure_future(e.wait()) for e in (stop, bridge.taken)]
@@ -100,11 +110,29 @@ async def run(args: argparse.Namespace, host: str, port: int, stop_port, opts) -
     return 0
 
 
+def who_may_command(args: argparse.Namespace, opts) -> str:
+    """One line: who may command the robot through this bridge (said at every start; docs/security.md)."""
+    from aioadept.bridge.wire import bridge_key
+    from aioadept.cli.options import is_loopback, listen_host, zenoh_authenticates
+
+    robot = bridge_key(args.cell, args.name)
+    where = (opts.listen or opts.connect)[0]
+    if zenoh_authenticates(args.zenoh_config):
+        return f"only processes with the credentials of {args.zenoh_config} that reach {where} may command {robot}"
+    if opts.listen:
+        who = ("any process on this machine" if is_loopback(listen_host(where) or "")
+               else "ANY process on any machine")
+        return f"{who} that reaches {where} may command {robot} (no Zenoh credentials configured)"
+    return (f"any process that reaches the Zenoh router at {where} may command {robot} (no Zenoh credentials "
+            "configured; who reaches the router is the router's setting)")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
-                        format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    from aioadept.cli.options import setup_logging
+
+    setup_logging(args.log_level)
     try:
         host, port, stop_port, opts = _options(args)
     except ValueError as exc:   # one line naming the option, no usage block

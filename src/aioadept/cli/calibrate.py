@@ -21,7 +21,7 @@ from pathlib import Path
 
 from aioadept import defaults
 from aioadept.cli.options import (ArgumentParser, add_robot_option, add_verbose, description, parse_robot_address,
-                                  report, with_default)
+                                  report, setup_logging, with_default)
 from aioadept.configfile import Range
 
 log = logging.getLogger("aioadept.calibrate")
@@ -74,8 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     is); 2 bad options or configuration (nothing was moved); 130 interrupted."""
     args = build_parser().parse_args(argv)
     # stdout carries the TOML table only (pipe it into a file); log lines go to stderr
-    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO, stream=sys.stderr,
-                        format="%(levelname)s %(name)s: %(message)s")
+    setup_logging(logging.DEBUG if args.verbose else logging.INFO, fmt="%(levelname)s %(name)s: %(message)s")
     from aioadept.apps.calibrate import CalibrationError, calibration_poses, check_poses
     from aioadept.apps.cell import CellConfig
     from aioadept.apps.cellbus import with_transport, zenoh_session

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import logging
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -19,9 +20,10 @@ if TYPE_CHECKING:
     from aioadept.apps.cell import CellConfig
     from aioadept.apps.cellbus import BusSection
 
-__all__ = ["ArgumentParser", "DefaultsHelpFormatter", "ROBOT_HELP", "add_cell_options", "add_config", "add_verbose",
-           "apply_cell_bus", "apply_overrides", "check_option", "configure_logging", "description", "option_help",
-           "parse_robot_address", "report"]
+__all__ = ["ArgumentParser", "DefaultsHelpFormatter", "Listener", "ROBOT_HELP", "add_cell_options", "add_config",
+           "add_insecure_option", "add_verbose", "apply_cell_bus", "apply_overrides", "check_listeners", "check_option",
+           "configure_logging", "description", "is_loopback", "option_help", "parse_robot_address", "report",
+           "zenoh_authenticates"]
 
 
 def description(doc: str | None) -> str:
@@ -162,13 +164,33 @@ def apply_overrides(cfg: "CellConfig", args: argparse.Namespace) -> "CellConfig"
     return cfg
 
 
+NODE_LOG_FORMAT = "%(asctime)s %(name)s %(levelname)s %(message)s"
+"""The log line of the node commands (sim, state, vision, bridge, ros2) on stderr."""
+
+OWN_LOGGERS = ("aioadept", "__main__", "root")
+"""Loggers whose records pass at any level; every other library's pass from WARNING up (:func:`setup_logging`)."""
+
+
+def _own_or_warning(record: logging.LogRecord) -> bool:
+    return record.levelno >= logging.WARNING or record.name.split(".", 1)[0] in OWN_LOGGERS
+
+
+def setup_logging(level: int | str, *, fmt: str = NODE_LOG_FORMAT, rich: bool = False) -> None:
+    """The one logging setup of every command: ``level`` (a number or a name) for aioadept's own records, on stderr
+    (``rich``: a :class:`rich.logging.RichHandler` on rich's console); other libraries' records below WARNING are dropped, so ``-v``
+    shows this project's DEBUG lines, not matplotlib's font search or asyncio's selector."""
+    if rich:
+        from rich.logging import RichHandler
+
+        handler: logging.Handler = RichHandler(show_path=False)
+    else:
+        handler = logging.StreamHandler(sys.stderr)
+    handler.addFilter(_own_or_warning)
+    logging.basicConfig(level=level.upper() if isinstance(level, str) else level, format=fmt, handlers=[handler])
+
+
 def configure_logging(verbose: bool) -> None:
-    import logging
-
-    from rich.logging import RichHandler
-
-    logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO, format="%(message)s",
-                        handlers=[RichHandler(show_path=False)])
+    setup_logging(logging.DEBUG if verbose else logging.INFO, fmt="%(message)s", rich=True)
 
 
 def with_default(text: str, default: object) -> str:
@@ -306,6 +328,116 @@ def apply_cell_bus(values: dict, bus: "BusSection", given: set[str], streams: di
     for key, (owner, topic) in streams.items():
         if key not in given:
             values[key] = on_cell_key(values[key], values["cell"], owner, topic)
+
+
+# ------------------------------------------------------------------------------------------------- listeners
+# Who may reach a listener is who may use it: the one check every command that listens runs before it binds.
+
+
+@dataclasses.dataclass(frozen=True)
+class Listener:
+    """One address a command listens on: the option that set it, the address as given (a bare host, ZeroMQ
+    ``[@]tcp://HOST:PORT``, Zenoh ``tcp/HOST:PORT``, ``opc.tcp://HOST:PORT``), whether only authenticated peers get
+    in (CURVE, Zenoh user/password or mutual TLS), and what an unauthenticated peer could do there."""
+
+    option: str
+    address: str
+    authenticated: bool = False
+    risk: str = "use it"
+
+
+def add_insecure_option(p: argparse.ArgumentParser) -> None:
+    """``--insecure``: accept listening beyond loopback without authentication (:func:`check_listeners`)."""
+    p.add_argument("--insecure", action="store_true",
+                   help="listen on an address beyond loopback although nothing authenticates who connects there: "
+                        "refused without it (docs/security.md)")
+
+
+def is_loopback(host: str) -> bool:
+    """``localhost``, ``127.0.0.0/8`` or ``::1``. Any other name counts as beyond loopback (it is not resolved)."""
+    import ipaddress
+
+    host = host.strip().strip("[]")
+    if host.lower() == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def listen_host(address: str) -> str | None:
+    """The host part of a listener address (``*`` and ``0.0.0.0`` as given); None for ``ipc://``/``inproc://``
+    (this machine's file system or process) and ``none``."""
+    import re
+
+    a = address.strip().lstrip("@>")
+    if not a:
+        return ""  # a bare empty host: every interface
+    if a.lower() == "none" or a.startswith(("ipc://", "inproc://", "zenoh:")):
+        return None
+    m = re.match(r"^(?:[a-z.+]+://|(?:tcp|tls|udp|quic)/)?(\[[^\]]*\]|[^:/]*)", a)
+    return m.group(1) if m else a
+
+
+def zenoh_authenticates(config_file: str | None) -> bool:
+    """Whether a Zenoh config file makes its listener admit only authenticated peers: ``transport/auth/usrpwd``
+    with a user, or TLS with ``enable_mtls`` (client certificates)."""
+    if not config_file:
+        return False
+    from aioadept.bus import zenoh as zb
+
+    try:
+        cfg = zb._zenoh().Config.from_file(config_file)
+    except Exception:  # read again, and said in one line, when the session opens
+        return False
+    return (cfg.get_json("transport/auth/usrpwd/user") not in ("null", '""')
+            or cfg.get_json("transport/link/tls/enable_mtls") == "true")
+
+
+def check_listeners(prog: str, listeners: list[Listener], insecure: bool) -> None:
+    """Before anything binds: ValueError (one line naming the option and address) for the first listener beyond
+    loopback that authenticates nobody, unless ``insecure``; with ``insecure``, one warning line on stderr naming
+    them all."""
+    exposed = [x for x in listeners if not x.authenticated and (h := listen_host(x.address)) is not None
+               and not is_loopback(h)]
+    if not exposed:
+        return
+    if not insecure:
+        x = exposed[0]
+        raise ValueError(f"{x.option} {x.address!r}: {listen_host(x.address) or 'every interface'} is not loopback, "
+                         f"and nothing authenticates who connects there: anyone who reaches it may {x.risk}; bind "
+                         f"127.0.0.1, configure authentication (docs/security.md), or pass --insecure to accept it")
+    print(f"{prog}: warning: --insecure: " + "; ".join(
+        f"{x.option} {x.address} listens beyond loopback without authentication: anyone who reaches it may {x.risk}"
+        for x in exposed), file=sys.stderr, flush=True)
+
+
+def zenoh_listener(args: Any, risk: str) -> list[Listener]:
+    """The ``--zenoh-listen`` of ``args`` (if given) as a :class:`Listener`, authenticated as its
+    ``--zenoh-config`` says."""
+    listen = getattr(args, "zenoh_listen", None) if not isinstance(args, dict) else args.get("zenoh_listen")
+    config = getattr(args, "zenoh_config", None) if not isinstance(args, dict) else args.get("zenoh_config")
+    if not listen:
+        return []
+    return [Listener("--zenoh-listen", listen, zenoh_authenticates(config), risk)]
+
+
+def zmq_listener(option: str, endpoint: str | None, default_bind: bool, authenticated: bool,
+                 risk: str) -> list[Listener]:
+    """A ZeroMQ endpoint option as a :class:`Listener` if the socket binds (CZMQ ``@``, or its role's default)."""
+    from aioadept.bus.endpoints import is_none, parse_endpoint
+    from aioadept.errors import BusError
+
+    if is_none(endpoint):
+        return []
+    try:
+        ep = parse_endpoint(endpoint)  # type: ignore[arg-type]
+    except BusError:
+        return []  # its own check says what is wrong with it
+    if ep.zenoh or not ep.binds(default_bind):
+        return []
+    return [Listener(option, endpoint, authenticated, risk)]  # type: ignore[arg-type]
 
 
 def run_node(prog: str, main: Any) -> int:

@@ -20,7 +20,8 @@ import signal
 import sys
 
 from aioadept import defaults
-from aioadept.cli.options import (ArgumentParser, DefaultsHelpFormatter, add_zenoh_session_options, description,
+from aioadept.cli.options import (ArgumentParser, DefaultsHelpFormatter, add_insecure_option,
+                                  add_zenoh_session_options, check_listeners, description, zenoh_listener,
                                   zenoh_session_options)
 
 
@@ -39,6 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--namespace", default="/", help="the node's namespace, e.g. /cell1 (a relative --topic goes "
                                                     "into it)")
     add_zenoh_session_options(p, router=", e.g. rmw_zenohd's")
+    add_insecure_option(p)
     p.add_argument("--no-lowlatency", action="store_false", dest="lowlatency",
                    help="Zenoh's default unicast transport instead of the low-latency one aioadept's nodes use: "
                         "needed with a router that is not low-latency, e.g. ROS 2's rmw_zenohd as installed")
@@ -53,6 +55,7 @@ def _options(args: argparse.Namespace):  # -> (topic key, ZenohOptions)
 
     opts = zenoh_session_options(args.zenoh_listen, args.zenoh_connect, args.zenoh_config,
                                  lowlatency=args.lowlatency)
+    check_listeners("aioadept ros2", zenoh_listener(args, "read and publish the cell's streams"), args.insecure)
     try:
         ros2.check_node_name(args.node_name)
         ros2.check_namespace(args.namespace)
@@ -115,8 +118,9 @@ async def run(args: argparse.Namespace, opts) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
-                        format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    from aioadept.cli.options import setup_logging
+
+    setup_logging(args.log_level)
     try:
         _key, opts = _options(args)
     except ValueError as exc:   # one line naming the option, no usage block

@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import logging
 import os
 import signal
 import sys
 
 from aioadept import defaults
-from aioadept.cli.options import (ArgumentParser, DefaultsHelpFormatter, add_node_transport_options,
+from aioadept.cli.options import (ArgumentParser, DefaultsHelpFormatter, Listener, add_insecure_option,
+                                  add_node_transport_options, check_listeners, zenoh_listener, zmq_listener,
                                   apply_cell_bus, apply_node_transport, description)
 from aioadept.geometry import NULL, Pose
 from aioadept.robots.base import JumpLimit
@@ -80,7 +80,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "cell, the router to connect to, and the state stream on the cell's key, as the demo's "
                         "application expects it); the whole file is checked as demo checks it; options given here "
                         "override it")
-    p.add_argument("--host", default=defaults.ROBOT_HOST, help="address to bind")
+    p.add_argument("--host", default=defaults.ROBOT_HOST,
+                   help="address to bind; beyond loopback needs --insecure (the robot protocol authenticates "
+                        "nobody: whoever reaches the port may move the arm; --allow does not authenticate)")
+    add_insecure_option(p)
     p.add_argument("--port", type=int, default=DEFAULT_PORT, help="TCP port (0: pick a free one)")
     p.add_argument("--time-scale", type=float, default=1.0, dest="time_scale",
                    help="motions run this many times faster (the ack clock stays real time)")
@@ -171,6 +174,15 @@ def _state_curve(args: argparse.Namespace):  # -> CurveServer | None
         raise ValueError(f"{args.state_curve_secret} holds no secret key (give the .key_secret file)")
     allowed = [load_keypair(f).public for f in args.state_curve_allow] or None
     return CurveServer(keys, allowed_clients=allowed)
+
+
+def check_exposure(args: argparse.Namespace) -> None:
+    """The listeners of ``aioadept sim`` through the one check (:func:`aioadept.cli.options.check_listeners`)."""
+    listeners = [Listener("--host", args.host, False, "move the robot"),
+                 *zmq_listener("--state-endpoint", args.state_endpoint, True, bool(args.state_curve_secret),
+                               "read the robot's state"),
+                 *zenoh_listener(vars(args), "read and publish the cell's streams")]
+    check_listeners("aioadept sim", listeners, args.insecure)
 
 
 def stop_port_of(value: str, port: int) -> int | None:
@@ -337,6 +349,7 @@ def main(argv: list[str] | None = None) -> int:
             vplus_cli.parse_port_map(args.map_port)
             apply_node_transport(vars(args), "sim", {"state_endpoint": (DEFAULT_STATE_ENDPOINT, "sim", "state")})
             options = options_from_args(args)     # the same robot, state stream and faults as the Python backend
+            check_exposure(args)
         except ValueError as exc:
             parser.error(str(exc))
         try:
@@ -348,11 +361,13 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"aioadept sim: {exc}", file=sys.stderr)
                 return 1
             raise
-    logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
-                        format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    from aioadept.cli.options import setup_logging
+
+    setup_logging(args.log_level)
     try:
         apply_node_transport(vars(args), "sim", {"state_endpoint": (DEFAULT_STATE_ENDPOINT, "sim", "state")})
         options = options_from_args(args)
+        check_exposure(args)
     except ValueError as exc:
         parser.error(str(exc))
     try:

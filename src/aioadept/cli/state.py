@@ -13,12 +13,20 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import logging
 import signal
 import sys
 
 from aioadept import defaults
-from aioadept.cli.options import ArgumentParser, DefaultsHelpFormatter, add_node_transport_options, description
+from aioadept.cli.options import (
+    ArgumentParser,
+    DefaultsHelpFormatter,
+    add_insecure_option,
+    add_node_transport_options,
+    check_listeners,
+    description,
+    zenoh_listener,
+    zmq_listener,
+)
 
 STREAMS = {"state_endpoint": (defaults.STATE_ENDPOINT, "sim", "state")}
 """The relay's one stream: (its ZeroMQ default, owner, topic); on Zenoh the key the sim's state has."""
@@ -42,6 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="CURVE: public certificate of a subscriber allowed in (repeatable)")
     p.add_argument("--log-level", default="WARNING", dest="log_level", help="logging level on stderr")
     add_node_transport_options(p)
+    add_insecure_option(p)
     return p
 
 
@@ -100,12 +109,16 @@ def main(argv: list[str] | None = None) -> int:
         args = parse_args(parser, argv)
     except (ValueError, OSError) as exc:   # the cell file: one line naming the file and the key
         return report("aioadept state", exc)
-    logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
-                        format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    from aioadept.cli.options import setup_logging
+
+    setup_logging(args.log_level)
     try:
         host, port = parse_robot_address(args.robot, defaults.STATE_STREAM_PORT)
         apply_node_transport(vars(args), "state", STREAMS)
         curve = _state_curve(args)
+        check_listeners("aioadept state", [
+            *zmq_listener("--state-endpoint", args.state_endpoint, True, curve is not None, "read the robot's state"),
+            *zenoh_listener(args, "read and publish the cell's streams")], args.insecure)
     except (ValueError, OSError) as exc:   # one line naming the option or the file, no usage block
         return report("aioadept state", exc)
     from aioadept.cli.options import run_node

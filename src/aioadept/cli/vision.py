@@ -140,9 +140,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--curve-allow", action="append", metavar="FILE",
                    help="CURVE: public certificate (NAME.key) of a requester allowed in (repeatable; without any, "
                         "every requester that knows the node's public key is accepted)")
-    from aioadept.cli.options import add_node_transport_options
+    from aioadept.cli.options import add_insecure_option, add_node_transport_options
 
     add_node_transport_options(p)
+    add_insecure_option(p)
     return p
 
 
@@ -283,6 +284,19 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
     except ValueError as exc:
         parser.error(str(exc))
     merged["curve"] = _curve_server(parser, merged)
+    from aioadept.cli.options import check_listeners, zenoh_listener, zmq_listener
+
+    curve = merged["curve"] is not None
+    try:
+        check_listeners("aioadept vision", [
+            *zmq_listener("--request-endpoint", merged["request_endpoint"], False, curve,
+                          "send the node requests"),
+            *zmq_listener("--response-endpoint", merged["response_endpoint"], True, curve, "read its answers"),
+            *zmq_listener("--state-endpoint", merged["state_endpoint"], False, False,
+                          "forge the robot state it measures against"),
+            *zenoh_listener(merged, "read and publish the cell's streams")], bool(merged.get("insecure")))
+    except ValueError as exc:
+        parser.error(str(exc))
     merged["world_config"] = None
     if "world" in merged["source"]:
         if not merged["world"]:
@@ -333,8 +347,10 @@ def _curve_server(parser: argparse.ArgumentParser, merged: dict[str, Any]) -> An
 
 def main(argv: list[str] | None = None) -> int:
     opts = resolve_options(list(sys.argv[1:] if argv is None else argv))
-    logging.basicConfig(level=getattr(logging, str(opts.log_level).upper(), logging.INFO), stream=sys.stderr,
-                        format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    from aioadept.cli.options import setup_logging
+
+    setup_logging(getattr(logging, str(opts.log_level).upper(), logging.INFO),
+                  fmt="%(asctime)s %(levelname)s %(name)s: %(message)s")
     if opts.figures:
         from aioadept.vision.figures import write_figures
 
