@@ -172,7 +172,12 @@ class CellConfig:
         return cfg
 
     def to_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
+        """The cell as a run records it (``run.json``'s ``cell``): the values this run used. ``[vision]
+        state_endpoint`` is left out: a node the cell starts follows the robot's (``robot.state_endpoint``, given
+        on its command line), and one started elsewhere reads its own."""
+        out = dataclasses.asdict(self)
+        out["vision"].pop("state_endpoint", None)
+        return out
 
 
 def free_port(host: str = "127.0.0.1") -> int:
