@@ -142,7 +142,8 @@ def cycle_split(runs: Sequence[Run], iterations: Sequence[Iteration]) -> dict[st
 
     ``cycle_ms``: vision request i to vision request i+1; ``vision_ms``: request i sent to its response received;
     ``motion_ms``: the robot batch after it, first send to the last ack; ``mcn_ms``: the rest (the MasterControlNode's
-    own time between them). ``vision_floor_ms`` = exposure + readout + graph time of the answered frames
+    own time between them), each cycle's own rest and then their median (the median cycle minus the median motion
+    and the median vision can be negative: medians do not add). ``vision_floor_ms`` = exposure + readout + graph time of the answered frames
     (``exposure_ms``, ``readout_ms``, ``proc_time_ms`` of vision.csv), each also given; ``vision_ratio`` = vision /
     its floor, ``cycle_ratio`` = cycle / (motion + vision floor) (issue 12's goal: <= 1.10). Values are None where
     the runs hold no such data (free-running nodes do not report exposure; then the floor is the graph time alone).
@@ -150,6 +151,7 @@ def cycle_split(runs: Sequence[Run], iterations: Sequence[Iteration]) -> dict[st
     cycles: list[float] = []
     visions: list[float] = []
     motions: list[float] = []
+    mcns: list[float] = []
     floors: list[float] = []
     parts: dict[str, list[float]] = {"exposure_ms": [], "readout_ms": [], "graph_ms": []}
     by_run = {r.name: {v.id: v for v in r.vision} for r in runs}
@@ -162,6 +164,7 @@ def cycle_split(runs: Sequence[Run], iterations: Sequence[Iteration]) -> dict[st
         cycles.append((nxt.t_vreq_s - it.t_vreq_s) * 1e3)
         visions.append((it.t_vresp_s - it.t_vreq_s) * 1e3)
         motions.append((it.t_b_rresp_s - min(starts)) * 1e3)
+        mcns.append(cycles[-1] - visions[-1] - motions[-1])
         v = by_run.get(it.run, {}).get(it.vision_id)
         if v is not None:
             e, r, g = v.exposure_ms or 0.0, v.readout_ms or 0.0, v.proc_time_ms or 0.0
@@ -172,7 +175,7 @@ def cycle_split(runs: Sequence[Run], iterations: Sequence[Iteration]) -> dict[st
     cycle, vision, motion, floor = _p50(cycles), _p50(visions), _p50(motions), _p50(floors)
     out: dict[str, Any] = {
         "n_cycles": len(cycles), "cycle_ms": cycle, "motion_ms": motion, "vision_ms": vision,
-        "mcn_ms": cycle - motion - vision if None not in (cycle, motion, vision) else None,
+        "mcn_ms": _p50(mcns),
         "vision_floor_ms": floor, **{k: _p50(v) for k, v in parts.items()},
         "vision_ratio": vision / floor if vision is not None and floor else None,
         "cycle_ratio": cycle / (motion + floor) if None not in (cycle, motion, floor) and motion + floor else None,
@@ -301,7 +304,15 @@ def write_figures(runs: Sequence[Run], iterations: Sequence[Iteration], stats: M
     # Figs. 9 and 10 show one run: the first one with a complete iteration (else the first one).
     shown = next((r for r in runs if any(it.complete and it.run == r.name for it in iterations)), runs[0])
     sharp = [v.sharpness for v in shown.vision if v.sharpness is not None]
-    if sharp:
+    if shown.parameters.get("mode") == "sweep":
+        # A sweep's frames are not steps: they are drawn at their positions along the sweep (focus.json's
+        # frames), with the fitted plane; without focus.json they cannot be placed and Fig. 9 is not drawn.
+        sweep = _sweep_result(shown)
+        if sweep is not None:
+            attempt("sharpness", lambda: plots.plot_sweep(
+                sweep, out_dir / FIGURES["sharpness"],
+                title=f"Sharpness along the sweep (cf. paper Fig. 9)\nrun {shown.name}"))
+    elif sharp:
         attempt("sharpness", lambda: plots.plot_sharpness(
             sharp, out_dir / FIGURES["sharpness"], delta_z_mm=_delta_z(shown.parameters),
             title=f"Sharpness after consecutive robot motions (cf. paper Fig. 9)\nrun {shown.name}"))
@@ -342,6 +353,20 @@ def write_figures(runs: Sequence[Run], iterations: Sequence[Iteration], stats: M
             out_dir / FIGURES["switching_send"],
             title="Durations between starting consecutive sends to the RobotServer (cf. paper Fig. 13)"))
     return files
+
+
+def _sweep_result(run: Run) -> dict[str, Any] | None:
+    """The sweep's result from the run folder's focus.json (frames placed along the sweep), or None."""
+    if run.path is None:
+        return None
+    try:
+        result = json.loads((run.path / "focus.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(result, dict) or not any(
+            isinstance(f, dict) and f.get("offset_mm") is not None for f in result.get("frames") or ()):
+        return None
+    return result
 
 
 def _delta_z(params: Mapping[str, Any]) -> float | None:
