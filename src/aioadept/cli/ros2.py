@@ -61,10 +61,17 @@ def _options(args: argparse.Namespace):  # -> (topic key, ZenohOptions)
         ros2.check_namespace(args.namespace)
         topic = ros2.expand_topic_name(args.topic, node_name=args.node_name, namespace=args.namespace)
         key = ros2.topic_key(topic, domain_id=args.domain)
-        if zb.is_zenoh(args.state_endpoint):
-            zb.key_of(args.state_endpoint)
     except BusError as exc:
         raise ValueError(str(exc)) from None
+    try:  # a bad one is one line, exit 2, before any session opens
+        if zb.is_zenoh(args.state_endpoint):
+            zb.key_of(args.state_endpoint)
+        else:
+            from aioadept.bus.endpoints import parse_endpoint
+
+            parse_endpoint(args.state_endpoint)
+    except BusError as exc:
+        raise ValueError(f"--state-endpoint: {exc}") from None
     return key, opts
 
 
