@@ -31,7 +31,8 @@ import re
 from dataclasses import dataclass, field
 from typing import Any
 
-from aioadept.vplus.loader import LoadProblem, Program
+from aioadept.vplus import nodes as N
+from aioadept.vplus.program import LoadProblem, Program
 
 BUDGET = 2000
 """Loop iterations a task runs before it yields its time slice (virtual time; the generated code reads the
@@ -42,13 +43,15 @@ _PP_FUNCS = {"#PPOINT", "#HERE"}
 _STR_FUNCS = {"$DECODE", "$ENCODE", "$MID", "$CHR", "$ERROR", "$TRUNCATE", "$LEFT", "$RIGHT", "$TOUPPER",
               "$TOLOWER", "$TIME", "$DEFAULT"}
 _FMT_RE = re.compile(r"([A-Z])(\d+)?(?:\.(\d+))?\Z")       # as builtins._FMT_RE
-_BLOCK_OPEN = {"IF", "WHILE", "DO", "FOR", "CASE"}
 
 
 class CompileError(Exception):
-    def __init__(self, line: int, message: str, word: str) -> None:
+    """A program that cannot be compiled: ``line`` (0: the statement's), ``message``, the offending ``word`` and
+    the node whose span says where (``None``: the statement)."""
+
+    def __init__(self, line: int, message: str, word: str, node: N.Node | None = None) -> None:
         super().__init__(message)
-        self.line, self.message, self.word = line, message, word
+        self.line, self.message, self.word, self.node = line, message, word, node
 
 
 @dataclass
@@ -62,55 +65,101 @@ class _Block:
     until: Any = None
 
 
-def _nest(steps: list[tuple[int, Any]]) -> list:
-    """Flat steps to a tree of :class:`_Block` and ``(line, stmt)`` items; raises :class:`CompileError`."""
-    root: list = []
-    stack: list[tuple[_Block | None, list]] = [(None, root)]
-    for line, st in steps:
-        kind = st[0]
-        if kind == "LABEL":
-            if len(stack) > 1:
-                raise CompileError(line, "a label inside a block is not supported by the emulator", str(st[1]))
-            stack[-1][1].append((line, ("LABEL", st[1], None)))
-            if st[2] is None:
-                continue
-            st = st[2]
-            kind = st[0]
-        if kind in _BLOCK_OPEN:
+def _block_kind(st: N.Stmt) -> str | None:
+    """The kind of block a statement opens (IF, WHILE, DO, FOR, CASE), or None."""
+    if isinstance(st, N.Word):
+        return "DO" if st.word == "DO" else None
+    return _BLOCK_OPEN.get(type(st))
+
+
+_BLOCK_OPEN = {N.If: "IF", N.While: "WHILE", N.For: "FOR", N.Case: "CASE"}
+
+
+class _Nester:
+    """Flat steps to a tree of :class:`_Block` and ``(line, stmt)`` items (:func:`_nest`)."""
+
+    def __init__(self) -> None:
+        self.root: list = []
+        self.stack: list[tuple[_Block | None, list]] = [(None, self.root)]
+        self.problems: list[CompileError] = []
+
+    def fail(self, line: int, message: str, word: str, node: N.Node) -> None:
+        """Record a problem; the statement is left out and nesting goes on from the next line."""
+        self.problems.append(CompileError(line, message, word, node))
+
+    def step(self, line: int, st: N.Stmt) -> None:
+        if isinstance(st, N.Label):
+            if len(self.stack) > 1:
+                self.fail(line, "a label inside a block is not supported by the emulator", str(st.number), st)
+            else:
+                self.stack[-1][1].append((line, N.Label(st.number, None, span=st.span)))
+            if st.stmt is None:
+                return
+            st = st.stmt
+        kind = _block_kind(st)
+        if kind is not None:
             blk = _Block(kind, line, st)
-            stack[-1][1].append(blk)
-            stack.append((blk, blk.body))
-        elif kind == "ELSE":
-            blk = stack[-1][0]
-            if blk is None or blk.kind != "IF" or stack[-1][1] is blk.orelse:
-                raise CompileError(line, "ELSE without IF", "ELSE")
-            stack[-1] = (blk, blk.orelse)
-        elif kind in ("VALUE", "ANY"):
-            blk = stack[-1][0]
-            if blk is None or blk.kind != "CASE":
-                raise CompileError(line, f"{kind} outside CASE", kind)
-            body: list = []
-            blk.cases.append((st[1] if kind == "VALUE" else None, body))
-            stack[-1] = (blk, body)
-        elif kind == "END":
-            blk = stack[-1][0]
-            if blk is None:
-                raise CompileError(line, "END without an open block", "END")
-            if blk.kind == "DO":
-                raise CompileError(line, "DO closed by END instead of UNTIL", "END")
-            stack.pop()
-        elif kind == "UNTIL":
-            blk = stack[-1][0]
-            if blk is None or blk.kind != "DO":
-                raise CompileError(line, "UNTIL without DO", "UNTIL")
-            blk.until = st[1]
-            stack.pop()
+            self.stack[-1][1].append(blk)
+            self.stack.append((blk, blk.body))
+        elif isinstance(st, N.Word) and st.word in self._CLOSERS:
+            getattr(self, self._CLOSERS[st.word])(line, st)
+        elif isinstance(st, N.Value):
+            self.case_arm(line, "VALUE", st.values, st)
+        elif isinstance(st, N.Until):
+            self.until(line, st)
         else:
-            stack[-1][1].append((line, st))
-    if len(stack) > 1:
-        blk = stack[-1][0]
-        raise CompileError(blk.line, f"{blk.kind} not closed", blk.kind)
-    return root
+            self.stack[-1][1].append((line, st))
+
+    _CLOSERS = {"ELSE": "else_", "END": "end", "ANY": "any_"}
+
+    def else_(self, line: int, st: N.Stmt) -> None:
+        blk = self.stack[-1][0]
+        if blk is None or blk.kind != "IF" or self.stack[-1][1] is blk.orelse:
+            self.fail(line, "ELSE without IF", "ELSE", st)
+        else:
+            self.stack[-1] = (blk, blk.orelse)
+
+    def any_(self, line: int, st: N.Stmt) -> None:
+        self.case_arm(line, "ANY", None, st)
+
+    def case_arm(self, line: int, kind: str, values: tuple | None, st: N.Stmt) -> None:
+        blk = self.stack[-1][0]
+        if blk is None or blk.kind != "CASE":
+            self.fail(line, f"{kind} outside CASE", kind, st)
+            return
+        body: list = []
+        blk.cases.append((values, body))
+        self.stack[-1] = (blk, body)
+
+    def end(self, line: int, st: N.Stmt) -> None:
+        blk = self.stack[-1][0]
+        if blk is None:
+            self.fail(line, "END without an open block", "END", st)
+            return
+        if blk.kind == "DO":
+            self.fail(line, "DO closed by END instead of UNTIL", "END", st)
+        self.stack.pop()
+
+    def until(self, line: int, st: N.Until) -> None:
+        blk = self.stack[-1][0]
+        if blk is None or blk.kind != "DO":
+            self.fail(line, "UNTIL without DO", "UNTIL", st)
+            return
+        blk.until = st.cond
+        self.stack.pop()
+
+    def close(self) -> list:
+        for blk, _ in reversed(self.stack[1:]):
+            self.fail(blk.line, f"{blk.kind} not closed", blk.kind, blk.head)
+        return self.root
+
+
+def _nest(steps: list[tuple[int, Any]]) -> tuple[list, list[CompileError]]:
+    """Flat steps to a tree of :class:`_Block` and ``(line, stmt)`` items, and the problems of the nesting."""
+    nester = _Nester()
+    for line, st in steps:
+        nester.step(line, st)
+    return nester.close(), nester.problems
 
 
 class _Gen:
@@ -129,6 +178,7 @@ class _Gen:
         self.consts: list[Any] = []
         self.loops: list[str] = []          # kinds of enclosing loops, for EXIT/NEXT
         self.labels: dict[int, int] = {}
+        self.problems: list[CompileError] = []
 
     # -- output ---------------------------------------------------------------------------------------------
     def emit(self, s: str) -> None:
@@ -183,12 +233,12 @@ class _Gen:
         key = repr(name + "[]")
         return f"({c}.get({key}) or _arr({c}, {key}))" if write else f"{c}[{key}]"
 
-    def index(self, idx: list) -> str:
+    def index(self, idx: tuple) -> str:
         parts = []
         for e in idx:
-            if e[0] == "num" and e[1] >= 0:
+            if isinstance(e, N.Num) and e.value >= 0:
                 # rounded, not truncated (V+ Language User's Guide v17, p. 102), as builtins.vint does at run time
-                parts.append(repr(int(math.floor(e[1] + 0.5))))
+                parts.append(repr(int(math.floor(e.value + 0.5))))
             else:
                 parts.append(f"_IX[{self.val(e)[0]}]")     # a dict of 0.0..4095.0; _ix() for the rest
         return parts[0] if len(parts) == 1 else "(" + ", ".join(parts) + ")"
@@ -201,42 +251,52 @@ class _Gen:
         return name in self.doubles
 
     # -- expressions: (code, type) with type num|str|loc|pp|any ----------------------------------------------
-    def val(self, e) -> tuple[str, str]:
-        k = e[0]
-        if k == "num":
-            return repr(float(e[1])), "num"
-        if k == "str":
-            return repr(e[1]), "str"
-        if k == "var":
-            return self.lv(e[1]), self.vtype(e[1])
-        if k == "paren":
-            return self.val(e[1])             # (x) as a CALL argument: its value (passed by value)
-        if k == "idx":
-            return f"{self.arr(e[1], False)}[{self.index(e[2])}]", self.vtype(e[1])
-        if k == "arr":
-            raise CompileError(0, "an array (name[]) is not a value here", e[1] + "[]")
-        if k == "fmt":
-            raise CompileError(0, "a format is not a value here", "/" + e[1])
-        if k == "un":
-            if e[1] == "-":
-                return f"(-{self.val(e[2])[0]})", "num"
-            if e[1] == "NOT":
-                return f"(0.0 if {self.cond(e[2])} else -1.0)", "num"
-            return f"float(~int({self.val(e[2])[0]}))", "num"
-        if k == "bin":
-            return self.binop(e)
-        if k == "call":
-            return self.call(e)
-        if k == "shift":
-            d = ["0.0" if x is None else self.val(x)[0] for x in e[2]]
-            return f"{_fname('SHIFT')}({self.val(e[1])[0]}, {', '.join(d)})", "loc"
-        raise CompileError(0, f"cannot compile {k}", str(k))  # pragma: no cover
+    def val(self, e: N.Expr) -> tuple[str, str]:
+        """The code of expression ``e`` and its type; a problem names the sub-expression's node."""
+        try:
+            return getattr(self, "val_" + type(e).__name__)(e)
+        except CompileError as exc:
+            if exc.node is None:
+                exc.node = e
+            raise
+
+    def val_Num(self, e: N.Num) -> tuple[str, str]:
+        return repr(float(e.value)), "num"
+
+    def val_Str(self, e: N.Str) -> tuple[str, str]:
+        return repr(e.value), "str"
+
+    def val_Name(self, e: N.Name) -> tuple[str, str]:
+        return self.lv(e.name), self.vtype(e.name)
+
+    def val_Paren(self, e: N.Paren) -> tuple[str, str]:
+        return self.val(e.expr)             # (x) as a CALL argument: its value (passed by value)
+
+    def val_Index(self, e: N.Index) -> tuple[str, str]:
+        return f"{self.arr(e.name, False)}[{self.index(e.index)}]", self.vtype(e.name)
+
+    def val_Array(self, e: N.Array) -> tuple[str, str]:
+        raise CompileError(0, "an array (name[]) is not a value here", e.name + "[]")
+
+    def val_Fmt(self, e: N.Fmt) -> tuple[str, str]:
+        raise CompileError(0, "a format is not a value here", "/" + e.spec)
+
+    def val_Unary(self, e: N.Unary) -> tuple[str, str]:
+        if e.op == "-":
+            return f"(-{self.val(e.operand)[0]})", "num"
+        if e.op == "NOT":
+            return f"(0.0 if {self.cond(e.operand)} else -1.0)", "num"
+        return f"float(~int({self.val(e.operand)[0]}))", "num"
+
+    def val_Shift(self, e: N.Shift) -> tuple[str, str]:
+        d = ["0.0" if x is None else self.val(x)[0] for x in e.deltas]
+        return f"{_fname('SHIFT')}({self.val(e.base)[0]}, {', '.join(d)})", "loc"
 
     def vtype(self, name: str) -> str:
         return "str" if name.startswith("$") else ("pp" if name.startswith("#") else "any")
 
-    def binop(self, e) -> tuple[str, str]:
-        op, a, b = e[1], e[2], e[3]
+    def val_BinOp(self, e: N.BinOp) -> tuple[str, str]:
+        op, a, b = e.op, e.left, e.right
         if op in ("AND", "OR", "XOR", "==", "<>", "<", ">", "<=", ">="):
             return f"(-1.0 if {self.cond(e)} else 0.0)", "num"
         if op == ":":
@@ -255,57 +315,35 @@ class _Gen:
         pyop = {"BAND": "&", "BOR": "|", "BXOR": "^"}[op]
         return f"float(int({ca}) {pyop} int({cb}))", "num"
 
-    def cond(self, e) -> str:
+    def cond(self, e: N.Expr) -> str:
         """Python boolean expression for a V+ condition (non-zero is TRUE)."""
-        if e[0] == "bin":
-            op = e[1]
+        if isinstance(e, N.BinOp):
+            op = e.op
             if op == "AND":
-                return f"({self.cond(e[2])} and {self.cond(e[3])})"
+                return f"({self.cond(e.left)} and {self.cond(e.right)})"
             if op == "OR":
-                return f"({self.cond(e[2])} or {self.cond(e[3])})"
+                return f"({self.cond(e.left)} or {self.cond(e.right)})"
             if op == "XOR":
-                return f"(bool({self.cond(e[2])}) != bool({self.cond(e[3])}))"
+                return f"(bool({self.cond(e.left)}) != bool({self.cond(e.right)}))"
             if op in ("==", "<>", "<", ">", "<=", ">="):
-                pyop = "!=" if op == "<>" else op
-                ca, ta = self.val(e[2])
-                cb, tb = self.val(e[3])
-                if ("str" in (ta, tb)) and ta != tb and "any" not in (ta, tb):
-                    raise CompileError(0, "comparison of a string with a number", op)
-                return f"({ca} {pyop} {cb})"
-        if e[0] == "un" and e[1] == "NOT":
-            return f"(not {self.cond(e[2])})"
+                return self.compare(e)
+        if isinstance(e, N.Unary) and e.op == "NOT":
+            return f"(not {self.cond(e.operand)})"
         return f"({self.val(e)[0]} != 0)"
 
-    def call(self, e) -> tuple[str, str]:
-        name, args = e[1], e[2]
-        if name == "$DECODE":
-            if len(args) != 3 or args[0] is None or args[0][0] not in ("var", "idx"):
-                raise CompileError(0, "$DECODE needs a string variable, breaks and a mode", name)
-            c, key = self.ref(args[0])
-            return f"_decode({c}, {key}, {self.val(args[1])[0]}, {self.val(args[2])[0]})", "str"
-        if name == "$ENCODE":
-            return self.encode(args), "str"
-        if name == "DEFINED":
-            if len(args) != 1 or args[0] is None:
-                raise CompileError(0, "DEFINED needs one variable", name)
-            a = args[0]
-            if a[0] == "var":
-                c, key = self.scope(a[1])
-                if a[1] in self.params:
-                    # a parameter's container is a dict, or the one-element list of a value passed by value
-                    return f"_defref({c}, {key})", "num"
-                return f"(-1.0 if {key} in {c} else 0.0)", "num"
-            if a[0] == "arr":
-                return f"_defarr(lambda: {self.arr(a[1], False)})", "num"
-            if a[0] == "idx":
-                return f"_defined(lambda: {self.val(a)[0]})", "num"
-            raise CompileError(0, "DEFINED needs a variable", name)
-        if name == "LAST":
-            if len(args) != 1 or args[0] is None or args[0][0] != "arr":
-                raise CompileError(0, "LAST needs an array: LAST(a[])", name)
-            return f"_last(lambda: {self.arr(args[0][1], False)})", "num"
-        if name == "LEN":
-            return f"float(len({self.val(args[0])[0]}))", "num"
+    def compare(self, e: N.BinOp) -> str:
+        pyop = "!=" if e.op == "<>" else e.op
+        ca, ta = self.val(e.left)
+        cb, tb = self.val(e.right)
+        if ("str" in (ta, tb)) and ta != tb and "any" not in (ta, tb):
+            raise CompileError(0, "comparison of a string with a number", e.op, e)
+        return f"({ca} {pyop} {cb})"
+
+    def val_Call(self, e: N.Call) -> tuple[str, str]:
+        name, args = e.name, e.args
+        special = _SPECIAL_CALLS.get(name)
+        if special is not None:
+            return getattr(self, special)(e)
         vals = ", ".join("None" if a is None else self.val(a)[0] for a in args)
         if name in ("IOSTAT", "ERROR", "TASK", "INRANGE", "HERE", "#HERE", "SPEED"):
             vals = "T" + (", " + vals if vals else "")
@@ -313,7 +351,41 @@ class _Gen:
                                                 ("str" if name in _STR_FUNCS else "num"))
         return f"{_fname(name)}({vals})", typ
 
-    def encode(self, args: list) -> str:
+    def call_decode(self, e: N.Call) -> tuple[str, str]:
+        args = e.args
+        if len(args) != 3 or args[0] is None or not isinstance(args[0], (N.Name, N.Index)):
+            raise CompileError(0, "$DECODE needs a string variable, breaks and a mode", e.name)
+        c, key = self.ref(args[0])
+        return f"_decode({c}, {key}, {self.val(args[1])[0]}, {self.val(args[2])[0]})", "str"
+
+    def call_encode(self, e: N.Call) -> tuple[str, str]:
+        return self.encode(e.args), "str"
+
+    def call_defined(self, e: N.Call) -> tuple[str, str]:
+        if len(e.args) != 1 or e.args[0] is None:
+            raise CompileError(0, "DEFINED needs one variable", e.name)
+        a = e.args[0]
+        if isinstance(a, N.Name):
+            c, key = self.scope(a.name)
+            if a.name in self.params:
+                # a parameter's container is a dict, or the one-element list of a value passed by value
+                return f"_defref({c}, {key})", "num"
+            return f"(-1.0 if {key} in {c} else 0.0)", "num"
+        if isinstance(a, N.Array):
+            return f"_defarr(lambda: {self.arr(a.name, False)})", "num"
+        if isinstance(a, N.Index):
+            return f"_defined(lambda: {self.val(a)[0]})", "num"
+        raise CompileError(0, "DEFINED needs a variable", e.name)
+
+    def call_last(self, e: N.Call) -> tuple[str, str]:
+        if len(e.args) != 1 or e.args[0] is None or not isinstance(e.args[0], N.Array):
+            raise CompileError(0, "LAST needs an array: LAST(a[])", e.name)
+        return f"_last(lambda: {self.arr(e.args[0].name, False)})", "num"
+
+    def call_len(self, e: N.Call) -> tuple[str, str]:
+        return f"float(len({self.val(e.args[0])[0]}))", "num"
+
+    def encode(self, args: tuple) -> str:
         """$ENCODE with its formats applied at compile time (they are constants): each number goes through
         ``_encv`` with its format, strings are joined as they are. A format the emulator does not know takes
         the general path (``_encode``), which reports it when the line runs."""
@@ -322,8 +394,8 @@ class _Gen:
         for a in args:
             if a is None:
                 continue
-            if a[0] == "fmt":
-                f = a[1]
+            if isinstance(a, N.Fmt):
+                f = a.spec
                 m = _FMT_RE.match(f)
                 kind = m.group(1) if m else f[:1]
                 num = int(m.group(2)) if m and m.group(2) else None
@@ -352,42 +424,42 @@ class _Gen:
             return "''"
         return f"_str({' + '.join(parts)})" if len(parts) > 1 else f"_str({parts[0]})"
 
-    def items(self, args: list) -> str:
+    def items(self, args: tuple) -> str:
         """Output items (formats and values) as a tuple body for _encode/_type/_write."""
         out = []
         for a in args:
             if a is None:
                 continue
-            if a[0] == "fmt":
-                out.append(self.const(("fmt", a[1])))
+            if isinstance(a, N.Fmt):
+                out.append(self.const(("fmt", a.spec)))
             else:
                 out.append(self.val(a)[0])
         return ", ".join(out) + ("," if len(out) == 1 else "")
 
-    def ref(self, e) -> tuple[str, str]:
+    def ref(self, e: N.Expr) -> tuple[str, str]:
         """(container, key) of an assignable variable or array element."""
-        if e[0] == "var":
-            return self.scope(e[1])
-        if e[0] == "idx":
-            return self.arr(e[1], True), self.index(e[2])
-        raise CompileError(0, "expected a variable", str(e[1]))
+        if isinstance(e, N.Name):
+            return self.scope(e.name)
+        if isinstance(e, N.Index):
+            return self.arr(e.name, True), self.index(e.index)
+        raise CompileError(0, "expected a variable", _word(e), e)
 
-    def store(self, target, code: str, typ: str, force_loc: bool = False) -> str:
+    def store(self, target: N.Expr, code: str, typ: str, force_loc: bool = False) -> str:
         """A Python statement storing ``code`` into the V+ variable ``target``."""
         t = self.target(target)
-        name = target[1]
+        name = target.name
         if name.startswith("$"):
             # _str's checks inline: most stores are short strings
             return f"{t} = _t if type(_t := {code}) is str and len(_t) <= 128 else _str(_t)"
         if name.startswith("#"):
             return f"{t} = _pp({code})"
         if force_loc or typ == "loc":
-            if target[0] == "idx":
+            if isinstance(target, N.Index):
                 # an array holds one type (V+ Language User's Guide v17, p. 105): a location array is a _LocArray
                 c, key = ("L", repr(name + "[]")) if name in self.autos else (
                     ("S", repr(name + "[]")) if name in self.statics else ("G", repr(name + "[]")))
                 arr = self.arr(name, False) if name in self.params else "None"
-                return f"_loc_store({c}, {key}, {arr}, {self.index(target[2])}, _loc({code}), {name!r})"
+                return f"_loc_store({c}, {key}, {arr}, {self.index(target.index)}, _loc({code}), {name!r})"
             return f"{t} = _loc({code})"
         if self.is_double(name):
             return f"{t} = _dbl({code})"
@@ -395,42 +467,45 @@ class _Gen:
             return f"_F[0] = {code}; {t} = _F[0]"
         return f"_t = {code}\nif type(_t) is float: _F[0] = _t; {t} = _F[0]\nelse: {t} = _real(_t)"
 
-    def target(self, e) -> str:
+    def target(self, e: N.Expr) -> str:
         """Code of an assignable variable or array element (assigned in the generated code itself)."""
-        if e[0] == "var":
-            return self.lv(e[1])
-        if e[0] == "idx":
-            return f"{self.arr(e[1], True)}[{self.index(e[2])}]"
-        raise CompileError(0, "expected a variable", str(e[1]))
+        if isinstance(e, N.Name):
+            return self.lv(e.name)
+        if isinstance(e, N.Index):
+            return f"{self.arr(e.name, True)}[{self.index(e.index)}]"
+        raise CompileError(0, "expected a variable", _word(e), e)
 
     # -- statements -----------------------------------------------------------------------------------------
     def declare(self, steps) -> None:
         executable = False
         for line, st in steps:
-            if st[0] == "LABEL":
-                if st[2] is None:
+            if isinstance(st, N.Label):
+                if st.stmt is None:
                     continue
-                st = st[2]
-            if st[0] in ("AUTO", "LOCAL", "GLOBAL"):
+                st = st.stmt
+            if isinstance(st, N.Declare):
                 if executable:
                     # V+ Language User's Guide v17, p. 36 ("Program Organization")
-                    raise CompileError(line, f"{st[0]} after an executable instruction (AUTO, LOCAL and GLOBAL "
-                                             "must precede every executable instruction)", st[0])
-            elif st[0] != "NOP":
+                    self.problems.append(CompileError(
+                        line, f"{st.word} after an executable instruction (AUTO, LOCAL and GLOBAL must precede "
+                              "every executable instruction)", st.word, st))
+                self.declare_names(line, st)
+            elif not isinstance(st, N.Nop):
                 executable = True
-            if st[0] in ("AUTO", "LOCAL"):
-                for name, typ, is_arr in st[1]:
-                    if name in self.params:
-                        raise CompileError(line, f"{name} is a parameter", name)
-                    (self.autos if st[0] == "AUTO" else self.statics)[name] = typ
-            elif st[0] == "GLOBAL":
-                for name, typ, is_arr in st[1]:
-                    if typ == "DOUBLE":
-                        self.doubles.add(name)
+
+    def declare_names(self, line: int, st: N.Declare) -> None:
+        for name, typ, is_arr in st.names:
+            if st.word == "GLOBAL":
+                if typ == "DOUBLE":
+                    self.doubles.add(name)
+            elif name in self.params:
+                self.problems.append(CompileError(line, f"{name} is a parameter", name, st))
+            else:
+                (self.autos if st.word == "AUTO" else self.statics)[name] = typ
 
     def program(self) -> str:
         p = self.prog
-        tree = _nest(p.steps)
+        tree, self.problems = _nest(p.steps)
         self.declare(p.steps)
         self.fast = {n for n in self.autos if n not in self.keep_boxed}
         self.ind = 0
@@ -449,11 +524,8 @@ class _Gen:
                 # _arg's checks inline for the usual case (a (container, key) pair, not omitted)
                 self.emit(f"P{i}c, P{i}k = _a if (_nA > {i} and type(_a := A[{i}]) is tuple and _a[0] is not _MC) "
                           f"else _arg(A, {i}, {name!r})")
-        for name, typ in self.autos.items():
-            pass
         self.emit("_b = _BUDGET")
-        has_goto = any(isinstance(it, tuple) and it[1][0] == "LABEL" for it in tree) or _uses_goto(p.steps)
-        if has_goto:
+        if _uses_goto(p.steps):
             self.goto_program(tree)
         else:
             self.block(tree)
@@ -464,8 +536,8 @@ class _Gen:
     def goto_program(self, tree: list) -> None:
         segs: list[list] = [[]]
         for it in tree:
-            if isinstance(it, tuple) and it[1][0] == "LABEL":
-                self.labels[it[1][1]] = len(segs)
+            if isinstance(it, tuple) and isinstance(it[1], N.Label):
+                self.labels[it[1].number] = len(segs)
                 segs.append([])
             else:
                 segs[-1].append(it)
@@ -499,15 +571,27 @@ class _Gen:
             self.emit("pass")
         for it in items:
             if isinstance(it, _Block):
-                self.compound(it)
+                try:
+                    self.compound(it)
+                except CompileError as exc:
+                    self.problems.append(CompileError(exc.line or it.line, exc.message, exc.word,
+                                                      exc.node or it.head))
             else:
                 line, st = it
-                if st[0] in ("AUTO", "LOCAL", "GLOBAL", "NOP", "LABEL"):
+                if isinstance(st, (N.Declare, N.Nop, N.Label)):
                     continue
                 try:
-                    self.simple(line, st)
+                    self.visit(line, st)
                 except CompileError as exc:
-                    raise CompileError(line, exc.message, exc.word) from None
+                    self.problems.append(CompileError(line, exc.message, exc.word, exc.node or st))
+
+    def visit(self, line: int, st: N.Stmt) -> None:
+        """Generate the code of a simple statement: ``visit_<node class>``."""
+        method = getattr(self, "visit_" + type(st).__name__, None)
+        if method is None:
+            kind = getattr(st, "word", type(st).__name__.upper())
+            raise CompileError(line, f"instruction {kind} is not implemented by the emulator", kind, st)
+        method(line, st)
 
     def guarded(self, line: int, code_lines: list[str]) -> None:
         self.emit("try:")
@@ -516,11 +600,12 @@ class _Gen:
         self.emit("except Exception as _e:")
         self.emit(f"    yield from _err(T, _e, {self.prog.name!r}, {line})")
 
-    def guarded_cond(self, line: int, e) -> str:
+    def guarded_cond(self, line: int, e: N.Expr) -> str:
         try:
             c = self.cond(e)
         except CompileError as exc:
-            raise CompileError(line, exc.message, exc.word) from None
+            self.problems.append(CompileError(line, exc.message, exc.word, exc.node))
+            c = "False"
         v = self.tmp("_c")
         self.emit("try:")
         self.emit(f"    {v} = {c}")
@@ -529,76 +614,78 @@ class _Gen:
         return v
 
     def compound(self, b: _Block) -> None:
-        k = b.kind
-        if k == "IF":
-            c = self.guarded_cond(b.line, b.head[1])
-            self.emit(f"if {c}:")
-            self.ind += 1
-            self.block(b.body)
-            self.ind -= 1
-            if b.orelse:
-                self.emit("else:")
-                self.ind += 1
-                self.block(b.orelse)
-                self.ind -= 1
-        elif k == "WHILE":
-            self.emit("while True:")
-            self.ind += 1
-            c = self.guarded_cond(b.line, b.head[1])
-            self.emit(f"if not {c}: break")
-            self.loops.append("WHILE")
-            self.block(b.body)
-            self.loops.pop()
-            self.budget()
-            self.ind -= 1
-        elif k == "DO":
-            if _direct_next(b.body):
-                raise CompileError(b.line, "NEXT inside DO ... UNTIL is not supported by the emulator", "NEXT")
-            self.emit("while True:")
-            self.ind += 1
-            self.loops.append("DO")
-            self.block(b.body)
-            self.loops.pop()
-            self.budget()
-            c = self.guarded_cond(b.line, b.until)
-            self.emit(f"if {c}: break")
-            self.ind -= 1
-        elif k == "FOR":
-            self.for_loop(b)
-        elif k == "CASE":
-            v = self.tmp("_v")
-            try:
-                code = self.val(b.head[1])[0]
-                vals = [[self.val(x)[0] for x in vs] if vs is not None else None for vs, _ in b.cases]
-            except CompileError as exc:
-                raise CompileError(b.line, exc.message, exc.word) from None
-            self.guarded(b.line, [f"{v} = {code}"])
-            first = True
-            for (vs, body), codes in zip(b.cases, vals):
-                if vs is None:
-                    self.emit("else:" if not first else "if True:")
-                else:
-                    test = " or ".join(f"{v} == {c}" for c in codes)
-                    self.emit(("if " if first else "elif ") + test + ":")
-                first = False
-                self.ind += 1
-                self.block(body)
-                self.ind -= 1
+        getattr(self, "block_" + b.kind)(b)
 
-    def for_loop(self, b: _Block) -> None:
-        _, var, start, end, step = b.head
+    def block_IF(self, b: _Block) -> None:
+        c = self.guarded_cond(b.line, b.head.cond)
+        self.emit(f"if {c}:")
+        self.ind += 1
+        self.block(b.body)
+        self.ind -= 1
+        if b.orelse:
+            self.emit("else:")
+            self.ind += 1
+            self.block(b.orelse)
+            self.ind -= 1
+
+    def block_WHILE(self, b: _Block) -> None:
+        self.emit("while True:")
+        self.ind += 1
+        c = self.guarded_cond(b.line, b.head.cond)
+        self.emit(f"if not {c}: break")
+        self.loops.append("WHILE")
+        self.block(b.body)
+        self.loops.pop()
+        self.budget()
+        self.ind -= 1
+
+    def block_DO(self, b: _Block) -> None:
+        if _direct_next(b.body):
+            raise CompileError(b.line, "NEXT inside DO ... UNTIL is not supported by the emulator", "NEXT", b.head)
+        self.emit("while True:")
+        self.ind += 1
+        self.loops.append("DO")
+        self.block(b.body)
+        self.loops.pop()
+        self.budget()
+        c = self.guarded_cond(b.line, b.until)
+        self.emit(f"if {c}: break")
+        self.ind -= 1
+
+    def block_CASE(self, b: _Block) -> None:
+        v = self.tmp("_v")
+        try:
+            code = self.val(b.head.expr)[0]
+            vals = [[self.val(x)[0] for x in vs] if vs is not None else None for vs, _ in b.cases]
+        except CompileError as exc:
+            raise CompileError(b.line, exc.message, exc.word, exc.node) from None
+        self.guarded(b.line, [f"{v} = {code}"])
+        first = True
+        for (vs, body), codes in zip(b.cases, vals):
+            if vs is None:
+                self.emit("else:" if not first else "if True:")
+            else:
+                test = " or ".join(f"{v} == {c}" for c in codes)
+                self.emit(("if " if first else "elif ") + test + ":")
+            first = False
+            self.ind += 1
+            self.block(body)
+            self.ind -= 1
+
+    def block_FOR(self, b: _Block) -> None:
+        var, start, end, step = b.head.var, b.head.start, b.head.stop, b.head.step
         try:
             v = self.target(var)
             scode = self.val(start)[0]
             ecode = self.val(end)[0]
             stcode = "1.0" if step is None else self.val(step)[0]
         except CompileError as exc:
-            raise CompileError(b.line, exc.message, exc.word) from None
+            raise CompileError(b.line, exc.message, exc.word, exc.node) from None
         e, s = self.tmp("_e"), self.tmp("_s")
-        dbl = self.is_double(var[1])
+        dbl = self.is_double(var.name)
         conv = "_dbl" if dbl else "_f32"
         self.guarded(b.line, [f"{e} = float({ecode}); {s} = float({stcode})", f"{v} = {conv}({scode})"])
-        const_pos = step is None or (step[0] == "num" and step[1] > 0)
+        const_pos = step is None or (isinstance(step, N.Num) and step.value > 0)
         test = f"{v} <= {e}" if const_pos else f"({v} <= {e} if {s} > 0 else {v} >= {e})"
         if dbl:
             inc = f"{v} = {v} + {s}"
@@ -625,198 +712,230 @@ class _Gen:
             self.ind -= 1
         self.loops.pop()
 
-    def simple(self, line: int, st) -> None:
-        k = st[0]
-        name = self.prog.name
-        if k == "ASSIGN":
-            _, target, expr, is_set = st
-            code, typ = self.val(expr)
-            if target[0] == "arr":
-                raise CompileError(line, "cannot assign to a whole array", target[1])
-            if not is_set and (typ in ("loc", "pp") or target[1].startswith("#")):
-                # V+ Language User's Guide v17, p. 111 ("Assignment Operator")
-                raise CompileError(line, "a location is assigned with SET (SET name = value)", target[1])
-            self.guarded(line, [self.store(target, code, typ, is_set and not target[1].startswith(("$", "#")))])
-        elif k == "GOTO":
-            if st[1] not in self.labels:
-                raise CompileError(line, f"GOTO to an undefined label {st[1]}", str(st[1]))
-            self.emit(f"raise _GOTO[{self.labels[st[1]]}]")
-        elif k == "IFGOTO":
-            if st[2] not in self.labels:
-                raise CompileError(line, f"GOTO to an undefined label {st[2]}", str(st[2]))
-            c = self.guarded_cond(line, st[1])
-            self.emit(f"if {c}: raise _GOTO[{self.labels[st[2]]}]")
-        elif k in ("RETURN", "RETURNE"):
-            self.emit("return")
-        elif k in ("EXIT", "NEXT"):
-            if not self.loops:
-                raise CompileError(line, f"{k} outside a loop", k)
-            if st[1] != 1:
-                raise CompileError(line, f"{k} with a count is not supported by the emulator", k)
-            self.emit("break" if k == "EXIT" else "continue")
-        elif k == "CALL":
-            args = self.call_args(st[2])
-            self.guarded(line, [f"yield from _call(T, {st[1]!r}, ({args}))"])
-        elif k == "CALLS":
-            args = self.call_args(st[2])
-            self.guarded(line, [f"yield from _call(T, _progname({self.val(st[1])[0]}), ({args}))"])
-        elif k == "WAIT":
-            if st[1] is None:
-                self.guarded(line, ["yield _tick()"])
-            else:
-                c = self.cond(st[1])
-                self.guarded(line, [f"while not {c}:", "    yield _ctick(T)"])
-        elif k == "HALT":
-            self.guarded(line, [f"_halt(T, {name!r}, {line})"])
-        elif k == "STOP":
-            self.guarded(line, [f"_stop(T)"])
-        elif k == "PAUSE":
-            self.guarded(line, [f"yield from _pause(T, {name!r}, {line})"])
-        elif k == "TYPE":
-            self.guarded(line, [f"_type(T, ({self.items(st[1])}))"])
-        elif k == "PROMPT":
-            items = [x for x in st[1] if x is not None]
-            targets = [x for x in items if x[0] in ("var", "idx")]
-            texts = [x for x in items if x[0] not in ("var", "idx")]
-            lines = [f"_type(T, ({self.items(texts)} {self.const(('fmt', 'S'))},))"]
-            for t in targets:
-                v = self.tmp("_in")
-                lines.append(f"{v} = yield from _prompt(T, {t[1].startswith('$')!r})")
-                lines.append(self.store(t, v, "str" if t[1].startswith("$") else "num"))
-            self.guarded(line, lines)
-        elif k == "SIGNAL":
-            vals = ", ".join(self.val(e)[0] for e in st[1])
-            self.guarded(line, [f"_signal(T, ({vals},))"])
-        elif k == "WAIT.EVENT":
-            vals = ", ".join("None" if e is None else self.val(e)[0] for e in st[1])
-            self.guarded(line, [f"yield from _wait_event(T, ({vals}{',' if vals else ''}))"])
-        elif k == "SET.EVENT":
-            vals = ", ".join("None" if e is None else self.val(e)[0] for e in st[1])
-            self.guarded(line, [f"_set_event(T, ({vals}{',' if vals else ''}))"])
-        elif k in ("ATTACH", "DETACH", "FCLOSE", "FOPEN"):
-            args = st[1]
-            refs = []
-            for i, a in enumerate(args):
-                if a is None:
-                    refs.append("None")
-                elif i == 0 and a[0] in ("var", "idx"):
-                    c, key = self.ref(a)
-                    refs.append(f"({c}, {key})")
-                else:
-                    refs.append(f"(None, {self.val(a)[0]})")
-            text = self.items(st[2]) if st[2] else ""
-            self.guarded(line, [f"yield from _io_{k.lower()}(T, ({', '.join(refs)}{',' if len(refs) == 1 else ''}), "
-                                f"({text}))"])
-        elif k == "READ":
-            args = st[1]
-            lun = self.val(args[0])[0] if args and args[0] is not None else "None"
-            handle = "None"
-            if len(args) > 1 and args[1] is not None:
-                if args[1][0] not in ("var", "idx"):
-                    raise CompileError(line, "READ handle must be a variable", "READ")
-                c, key = self.ref(args[1])
-                handle = f"({c}, {key})"
-            mode = self.val(args[2])[0] if len(args) > 2 and args[2] is not None else "0.0"
-            tgts = ", ".join("({}, {})".format(*self.ref(t)) for t in st[2])
-            self.guarded(line, [f"yield from _io_read(T, {lun}, {handle}, {mode}, ({tgts}{',' if len(st[2]) == 1 else ''}))"])
-        elif k == "WRITE":
-            args = st[1]
-            lun = self.val(args[0])[0] if args and args[0] is not None else "None"
-            handle = self.val(args[1])[0] if len(args) > 1 and args[1] is not None else "None"
-            self.guarded(line, [f"yield from _io_write(T, {lun}, {handle}, ({self.items(st[2])}))"])
-        elif k == "EXECUTE":
-            _, task, prog, args, extra = st
-            tcode = self.val(task)[0] if task is not None else "None"
-            vals = ", ".join("None" if a is None else self.val(a)[0] for a in args)
-            self.guarded(line, [f"_execute(T, {tcode}, {prog!r}, ({vals}{',' if len(args) == 1 else ''}))"])
-        elif k in ("ABORT", "KILL", "CYCLE.END"):
-            vals = ", ".join(self.val(e)[0] for e in st[1])
-            fn = {"ABORT": "_abort", "KILL": "_kill", "CYCLE.END": "_cycle_end"}[k]
-            self.guarded(line, [f"{fn}(T, ({vals}{',' if len(st[1]) == 1 else ''}))"])
-        elif k == "REACTE":
-            self.guarded(line, [f"_reacte(T, {st[1]!r})"])
-        elif k in ("MOVE", "MOVES", "DEPART", "DEPARTS", "DELAY"):
-            self.guarded(line, [f"yield from _robot(T, {k!r}, {self.val(st[1])[0]})"])
-        elif k in ("APPRO", "APPROS", "MOVET", "MOVEST"):
-            self.guarded(line, [f"yield from _robot(T, {k!r}, {self.val(st[1])[0]}, {self.val(st[2])[0]})"])
-        elif k == "DURATION":
-            self.guarded(line, [f"_duration(T, {self.val(st[1])[0]}, {st[2]!r})"])
-        elif k == "CONFIG":
-            self.guarded(line, [f"_config(T, {st[1]!r})"])
-        elif k == "DISKOPEN":
-            args = st[2]
-            if len(args) != 1 or args[0] is None:
-                raise CompileError(line, f"{st[1]} needs (lun)", st[1])
-            self.guarded(line, [f"_disk_open(T, {st[1]!r}, {self.val(args[0])[0]}, ({self.items(st[3])}))"])
-        elif k in ("BREAK",):
-            self.guarded(line, ["yield from _robot(T, 'BREAK')"])
-        elif k == "BRAKE":
-            self.guarded(line, ["_brake(T)"])
-        elif k == "SPEED":
-            self.guarded(line, [f"_speed(T, {self.val(st[1])[0]}, {st[2]!r})"])
-        elif k == "ACCEL":
-            vals = ", ".join(self.val(e)[0] for e in st[1])
-            self.guarded(line, [f"_accel(T, ({vals},))"])
-        elif k == "TOOL":
-            self.guarded(line, [f"_tool(T, {self.val(st[1])[0]})"])
-        elif k == "HERE":
-            tgt = st[1]
-            fn = f"{_fname('#HERE')}(T)" if tgt[1].startswith("#") else f"{_fname('HERE')}(T)"
-            self.guarded(line, [self.store(tgt, fn, "pp" if tgt[1].startswith("#") else "loc")])
-        elif k == "DECOMPOSE":
-            tgt = st[1]
-            if tgt[0] == "arr":
-                a, first = self.arr(tgt[1], True), "0"
-            elif tgt[0] == "idx" and len(tgt[2]) == 1:
-                a, first = self.arr(tgt[1], True), self.index(tgt[2])
-            else:
-                raise CompileError(line, "DECOMPOSE needs an array", "DECOMPOSE")
-            self.guarded(line, [f"_decompose({a}, {first}, {self.val(st[2])[0]}, "
-                                f"{self.is_double(tgt[1])!r})"])
-        elif k in ("ENABLE", "DISABLE"):
-            self.guarded(line, [f"_switch(T, {st[1]!r}, {k == 'ENABLE'!r})"])
-        elif k == "TIMERSET":
-            self.guarded(line, [f"_timer_set({self.val(st[1])[0]}, {self.val(st[2])[0]})"])
-        elif k == "HAND":
-            # OPEN/CLOSE/RELAX act as the next motion starts; the I forms wait for rest and hold for HAND.TIME
-            self.guarded(line, [f"yield from _hand(T, {st[1]!r})"])
-        elif k == "PARAMETER":
-            if st[1] != "HAND.TIME":
-                raise CompileError(line, f"PARAMETER {st[1]} is not implemented by the emulator", "PARAMETER")
-            self.guarded(line, [f"_parameter(T, {st[1]!r}, {self.val(st[2])[0]})"])
-        elif k == "BITS":
-            count = "1.0" if st[2] is None else self.val(st[2])[0]
-            self.guarded(line, [f"_bits_set(T, {self.val(st[1])[0]}, {count}, {self.val(st[3])[0]})"])
-        elif k == "NULL":
-            pass
-        else:
-            raise CompileError(line, f"instruction {k} is not implemented by the emulator", k)
+    # -- simple statements: one visit method per node class ---------------------------------------------------
+    def visit_Assign(self, line: int, st: N.Assign) -> None:
+        code, typ = self.val(st.value)
+        target = st.target
+        if isinstance(target, N.Array):
+            raise CompileError(line, "cannot assign to a whole array", target.name, target)
+        if not st.is_set and (typ in ("loc", "pp") or target.name.startswith("#")):
+            # V+ Language User's Guide v17, p. 111 ("Assignment Operator")
+            raise CompileError(line, "a location is assigned with SET (SET name = value)", target.name, target)
+        force = st.is_set and not target.name.startswith(("$", "#"))
+        self.guarded(line, [self.store(target, code, typ, force)])
 
-    def call_args(self, args: list) -> str:
+    def goto_index(self, line: int, label: int, st: N.Stmt) -> int:
+        if label not in self.labels:
+            raise CompileError(line, f"GOTO to an undefined label {label}", str(label), st)
+        return self.labels[label]
+
+    def visit_Goto(self, line: int, st: N.Goto) -> None:
+        self.emit(f"raise _GOTO[{self.goto_index(line, st.label, st)}]")
+
+    def visit_IfGoto(self, line: int, st: N.IfGoto) -> None:
+        k = self.goto_index(line, st.label, st)
+        c = self.guarded_cond(line, st.cond)
+        self.emit(f"if {c}: raise _GOTO[{k}]")
+
+    def visit_Word(self, line: int, st: N.Word) -> None:
+        """RETURN, RETURNE, HALT, STOP, PAUSE, BREAK, BRAKE, NULL."""
+        name = self.prog.name
+        if st.word in ("RETURN", "RETURNE"):
+            self.emit("return")
+            return
+        code = {"HALT": f"_halt(T, {name!r}, {line})", "STOP": "_stop(T)",
+                "PAUSE": f"yield from _pause(T, {name!r}, {line})", "BREAK": "yield from _robot(T, 'BREAK')",
+                "BRAKE": "_brake(T)", "NULL": None}
+        if st.word not in code:
+            raise CompileError(line, f"instruction {st.word} is not implemented by the emulator", st.word, st)
+        if code[st.word] is not None:
+            self.guarded(line, [code[st.word]])
+
+    def visit_LoopJump(self, line: int, st: N.LoopJump) -> None:
+        k = st.word
+        if not self.loops:
+            raise CompileError(line, f"{k} outside a loop", k, st)
+        if st.count != 1:
+            raise CompileError(line, f"{k} with a count is not supported by the emulator", k, st)
+        self.emit("break" if k == "EXIT" else "continue")
+
+    def visit_CallStmt(self, line: int, st: N.CallStmt) -> None:
+        args = self.call_args(st.args)
+        self.guarded(line, [f"yield from _call(T, {st.name!r}, ({args}))"])
+
+    def visit_Calls(self, line: int, st: N.Calls) -> None:
+        args = self.call_args(st.args)
+        self.guarded(line, [f"yield from _call(T, _progname({self.val(st.target)[0]}), ({args}))"])
+
+    def visit_Wait(self, line: int, st: N.Wait) -> None:
+        if st.cond is None:
+            self.guarded(line, ["yield _tick()"])
+        else:
+            c = self.cond(st.cond)
+            self.guarded(line, [f"while not {c}:", "    yield _ctick(T)"])
+
+    def visit_Type(self, line: int, st: N.Type) -> None:
+        self.guarded(line, [f"_type(T, ({self.items(st.items)}))"])
+
+    def visit_Prompt(self, line: int, st: N.Prompt) -> None:
+        items = [x for x in st.items if x is not None]
+        targets = [x for x in items if isinstance(x, (N.Name, N.Index))]
+        texts = [x for x in items if not isinstance(x, (N.Name, N.Index))]
+        lines = [f"_type(T, ({self.items(texts)} {self.const(('fmt', 'S'))},))"]
+        for t in targets:
+            v = self.tmp("_in")
+            lines.append(f"{v} = yield from _prompt(T, {t.name.startswith('$')!r})")
+            lines.append(self.store(t, v, "str" if t.name.startswith("$") else "num"))
+        self.guarded(line, lines)
+
+    def visit_Signal(self, line: int, st: N.Signal) -> None:
+        vals = ", ".join(self.val(e)[0] for e in st.items)
+        self.guarded(line, [f"_signal(T, ({vals},))"])
+
+    def visit_Event(self, line: int, st: N.Event) -> None:
+        vals = ", ".join("None" if e is None else self.val(e)[0] for e in st.items)
+        call = "yield from _wait_event" if st.word == "WAIT.EVENT" else "_set_event"
+        self.guarded(line, [f"{call}(T, ({vals}{',' if vals else ''}))"])
+
+    def visit_IoStmt(self, line: int, st: N.IoStmt) -> None:
+        refs = []
+        for i, a in enumerate(st.args):
+            if a is None:
+                refs.append("None")
+            elif i == 0 and isinstance(a, (N.Name, N.Index)):
+                c, key = self.ref(a)
+                refs.append(f"({c}, {key})")
+            else:
+                refs.append(f"(None, {self.val(a)[0]})")
+        text = self.items(st.items) if st.items else ""
+        self.guarded(line, [f"yield from _io_{st.word.lower()}(T, ({', '.join(refs)}{',' if len(refs) == 1 else ''}), "
+                            f"({text}))"])
+
+    def visit_Read(self, line: int, st: N.Read) -> None:
+        args = st.args
+        lun = self.val(args[0])[0] if args and args[0] is not None else "None"
+        handle = "None"
+        if len(args) > 1 and args[1] is not None:
+            if not isinstance(args[1], (N.Name, N.Index)):
+                raise CompileError(line, "READ handle must be a variable", "READ", args[1])
+            c, key = self.ref(args[1])
+            handle = f"({c}, {key})"
+        mode = self.val(args[2])[0] if len(args) > 2 and args[2] is not None else "0.0"
+        tgts = ", ".join("({}, {})".format(*self.ref(t)) for t in st.targets)
+        comma = "," if len(st.targets) == 1 else ""
+        self.guarded(line, [f"yield from _io_read(T, {lun}, {handle}, {mode}, ({tgts}{comma}))"])
+
+    def visit_Write(self, line: int, st: N.Write) -> None:
+        args = st.args
+        lun = self.val(args[0])[0] if args and args[0] is not None else "None"
+        handle = self.val(args[1])[0] if len(args) > 1 and args[1] is not None else "None"
+        self.guarded(line, [f"yield from _io_write(T, {lun}, {handle}, ({self.items(st.items)}))"])
+
+    def visit_Execute(self, line: int, st: N.Execute) -> None:
+        tcode = self.val(st.task)[0] if st.task is not None else "None"
+        vals = ", ".join("None" if a is None else self.val(a)[0] for a in st.args)
+        comma = "," if len(st.args) == 1 else ""
+        self.guarded(line, [f"_execute(T, {tcode}, {st.name!r}, ({vals}{comma}))"])
+
+    def visit_TaskControl(self, line: int, st: N.TaskControl) -> None:
+        vals = ", ".join(self.val(e)[0] for e in st.items)
+        fn = {"ABORT": "_abort", "KILL": "_kill", "CYCLE.END": "_cycle_end"}[st.word]
+        self.guarded(line, [f"{fn}(T, ({vals}{',' if len(st.items) == 1 else ''}))"])
+
+    def visit_Reacte(self, line: int, st: N.Reacte) -> None:
+        self.guarded(line, [f"_reacte(T, {st.name!r})"])
+
+    def visit_Robot(self, line: int, st: N.Robot) -> None:
+        if st.word == "TOOL":
+            self.guarded(line, [f"_tool(T, {self.val(st.loc)[0]})"])
+        elif st.arg is None:
+            self.guarded(line, [f"yield from _robot(T, {st.word!r}, {self.val(st.loc)[0]})"])
+        else:
+            self.guarded(line, [f"yield from _robot(T, {st.word!r}, {self.val(st.loc)[0]}, {self.val(st.arg)[0]})"])
+
+    def visit_Duration(self, line: int, st: N.Duration) -> None:
+        self.guarded(line, [f"_duration(T, {self.val(st.time)[0]}, {st.always!r})"])
+
+    def visit_Config(self, line: int, st: N.Config) -> None:
+        self.guarded(line, [f"_config(T, {st.word!r})"])
+
+    def visit_DiskOpen(self, line: int, st: N.DiskOpen) -> None:
+        if len(st.args) != 1 or st.args[0] is None:
+            raise CompileError(line, f"{st.word} needs (lun)", st.word, st)
+        self.guarded(line, [f"_disk_open(T, {st.word!r}, {self.val(st.args[0])[0]}, ({self.items(st.items)}))"])
+
+    def visit_Speed(self, line: int, st: N.Speed) -> None:
+        self.guarded(line, [f"_speed(T, {self.val(st.speed)[0]}, {st.mode!r})"])
+
+    def visit_Accel(self, line: int, st: N.Accel) -> None:
+        vals = ", ".join(self.val(e)[0] for e in st.items)
+        self.guarded(line, [f"_accel(T, ({vals},))"])
+
+    def visit_Here(self, line: int, st: N.Here) -> None:
+        tgt = st.target
+        pp = tgt.name.startswith("#")
+        fn = f"{_fname('#HERE')}(T)" if pp else f"{_fname('HERE')}(T)"
+        self.guarded(line, [self.store(tgt, fn, "pp" if pp else "loc")])
+
+    def visit_Decompose(self, line: int, st: N.Decompose) -> None:
+        tgt = st.target
+        if isinstance(tgt, N.Array):
+            a, first = self.arr(tgt.name, True), "0"
+        elif isinstance(tgt, N.Index) and len(tgt.index) == 1:
+            a, first = self.arr(tgt.name, True), self.index(tgt.index)
+        else:
+            raise CompileError(line, "DECOMPOSE needs an array", "DECOMPOSE", tgt)
+        self.guarded(line, [f"_decompose({a}, {first}, {self.val(st.value)[0]}, {self.is_double(tgt.name)!r})"])
+
+    def visit_Switch(self, line: int, st: N.Switch) -> None:
+        self.guarded(line, [f"_switch(T, {list(st.names)!r}, {st.word == 'ENABLE'!r})"])
+
+    def visit_TimerSet(self, line: int, st: N.TimerSet) -> None:
+        self.guarded(line, [f"_timer_set({self.val(st.timer)[0]}, {self.val(st.value)[0]})"])
+
+    def visit_Hand(self, line: int, st: N.Hand) -> None:
+        # OPEN/CLOSE/RELAX act as the next motion starts; the I forms wait for rest and hold for HAND.TIME
+        self.guarded(line, [f"yield from _hand(T, {st.word!r})"])
+
+    def visit_Parameter(self, line: int, st: N.Parameter) -> None:
+        if st.name != "HAND.TIME":
+            raise CompileError(line, f"PARAMETER {st.name} is not implemented by the emulator", "PARAMETER", st)
+        self.guarded(line, [f"_parameter(T, {st.name!r}, {self.val(st.value)[0]})"])
+
+    def visit_Bits(self, line: int, st: N.Bits) -> None:
+        count = "1.0" if st.count is None else self.val(st.count)[0]
+        self.guarded(line, [f"_bits_set(T, {self.val(st.first)[0]}, {count}, {self.val(st.value)[0]})"])
+
+    def call_args(self, args: tuple) -> str:
         out = []
         for a in args:
             if a is None:
                 out.append("_MISSING")
-            elif a[0] == "var":
-                c, key = self.scope(a[1])
+            elif isinstance(a, N.Name):
+                c, key = self.scope(a.name)
                 out.append(f"({c}, {key})")
-            elif a[0] == "idx":
-                out.append(f"({self.arr(a[1], True)}, {self.index(a[2])})")
-            elif a[0] == "arr":
-                out.append(self.arr(a[1], True))
+            elif isinstance(a, N.Index):
+                out.append(f"({self.arr(a.name, True)}, {self.index(a.index)})")
+            elif isinstance(a, N.Array):
+                out.append(self.arr(a.name, True))
             else:
                 code, typ = self.val(a)
                 out.append(f"([_byval({code})], 0)")
         return ", ".join(out) + ("," if len(out) == 1 else "")
 
 
+_SPECIAL_CALLS = {"$DECODE": "call_decode", "$ENCODE": "call_encode", "DEFINED": "call_defined",
+                  "LAST": "call_last", "LEN": "call_len"}
+"""Functions whose code is not a plain call of the built-in (an argument passed by reference, a format)."""
+
+
+def _word(e: N.Expr) -> str:
+    """The word of an expression for a message: its name, or its value."""
+    return str(getattr(e, "name", getattr(e, "value", "")))
+
+
 def _uses_goto(steps) -> bool:
-    for _, st in steps:
-        if st[0] == "LABEL":
-            return True
-        if st[0] in ("GOTO", "IFGOTO"):
-            return True
-    return False
+    return any(isinstance(st, (N.Label, N.Goto, N.IfGoto)) for _, st in steps)
 
 
 def _direct_next(body: list) -> bool:
@@ -825,7 +944,7 @@ def _direct_next(body: list) -> bool:
             if it.kind in ("IF", "CASE"):
                 if _direct_next(it.body) or _direct_next(it.orelse) or any(_direct_next(b) for _, b in it.cases):
                     return True
-        elif it[1][0] == "NEXT":
+        elif isinstance(it[1], N.LoopJump) and it[1].word == "NEXT":
             return True
     return False
 
@@ -867,12 +986,26 @@ def compile_program(prog: Program, doubles: set[str]) -> tuple[str | None, list[
     boxed: frozenset[str] = frozenset()
     for _ in range(3):
         gen = _Gen(prog, doubles, boxed)
-        try:
-            src = gen.program()
-        except CompileError as exc:
-            word = exc.word
-            return None, [], [LoadProblem(prog.file, exc.line or prog.line, exc.message, word, prog.name)]
+        src = gen.program()
+        if gen.problems:
+            return None, [], [_problem(prog, exc) for exc in gen.problems]
         if gen.boxed <= boxed:
             return src, gen.consts, []
         boxed = boxed | gen.boxed
     raise AssertionError("AUTOs passed by reference did not settle")  # pragma: no cover - boxed only grows
+
+
+def _problem(prog: Program, exc: CompileError) -> LoadProblem:
+    """A compile problem as the loader's: its line, and its column at the offending word (in the node that
+    caused it, else at the node, else 0)."""
+    line = exc.line or prog.line
+    col = 0
+    span = exc.node.span if exc.node is not None else None
+    if span is not None and span.line == line and span.col:
+        col = span.col
+        code = prog.source.get(line, "")
+        indent = prog.indent.get(line, 0)
+        at = code.upper().find(exc.word.upper(), max(span.col - 1 - indent, 0)) if exc.word else -1
+        if at >= 0:
+            col = indent + at + 1
+    return LoadProblem(prog.file, line, exc.message, exc.word, prog.name, col)

@@ -29,45 +29,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from aioadept.vplus.compiler import compile_program
 from aioadept.vplus.parse import VSyntaxError, norm, parse_statement
+from aioadept.vplus.program import LoadProblem, Param, Program
 
-
-@dataclass(frozen=True, slots=True)
-class LoadProblem:
-    """A line that did not load: ``file:line: message (word)``."""
-
-    file: str
-    line: int
-    message: str
-    word: str
-    program: str | None
-
-    def __str__(self) -> str:
-        where = f" in {self.program}" if self.program else ""
-        return f"{self.file}:{self.line}: {self.message}{where} [{self.word}]"
-
-
-@dataclass(slots=True)
-class Param:
-    name: str          # normalised, with $/# prefix
-    is_array: bool
-
-
-@dataclass(slots=True)
-class Program:
-    """One ``.PROGRAM``: its parameters and parsed steps ``(line number, statement)``."""
-
-    name: str
-    params: list[Param]
-    file: str
-    line: int
-    steps: list[tuple[int, Any]] = field(default_factory=list)
-    source: dict[int, str] = field(default_factory=dict)
-    problems: list[LoadProblem] = field(default_factory=list)
-
-    @property
-    def executable(self) -> bool:
-        return not self.problems
+__all__ = ["LoadProblem", "Module", "Param", "Program", "load_files", "load_text", "strip_comment"]
 
 
 @dataclass(slots=True)
@@ -181,7 +147,7 @@ def _parse_text(text: str, filename: str, module: Module) -> Module:
             if code and section in ("LOC", "PPOINT") and _CONTINUATION.match(code):
                 # the second line of a stored transformation (or a long precision point): values, no name
                 if pending is None:
-                    module.problems.append(LoadProblem(filename, n, f"values without a location name",
+                    module.problems.append(LoadProblem(filename, n, "values without a location name",
                                                        code.split()[0], None))
                 else:
                     pending[3].append((n, code))
@@ -209,10 +175,11 @@ def _parse_text(text: str, filename: str, module: Module) -> Module:
         if not code:
             continue
         cur.source[n] = code
+        col0 = cur.indent[n] = len(line) - len(line.lstrip())
         try:
-            cur.steps.append((n, parse_statement(code)))
+            cur.steps.append((n, parse_statement(code, filename, n, col0)))
         except VSyntaxError as exc:
-            cur.problems.append(LoadProblem(filename, n, exc.message, exc.word, cur.name))
+            cur.problems.append(LoadProblem(filename, n, exc.message, exc.word, cur.name, exc.col))
     if cur is not None:
         module.problems.append(LoadProblem(filename, cur.line, "program not closed by .END", cur.name, cur.name))
         _finish(cur, module)
@@ -258,8 +225,21 @@ def _stored_transform(nums: list[float]) -> tuple[float, ...]:
 
 
 def _finish(prog: Program, module: Module) -> None:
+    _check_rest(prog)
     module.programs[prog.name] = prog
     module.problems.extend(prog.problems)
+
+
+_STRUCTURE = re.compile(r"\s*(\d|(IF|WHILE|FOR|CASE|DO|END|ELSE|VALUE|ANY|UNTIL)\b)", re.IGNORECASE)
+
+
+def _check_rest(prog: Program) -> None:
+    """A program with a line that did not parse gets the problems of its other lines too (labels, blocks,
+    names, arguments: what compiling reports), so that one load shows them all; not when a bad line is a label
+    or opens or closes a block, whose loss would make problems of lines that have none."""
+    if not prog.problems or any(_STRUCTURE.match(prog.source.get(p.line, "")) for p in prog.problems):
+        return
+    prog.problems.extend(compile_program(prog, set())[2])
 
 
 _DATA_NAME = re.compile(r"([$#]?[A-Za-z][A-Za-z0-9._]*)(?:\[([0-9,\s]+)\])?")

@@ -3,36 +3,35 @@
 (Over 500 lines because the tokenizer, the expression grammar and the statement grammar of V+ are one
 recursive-descent parser whose parts call each other; split, each part would import the others.)
 
-One line of a ``.PROGRAM`` body in, one statement tuple out; :mod:`aioadept.vplus.compiler` turns the statements
-of a program into Python. Nothing here runs code or knows about tasks.
+One line of a ``.PROGRAM`` body in, one :mod:`~aioadept.vplus.nodes` statement out, each node with its span;
+:mod:`aioadept.vplus.compiler` turns the statements of a program into Python. Nothing here runs code or knows
+about tasks. Statements are parsed by a table, :data:`STATEMENTS`, from the leading keyword to a small function.
 
 Names are case-insensitive and only their first 15 characters count (V+ Language User's Guide, "Variable Name
 Requirements": longer names are truncated without warning); :func:`norm` does both. ``$`` (string) and ``#``
 (precision point) prefixes are part of the name.
-
-Expression trees are tuples:
-``("num", v)``, ``("str", s)``, ``("var", name)``, ``("idx", name, [e...])``, ``("arr", name)`` (``a[]``),
-``("call", NAME, [e...])``, ``("fmt", spec)`` (``/F8.3`` in output lists), ``("un", op, e)``,
-``("bin", op, a, b)``, ``("shift", e, [dx, dy, dz])`` (``SHIFT(a BY x, y, z)``).
 """
 
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 
 from aioadept.vplus import keywords
+from aioadept.vplus import nodes as N
 
 MAX_NAME = 15
 
 
 class VSyntaxError(Exception):
-    """A line that cannot be parsed; ``word`` is the offending token."""
+    """A line that cannot be parsed; ``word`` is the offending token, ``col`` its 1-based column (0: unknown)."""
 
-    def __init__(self, message: str, word: str = "") -> None:
+    def __init__(self, message: str, word: str = "", col: int = 0) -> None:
         super().__init__(message)
         self.message = message
         self.word = word
+        self.col = col
 
 
 def norm(name: str) -> str:
@@ -59,6 +58,7 @@ class Tok:
     kind: str      # num, str, name, op
     text: str
     value: object = None
+    col: int = 0   # offset of the first character in the line's text (0-based)
 
 
 def tokenize(text: str) -> list[Tok]:
@@ -68,35 +68,39 @@ def tokenize(text: str) -> list[Tok]:
         m = _TOKEN.match(text, pos)
         if not m:
             word = text[pos:].split()[0] if text[pos:].split() else text[pos:]
-            raise VSyntaxError(f"unexpected character {text[pos]!r}", word)
-        pos = m.end()
+            raise VSyntaxError(f"unexpected character {text[pos]!r}", word, pos + 1)
+        start, pos = pos, m.end()
         kind = m.lastgroup
         s = m.group(kind)
         if kind == "ws":
             continue
         if kind == "num":
-            out.append(Tok("num", s, float(s)))
+            out.append(Tok("num", s, float(s), start))
         elif kind == "hex":
             # V+ radix constants (Language User's Guide v17 p. 102, "Numeric Representation"): ^H hexadecimal,
             # ^B binary (at most 8 bits), ^ and digits octal, ^D a double-precision integer. Right after an
             # operand, '^' is the power operator instead (x^2, a[1]^2).
             prev = out[-1] if out else None
             if prev is not None and (prev.kind in ("num", "str", "name") or prev.text in (")", "]")):
-                out.append(Tok("op", "^"))
+                out.append(Tok("op", "^", None, start))
                 pos = m.start() + 1
                 continue
-            radix = s[1].upper()
-            digits, base = (s[2:], {"H": 16, "B": 2, "D": 10}[radix]) if radix in "HBD" else (s[1:], 8)
-            if radix == "B" and len(digits) > 8:
-                raise VSyntaxError("a binary constant has at most 8 bits", s)
-            out.append(Tok("num", s, float(int(digits, base))))
+            out.append(Tok("num", s, _radix(s, start), start))
         elif kind == "asc":
-            out.append(Tok("num", s, float(ord(s[1]))))
+            out.append(Tok("num", s, float(ord(s[1])), start))
         elif kind == "str":
-            out.append(Tok("str", s, s[1:-1]))
+            out.append(Tok("str", s, s[1:-1], start))
         else:
-            out.append(Tok(kind, s))
+            out.append(Tok(kind, s, None, start))
     return out
+
+
+def _radix(s: str, start: int) -> float:
+    radix = s[1].upper()
+    digits, base = (s[2:], {"H": 16, "B": 2, "D": 10}[radix]) if radix in "HBD" else (s[1:], 8)
+    if radix == "B" and len(digits) > 8:
+        raise VSyntaxError("a binary constant has at most 8 bits", s, start + 1)
+    return float(int(digits, base))
 
 
 # Word operators and constants.
@@ -106,11 +110,13 @@ _FMT_RE = re.compile(r"[A-Za-z](\d+(\.\d+)?)?\Z")
 
 
 class Parser:
-    """Recursive-descent parser over one line's tokens."""
+    """Recursive-descent parser over one line's tokens; spans are in ``file`` at ``line``, the text starting at
+    column ``col0 + 1``."""
 
-    def __init__(self, toks: list[Tok]) -> None:
+    def __init__(self, toks: list[Tok], file: str = "", line: int = 0, col0: int = 0) -> None:
         self.t = toks
         self.i = 0
+        self.file, self.line, self.col0 = file, line, col0
         self.no_colon = False      # in VALUE lists ':' ends the list instead of composing
         self.eq_ends = False       # in BITS first, count = value: '=' ends the expression
 
@@ -127,23 +133,43 @@ class Parser:
         t = self.peek()
         return t is not None and t.kind == "name" and t.text.upper() in words
 
+    def col(self, t: Tok | None) -> int:
+        """The 1-based column of token ``t`` (None: just after the line's last token)."""
+        if t is None:
+            last = self.t[-1] if self.t else None
+            return self.col0 + (last.col + len(last.text) if last else 0) + 1
+        return self.col0 + t.col + 1
+
+    def error(self, message: str, t: Tok | None, word: str | None = None) -> VSyntaxError:
+        """The error ``message`` at token ``t`` (None: at the end of the line)."""
+        if word is None:
+            word = t.text if t is not None else "end of line"
+        return VSyntaxError(message, word, self.col(t))
+
+    def span(self, i0: int) -> N.Span:
+        """The span of tokens ``i0`` up to the last one taken."""
+        if not self.t:
+            return N.Span(self.file, self.line, self.col0 + 1, self.col0 + 1)
+        a = self.t[min(i0, len(self.t) - 1)]
+        b = self.t[max(self.i - 1, i0)] if self.i > i0 else a
+        return N.Span(self.file, self.line, self.col(a), self.col(b) + len(b.text))
+
     def take(self) -> Tok:
         t = self.peek()
         if t is None:
-            raise VSyntaxError("unexpected end of line", "")
+            raise self.error("unexpected end of line", None, "")
         self.i += 1
         return t
 
     def expect_op(self, op: str) -> None:
         t = self.peek()
         if t is None or t.kind != "op" or t.text != op:
-            raise VSyntaxError(f"expected {op!r}", t.text if t else "end of line")
+            raise self.error(f"expected {op!r}", t)
         self.i += 1
 
     def expect_word(self, w: str) -> None:
         if not self.at_word(w):
-            t = self.peek()
-            raise VSyntaxError(f"expected {w}", t.text if t else "end of line")
+            raise self.error(f"expected {w}", self.peek())
         self.i += 1
 
     def done(self) -> bool:
@@ -152,188 +178,224 @@ class Parser:
     def expect_end(self) -> None:
         if not self.done():
             t = self.peek()
-            raise VSyntaxError(f"unexpected {t.text!r}", t.text)
+            raise self.error(f"unexpected {t.text!r}", t)
 
     # -- expressions (lowest precedence first) ------------------------------------------------------------
-    def expr(self):
+    def _binary(self, i0: int, op: str, a: N.Expr, b: N.Expr) -> N.BinOp:
+        return N.BinOp(op, a, b, span=self.span(i0))
+
+    def expr(self) -> N.Expr:
+        i0 = self.i
         a = self._and()
         while self.at_word("OR", "XOR"):
             op = self.take().text.upper()
-            a = ("bin", op, a, self._and())
+            a = self._binary(i0, op, a, self._and())
         return a
 
-    def _and(self):
+    def _and(self) -> N.Expr:
+        i0 = self.i
         a = self._not()
         while self.at_word("AND"):
             self.take()
-            a = ("bin", "AND", a, self._not())
+            a = self._binary(i0, "AND", a, self._not())
         return a
 
-    def _not(self):
+    def _not(self) -> N.Expr:
         if self.at_word("NOT"):
+            i0 = self.i
             self.take()
-            return ("un", "NOT", self._not())
+            e = self._not()
+            return N.Unary("NOT", e, span=self.span(i0))
         return self._rel()
 
-    def _rel(self):
+    def _rel(self) -> N.Expr:
+        i0 = self.i
         a = self._bor()
         t = self.peek()
         if t is not None and t.kind == "op" and t.text in _REL:
             self.take()
-            a = ("bin", _REL[t.text], a, self._bor())
+            a = self._binary(i0, _REL[t.text], a, self._bor())
         elif t is not None and t.kind == "op" and t.text == "=" and not self.eq_ends:
-            raise VSyntaxError("'=' in an expression (comparison is '==')", "=")
+            raise self.error("'=' in an expression (comparison is '==')", t)
         return a
 
-    def _bor(self):
+    def _bor(self) -> N.Expr:
+        i0 = self.i
         a = self._band()
         while self.at_word("BOR", "BXOR"):
             op = self.take().text.upper()
-            a = ("bin", op, a, self._band())
+            a = self._binary(i0, op, a, self._band())
         return a
 
-    def _band(self):
+    def _band(self) -> N.Expr:
+        i0 = self.i
         a = self._add()
         while self.at_word("BAND"):
             self.take()
-            a = ("bin", "BAND", a, self._add())
+            a = self._binary(i0, "BAND", a, self._add())
         return a
 
-    def _add(self):
+    def _add(self) -> N.Expr:
+        i0 = self.i
         a = self._mul()
         while self.at_op("+", "-"):
             op = self.take().text
-            a = ("bin", op, a, self._mul())
+            a = self._binary(i0, op, a, self._mul())
         return a
 
-    def _mul(self):
+    def _mul(self) -> N.Expr:
+        i0 = self.i
         a = self._unary()
         while self.at_op("*", "/") or self.at_word("MOD"):
             op = self.take().text.upper()
-            a = ("bin", op, a, self._unary())
+            a = self._binary(i0, op, a, self._unary())
         return a
 
-    def _unary(self):
-        if self.at_op("-"):
-            self.take()
-            return ("un", "-", self._unary())
+    def _unary(self) -> N.Expr:
+        i0 = self.i
+        if self.at_op("-") or self.at_word("COM"):
+            op = self.take().text.upper()
+            e = self._unary()
+            return N.Unary(op, e, span=self.span(i0))
         if self.at_op("+"):
             self.take()
-            return self._unary()
-        if self.at_word("COM"):
-            self.take()
-            return ("un", "COM", self._unary())
+            return self._unary()        # a unary '+' changes nothing (rendered back without it)
         return self._pow()
 
-    def _pow(self):
+    def _pow(self) -> N.Expr:
+        i0 = self.i
         a = self._compound()
         if self.at_op("^"):
             self.take()
-            a = ("bin", "^", a, self._unary())
+            a = self._binary(i0, "^", a, self._unary())
         return a
 
-    def _compound(self):
+    def _compound(self) -> N.Expr:
+        i0 = self.i
         a = self.atom()
         while self.at_op(":") and not self.no_colon:
             self.take()
-            a = ("bin", ":", a, self.atom())
+            a = self._binary(i0, ":", a, self.atom())
         return a
 
-    def args(self, allow_formats: bool = False) -> list:
-        """``( e, e, ... )`` after a function name; empty arguments are ``None``."""
+    def slots(self, item: Callable[[], N.Expr] | None = None) -> tuple:
+        """``( e, e, ... )``: expressions or empty slots (``None``); ``item`` parses one (default :meth:`expr`)."""
+        item = item or self.expr
         self.expect_op("(")
         out: list = []
         if self.at_op(")"):
             self.take()
-            return out
+            return ()
         while True:
-            if self.at_op(",", ")"):
-                out.append(None)
-            elif allow_formats and self.at_op("/"):
-                out.append(self.fmt())
-            else:
-                out.append(self.expr())
+            out.append(None if self.at_op(",", ")") else item())
             if self.at_op(","):
                 self.take()
                 continue
             self.expect_op(")")
-            return out
+            return tuple(out)
 
-    def fmt(self):
+    def output_item(self) -> N.Expr:
+        """An expression or a ``/format`` (output lists of TYPE, WRITE, $ENCODE...)."""
+        return self.fmt() if self.at_op("/") else self.expr()
+
+    def fmt(self) -> N.Fmt:
+        i0 = self.i
         self.expect_op("/")
         t = self.take()
         if t.kind != "name" or not _FMT_RE.match(t.text):
-            raise VSyntaxError("bad format specifier", "/" + t.text)
-        return ("fmt", t.text.upper())
+            raise self.error("bad format specifier", t, "/" + t.text)
+        return N.Fmt(t.text.upper(), span=self.span(i0))
 
-    def atom(self):
+    def names_index(self) -> tuple:
+        """``[e, e...]`` after an array name ('[' taken)."""
+        idx = [self.expr()]
+        while self.at_op(","):
+            self.take()
+            idx.append(self.expr())
+        self.expect_op("]")
+        return tuple(idx)
+
+    def atom(self) -> N.Expr:
+        i0 = self.i
         t = self.take()
         if t.kind == "num":
-            return ("num", t.value)
+            return N.Num(t.value, text=t.text, span=self.span(i0))
         if t.kind == "str":
-            return ("str", t.value)
+            return N.Str(t.value, span=self.span(i0))
         if t.kind == "op" and t.text == "(":
             e = self.expr()
             self.expect_op(")")
-            return e
+            return replace(e, parens=e.parens + 1, span=self.span(i0))
         if t.kind == "name":
-            up = t.text.upper()
-            if up in _CONST:
-                return ("num", _CONST[up])
-            if up == "NULL" and not self.at_op("(", "["):
-                return ("call", "NULL", [])          # the null transformation (TOOL NULL)
-            if up == "SHIFT" and self.at_op("("):
-                # SHIFT(a BY x, y, z): an omitted component is 0 (SHIFT(a BY , , 10))
-                self.take()
-                base = self.expr()
-                self.expect_word("BY")
-                d: list = []
-                while True:
-                    d.append(None if self.at_op(",", ")") else self.expr())
-                    if not self.at_op(","):
-                        break
-                    self.take()
-                self.expect_op(")")
-                return ("shift", base, d)
-            if up == "SWITCH" and self.at_op("("):
-                # SWITCH(name): the argument names a system switch (POWER, DRY.RUN), it is not a variable
-                self.take()
-                arg = self.take()
-                if arg.kind != "name":
-                    raise VSyntaxError("SWITCH needs a switch name", arg.text)
-                self.expect_op(")")
-                return ("call", up, [("str", arg.text.upper())])
-            if self.at_op("(") and (_is_function(up)):
-                return ("call", up, self.args(allow_formats=(up == "$ENCODE")))
-            if self.at_op("["):
-                self.take()
-                if self.at_op("]"):
-                    self.take()
-                    return ("arr", norm(t.text))
-                idx = [self.expr()]
-                while self.at_op(","):
-                    self.take()
-                    idx.append(self.expr())
-                self.expect_op("]")
-                return ("idx", norm(t.text), idx)
-            if up in _NOARG_FUNCS:
-                return ("call", up, [])
-            if self.at_op("("):
-                raise _unknown_function(t.text)
-            _check_name(t.text)
-            return ("var", norm(t.text))
-        raise VSyntaxError(f"unexpected {t.text!r}", t.text)
+            return self._named(t, i0)
+        raise self.error(f"unexpected {t.text!r}", t)
 
-    def lvalue(self):
+    def _named(self, t: Tok, i0: int) -> N.Expr:
+        """An atom that starts with a name: a constant, a function call, an array element or a variable."""
+        up = t.text.upper()
+        if up in _CONST:
+            return N.Num(_CONST[up], text=t.text, span=self.span(i0))
+        if up == "NULL" and not self.at_op("(", "["):
+            return N.Call("NULL", (), span=self.span(i0))          # the null transformation (TOOL NULL)
+        if up in _SPECIAL_ATOMS and self.at_op("("):
+            return _SPECIAL_ATOMS[up](self, i0)
+        if self.at_op("(") and up in FUNCTIONS:
+            args = self.slots(self.output_item if up == "$ENCODE" else None)
+            return N.Call(up, args, span=self.span(i0))
+        if self.at_op("["):
+            self.take()
+            if self.at_op("]"):
+                self.take()
+                return N.Array(norm(t.text), span=self.span(i0))
+            return N.Index(norm(t.text), self.names_index(), span=self.span(i0))
+        if up in _NOARG_FUNCS:
+            return N.Call(up, (), span=self.span(i0))
+        if self.at_op("("):
+            raise _unknown_function(t.text, self.col(t))
+        if t.text.upper() in _RESERVED_WORDS:
+            raise self.error(f"keyword {t.text.upper()} used as a name", t)
+        return N.Name(norm(t.text), span=self.span(i0))
+
+    def lvalue(self) -> N.Expr:
         """A variable, array element or array (``a[]``) that can be assigned."""
         t = self.peek()
         if t is None or t.kind != "name":
-            raise VSyntaxError("expected a variable", t.text if t else "end of line")
+            raise self.error("expected a variable", t)
         e = self.atom()
-        if e[0] not in ("var", "idx", "arr"):
-            raise VSyntaxError("expected a variable", t.text)
+        if not isinstance(e, (N.Name, N.Index, N.Array)):
+            raise self.error("expected a variable", t)
         return e
 
+
+def _shift(p: Parser, i0: int) -> N.Expr:
+    """SHIFT(a BY x, y, z): an omitted component is 0 (SHIFT(a BY , , 10))."""
+    p.take()
+    base = p.expr()
+    p.expect_word("BY")
+    d: list = []
+    while True:
+        d.append(None if p.at_op(",", ")") else p.expr())
+        if not p.at_op(","):
+            break
+        p.take()
+    p.expect_op(")")
+    return N.Shift(base, tuple(d), span=p.span(i0))
+
+
+def _switch_fn(p: Parser, i0: int) -> N.Expr:
+    """SWITCH(name): the argument names a system switch (POWER, DRY.RUN), it is not a variable."""
+    p.take()
+    j = p.i
+    arg = p.take()
+    if arg.kind != "name":
+        raise p.error("SWITCH needs a switch name", arg)
+    name = N.Str(arg.text.upper(), bare=True, span=p.span(j))
+    p.expect_op(")")
+    return N.Call("SWITCH", (name,), span=p.span(i0))
+
+
+# Functions with their own argument syntax.
+_SPECIAL_ATOMS: dict[str, Callable[[Parser, int], N.Expr]] = {"SHIFT": _shift, "SWITCH": _switch_fn}
 
 FUNCTIONS = {
     "$DECODE", "$ENCODE", "$MID", "LEN", "POS", "ASC", "$CHR", "VAL", "$ERROR", "INT", "ABS", "SQRT", "SIN",
@@ -344,413 +406,90 @@ FUNCTIONS = {
     "BMASK",
 }
 _NOARG_FUNCS = {"HERE", "#HERE", "RANDOM", "TASK"}
-
-
-def _is_function(up: str) -> bool:
-    return up in FUNCTIONS
-
-
 _RESERVED_WORDS = {"AND", "OR", "XOR", "NOT", "MOD", "BAND", "BOR", "BXOR", "COM", "THEN", "DO", "TO", "STEP",
                    "OF", "BY", "ALWAYS", "GOTO"}
 
 
-def _check_name(text: str) -> None:
-    if text.upper() in _RESERVED_WORDS:
-        raise VSyntaxError(f"keyword {text.upper()} used as a name", text)
-
-
 # -- statements -----------------------------------------------------------------------------------------------
 
-# Statement tuples: (KIND, ...). Instructions that the emulator does not implement are rejected at load time.
-INSTRUCTIONS = {
-    "IF", "ELSE", "END", "WHILE", "DO", "UNTIL", "FOR", "CASE", "VALUE", "ANY", "GOTO", "CALL", "CALLS", "RETURN",
-    "RETURNE", "EXIT", "NEXT", "WAIT", "WAIT.EVENT", "HALT", "STOP", "PAUSE", "AUTO", "LOCAL", "GLOBAL", "TYPE",
-    "PROMPT", "SIGNAL", "ATTACH", "DETACH", "FOPEN", "FCLOSE", "READ", "WRITE", "EXECUTE", "ABORT", "KILL",
-    "CYCLE.END", "REACTE", "MOVE", "MOVES", "APPRO", "APPROS", "DEPART", "DEPARTS", "BREAK", "BRAKE", "SPEED",
-    "HERE", "DECOMPOSE", "TOOL", "SET", "DELAY", "ENABLE", "DISABLE", "TIMER", "SET.EVENT", "ACCEL", "NULL",
-    # digital I/O and the hand (aioadept.sim.io)
-    "OPEN", "OPENI", "CLOSE", "CLOSEI", "RELAX", "RELAXI", "PARAMETER", "BITS",
-    # motion words of issue 20: minimum motion time, a move with the hand, the configuration of the next motion
-    "DURATION", "MOVET", "MOVEST",
-    "LEFTY", "RIGHTY", "ABOVE", "BELOW", "FLIP", "NOFLIP", "SINGLE", "MULTIPLE",
-    # disk files (aioadept.vplus.disk)
-    "FOPENR", "FOPENW", "FOPENA", "FOPEND", "FDELETE",
-}
-CONFIG_INSTRUCTIONS = ("LEFTY", "RIGHTY", "ABOVE", "BELOW", "FLIP", "NOFLIP", "SINGLE", "MULTIPLE")
-HAND_INSTRUCTIONS = ("OPEN", "OPENI", "CLOSE", "CLOSEI", "RELAX", "RELAXI")
+def parse_statement(text: str, file: str = "", line: int = 0, col0: int = 0) -> N.Stmt:
+    """One source line (comment removed, not empty) to a statement node; raises :class:`VSyntaxError`.
 
-
-def parse_statement(text: str):
-    """One source line (comment removed, not empty) to a statement tuple; raises :class:`VSyntaxError`."""
-    toks = tokenize(text)
-    label = None
+    ``file`` and ``line`` go into the spans; ``col0`` is how many characters of the line precede ``text``.
+    """
+    try:
+        toks = tokenize(text)
+    except VSyntaxError as exc:
+        raise VSyntaxError(exc.message, exc.word, col0 + exc.col) from None
+    p = Parser(toks, file, line, col0)
     if toks and toks[0].kind == "num" and re.fullmatch(r"\d+", toks[0].text):
-        label = _label(toks[0])
-        toks = toks[1:]
-        if not toks:
-            return ("LABEL", label, None)
-    p = Parser(toks)
-    stmt = _statement(p)
+        label = _label(p, p.take())
+        inner = None if p.done() else _statement(p, 1)
+        p.expect_end()
+        return N.Label(label, inner, span=p.span(0))
+    stmt = _statement(p, 0)
     p.expect_end()
-    if label is not None:
-        return ("LABEL", label, stmt)
     return stmt
 
 
 MAX_LABEL = 65535
 
 
-def _label(tok: Tok) -> int:
+def _label(p: Parser, tok: Tok) -> int:
     """A step label: an integer 0 to 65535 (V+ Language User's Guide v17, p. 35, "Program Lines")."""
     if tok.kind != "num" or not re.fullmatch(r"\d+", tok.text):
-        raise VSyntaxError("expected a label number (an integer 0 to 65535)", tok.text)
+        raise p.error("expected a label number (an integer 0 to 65535)", tok)
     n = int(tok.text)
     if n > MAX_LABEL:
-        raise VSyntaxError(f"label {n} is outside 0 to {MAX_LABEL}", tok.text)
+        raise p.error(f"label {n} is outside 0 to {MAX_LABEL}", tok)
     return n
 
 
-def _exprs(p: Parser) -> list:
+def _statement(p: Parser, i0: int) -> N.Stmt:
+    """The statement at token ``i0``: an assignment, or the table's function for its keyword."""
+    t = p.peek()
+    if t is None:
+        return N.Nop(span=p.span(i0))
+    if t.kind != "name":
+        raise p.error(f"unexpected {t.text!r}", t)
+    w = t.text.upper()
+    nxt = p.peek(1)
+    # An assignment: name = ..., name[...] = ... (a name may look like an instruction only if followed by '=')
+    if w != "SET" and nxt is not None and nxt.kind == "op" and nxt.text in ("=", "["):
+        if w not in ("DECOMPOSE", "TIMER") and not (w in STATEMENTS and nxt.text == "["):
+            target = p.lvalue()
+            p.expect_op("=")
+            return N.Assign(target, p.expr(), False, span=p.span(i0))
+    parse = STATEMENTS.get(w)
+    if parse is None:
+        raise _unknown_instruction(t.text, p.col(t))
+    p.take()
+    return replace(parse(p, w), span=p.span(i0))
+
+
+def _exprs(p: Parser) -> tuple:
     out = [p.expr()]
     while p.at_op(","):
         p.take()
         out.append(p.expr())
-    return out
+    return tuple(out)
 
 
-def _outputs(p: Parser) -> list:
+def _outputs(p: Parser) -> tuple:
     """Output items of TYPE/WRITE/FOPEN/PROMPT: expressions and /formats, comma-separated."""
     out: list = []
     if p.done():
-        return out
+        return ()
     while True:
-        if p.at_op("/"):
-            out.append(p.fmt())
-        else:
-            out.append(p.expr())
+        out.append(p.output_item())
         if p.at_op(","):
             p.take()
             continue
-        return out
+        return tuple(out)
 
 
-def _paren_list(p: Parser) -> list:
-    """``(a, b, c)`` of expressions or empty slots (ATTACH (), READ (lun, , 0))."""
-    p.expect_op("(")
-    out: list = []
-    if p.at_op(")"):
-        p.take()
-        return out
-    while True:
-        if p.at_op(",", ")"):
-            out.append(None)
-        else:
-            out.append(p.expr())
-        if p.at_op(","):
-            p.take()
-            continue
-        p.expect_op(")")
-        return out
-
-
-def _call_target(p: Parser):
-    t = p.take()
-    if t.kind != "name":
-        raise VSyntaxError("expected a program name", t.text)
-    args: list = []
-    if p.at_op("("):
-        args = _call_args(p)
-    return norm(t.text), args
-
-
-def _call_args(p: Parser) -> list:
-    """The argument list of CALL/CALLS: as :meth:`Parser.args`, but a variable in parentheses, ``(x)``, is kept
-    as ``("paren", e)``: V+ passes it by value (V+ Language User's Guide v17, p. 44, "Call by Value")."""
-    start = p.i
-    out = p.args()
-    # mark arguments that are exactly '(' variable ')'; the token positions tell where each argument was
-    depth, arg_no, toks, j = 0, 0, p.t, start + 1
-    first = j
-    marks = set()
-    while j < p.i - 1:
-        tk = toks[j]
-        if tk.kind == "op" and tk.text in "([":
-            depth += 1
-        elif tk.kind == "op" and tk.text in ")]":
-            depth -= 1
-        elif tk.kind == "op" and tk.text == "," and depth == 0:
-            if _parenthesised(toks, first, j):
-                marks.add(arg_no)
-            arg_no, first = arg_no + 1, j + 1
-        j += 1
-    if _parenthesised(toks, first, p.i - 1):
-        marks.add(arg_no)
-    return [("paren", a) if k in marks and a is not None and a[0] in ("var", "idx") else a
-            for k, a in enumerate(out)]
-
-
-def _parenthesised(toks: list[Tok], a: int, b: int) -> bool:
-    """Tokens a..b-1 are one parenthesised group: '(' ... ')' with the first '(' closed by the last ')'."""
-    if b - a < 3 or toks[a].text != "(" or toks[b - 1].text != ")" or toks[a].kind != "op":
-        return False
-    depth = 0
-    for j in range(a, b):
-        if toks[j].kind == "op" and toks[j].text == "(":
-            depth += 1
-        elif toks[j].kind == "op" and toks[j].text == ")":
-            depth -= 1
-            if depth == 0 and j != b - 1:
-                return False
-    return True
-
-
-def _statement(p: Parser):
-    t = p.peek()
-    if t is None:
-        return ("NOP",)
-    if t.kind != "name":
-        raise VSyntaxError(f"unexpected {t.text!r}", t.text)
-    w = t.text.upper()
-    nxt = p.peek(1)
-    # An assignment: name = ..., name[...] = ... (a name may look like an instruction only if followed by '=')
-    if w not in ("SET",) and nxt is not None and nxt.kind == "op" and nxt.text in ("=", "["):
-        if w not in ("DECOMPOSE", "TIMER") and not (w in INSTRUCTIONS and nxt.text == "["):
-            target = p.lvalue()
-            p.expect_op("=")
-            return ("ASSIGN", target, p.expr(), False)
-    if w not in INSTRUCTIONS:
-        raise _unknown_instruction(t.text)
-    p.take()
-    if w == "SET":
-        target = p.lvalue()
-        p.expect_op("=")
-        return ("ASSIGN", target, p.expr(), True)
-    if w == "IF":
-        cond = p.expr()
-        if p.at_word("THEN"):
-            p.take()
-            return ("IF", cond)
-        if p.at_word("GOTO"):
-            p.take()
-            return ("IFGOTO", cond, _label(p.take()))
-        t2 = p.peek()
-        raise VSyntaxError("IF without THEN", t2.text if t2 else "end of line")
-    if w in ("ELSE", "END", "DO", "ANY", "RETURN", "RETURNE", "HALT", "STOP", "PAUSE", "BREAK", "BRAKE", "NULL"):
-        if w == "ANY" and p.at_op(":"):
-            p.take()
-        return (w,)
-    if w == "WHILE":
-        cond = p.expr()
-        p.expect_word("DO")
-        return ("WHILE", cond)
-    if w == "UNTIL":
-        return ("UNTIL", p.expr())
-    if w == "FOR":
-        var = p.lvalue()
-        p.expect_op("=")
-        start = p.expr()
-        p.expect_word("TO")
-        end = p.expr()
-        step = None
-        if p.at_word("STEP"):
-            p.take()
-            step = p.expr()
-        return ("FOR", var, start, end, step)
-    if w == "CASE":
-        e = p.expr()
-        p.expect_word("OF")
-        return ("CASE", e)
-    if w == "VALUE":
-        p.no_colon = True
-        vals = [p.expr()]
-        while p.at_op(","):
-            p.take()
-            vals.append(p.expr())
-        p.expect_op(":")
-        return ("VALUE", vals)
-    if w == "GOTO":
-        return ("GOTO", _label(p.take()))
-    if w == "CALL":
-        name, args = _call_target(p)
-        return ("CALL", name, args)
-    if w == "CALLS":
-        t2 = p.take()
-        if t2.kind == "str":
-            e = ("str", t2.value)
-        elif t2.kind == "name" and t2.text.startswith("$"):
-            e = ("var", norm(t2.text))
-            if p.at_op("["):
-                p.take()
-                idx = [p.expr()]
-                while p.at_op(","):
-                    p.take()
-                    idx.append(p.expr())
-                p.expect_op("]")
-                e = ("idx", e[1], idx)
-        else:
-            raise VSyntaxError("CALLS needs a string variable", t2.text)
-        args = _call_args(p) if p.at_op("(") else []
-        return ("CALLS", e, args)
-    if w in ("EXIT", "NEXT"):
-        n = 1
-        if not p.done():
-            n = int(p.take().value or 1)
-        return (w, n)
-    if w == "WAIT":
-        return ("WAIT", None if p.done() else p.expr())
-    if w == "WAIT.EVENT":
-        items = [] if p.done() else _outputs_or_empty(p)
-        return ("WAIT.EVENT", items)
-    if w == "SET.EVENT":
-        return ("SET.EVENT", [] if p.done() else _outputs_or_empty(p))
-    if w in ("AUTO", "LOCAL", "GLOBAL"):
-        return (w, _declarations(p))
-    if w == "TYPE":
-        return ("TYPE", _outputs(p))
-    if w == "PROMPT":
-        items = _outputs(p)
-        return ("PROMPT", items)
-    if w == "SIGNAL":
-        return ("SIGNAL", _exprs(p))
-    if w in ("ATTACH", "DETACH", "FCLOSE"):
-        args = _paren_list(p) if p.at_op("(") else []
-        rest = _outputs(p)
-        return (w, args, rest)
-    if w == "FOPEN":
-        args = _paren_list(p)
-        return ("FOPEN", args, _outputs(p))
-    if w == "READ":
-        args = _paren_list(p)
-        targets = []
-        if not p.done():
-            targets.append(p.lvalue())
-            while p.at_op(","):
-                p.take()
-                targets.append(p.lvalue())
-        return ("READ", args, targets)
-    if w == "WRITE":
-        args = _paren_list(p)
-        return ("WRITE", args, _outputs(p))
-    if w == "EXECUTE":
-        task = None
-        if p.at_op("/"):
-            p.fmt()          # /C etc.: accepted, no effect
-        if p.peek() is not None and p.peek().kind == "num":
-            task = ("num", p.take().value)
-        if p.at_op(","):
-            p.take()
-        name, args = _call_target(p)
-        extra = []
-        while p.at_op(","):
-            p.take()
-            extra.append(None if p.at_op(",") or p.done() else p.expr())
-        return ("EXECUTE", task, name, args, extra)
-    if w in ("ABORT", "KILL", "CYCLE.END"):
-        return (w, [] if p.done() else _exprs(p))
-    if w == "REACTE":
-        t2 = p.take()
-        return ("REACTE", norm(t2.text))
-    if w in ("MOVE", "MOVES", "TOOL", "DEPART", "DEPARTS", "DELAY"):
-        return (w, p.expr())
-    if w in ("APPRO", "APPROS"):
-        loc = p.expr()
-        p.expect_op(",")
-        return (w, loc, p.expr())
-    if w in ("MOVET", "MOVEST"):
-        loc = p.expr()
-        p.expect_op(",")
-        return (w, loc, p.expr())
-    if w == "DURATION":
-        e = p.expr()
-        always = p.at_word("ALWAYS")
-        if always:
-            p.take()
-        return ("DURATION", e, always)
-    if w in CONFIG_INSTRUCTIONS:
-        return ("CONFIG", w)
-    if w in ("FOPENR", "FOPENW", "FOPENA", "FOPEND", "FDELETE"):
-        args = _paren_list(p)
-        return ("DISKOPEN", w, args, _outputs(p))
-    if w == "SPEED":
-        e = p.expr()
-        mode = None
-        if p.at_op(","):
-            p.take()
-            p.expr()        # rotational speed: accepted, the model has one speed
-        if p.at_word("ALWAYS", "MONITOR"):
-            mode = p.take().text.upper()
-        return ("SPEED", e, mode)
-    if w == "ACCEL":
-        e = _exprs(p)
-        if p.at_word("ALWAYS"):
-            p.take()
-        return ("ACCEL", e)
-    if w == "HERE":
-        return ("HERE", p.lvalue())
-    if w == "DECOMPOSE":
-        target = p.lvalue()
-        p.expect_op("=")
-        return ("DECOMPOSE", target, p.expr())
-    if w in ("ENABLE", "DISABLE"):
-        names = []
-        while not p.done():
-            names.append(p.take().text.upper())
-            if p.at_op(","):
-                p.take()
-        return (w, names)
-    if w in HAND_INSTRUCTIONS:
-        # An optional hand number (or a servo hand's opening): accepted, the model has one pneumatic hand.
-        return ("HAND", w, None if p.done() else p.expr())
-    if w == "PARAMETER":
-        name = p.take()
-        if name.kind != "name":
-            raise VSyntaxError("expected a parameter name", name.text)
-        p.expect_op("=")
-        return ("PARAMETER", name.text.upper(), p.expr())
-    if w == "BITS":
-        p.eq_ends = True
-        first = p.expr()
-        count = None
-        if p.at_op(","):
-            p.take()
-            count = p.expr()
-        p.expect_op("=")
-        p.eq_ends = False
-        return ("BITS", first, count, p.expr())
-    if w == "TIMER":
-        # TIMER timer_number = time_value: the '=' ends the number's expression (as in BITS)
-        p.eq_ends = True
-        n = p.expr()
-        p.eq_ends = False
-        p.expect_op("=")
-        return ("TIMERSET", n, p.expr())
-    raise VSyntaxError(f"instruction {w} is not implemented by the emulator", t.text)  # pragma: no cover
-
-
-def _unknown_instruction(word: str) -> VSyntaxError:
-    """The error for a statement's first word that the emulator does not know: a typo, or a V+ gap (named)."""
-    up = word.upper()
-    if up in keywords.INSTRUCTIONS:
-        return VSyntaxError(f"V+ instruction {up} is not implemented by the emulator "
-                            f"(see {keywords.where(up)})", word)
-    if up in keywords.MONITOR_COMMANDS:
-        return VSyntaxError(f"{up} is a V+ monitor command, not a program instruction "
-                            f"(see {keywords.where(up)})", word)
-    if keywords.is_keyword(up) or up in FUNCTIONS:
-        return VSyntaxError(f"syntax error: {up} is a V+ keyword but not an instruction", word)
-    return VSyntaxError(f"syntax error: {word} is not a V+ keyword", word)
-
-
-def _unknown_function(word: str) -> VSyntaxError:
-    """The error for ``name(`` in an expression where ``name`` is no function the emulator implements."""
-    up = word.upper()
-    if up in keywords.FUNCTIONS:
-        return VSyntaxError(f"V+ function {up} is not implemented by the emulator "
-                            f"(see {keywords.where(up, as_function=True)})", word)
-    return VSyntaxError(f"syntax error: {word} is not a V+ function", word)
-
-
-def _outputs_or_empty(p: Parser) -> list:
+def _outputs_or_empty(p: Parser) -> tuple:
+    """Expressions where a missing one is ``None`` (WAIT.EVENT , 1)."""
     out: list = []
     while not p.done():
         if p.at_op(","):
@@ -760,35 +499,375 @@ def _outputs_or_empty(p: Parser) -> list:
         out.append(p.expr())
         if p.at_op(","):
             p.take()
-    return out
+    return tuple(out)
 
 
-def _declarations(p: Parser) -> list[tuple[str, str, bool]]:
-    """AUTO/LOCAL/GLOBAL lists: [(name, type, is_array)], type 'REAL', 'DOUBLE', 'LOC', 'PPOINT', 'STRING'."""
-    out = []
+def _call_args(p: Parser) -> tuple:
+    """The argument list of CALL/CALLS: as :meth:`Parser.slots`, but a variable in parentheses, ``(x)``, is
+    :class:`~aioadept.vplus.nodes.Paren`: V+ passes it by value (V+ Language User's Guide v17, p. 44, "Call by
+    Value")."""
+    return tuple(N.Paren(a, span=a.span) if isinstance(a, (N.Name, N.Index)) and a.parens else a
+                 for a in p.slots())
+
+
+def _program_name(p: Parser) -> str:
+    t = p.take()
+    if t.kind != "name":
+        raise p.error("expected a program name", t)
+    return norm(t.text)
+
+
+# One function per statement keyword: (parser after the keyword, the keyword) -> node without its span.
+
+def _set(p: Parser, w: str) -> N.Stmt:
+    target = p.lvalue()
+    p.expect_op("=")
+    return N.Assign(target, p.expr(), True)
+
+
+def _if(p: Parser, w: str) -> N.Stmt:
+    cond = p.expr()
+    if p.at_word("THEN"):
+        p.take()
+        return N.If(cond)
+    if p.at_word("GOTO"):
+        p.take()
+        return N.IfGoto(cond, _label(p, p.take()))
+    raise p.error("IF without THEN", p.peek())
+
+
+def _word(p: Parser, w: str) -> N.Stmt:
+    colon = w == "ANY" and p.at_op(":")
+    if colon:
+        p.take()
+    return N.Word(w, colon)
+
+
+def _while(p: Parser, w: str) -> N.Stmt:
+    cond = p.expr()
+    p.expect_word("DO")
+    return N.While(cond)
+
+
+def _until(p: Parser, w: str) -> N.Stmt:
+    return N.Until(p.expr())
+
+
+def _for(p: Parser, w: str) -> N.Stmt:
+    var = p.lvalue()
+    p.expect_op("=")
+    start = p.expr()
+    p.expect_word("TO")
+    stop = p.expr()
+    step = None
+    if p.at_word("STEP"):
+        p.take()
+        step = p.expr()
+    return N.For(var, start, stop, step)
+
+
+def _case(p: Parser, w: str) -> N.Stmt:
+    e = p.expr()
+    p.expect_word("OF")
+    return N.Case(e)
+
+
+def _value(p: Parser, w: str) -> N.Stmt:
+    p.no_colon = True
+    vals = _exprs(p)
+    p.expect_op(":")
+    return N.Value(vals)
+
+
+def _goto(p: Parser, w: str) -> N.Stmt:
+    return N.Goto(_label(p, p.take()))
+
+
+def _call(p: Parser, w: str) -> N.Stmt:
+    name = _program_name(p)
+    parens = p.at_op("(")
+    return N.CallStmt(name, _call_args(p) if parens else (), parens)
+
+
+def _calls(p: Parser, w: str) -> N.Stmt:
+    i0 = p.i
+    t = p.take()
+    if t.kind == "str":
+        e: N.Expr = N.Str(t.value, span=p.span(i0))
+    elif t.kind == "name" and t.text.startswith("$"):
+        e = N.Name(norm(t.text), span=p.span(i0))
+        if p.at_op("["):
+            p.take()
+            e = N.Index(e.name, p.names_index(), span=p.span(i0))
+    else:
+        raise p.error("CALLS needs a string variable", t)
+    parens = p.at_op("(")
+    return N.Calls(e, _call_args(p) if parens else (), parens)
+
+
+def _loop_jump(p: Parser, w: str) -> N.Stmt:
+    return N.LoopJump(w, 1 if p.done() else int(p.take().value or 1))
+
+
+def _wait(p: Parser, w: str) -> N.Stmt:
+    return N.Wait(None if p.done() else p.expr())
+
+
+def _event(p: Parser, w: str) -> N.Stmt:
+    return N.Event(() if p.done() else _outputs_or_empty(p), w)
+
+
+def _declare(p: Parser, w: str) -> N.Stmt:
+    """AUTO/LOCAL/GLOBAL lists: (name, type, is_array), type 'REAL', 'DOUBLE', 'LOC', 'PPOINT', 'STRING'."""
+    out, texts = [], []
     typ = "REAL"
     while not p.done():
         t = p.take()
         if t.kind != "name":
-            raise VSyntaxError("expected a variable name", t.text)
+            raise p.error("expected a variable name", t)
         up = t.text.upper()
+        texts.append(t.text)
         if up in ("REAL", "DOUBLE", "LOC", "PRECISION"):
             typ = up
             continue
         name = norm(t.text)
-        is_arr = False
-        if p.at_op("["):
-            p.take()
-            depth = 1
-            while depth:
-                x = p.take()
-                if x.kind == "op" and x.text == "[":
-                    depth += 1
-                elif x.kind == "op" and x.text == "]":
-                    depth -= 1
-            is_arr = True
+        is_arr = p.at_op("[")
+        if is_arr:
+            texts[-1] += _skip_dimensions(p)
         kind = "STRING" if name.startswith("$") else ("PPOINT" if name.startswith("#") else typ)
         out.append((name, kind, is_arr))
         if p.at_op(","):
             p.take()     # the type applies to every name after it (AUTO DOUBLE a, b)
-    return out
+    return N.Declare(w, tuple(out), tuple(texts))
+
+
+def _skip_dimensions(p: Parser) -> str:
+    """``[...]`` after a declared name (the dimensions: not used), as written."""
+    text = p.take().text
+    depth = 1
+    while depth:
+        x = p.take()
+        text += x.text
+        if x.kind == "op" and x.text == "[":
+            depth += 1
+        elif x.kind == "op" and x.text == "]":
+            depth -= 1
+    return text
+
+
+def _type(p: Parser, w: str) -> N.Stmt:
+    return N.Type(_outputs(p))
+
+
+def _prompt(p: Parser, w: str) -> N.Stmt:
+    return N.Prompt(_outputs(p))
+
+
+def _signal(p: Parser, w: str) -> N.Stmt:
+    return N.Signal(_exprs(p))
+
+
+def _attach(p: Parser, w: str) -> N.Stmt:
+    parens = p.at_op("(")
+    args = p.slots() if parens else ()
+    return N.IoStmt(w, args, _outputs(p), parens)
+
+
+def _fopen(p: Parser, w: str) -> N.Stmt:
+    args = p.slots()
+    return N.IoStmt(w, args, _outputs(p))
+
+
+def _read(p: Parser, w: str) -> N.Stmt:
+    args = p.slots()
+    targets = []
+    if not p.done():
+        targets.append(p.lvalue())
+        while p.at_op(","):
+            p.take()
+            targets.append(p.lvalue())
+    return N.Read(args, tuple(targets))
+
+
+def _write(p: Parser, w: str) -> N.Stmt:
+    args = p.slots()
+    return N.Write(args, _outputs(p))
+
+
+def _execute(p: Parser, w: str) -> N.Stmt:
+    task, switch = None, None
+    if p.at_op("/"):
+        switch = p.fmt().spec          # /C etc.: accepted, no effect
+    if p.peek() is not None and p.peek().kind == "num":
+        i0 = p.i
+        t = p.take()
+        task = N.Num(t.value, text=t.text, span=p.span(i0))
+    comma = p.at_op(",")
+    if comma:
+        p.take()
+    name = _program_name(p)
+    parens = p.at_op("(")
+    args = _call_args(p) if parens else ()
+    extra = []
+    while p.at_op(","):
+        p.take()
+        extra.append(None if p.at_op(",") or p.done() else p.expr())
+    return N.Execute(task, name, args, tuple(extra), switch, comma, parens)
+
+
+def _task_control(p: Parser, w: str) -> N.Stmt:
+    return N.TaskControl(() if p.done() else _exprs(p), w)
+
+
+def _reacte(p: Parser, w: str) -> N.Stmt:
+    return N.Reacte(norm(p.take().text))
+
+
+def _robot1(p: Parser, w: str) -> N.Stmt:
+    return N.Robot(w, p.expr())
+
+
+def _robot2(p: Parser, w: str) -> N.Stmt:
+    loc = p.expr()
+    p.expect_op(",")
+    return N.Robot(w, loc, p.expr())
+
+
+def _duration(p: Parser, w: str) -> N.Stmt:
+    e = p.expr()
+    always = p.at_word("ALWAYS")
+    if always:
+        p.take()
+    return N.Duration(e, always)
+
+
+def _config(p: Parser, w: str) -> N.Stmt:
+    return N.Config(w)
+
+
+def _disk_open(p: Parser, w: str) -> N.Stmt:
+    args = p.slots()
+    return N.DiskOpen(w, args, _outputs(p))
+
+
+def _speed(p: Parser, w: str) -> N.Stmt:
+    e = p.expr()
+    mode, rot = None, None
+    if p.at_op(","):
+        p.take()
+        rot = p.expr()        # rotational speed: accepted, the model has one speed
+    if p.at_word("ALWAYS", "MONITOR"):
+        mode = p.take().text.upper()
+    return N.Speed(e, mode, rot)
+
+
+def _accel(p: Parser, w: str) -> N.Stmt:
+    e = _exprs(p)
+    always = p.at_word("ALWAYS")
+    if always:
+        p.take()
+    return N.Accel(e, always)
+
+
+def _here(p: Parser, w: str) -> N.Stmt:
+    return N.Here(p.lvalue())
+
+
+def _decompose(p: Parser, w: str) -> N.Stmt:
+    target = p.lvalue()
+    p.expect_op("=")
+    return N.Decompose(target, p.expr())
+
+
+def _switch(p: Parser, w: str) -> N.Stmt:
+    names = []
+    while not p.done():
+        names.append(p.take().text.upper())
+        if p.at_op(","):
+            p.take()
+    return N.Switch(w, tuple(names))
+
+
+def _hand(p: Parser, w: str) -> N.Stmt:
+    # An optional hand number (or a servo hand's opening): accepted, the model has one pneumatic hand.
+    return N.Hand(w, None if p.done() else p.expr())
+
+
+def _parameter(p: Parser, w: str) -> N.Stmt:
+    name = p.take()
+    if name.kind != "name":
+        raise p.error("expected a parameter name", name)
+    p.expect_op("=")
+    return N.Parameter(name.text.upper(), p.expr())
+
+
+def _bits(p: Parser, w: str) -> N.Stmt:
+    p.eq_ends = True
+    first = p.expr()
+    count = None
+    if p.at_op(","):
+        p.take()
+        count = p.expr()
+    p.expect_op("=")
+    p.eq_ends = False
+    return N.Bits(first, count, p.expr())
+
+
+def _timer(p: Parser, w: str) -> N.Stmt:
+    # TIMER timer_number = time_value: the '=' ends the number's expression (as in BITS)
+    p.eq_ends = True
+    n = p.expr()
+    p.eq_ends = False
+    p.expect_op("=")
+    return N.TimerSet(n, p.expr())
+
+
+CONFIG_INSTRUCTIONS = ("LEFTY", "RIGHTY", "ABOVE", "BELOW", "FLIP", "NOFLIP", "SINGLE", "MULTIPLE")
+HAND_INSTRUCTIONS = ("OPEN", "OPENI", "CLOSE", "CLOSEI", "RELAX", "RELAXI")
+
+
+def _table(*groups: tuple[str, Callable[[Parser, str], N.Stmt]]) -> dict[str, Callable[[Parser, str], N.Stmt]]:
+    return {w: fn for words, fn in groups for w in words.split()}
+
+
+STATEMENTS = _table(
+    ("SET", _set), ("IF", _if), ("WHILE", _while), ("UNTIL", _until), ("FOR", _for), ("CASE", _case),
+    ("ELSE END DO ANY RETURN RETURNE HALT STOP PAUSE BREAK BRAKE NULL", _word),
+    ("VALUE", _value), ("GOTO", _goto), ("CALL", _call), ("CALLS", _calls), ("EXIT NEXT", _loop_jump),
+    ("WAIT", _wait), ("WAIT.EVENT SET.EVENT", _event), ("AUTO LOCAL GLOBAL", _declare),
+    ("TYPE", _type), ("PROMPT", _prompt), ("SIGNAL", _signal), ("ATTACH DETACH FCLOSE", _attach),
+    ("FOPEN", _fopen), ("READ", _read), ("WRITE", _write), ("EXECUTE", _execute),
+    ("ABORT KILL CYCLE.END", _task_control), ("REACTE", _reacte),
+    ("MOVE MOVES TOOL DEPART DEPARTS DELAY", _robot1), ("APPRO APPROS MOVET MOVEST", _robot2),
+    ("DURATION", _duration), (" ".join(CONFIG_INSTRUCTIONS), _config),
+    ("FOPENR FOPENW FOPENA FOPEND FDELETE", _disk_open), ("SPEED", _speed), ("ACCEL", _accel),
+    ("HERE", _here), ("DECOMPOSE", _decompose), ("ENABLE DISABLE", _switch),
+    (" ".join(HAND_INSTRUCTIONS), _hand), ("PARAMETER", _parameter), ("BITS", _bits), ("TIMER", _timer),
+)
+"""The statement parsers by leading keyword (disk files: aioadept.vplus.disk; digital I/O and the hand:
+aioadept.sim.io). A keyword missing here is reported by :func:`_unknown_instruction`."""
+
+INSTRUCTIONS = frozenset(STATEMENTS)
+
+
+def _unknown_instruction(word: str, col: int = 0) -> VSyntaxError:
+    """The error for a statement's first word that the emulator does not know: a typo, or a V+ gap (named)."""
+    up = word.upper()
+    if up in keywords.INSTRUCTIONS:
+        return VSyntaxError(f"V+ instruction {up} is not implemented by the emulator "
+                            f"(see {keywords.where(up)})", word, col)
+    if up in keywords.MONITOR_COMMANDS:
+        return VSyntaxError(f"{up} is a V+ monitor command, not a program instruction "
+                            f"(see {keywords.where(up)})", word, col)
+    if keywords.is_keyword(up) or up in FUNCTIONS:
+        return VSyntaxError(f"syntax error: {up} is a V+ keyword but not an instruction", word, col)
+    return VSyntaxError(f"syntax error: {word} is not a V+ keyword", word, col)
+
+
+def _unknown_function(word: str, col: int = 0) -> VSyntaxError:
+    """The error for ``name(`` in an expression where ``name`` is no function the emulator implements."""
+    up = word.upper()
+    if up in keywords.FUNCTIONS:
+        return VSyntaxError(f"V+ function {up} is not implemented by the emulator "
+                            f"(see {keywords.where(up, as_function=True)})", word, col)
+    return VSyntaxError(f"syntax error: {word} is not a V+ function", word, col)
