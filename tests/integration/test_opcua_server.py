@@ -264,7 +264,7 @@ async def test_every_instantiated_node_has_every_mandatory_child_its_type_declar
 
 
 @pytest.mark.parametrize("endpoint, says", [
-    ("opc.tcp://0.0.0.0:4840", "0.0.0.0 is not loopback, and this server has no security"),
+    ("opc.tcp://0.0.0.0:4840", "0.0.0.0 is not loopback, and nothing authenticates who connects there"),
     ("opc.tcp://192.0.2.7:4840", "192.0.2.7 is not loopback"),
     ("http://127.0.0.1:4840", "expected opc.tcp://HOST:PORT"),
     ("opc.tcp://127.0.0.1", "expected opc.tcp://HOST:PORT"),

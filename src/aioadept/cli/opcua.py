@@ -6,8 +6,9 @@ asks the robot server at ``--robot`` for ``hello`` and ``status`` (docs/protocol
 server at ``--endpoint``: each axis's ActualPosition and ActualSpeed (degrees, degrees per second) with the robot's
 time as source timestamp, the E-stop, the server's name and version. What V+ does not say (the operating mode, a
 protective stop, serial numbers nobody gave) is left Bad, never made up; a stream that stalls turns the live values
-Uncertain within a second, and they are Good again when it comes back. Read-only. No security yet: it binds only
-to loopback unless ``--insecure`` says otherwise. Prints ``READY opcua=ENDPOINT state=ENDPOINT robot=HOST:PORT``
+Uncertain within a second, and they are Good again when it comes back. Read-only unless ``--allow-commands``
+(Stop and RunSkill, for the users of ``--users`` only). No security policy yet: it binds only to loopback unless
+``--insecure`` says otherwise. Prints ``READY opcua=ENDPOINT state=ENDPOINT robot=HOST:PORT``
 once it serves; runs until SIGINT/SIGTERM. docs/opcua.md.
 """
 
@@ -15,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import ipaddress
 import logging
 import signal
 import sys
@@ -23,7 +23,7 @@ import time
 from urllib.parse import urlsplit
 
 from aioadept import defaults
-from aioadept.cli.options import ArgumentParser, DefaultsHelpFormatter, description
+from aioadept.cli.options import ArgumentParser, DefaultsHelpFormatter, add_insecure_option, description
 
 DEFAULT_ENDPOINT = "opc.tcp://127.0.0.1:4840"
 STATUS_PERIOD_S = 0.5
@@ -41,9 +41,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the robot.state stream to follow (a ZeroMQ endpoint, as aioadept sim --state-endpoint)")
     p.add_argument("--endpoint", default=DEFAULT_ENDPOINT,
                    help="the OPC UA endpoint to serve, opc.tcp://HOST:PORT")
-    p.add_argument("--insecure", action="store_true",
-                   help="serve on an address other than loopback although the server has no security (every "
-                        "client on that network reads the cell)")
+    add_insecure_option(p)
+    p.add_argument("--allow-commands", action="store_true", dest="allow_commands",
+                   help="give each robot the methods Stop() and RunSkill(Skill, Arguments) (vendor namespace "
+                        "urn:aioadept:opcua:commands), callable by the users of --users only; without it the server "
+                        "is read-only")
+    p.add_argument("--users", metavar="FILE",
+                   help="with --allow-commands: NAME:PASSWORD lines, the users who may call the methods (the file "
+                        "must be readable by its owner only)")
     p.add_argument("--name", default=ident.name, help="the robot's MotionDevice browse name")
     p.add_argument("--manufacturer", default=ident.manufacturer, help="the robot's manufacturer")
     p.add_argument("--model", default=ident.model, help="the robot's model")
@@ -58,8 +63,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def check_endpoint(endpoint: str, insecure: bool) -> str:
-    """``endpoint`` if it is ``opc.tcp://HOST:PORT`` and HOST is loopback (or ``insecure``); ValueError naming it
-    otherwise."""
+    """``endpoint`` if it is ``opc.tcp://HOST:PORT``; ValueError naming it otherwise. Beyond loopback it is refused
+    unless ``insecure`` (the server has no security policy: nothing authenticates a reader, and a password crosses in
+    clear text), as every listener of the project (:func:`aioadept.cli.options.check_listeners`)."""
+    from aioadept.cli.options import Listener, check_listeners
+
     parts = urlsplit(endpoint)
     try:
         port = parts.port
@@ -67,20 +75,9 @@ def check_endpoint(endpoint: str, insecure: bool) -> str:
         port = None
     if parts.scheme != "opc.tcp" or not parts.hostname or port is None:
         raise ValueError(f"--endpoint {endpoint!r}: expected opc.tcp://HOST:PORT")
-    if not insecure and not _loopback(parts.hostname):
-        raise ValueError(f"--endpoint {endpoint!r}: {parts.hostname} is not loopback, and this server has no "
-                         f"security: every client on that network would read the cell. Bind 127.0.0.1, or say "
-                         f"--insecure")
+    check_listeners("aioadept opcua", [Listener("--endpoint", endpoint, risk="read the cell, and see in clear text "
+                                                "the password of a user who commands it")], insecure)
     return endpoint
-
-
-def _loopback(host: str) -> bool:
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
 
 
 async def follow_state(endpoint: str, view, cell) -> None:
@@ -134,7 +131,9 @@ async def poll_robot(host: str, port: int, view, cell) -> None:
             await asyncio.sleep(1.0)
 
 
-async def run(args: argparse.Namespace, host: str, port: int) -> int:
+async def run(args: argparse.Namespace, host: str, port: int, users: dict[str, str] | None) -> int:
+    from aioadept.errors import AdeptError
+    from aioadept.opcua.commands import RobotCommands
     from aioadept.opcua.mapping import Identity, RobotView
     from aioadept.opcua.server import CellServer
 
@@ -145,10 +144,16 @@ async def run(args: argparse.Namespace, host: str, port: int) -> int:
     identity = Identity(name=args.name, manufacturer=args.manufacturer, model=args.model,
                         serial_number=args.serial_number, controller_model=args.controller_model)
     view = RobotView(identity, stale_after_s=args.stale_after)
-    cell = CellServer(args.endpoint, [view])
+    commands = [RobotCommands(host, port)] if users else None
+    cell = CellServer(args.endpoint, [view], commands=commands, users=users)
     tasks: list[asyncio.Task] = []
     try:
         await cell.start()
+        for c in commands or ():
+            try:
+                await c.connect()
+            except (AdeptError, OSError) as exc:  # the methods connect when called; said here once
+                logging.getLogger("aioadept.opcua").warning("commands: robot server not reachable yet: %s", exc)
         tasks = [asyncio.create_task(follow_state(args.state_endpoint, view, cell), name="opcua-state"),
                  asyncio.create_task(watch(cell), name="opcua-watch"),
                  asyncio.create_task(poll_robot(host, port, view, cell), name="opcua-robot")]
@@ -164,17 +169,18 @@ async def run(args: argparse.Namespace, host: str, port: int) -> int:
             t.cancel()
         await asyncio.gather(*tasks, return_exceptions=True)
         await cell.stop()
+        for c in commands or ():
+            await c.close()
         for sig in (signal.SIGINT, signal.SIGTERM):
             loop.remove_signal_handler(sig)
     return 0
 
 
 def main(argv: list[str] | None = None) -> int:
-    from aioadept.cli.options import parse_robot_address, report, run_node
+    from aioadept.cli.options import parse_robot_address, report, run_node, setup_logging
 
     args = build_parser().parse_args(argv)
-    logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
-                        format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    setup_logging(args.log_level)
     # asyncua says much about the nodesets it imports, and logs a failed bind with its traceback before raising
     # it (said here in one line): its own log only with --log-level DEBUG.
     debug = logging.getLogger().level <= logging.DEBUG
@@ -184,9 +190,17 @@ def main(argv: list[str] | None = None) -> int:
         check_endpoint(args.endpoint, args.insecure)
         if not args.stale_after > 0:
             raise ValueError(f"--stale-after {args.stale_after!r}: expected seconds > 0")
-    except ValueError as exc:   # one line naming the option, no usage block
+        if args.allow_commands != bool(args.users):
+            raise ValueError("--allow-commands needs --users FILE (who may command), and --users is only for "
+                             "--allow-commands")
+        users = None
+        if args.allow_commands:
+            from aioadept.opcua.commands import read_users
+
+            users = read_users(args.users)
+    except (ValueError, OSError) as exc:   # one line naming the option or the file, no usage block
         return report("aioadept opcua", exc)
-    return run_node("aioadept opcua", run(args, host, port))
+    return run_node("aioadept opcua", run(args, host, port, users))
 
 
 if __name__ == "__main__":  # pragma: no cover

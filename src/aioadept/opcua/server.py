@@ -32,6 +32,7 @@ from typing import Any
 from asyncua import Node, Server, ua
 from asyncua.common.instantiate_util import instantiate
 
+from aioadept.opcua.commands import VENDOR_NS
 from aioadept.opcua.mapping import (DEGREE, DEGREE_CELSIUS, DEGREE_PER_SECOND, DI_NS, INSTANCE_NS, NODESETS, ROBOTICS_NS,
                                     AxisMotionProfile, EngineeringUnit, Identity, Quality, Reading, RobotView)
 
@@ -87,13 +88,20 @@ class CellServer:
     :attr:`views`) as MotionDevices of one MotionDeviceSystem. :meth:`start` builds and opens it at ``endpoint``;
     :meth:`refresh` writes what changed in the views since the last call; :meth:`stop` closes it."""
 
-    def __init__(self, endpoint: str, views: Sequence[RobotView]) -> None:
+    def __init__(self, endpoint: str, views: Sequence[RobotView], *, commands: Sequence[Any] | None = None,
+                 users: dict[str, str] | None = None) -> None:
         names = [v.identity.name for v in views]
         if not names or len(set(names)) != len(names):
             raise ValueError(f"robots {names}: expected at least one, each with its own name")
+        if commands is not None and (len(commands) != len(views) or not users):
+            raise ValueError("commands need one RobotCommands per robot and at least one user")
         self.endpoint = endpoint
         self.views = list(views)
-        self.server = Server()
+        self.commands = None if commands is None else list(commands)
+        self.server = Server(user_manager=_Users(users or {}))
+        # Anonymous sessions read and browse; only a user of the users file may call a method.
+        self.server.set_security_policy([ua.SecurityPolicyType.NoSecurity], permission_ruleset=_Roles())
+        _refuse_writes_as_not_writable(self.server)
         self.system: Node | None = None
         self._vars: list[dict[tuple, Node]] = []
         self._written: dict[ua.NodeId, tuple] = {}
@@ -107,11 +115,13 @@ class CellServer:
         await s.init()
         s.set_endpoint(self.endpoint)
         s.set_server_name("aioadept opcua")
-        s.set_security_policy([ua.SecurityPolicyType.NoSecurity])
+        s.set_identity_tokens([ua.AnonymousIdentityToken] + ([ua.UserNameIdentityToken] if self.commands else []))
         await load_nodesets(s)
         for uri in (DI_NS, ROBOTICS_NS):
             self._idx[uri] = await s.get_namespace_index(uri)
         self._idx[INSTANCE_NS] = await s.register_namespace(INSTANCE_NS)
+        if self.commands:
+            self._idx[VENDOR_NS] = await s.register_namespace(VENDOR_NS)
         await self._build()
         await self.refresh(float("-inf"))
         await s.start()
@@ -172,8 +182,50 @@ class CellServer:
         devices = await self._child(system, (r, "MotionDevices"))
         controllers = await self._child(system, (r, "Controllers"))
         safety = await self._child(system, (r, "SafetyStates"))
-        for view in self.views:
+        for i, view in enumerate(self.views):
             self._vars.append(await self._build_robot(view.identity, devices, controllers, safety))
+            if self.commands is not None:
+                await self._add_methods(await devices.get_child([self._qn(view.identity.name)]), self.commands[i])
+
+    async def _add_methods(self, device: Node, commands: Any) -> None:
+        """``Stop()`` and ``RunSkill(Skill, Arguments)`` on ``device``, in the vendor namespace, each answering
+        the robot server's ack line; a failure is the call's Bad status (BadCommunicationError: no ack came;
+        BadInvalidArgument: a skill the protocol cannot carry)."""
+        from aioadept.errors import AdeptError
+
+        async def call(work) -> list[ua.Variant] | ua.StatusCode:
+            try:
+                return [ua.Variant(await work, ua.VariantType.String)]
+            except (ValueError, TypeError) as exc:
+                log.info("RunSkill refused: %s", exc)
+                return ua.StatusCode(ua.StatusCodes.BadInvalidArgument)
+            except (AdeptError, OSError, TimeoutError) as exc:
+                log.warning("command from OPC UA failed: %s", exc)
+                return ua.StatusCode(ua.StatusCodes.BadCommunicationError)
+
+        async def stop(parent: ua.NodeId) -> list[ua.Variant] | ua.StatusCode:
+            return await call(commands.stop())
+
+        async def run_skill(parent: ua.NodeId, skill: ua.Variant, args: ua.Variant) -> list[ua.Variant] | ua.StatusCode:
+            async def work() -> str:
+                if not isinstance(skill.Value, str):
+                    raise TypeError(f"Skill: {skill.Value!r} is not a String")
+                return await commands.run_skill(skill.Value, [float(v) for v in args.Value or ()])
+
+            return await call(work())
+
+        vidx = self._idx[VENDOR_NS]
+        sid = device.nodeid.Identifier
+        ack = ua.Argument(Name="Ack", DataType=ua.NodeId(ua.ObjectIds.String), ValueRank=ua.ValueRank.Scalar,
+                          Description=ua.LocalizedText("the robot server's ack line"))
+        await device.add_method(ua.NodeId(f"{sid}.Stop", vidx), ua.QualifiedName("Stop", vidx), stop, [], [ack])
+        skill_arg = ua.Argument(Name="Skill", DataType=ua.NodeId(ua.ObjectIds.String), ValueRank=ua.ValueRank.Scalar,
+                                Description=ua.LocalizedText("the skill (V+ program) name"))
+        args_arg = ua.Argument(Name="Arguments", DataType=ua.NodeId(ua.ObjectIds.Double),
+                               ValueRank=ua.ValueRank.OneDimension, ArrayDimensions=[0],
+                               Description=ua.LocalizedText("its numeric arguments"))
+        await device.add_method(ua.NodeId(f"{sid}.RunSkill", vidx), ua.QualifiedName("RunSkill", vidx), run_skill,
+                                [skill_arg, args_arg], [ack])
 
     async def _build_robot(self, ident: Identity, devices: Node, controllers: Node, safety: Node) -> dict[tuple, Node]:
         r = ROBOTICS_NS
@@ -286,3 +338,60 @@ class CellServer:
         return ua.DataValue(variant, StatusCode=ua.StatusCode(STATUS_CODES[reading.quality]),
                             SourceTimestamp=_time(reading.source_time_s),
                             ServerTimestamp=datetime.datetime.now(datetime.timezone.utc))
+
+
+class _Users:
+    """asyncua's user manager: no user name is an anonymous session (it may read); a name and password of the users
+    file is a user (it may call the methods); anything else is refused."""
+
+    def __init__(self, users: dict[str, str]) -> None:
+        self.users = users
+
+    def get_user(self, iserver: Any, username: str | None = None, password: Any = None, certificate: Any = None):
+        from asyncua.crypto.permission_rules import User, UserRole
+
+        from aioadept.opcua.commands import password_ok
+
+        if username is None:  # an anonymous token (user certificates are not among the tokens offered)
+            return User(role=UserRole.Anonymous)
+        if password_ok(self.users, username, password):
+            return User(role=UserRole.User, name=username)
+        return None
+
+
+class _Roles:
+    """Which requests a role may make: a user all of asyncua's user requests, an anonymous session all but Call
+    (refused with BadUserAccessDenied)."""
+
+    def __init__(self) -> None:
+        from asyncua.crypto.permission_rules import USER_TYPES, UserRole
+
+        user = {ua.NodeId(t) for t in USER_TYPES}
+        self._allowed = {UserRole.Admin: user, UserRole.User: user,
+                         UserRole.Anonymous: user - {ua.NodeId(ua.ObjectIds.CallRequest_Encoding_DefaultBinary)}}
+
+    def check_validity(self, user: Any, action_type_id: ua.NodeId, body: Any) -> bool:
+        return action_type_id in self._allowed.get(user.role, set())
+
+
+def _refuse_writes_as_not_writable(server: Server) -> None:
+    """A client's write to a variable whose AccessLevel has no CurrentWrite (every variable here) answers
+    BadNotWritable, as OPC UA Part 4 says, instead of asyncua's BadUserAccessDenied (which says a user lacks a right
+    another user might have)."""
+    service = server.iserver.attribute_service
+    write = service.write
+    denied = ua.StatusCode(ua.StatusCodes.BadUserAccessDenied)
+
+    async def checked(params: ua.WriteParameters, user: Any = None, **kw: Any) -> list[ua.StatusCode]:
+        results = await (write(params, user=user, **kw) if user is not None else write(params, **kw))
+        out = []
+        for item, result in zip(params.NodesToWrite, results):
+            if result == denied and item.AttributeId == ua.AttributeIds.Value:
+                level = server.iserver.aspace.read_attribute_value(item.NodeId, ua.AttributeIds.AccessLevel)
+                if level.Value is not None and level.Value.Value is not None and \
+                        not ua.ua_binary.test_bit(level.Value.Value, ua.AccessLevel.CurrentWrite):
+                    result = ua.StatusCode(ua.StatusCodes.BadNotWritable)
+            out.append(result)
+        return out
+
+    service.write = checked
