@@ -414,10 +414,11 @@ class DigitalIO:
         return out, self._seq
 
 
-def check_nums(values: Sequence[float], what: str = "signal") -> list[int]:
-    """Signal numbers from wire arguments (see :func:`signal_number`); at least one."""
+def check_nums(values: Sequence[float], what: str = "signal", *, skill: str = "signal") -> list[int]:
+    """Signal numbers from wire arguments (see :func:`signal_number`); at least one (else an error naming
+    ``skill``, the skill the client called)."""
     if not values:
-        raise RobotError(ErrorCode.WRONG_ARGUMENT_COUNT, f"{what} needs at least one signal number")
+        raise RobotError(ErrorCode.WRONG_ARGUMENT_COUNT, f"{skill} needs at least one signal number")
     return [signal_number(v, what) for v in values]
 
 

@@ -286,7 +286,7 @@ def _signal(ctl: Any, args: tuple[float, ...]) -> None:
 
 
 def _sig(ctl: Any, args: tuple[float, ...]) -> SkillResult:
-    nums = check_nums(args)
+    nums = check_nums(args, skill="sig")
     io = ctl.io
     io.advance(ctl.now_s)
     # One field after the pose: each SIG(n), -1 (TRUE) or 0, in the order asked, comma-separated.
