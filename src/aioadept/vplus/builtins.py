@@ -20,6 +20,7 @@ from aioadept.errors import RobotError
 from aioadept.protocol import ErrorCode
 from aioadept.vplus import errors as E
 from aioadept.vplus.errors import VPlusError, VPlusHalt
+from aioadept.vplus.registry import IMPLEMENTATIONS, builtin
 from aioadept.vplus import disk, iodev, status
 from aioadept.vplus.render import _FMT_CACHE, _FMT_RE, _default_number, _fmt_number, _render  # noqa: F401
 from aioadept.vplus.values import _FB, _GOTO, MAX_STRING, _Goto, _LocArray, _Missing, f32  # noqa: F401
@@ -149,11 +150,13 @@ def _encode(items: tuple) -> str:
     return _str(_render(items)[0])
 
 
+@builtin("VAL")
 def _val(s: str) -> float:
     m = _NUM_RE.match(s)
     return float(m.group(0)) if m else 0.0
 
 
+@builtin("$MID")
 def _mid(s: str, first: float, n: float) -> str:
     i = vint(first)
     if i < 1:
@@ -161,24 +164,29 @@ def _mid(s: str, first: float, n: float) -> str:
     return s[i - 1:i - 1 + max(vint(n), 0)]
 
 
+@builtin("POS")
 def _pos(s: str, sub: str, start: float = 1.0) -> float:
     return float(s.find(sub, max(vint(start), 1) - 1) + 1)
 
 
+@builtin("ASC")
 def _asc(s: str, i: float = 1.0) -> float:
     k = vint(i)
     return float(ord(s[k - 1])) if 1 <= k <= len(s) else -1.0
 
 
+@builtin("$LEFT")
 def _left(s: str, n: float) -> str:
     return s[:max(vint(n), 0)]
 
 
+@builtin("$RIGHT")
 def _right(s: str, n: float) -> str:
     k = vint(n)
     return s[-k:] if k > 0 else ""
 
 
+@builtin("$CHR")
 def _chr(n: float) -> str:
     k = vint(n)
     if not 0 <= k <= 255:
@@ -186,6 +194,7 @@ def _chr(n: float) -> str:
     return chr(k)
 
 
+@builtin("$TRUNCATE")
 def _truncate(s: str) -> str:
     """$TRUNCATE(string): the characters before the first ASCII NUL (all of them if there is none)."""
     if type(s) is not str:
@@ -193,6 +202,7 @@ def _truncate(s: str) -> str:
     return s.split("\0", 1)[0]
 
 
+@builtin("BMASK")
 def _bmask(*bits: float) -> float:
     """BMASK(bit, ...): a value with each given bit set; bits are numbered 1 (least significant) to 32."""
     v = 0
@@ -592,8 +602,9 @@ def namespace(rt: Runtime) -> dict[str, Any]:
     def fn_int(x: float) -> float:
         return float(int(x))
 
-    fn = {
-        "$MID": _mid, "POS": _pos, "ASC": _asc, "$CHR": _chr, "VAL": _val, "$ERROR": lambda c: E.text(c),
+    fn = dict(IMPLEMENTATIONS)          # the functions that need no run time (@builtin)
+    fn |= {
+        "$ERROR": lambda c: E.text(c),
         "INT": fn_int, "ABS": abs, "SQRT": math.sqrt, "SQR": lambda x: x * x,
         "SIN": _deg(math.sin), "COS": _deg(math.cos), "TAN": _deg(math.tan),
         "ATAN2": lambda y, x: math.degrees(math.atan2(y, x)), "ASIN": lambda x: math.degrees(math.asin(x)),
@@ -605,7 +616,7 @@ def namespace(rt: Runtime) -> dict[str, Any]:
         "DISTANCE": lambda a, b: L.distance(loc_check(a), loc_check(b)), "SHIFT": shift,
         "RX": L.rx, "RY": L.ry, "RZ": L.rz,
         "SIGN": lambda x: float((x > 0) - (x < 0)), "FRACT": lambda x: x - int(x), "RANDOM": lambda: random.random(),
-        "$TRUNCATE": _truncate, "BMASK": _bmask, "NULL": lambda: L.NULL, "$LEFT": _left, "$RIGHT": _right,
+        "NULL": lambda: L.NULL,
         "$TOUPPER": str.upper, "$TOLOWER": str.lower, "SPEED": speed_fn,
         "SWITCH": lambda *a: -1.0 if rt.switches.get("DRY.RUN") else 0.0, "BITS": _bits(rt),
         "$TIME": lambda *a: "", "NORM": lambda t: t, "$DEFAULT": lambda *a: "",

@@ -32,16 +32,16 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from aioadept.vplus import nodes as N
+from aioadept.vplus import registry
 from aioadept.vplus.program import LoadProblem, Program
 
 BUDGET = 2000
 """Loop iterations a task runs before it yields its time slice (virtual time; the generated code reads the
 runtime's ``_BUDGET``, which is smaller in real time, where the slice is measured on the clock)."""
 
-_LOC_FUNCS = {"TRANS", "INVERSE", "HERE", "RX", "RY", "RZ", "NULL"}
-_PP_FUNCS = {"#PPOINT", "#HERE"}
-_STR_FUNCS = {"$DECODE", "$ENCODE", "$MID", "$CHR", "$ERROR", "$TRUNCATE", "$LEFT", "$RIGHT", "$TOUPPER",
-              "$TOLOWER", "$TIME", "$DEFAULT"}
+_LOC_FUNCS = registry.of_result("loc")
+_PP_FUNCS = registry.of_result("pp")
+_STR_FUNCS = registry.of_result("str")
 _FMT_RE = re.compile(r"([A-Z])(\d+)?(?:\.(\d+))?\Z")       # as builtins._FMT_RE
 
 

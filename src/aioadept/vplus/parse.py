@@ -18,7 +18,7 @@ import re
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
-from aioadept.vplus import keywords
+from aioadept.vplus import keywords, registry
 from aioadept.vplus import nodes as N
 
 MAX_NAME = 15
@@ -397,14 +397,8 @@ def _switch_fn(p: Parser, i0: int) -> N.Expr:
 # Functions with their own argument syntax.
 _SPECIAL_ATOMS: dict[str, Callable[[Parser, int], N.Expr]] = {"SHIFT": _shift, "SWITCH": _switch_fn}
 
-FUNCTIONS = {
-    "$DECODE", "$ENCODE", "$MID", "LEN", "POS", "ASC", "$CHR", "VAL", "$ERROR", "INT", "ABS", "SQRT", "SIN",
-    "COS", "TAN", "ATAN2", "ASIN", "ACOS", "MAX", "MIN", "TIMER", "SIG", "IOSTAT", "TASK", "ERROR", "DEFINED",
-    "LAST", "INRANGE", "TRANS", "INVERSE", "DX", "DY", "DZ", "DISTANCE", "#PPOINT", "SIGN", "FRACT", "RANDOM",
-    "$TRUNCATE", "RX", "RY", "RZ", "SQR", "$LEFT", "$RIGHT", "HERE", "#HERE", "SPEED", "$TOUPPER", "$TOLOWER",
-    "SWITCH", "BITS", "$TIME", "NORM", "$DEFAULT", "STATE",
-    "BMASK",
-}
+FUNCTIONS = frozenset(name for name, entry in registry.FUNCTIONS.items() if entry.call)
+"""The functions ``NAME(`` calls: those the registry (:mod:`aioadept.vplus.registry`) has."""
 _NOARG_FUNCS = {"HERE", "#HERE", "RANDOM", "TASK"}
 _RESERVED_WORDS = {"AND", "OR", "XOR", "NOT", "MOD", "BAND", "BOR", "BXOR", "COM", "THEN", "DO", "TO", "STEP",
                    "OF", "BY", "ALWAYS", "GOTO"}
