@@ -30,6 +30,8 @@ from aioadept.protocol import ErrorCode
 from aioadept.robots import RobotModel
 from aioadept.robots import viper_s850_batch as kb
 from aioadept.robots.base import DEFAULT_JUMP_LIMIT, JointLimits, JumpLimit
+from aioadept.robots import scara
+from aioadept.robots.scara import Scara
 from aioadept.robots.viper import VIPER_S850, Viper
 
 
@@ -309,6 +311,51 @@ def _check_run(joints: np.ndarray, k: int, branch: int, sols: kb.Solutions, i: i
     return f
 
 
+def _plan_scara(start_deg: Sequence[float], start_m: np.ndarray, target_m: np.ndarray, tool_m: np.ndarray | None,
+                model: Scara, *, joint_limits: JointLimits, jump: JumpLimit) -> LinePath | None:
+    """:func:`plan_line` for a SCARA with every sample solved at once, or None: leave the line to the scalar
+    planner (too few samples, or any decision within :data:`~aioadept.robots.viper_s850_batch.DOUBT` of where the
+    scalar inverse could decide otherwise or refuse). On a SCARA the scalar inverse keeps the seed's arm (RIGHTY,
+    LEFTY) away from the stretched arm and takes each joint's equivalent nearest the previous sample: so the whole
+    line is the seed's branch unwrapped continuously, when every sample is reached, keeps clear of the stretched
+    arm's band, lies within the limits and passes the jump limit. Anything else is the scalar planner's to refuse."""
+    length = float(np.linalg.norm(target_m[:3, 3] - start_m[:3, 3]))
+    turn = _rot_log(start_m[:3, :3].T @ target_m[:3, :3])
+    rotation = math.degrees(float(np.linalg.norm(turn)))
+    n = _sample_count(length, rotation, LINE_STEP_MM, LINE_STEP_DEG)
+    if n < BATCH_MIN_SAMPLES:
+        return None
+    s = np.linspace(0.0, 1.0, n + 1)
+    poses = _line_poses(start_m, target_m, turn, s[1:])
+    sols, reached = model.all_solutions(poses if tool_m is None else poses @ inverse_transform(tool_m))
+    band = math.sin(math.radians(scara.ELBOW_FREE_DEG)) + kb.DOUBT
+    start = np.asarray(start_deg, dtype=float)
+    s2 = math.sin(math.radians(start[1]))
+    if not reached.all() or abs(s2) < band:
+        return None
+    a = sols[:, 0 if s2 > 0 else 1]
+    if (np.abs(np.sin(np.radians(a[:, 1]))) < band).any():
+        return None  # a sample in the stretched arm's band: there the scalar inverse may change arms
+    rev = ~np.array(model.prismatic)
+    q = (np.vstack([start, a[:-1]]) - a) / 360.0
+    turns = np.where(rev, np.round(q), 0.0)
+    if (rev & (np.abs(np.abs(q - np.round(q)) - 0.5) < kb.DOUBT)).any():
+        return None  # two equivalents equally near
+    joints = np.vstack([start, a + 360.0 * np.cumsum(turns, axis=0)])
+    lo, hi = np.asarray(joint_limits.min_deg) - 1e-6, np.asarray(joint_limits.max_deg) + 1e-6
+    if ((joints[1:] < lo + kb.DOUBT) | (joints[1:] > hi - kb.DOUBT)).any():
+        return None  # past a limit: the scalar inverse refuses, or takes another equivalent and jumps
+    moved = np.abs(np.diff(joints, axis=0)).max(axis=1)
+    big = np.flatnonzero(moved > jump.floor_deg - kb.DOUBT)
+    if len(big):
+        seed_m = model.flange_matrices(joints[big])
+        if tool_m is not None:
+            seed_m = seed_m @ tool_m
+        if (moved[big] >= kb.jump_allowed_deg(seed_m, poses[big], jump) - kb.DOUBT).any():
+            return None
+    return LinePath(s, joints, length, rotation, start_m.copy(), target_m.copy())
+
+
 def line_duration(path: LinePath, speed_fraction: float, *, max_joint_speed_deg_s: Sequence[float], ramp_s: float,
                   cartesian: CartesianLimits = CartesianLimits(), accel_fraction: float = 1.0) -> tuple[float, float]:
     """(duration_s, ramp_s) of a straight line at ``speed_fraction`` (0..1]: a trapezoid on the path parameter
@@ -348,7 +395,8 @@ def plan_tool_line(start_deg: Sequence[float], pose: Pose, tool: Pose = NULL, *,
     The samples are solved in arrays (a 300 mm line in about 1 ms; it runs on the sim server's event loop, where a
     ``stop`` waits for it). ``batch=False``: one scalar inverse kinematics per sample (:func:`plan_line`), the
     reference the array planner gives the same result as (to rounding: joints within 1e-9 deg, the same refusals).
-    The array planner is the Viper family's; a SCARA's line is solved sample by sample.
+    A SCARA's line is solved in arrays when nothing about it is in doubt (:func:`_plan_scara`), else sample by
+    sample.
     """
     limits = model.limits if joint_limits is None else joint_limits
     start_m = model.flange_matrix(start_deg)
@@ -378,9 +426,14 @@ def plan_tool_line(start_deg: Sequence[float], pose: Pose, tool: Pose = NULL, *,
             raise RobotError(ErrorCode.JOINT_JUMP, f"J{worst + 1} jumps {abs(q[worst] - seed[worst]):.1f} deg "
                                                    f"in a step: {why}") from exc
 
+    tool_m = None if tool == NULL else tool.to_matrix()
     if batch and isinstance(model, Viper):
-        path = _plan_batch(start_deg, start_m, target_m, None if tool == NULL else tool.to_matrix(), solve,
-                           joint_limits=limits, jump=step_jump, model=model)
+        path = _plan_batch(start_deg, start_m, target_m, tool_m, solve, joint_limits=limits, jump=step_jump,
+                           model=model)
+        if path is not None:
+            return path
+    elif batch:
+        path = _plan_scara(start_deg, start_m, target_m, tool_m, model, joint_limits=limits, jump=step_jump)
         if path is not None:
             return path
     return plan_line(start_deg, target_m, solve=solve, line_start_m=start_m)
