@@ -12,7 +12,7 @@ from pathlib import Path
 
 from aioadept.apps.cell import CellConfig, new_run_dir, run_focus_once
 from aioadept import defaults
-from aioadept.cli.options import (ArgumentParser, add_cell_options, add_mode_option, add_robot_option,
+from aioadept.cli.options import (ArgumentParser, add_cell_options, add_insecure_option, add_mode_option, add_robot_option,
                                   apply_overrides, configure_logging, description, parse_robot_address, report,
                                   with_default)
 from aioadept.cli.report import run_once
@@ -32,6 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--response-endpoint", dest="response_endpoint",
                    help=with_default("SUB for vision responses: connects by default, '@tcp://...' binds",
                                      defaults.RESPONSE_ENDPOINT))
+    add_insecure_option(p)
     return p
 
 
@@ -56,6 +57,15 @@ def main(argv: list[str] | None = None) -> int:
     from aioadept.bus.endpoints import opposite
     from aioadept.errors import BusError
 
+    from aioadept.cli.options import check_listeners, zmq_listener
+
+    try:
+        check_listeners("aioadept focus", [
+            *zmq_listener("--request-endpoint", args.request_endpoint, True, False, "read the vision requests"),
+            *zmq_listener("--response-endpoint", args.response_endpoint, False, False,
+                          "forge the sharpness answers that steer the tool")], args.insecure)
+    except ValueError as exc:
+        return report("aioadept focus", exc, verbose=args.verbose)
     try:
         if args.request_endpoint:
             cfg.vision.request_endpoint = opposite(args.request_endpoint)

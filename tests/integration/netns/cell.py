@@ -111,14 +111,14 @@ async def run_cell(topo: Topology, workdir: Path, *, time_scale: float = 20.0, s
 
         sim = await start("sim", _aioadept(
             topo, topo.rob, "sim", "--host", topo.rob_addr, "--port", "0", "--time-scale", f"{time_scale:g}",
-            "--state-endpoint", f"tcp://{topo.rob_addr}:0", "--allow", topo.mcn_rob_addr))
+            "--state-endpoint", f"tcp://{topo.rob_addr}:0", "--insecure", "--allow", topo.mcn_rob_addr))
         relay = await start("relay", topo.exec_argv(topo.mcn, [
             sys.executable, RELAY, "--sub", sim["state"], "--pub", f"tcp://{topo.mcn_vis_addr}:0",
             "--stats", str(relay_stats)]))
         vis = await start("vision", _aioadept(
             topo, topo.vis, "vision", "--state-endpoint", relay["pub"],
             "--request-endpoint", f"tcp://{topo.vis_addr}:0", "--response-endpoint", f"tcp://{topo.vis_addr}:0",
-            "--policy", "after", "--seed", str(seed), "--focus-offset-mm", f"{focus_offset_mm:g}"))
+            "--insecure", "--policy", "after", "--seed", str(seed), "--focus-offset-mm", f"{focus_offset_mm:g}"))
         report["endpoints"] = {"robot": f"{sim['host']}:{sim['port']}", "state": sim["state"],
                                "state_relayed": relay["pub"], "vision_request": vis["request"],
                                "vision_response": vis["response"]}

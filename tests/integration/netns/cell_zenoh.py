@@ -76,7 +76,7 @@ async def run_cell_zenoh(topo: Topology, workdir: Path, *, time_scale: float = 2
         zenoh = ["--transport", "zenoh", "--cell", CELL]
         sim = await start("sim", _aioadept(
             topo, topo.rob, "sim", "--host", topo.rob_addr, "--port", "0", "--time-scale", f"{time_scale:g}",
-            "--allow", topo.mcn_rob_addr, *zenoh, "--zenoh-connect", rob_router))
+            "--insecure", "--allow", topo.mcn_rob_addr, *zenoh, "--zenoh-connect", rob_router))
         vis = await start("vision", _aioadept(
             topo, topo.vis, "vision", "--policy", "after", "--seed", str(seed),
             "--focus-offset-mm", f"{focus_offset_mm:g}", *zenoh, "--zenoh-connect", vis_router))
