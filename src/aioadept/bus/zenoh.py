@@ -172,7 +172,7 @@ class ZenohOptions:
         try:
             return zenoh.Config.from_file(self.config_file)
         except Exception as exc:  # zenoh.ZError: no such file, not JSON5, a key Zenoh does not know
-            reason = " ".join(str(exc).split(" at /")[0].split())  # one line; Zenoh appends its source location
+            reason = plain(exc)
             raise BusError(f"Zenoh config file {self.config_file}: {reason}") from None
 
     def config(self) -> Any:
@@ -226,9 +226,39 @@ def session() -> Any:
             try:
                 _session = zenoh.open(_options.config())
             except Exception as exc:  # zenoh.ZError: e.g. a router that does not answer, a port in use
-                raise BusError(f"cannot open the Zenoh session ({_options.mode}, connect "
-                               f"{list(_options.connect)}, listen {list(_options.listen)}): {exc}") from exc
+                raise BusError(session_error(exc, _options)) from exc
         return _session
+
+
+_RUST_SOURCE = re.compile(r"\s*\bat /\S+?\.rs:\d+\.?")
+"""Where in Zenoh's Rust source an error was raised (``at /root/.cargo/.../unicast.rs:338.``): nothing a user can
+act on."""
+
+
+def plain(exc: BaseException) -> str:
+    """A Zenoh error's words on one line, without its Rust source locations."""
+    return " ".join(_RUST_SOURCE.sub("", str(exc)).split())
+
+
+def session_error(exc: BaseException, opts: ZenohOptions) -> str:
+    """One line for a session that did not open: what failed, at which address, and the likely fix; Zenoh's own
+    words (its Rust source locations removed) only for a failure not recognised here."""
+    text = plain(exc)
+    listen = ", ".join(opts.listen)
+    connect = ", ".join(opts.connect)
+    if "Address already in use" in text:
+        why = (f"cannot listen on {listen}: the port is in use (another router or node runs there; `ss -ltnp` "
+               f"shows which): stop it, or listen on a free port and connect the nodes there")
+    elif "Cannot assign requested address" in text:
+        why = (f"cannot listen on {listen}: this machine has no such address; listen on one of its own "
+               f"(tcp/127.0.0.1:PORT for this machine only)")
+    elif "Unable to connect" in text:
+        why = (f"no router answers at {connect}, or it refused this node's credentials: start the cell's router "
+               f"first (the starter, or a node with --zenoh-listen {opts.connect[0] if opts.connect else 'ADDR'}), "
+               f"check --zenoh-config, or give the router's address with --zenoh-connect")
+    else:
+        return f"cannot open the Zenoh session ({opts.mode}, connect [{connect}], listen [{listen}]): {text}"
+    return f"cannot open the Zenoh session: {why}"
 
 
 def close_session() -> None:

@@ -31,7 +31,7 @@ from typing import Any
 
 import zmq
 
-from aioadept.bus.zenoh import PREFIX, _zenoh, check_key, key_of, session
+from aioadept.bus.zenoh import PREFIX, _zenoh, check_key, key_of, plain, session
 from aioadept.errors import BusError
 
 __all__ = ["QUERY_TIMEOUT_S", "QueryFrames", "ZenohSocket", "make_zenoh_socket"]
@@ -147,7 +147,7 @@ class ZenohSocket:
             self.close()
             what = ("querier" if self._replies_into is not None else "publisher" if self.kind == zmq.PUB
                     else "subscriber")
-            raise BusError(f"cannot declare a Zenoh {what} on {self.key!r}: {exc}") from exc
+            raise BusError(f"cannot declare a Zenoh {what} on {self.key!r}: {plain(exc)}") from exc
         return self.endpoint
 
     # -- options (the ZeroMQ ones the bus sets) ------------------------------------------------------------
@@ -192,7 +192,7 @@ class ZenohSocket:
                 self._entity.put(bytes(payload), attachment=bytes(topic))
         except Exception as exc:
             verb = "query" if self._replies_into is not None else "put"
-            raise zmq.ZMQError(zmq.EFAULT, f"Zenoh {verb} on {self.key!r} failed: {exc}") from exc
+            raise zmq.ZMQError(zmq.EFAULT, f"Zenoh {verb} on {self.key!r} failed: {plain(exc)}") from exc
 
     def matched(self) -> bool | None:
         """A PUB: whether anything on the network takes what it sends (a subscriber, or sending queries a
