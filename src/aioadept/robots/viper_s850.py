@@ -1,5 +1,5 @@
-"""The Viper s850's kinematics by their long-standing names: :data:`aioadept.robots.viper.VIPER_S850`'s constants and
-methods as module-level names, for the code and tests written against this module before robot models were values.
+"""The Viper s850's kinematics as module-level names: :data:`aioadept.robots.viper.VIPER_S850`'s constants and
+methods, for the many modules and tests that import the paper's arm by this name.
 
 New code asks the registry (``aioadept.robots.model("viper-s850")``) and calls the model's methods; this module
 adds nothing to them. The family's geometry, formulas and docs live in :mod:`aioadept.robots.viper`.

@@ -1,5 +1,5 @@
-"""The Viper s850's URDF and link transforms by their long-standing names (:mod:`aioadept.robots.urdf` for any
-model): ``run.mcap``, ``aioadept ros2`` and tests import these."""
+"""The Viper s850's URDF and link transforms (:mod:`aioadept.robots.urdf` for any model): ``run.mcap``,
+``aioadept ros2`` and tests import these names."""
 
 from __future__ import annotations
 
