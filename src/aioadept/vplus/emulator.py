@@ -16,7 +16,7 @@ For the TCP server (``aioadept sim --vplus``) the same emulator runs in real tim
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -24,7 +24,7 @@ from typing import Any
 from aioadept.vplus.errors import VPlusError
 from aioadept.vplus.loader import LoadProblem, Module, load_files, load_text
 from aioadept.vplus.parse import norm
-from aioadept.vplus.runtime import RealClock, Runtime, Task, VirtualClock, f32
+from aioadept.vplus.runtime import STORAGE_LIMIT, RealClock, Runtime, Task, VirtualClock, f32
 
 
 class LoadError(Exception):
@@ -94,13 +94,16 @@ class Emulator:
     """A loaded set of V+ modules with its global data, tasks and (by default) the simulated Viper."""
 
     def __init__(self, module: Module, *, robot: Any = True, clock: Any = None, cycle_s: float = 0.016,
-                 console: Callable[[int, str], None] | None = None, disk_dir: str | Path | None = None) -> None:
+                 console: Callable[[int, str], None] | None = None, disk_dir: str | Path | None = None,
+                 storage_limit: int = STORAGE_LIMIT) -> None:
+        """``storage_limit``: array elements all programs may hold (runtime.STORAGE_LIMIT, docs/vplus.md)."""
         from aioadept.vplus.disk import DiskFolder
 
         self.clock = clock or VirtualClock()
         if robot is True:
             robot = make_robot()
-        self.rt = Runtime(module, clock=self.clock, cycle_s=cycle_s, console=console, robot=robot or None)
+        self.rt = Runtime(module, clock=self.clock, cycle_s=cycle_s, console=console, robot=robot or None,
+                          storage_limit=storage_limit)
         # disk files (FOPENR ...) live in this folder only; None: a new temporary folder (aioadept.vplus.disk)
         self.rt.disk = DiskFolder(disk_dir)
         ctl = getattr(self.rt.robot, "controller", None)

@@ -29,6 +29,7 @@ NONEXISTENT_FILE = -568         # UNCONFIRMED number: FOPENR/FDELETE of a file t
 ILLEGAL_FILE_NAME = -514        # UNCONFIRMED number: a file name V+ cannot have, or one outside the disk folder
 FILE_IN_USE = -513              # UNCONFIRMED number: a file open for write elsewhere, a LUN with a file open
 NOT_OPEN = -515                 # UNCONFIRMED number: READ/WRITE on a disk LUN with no file open (or the wrong way)
+NO_STORAGE = -611               # UNCONFIRMED number and text: program memory full (runtime.STORAGE_LIMIT)
 INTERNAL = -1200
 
 TEXT: dict[int, str] = {
@@ -51,6 +52,7 @@ TEXT: dict[int, str] = {
     ILLEGAL_FILE_NAME: "*Invalid file name*",
     FILE_IN_USE: "*File already open*",
     NOT_OPEN: "*File not opened*",
+    NO_STORAGE: "*Not enough storage area*",
     int(ErrorCode.OUT_OF_REACH): "*Location out of range*",
     int(ErrorCode.JOINT_LIMIT): "*Joint limit*",
     int(ErrorCode.JOINT_JUMP): "*Joint jump*",

@@ -25,11 +25,9 @@ from __future__ import annotations
 
 import math
 import re
-import struct
 import time
-from array import array
 from collections import deque
-from collections.abc import Callable, Generator, Iterable
+from collections.abc import Callable, Generator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -46,6 +44,13 @@ SLICE_S = 0.001
 """Real time: how long a task runs before the others get their turn (V+'s time slice, module docstring)."""
 REAL_BUDGET = 16
 """Real time: loop iterations between two looks at the clock (a look costs about as much as 2 iterations)."""
+STORAGE_LIMIT = 262_144
+"""Array elements all programs may hold at once (``Runtime(storage_limit=...)``, ``Emulator(storage_limit=...)``):
+the emulator's program memory. Arrays are what a program can grow without end (names are fixed by the program text
+and a string holds at most 128 characters), so a skill that fills an array without end gets V+'s
+``*Not enough storage area*`` instead of growing the process (by about 60 MB at this limit)."""
+CONSOLE_LINES = 10_000
+"""Console lines kept for :attr:`Emulator.console` (a program that TYPEs without end keeps the last ones)."""
 
 _UNBOUND_RE = re.compile(r"(?:variable|name) '(V_\w+)'")   # unbound local, or a local never assigned
 
@@ -111,13 +116,15 @@ class Task:
     motion_wait: bool = False          # blocked in a motion instruction: woken by a BRAKE
     halted_at: tuple[str | None, str, int] | None = None   # HALT or PAUSE: (file, program, line)
     trapped: tuple[str, VPlusError] | None = None  # (REACTE program, error) of the last error it trapped
+    throw: VPlusError | None = None    # raised in the task where it yielded, when it next runs (storage full)
 
 
 class Runtime:
     """Global data, compiled programs and tasks. Built by :class:`aioadept.vplus.Emulator`."""
 
     def __init__(self, module: Module, *, clock: Any = None, cycle_s: float = 0.016, slice_s: float = 0.001,
-                 console: Callable[[int, str], None] | None = None, robot: Any = None) -> None:
+                 console: Callable[[int, str], None] | None = None, robot: Any = None,
+                 storage_limit: int = STORAGE_LIMIT) -> None:
         self.module = module
         self.clock = clock or VirtualClock()
         self.cycle_s = cycle_s
@@ -135,7 +142,7 @@ class Runtime:
         self.signals: dict[int, bool] = self.io.values
         self.timers: dict[int, float] = {}
         self.t0 = self.clock.now
-        self.console_lines: list[tuple[int, str]] = []
+        self.console_lines: deque[tuple[int, str]] = deque(maxlen=CONSOLE_LINES)
         self._console = console
         self.robot = robot
         self.switches: dict[str, bool] = {"DRY.RUN": False}
@@ -149,6 +156,8 @@ class Runtime:
         """Called when a task executes PAUSE (only PROCEED resumes it: ``Emulator.proceed``, no one in the CLI)."""
         self.realtime = not self.clock.virtual
         self.slice_end = math.inf          # real time: when the running task's slice ends (time.monotonic)
+        self.storage_limit = storage_limit
+        self._storage_at = 0.0             # when storage is next counted (once per cycle: it costs ~20 us)
         self._load_data()
         self.compile_all()
 
@@ -341,10 +350,18 @@ class Runtime:
             T.cond_wait = T.event_wait = T.motion_wait = False
             if not retest:
                 progress = True
+            counted = -1
+            if now >= self._storage_at:
+                self._storage_at = now + self.cycle_s
+                counted = self.storage_used()
             if self.realtime:
                 self.slice_end = _mono() + SLICE_S
             try:
-                w = T.gen.send(None)
+                if T.throw is None:
+                    w = T.gen.send(None)
+                else:
+                    err, T.throw = T.throw, None
+                    w = T.gen.throw(err)
             except StopIteration:
                 T.gen = None
                 self._end_task(T, "done")
@@ -374,11 +391,38 @@ class Runtime:
                 T.wake = self.now
             else:
                 T.wake = w
+            if counted >= 0:
+                self._check_storage(T, counted)
             if retest and not T.cond_wait:
                 progress = True           # the condition became true: the task went on
         if progress:
             self.wake_conditions()
         return preempted
+
+    def storage_used(self) -> int:
+        """Array elements held now: global arrays, each task's LOCAL arrays and the AUTO arrays of its calls."""
+        n = sum(len(v) for v in self.globals.values() if isinstance(v, dict))
+        for T in self._order:
+            for local in T.statics.values():
+                n += sum(len(v) for v in local.values() if isinstance(v, dict))
+            gen = T.gen
+            while gen is not None and gen.gi_frame is not None:
+                autos = gen.gi_frame.f_locals.get("L")       # a program's AUTO variables (compiler)
+                if type(autos) is dict:
+                    n += sum(len(v) for v in autos.values() if isinstance(v, dict))
+                gen = gen.gi_yieldfrom
+        return n
+
+    def _check_storage(self, T: Task, before: int) -> None:
+        """Once per cycle, around one task's turn: if the arrays hold more than ``storage_limit`` elements and
+        grew during that turn, the task gets ``*Not enough storage area*`` where it yielded (in a real V+ the
+        instruction that finds memory full fails; here the task that grows them fails within a few cycles of
+        passing the limit). Memory stays full until arrays are freed, as on a controller."""
+        used = self.storage_used()
+        if used > self.storage_limit and used > before and T.state == "running" and T.gen is not None:
+            T.throw = VPlusError(E.NO_STORAGE, f"{E.text(E.NO_STORAGE)} ({used} array elements, the emulator's "
+                                               f"limit is {self.storage_limit})")
+            T.wake = self.now
 
     def wake_conditions(self) -> None:
         """Something may have changed a WAIT condition: re-test every waiting condition in the next round."""
