@@ -10,6 +10,9 @@ from aioadept.commands import GetStatus, MoveJoints, SetSpeed
 from aioadept.protocol import Status
 from aioadept.protocol.robotstatus import RobotStatus, parse_status_fields
 
+SIM_TIME_SCALE = {"python": 1.0}
+"""The time scale each backend's status reports (ts=): the Python sim its own; the V+ server none."""
+
 
 @pytest.mark.timeout(90)
 async def test_status_at_rest_then_moving_then_at_rest(server):
@@ -19,7 +22,8 @@ async def test_status_at_rest_then_moving_then_at_rest(server):
     assert (idle.id, idle.status) == ("cccc0001", Status.DONE)
     assert idle.extra[0].startswith("mv=0,sp=100,er=0,"), idle.extra
     assert parse_status_fields(idle.extra) == RobotStatus(moving=False, speed_pct=100.0, error_code=0,
-                                                          error_text="", power=True, estop=False, hand="relaxed")
+                                                          error_text="", power=True, estop=False, hand="relaxed",
+                                                          time_scale=SIM_TIME_SCALE.get(server.backend))
     # a long joint move: forward processing acks it as it starts; status then finds the arm moving
     await c.send("cccc0002:set_speed:10", "cccc0003:move_joints:60.000,-90.000,180.000,0.000,90.000,0.000",
                  "cccc0004:status")
@@ -58,7 +62,8 @@ async def test_aioadept_send_status_prints_the_fields(server):
     out, err = await asyncio.wait_for(proc.communicate(), 60)
     assert proc.returncode == 0, err
     (line,) = out.decode().splitlines()
-    assert " status " in line and " done " in line and line.endswith(" mv=0,sp=100,er=0,pw=1,es=0,hd=r"), line
+    ts = ",ts=1" if server.backend in SIM_TIME_SCALE else ""
+    assert " status " in line and " done " in line and line.endswith(f" mv=0,sp=100,er=0,pw=1,es=0,hd=r{ts}"), line
 
 
 @pytest.mark.timeout(90)

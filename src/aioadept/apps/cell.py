@@ -391,9 +391,9 @@ async def _sweep(cfg: CellConfig, rc: Any, comm: Any, params: FocusParams, marks
 
 
 def sim_time_scale(cfg: CellConfig) -> float:
-    """The robot's speed-up: the sim's ``time_scale`` when this cell starts it, else 1 (a real controller, or a
-    server started elsewhere at its own scale)."""
-    return cfg.robot.time_scale if cfg.robot.start_sim else 1.0
+    """The robot's speed-up as the cell file gives it (``[robot] time_scale``, 1: a real controller): the sim this
+    cell starts runs at it, and a sweep assumes it when the robot's status does not report one (the V+ server)."""
+    return cfg.robot.time_scale
 
 
 SWEEP_FIGURE = "fig09b_sweep.png"

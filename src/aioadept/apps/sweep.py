@@ -224,10 +224,12 @@ async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: floa
     ``params``: :class:`~aioadept.apps.focus.FocusParams`; ``exposure_ms``: the camera's (sets the speed);
     ``state_endpoint``: the robot state stream (None or silent: the planned profile and the ack times place the
     frames instead; ``ramp_s`` is the robot's ramp time the profile assumes, in robot time); ``time_scale``: a
-    simulated robot's speed-up (:func:`sweep_speed`; its ramps are that much shorter too). Raises
+    simulated robot's speed-up (:func:`sweep_speed`; its ramps are that much shorter too) when the robot's
+    ``status`` does not report one (:func:`robot_time_scale`). Raises
     :class:`FocusError` (no peak within ``max_sweeps`` sweeps or the reach, no usable frames, no answer from the
     vision node: after the line ended and a retract to the approach pose) or the robot's own error.
     """
+    time_scale = await robot_time_scale(rc, time_scale)
     check_sweep(params, exposure_ms, time_scale)
     approach = (await init_move(rc)).pose if do_init_move else None
     if approach is None:
@@ -266,8 +268,8 @@ async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: floa
             run.fits.append(fit)
             if known is not None and fit.ok and fit.bracketed and fit.sigma_mm <= params.max_peak_sigma_mm:
                 t_known = known  # decided while the robot was still moving (state stream)
-            log.info("sweep %d %.1f..%.1f mm at %d %% (%.0f mm/s): %s", len(run.plans) - 1, plan.from_mm,
-                     plan.to_mm, plan.speed_pct, plan.speed_mm_s, fit)
+            log.info("sweep %d %.1f..%.1f mm at %d %% (tool %.0f mm/s at time scale %g): %s", len(run.plans) - 1,
+                     plan.from_mm, plan.to_mm, plan.speed_pct, plan.speed_mm_s, time_scale, fit)
             # Without the state stream a finer sweep cannot be placed better than the first (the ack timing, not
             # the frames, limits it): the first bracketed fit stands, its sigma including that timing.
             certain = fit.sigma_mm <= params.max_peak_sigma_mm or source == "planned-profile"
@@ -316,6 +318,27 @@ async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: floa
                "state_delay_s": feed.track.delay_s if feed is not None and len(feed.track) else None,
                "frame_errors": run.errors, "exposure_ms": exposure_ms,
                "timing_sigma_mm": run.timing_sigma_mm})
+
+
+async def robot_time_scale(rc: Robot, fallback: float) -> float:
+    """The robot's time scale as its ``status`` reports it (``ts=``: the Python sim's ``--time-scale``, wherever the
+    sim was started), else ``fallback`` (the cell file's ``[robot] time_scale``: the V+ server does not report one).
+    A sweep at the wrong scale moves the tool that many times faster or slower than planned and blurs its frames."""
+    from aioadept.commands import GetStatus
+    from aioadept.errors import RemoteProtocolError
+    from aioadept.protocol.robotstatus import parse_status_fields
+
+    try:
+        reported = parse_status_fields((await rc.cmdexec(GetStatus())).messages[-1].ack.extra).time_scale
+    except (CommandError, RemoteProtocolError) as exc:  # a server without status: its refusal, nothing ran
+        log.info("robot time scale %g from the cell file ([robot] time_scale): status: %s", fallback, exc)
+        return fallback
+    if reported is None:
+        log.info("robot time scale %g from the cell file ([robot] time_scale): the robot does not report one",
+                 fallback)
+        return fallback
+    log.info("robot time scale %g, as the robot's status reports it", reported)
+    return reported
 
 
 def max_reach_mm(params: Any) -> float:

@@ -8,7 +8,9 @@ keeps what it does not know in :attr:`RobotStatus.extra`; the second is the text
 there is none). Short keys, because a V+ ack line is at most 128 characters: ``mv`` moving (1/0), ``sp`` program
 speed (%), ``er`` last error code (0: none), ``pw`` high power on (1/0), ``es`` E-stop pressed (1/0), ``hd`` the
 hand as its two valve outputs command it (``o`` open, ``c`` closed, ``r`` relaxed: both off, ``x`` both on, a
-wiring or program fault). A key the server cannot know is left out and reads as None.
+wiring or program fault), ``ts`` the simulated robot's time scale (its motions run that many times faster than
+the program speed says; the Python sim sends it, a real controller runs in real time and leaves it out). A key the
+server cannot know is left out and reads as None.
 """
 
 from __future__ import annotations
@@ -41,6 +43,9 @@ class RobotStatus:
     the fingers are (they are still travelling for a moment after a switch)."""
     extra: Mapping[str, str] = field(default_factory=lambda: _EMPTY)
     """Keys of the answer this client does not know (key -> text), e.g. the hand's."""
+    time_scale: float | None = None
+    """A simulated robot's speed-up (> 0; the sim's ``--time-scale``); None from a server that does not say (the V+
+    server: a real controller moves in real time)."""
 
 
 HAND_CODES = {"open": "o", "closed": "c", "relaxed": "r", "both": "x"}
@@ -62,6 +67,8 @@ def encode_status_fields(st: RobotStatus) -> tuple[str, str]:
         pairs.append(f"es={int(st.estop)}")
     if st.hand is not None:
         pairs.append(f"hd={HAND_CODES[st.hand]}")
+    if st.time_scale is not None:
+        pairs.append("ts=%g" % st.time_scale)
     pairs += [f"{k}={v}" for k, v in st.extra.items()]
     return ",".join(pairs), st.error_text
 
@@ -99,9 +106,12 @@ def parse_status_fields(extra: Sequence[str]) -> RobotStatus:
         hand = _HAND_NAMES.get(fields.pop("hd").strip())
         if hand is None:
             raise RemoteProtocolError(ErrorCode.MALFORMED_MESSAGE, "status: hd= is not one of o, c, r, x")
+    time_scale = _num("ts", fields.pop("ts")) if "ts" in fields else None
+    if time_scale is not None and not time_scale > 0:
+        raise RemoteProtocolError(ErrorCode.MALFORMED_MESSAGE, f"status: ts={time_scale:g} is not > 0")
     text = ":".join(extra[1:])
     return RobotStatus(moving, speed, code, text, power, estop, hand,
-                       MappingProxyType(fields) if fields else _EMPTY)
+                       MappingProxyType(fields) if fields else _EMPTY, time_scale)
 
 
 __all__ = ["HAND_CODES", "STATUS_SKILL", "RobotStatus", "hand_of_valves", "encode_status_fields", "parse_status_fields"]

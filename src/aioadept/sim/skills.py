@@ -226,7 +226,8 @@ def _status(ctl: Any, args: tuple[float, ...]) -> SkillResult:
     wired = io.hand_config  # the valves switch at once (the fingers follow): no time to advance
     st = RobotStatus(moving=ctl.trajectory.in_motion(ctl.now_s), speed_pct=ctl.always_speed_pct, error_code=code,
                      power=bool(getattr(ctl, "power", True)), estop=bool(getattr(ctl, "estop", False)),
-                     hand=hand_of_valves(io.state(wired.open_signal), io.state(wired.close_signal)))
+                     hand=hand_of_valves(io.state(wired.open_signal), io.state(wired.close_signal)),
+                     time_scale=ctl.trajectory.time_scale)
     pairs, _ = encode_status_fields(st)
     return SkillResult((pairs, sanitize_text(text)) if text else (pairs,))
 

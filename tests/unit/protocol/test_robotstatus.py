@@ -33,3 +33,16 @@ def test_an_older_server_without_hd_reads_as_none_and_an_unknown_key_is_kept():
 def test_bad_fields_are_refused(bad):
     with pytest.raises(RemoteProtocolError):
         parse_status_fields((bad,))
+
+
+def test_the_time_scale_round_trips_and_a_server_without_ts_reads_as_none():
+    status = RobotStatus(False, 100.0, 0, "", True, False, "relaxed", time_scale=5.0)
+    pairs, _ = encode_status_fields(status)
+    assert pairs.endswith(",ts=5") and parse_status_fields((pairs,)) == status
+    assert parse_status_fields(("mv=0,sp=100,er=0",)).time_scale is None
+
+
+@pytest.mark.parametrize("bad", ["mv=0,sp=1,ts=0", "mv=0,sp=1,ts=-2", "mv=0,sp=1,ts=x", "mv=0,sp=1,ts=inf"])
+def test_a_time_scale_not_above_zero_is_refused(bad):
+    with pytest.raises(RemoteProtocolError):
+        parse_status_fields((bad,))
