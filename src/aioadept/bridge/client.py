@@ -13,8 +13,8 @@ the reply carries the acks. Results and errors are RobotClient's: :class:`ExecRe
 :class:`CommandAborted` (a stop from any application aborted the batch on the controller),
 :class:`AbortedBeforeSend` (a stop came while the batch was queued in the bridge: never sent),
 :class:`ConnectionLost` (``acked`` / ``unresolved``: the controller link or the bridge itself went away),
-:class:`AckTimeout`, :class:`TooManyPending` (this application already has 64 batches waiting in the bridge;
-nothing sent) and :class:`BridgeRefused` for a query the bridge would not take.
+:class:`AckTimeout`, :class:`TooManyPending` (this application already has 64 batches waiting in the bridge, or
+the bridge 256 of all applications; nothing sent) and :class:`BridgeRefused` for a query the bridge would not take.
 
 While connected the client holds a liveliness token ``aioadept/<cell>/<robot>/apps/<app>``: when this process
 ends, the bridge drops this application's batches not yet sent. It also watches the bridge's own token: when the
@@ -32,6 +32,7 @@ from typing import Any
 
 from aioadept.bridge.wire import (
     MAX_QUEUED_PER_APP,
+    MAX_QUEUED_TOTAL,
     BridgeFailure,
     app_key,
     bridge_key,
@@ -361,4 +362,7 @@ def _error_of(f: BridgeFailure, calls: tuple[SkillCall, ...]) -> AdeptError:
         return AckTimeout(f.text, pending=f.unresolved)
     if f.kind == "busy":
         return TooManyPending(f.text, pending=MAX_QUEUED_PER_APP, wanted=len(calls), limit=MAX_QUEUED_PER_APP)
+    if f.kind == "full":
+        return TooManyPending(f"the robot bridge is full: {f.text}", pending=MAX_QUEUED_TOTAL, wanted=len(calls),
+                              limit=MAX_QUEUED_TOTAL)
     return BridgeRefused(f"the robot bridge refused the query: {f.text}", kind=f.kind)

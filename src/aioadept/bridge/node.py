@@ -32,6 +32,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import secrets
+import threading
 import time
 from collections import deque
 from dataclasses import dataclass, field, replace
@@ -39,6 +40,7 @@ from typing import Any
 
 from aioadept.bridge.wire import (
     MAX_QUEUED_PER_APP,
+    MAX_QUEUED_TOTAL,
     SERVING,
     BridgeFailure,
     BridgeRequest,
@@ -64,7 +66,13 @@ from aioadept.errors import (
 )
 from aioadept.protocol import encode_ack
 
-__all__ = ["Bridge", "BridgeNameTaken", "BridgeStats"]
+__all__ = ["Bridge", "BridgeNameTaken", "BridgeStats", "MAX_APPS_TRACKED"]
+
+MAX_APPS_TRACKED = 1024
+"""At most this many live application names are kept in :attr:`Bridge.apps` (information only: an application's
+batches are dropped when its token vanishes whether it is in the set or not)."""
+_DRAIN_TURN = 64
+"""Queries read per turn of the loop (besides every stop waiting)."""
 
 log = logging.getLogger("aioadept.bridge")
 
@@ -79,6 +87,7 @@ class BridgeStats:
     aborted_before_send: int = 0
     dropped_vanished: int = 0
     busy: int = 0
+    full: int = 0
 
 
 class BridgeNameTaken(AdeptError):
@@ -125,7 +134,13 @@ class Bridge:
         self._closing = False  # no more queries taken
         self._closed = False
         self.apps: set[str] = set()
-        """Applications whose liveliness token is alive."""
+        """Applications whose liveliness token is alive (at most :data:`MAX_APPS_TRACKED` of them)."""
+        # Queries handed over by Zenoh's threads, read by the loop in turns (_drain): stops first, at most
+        # _DRAIN_TURN others per turn, so a stop never waits behind a flood of queries not yet read.
+        self._inbox: deque[tuple[Any, bytes, bytes | None]] = deque()
+        self._urgent: deque[tuple[Any, bytes, bytes | None]] = deque()
+        self._inbox_lock = threading.Lock()
+        self._drain_scheduled = False
         self.claim = f"{time.time_ns():020d}-{secrets.token_hex(4)}"
         """This bridge's claim on the name: sorts by start time (ties: by the random part)."""
         self._serving = False
@@ -266,22 +281,53 @@ class Bridge:
 
     # ------------------------------------------------------------------------------------------ queries
     def _on_query_thread(self, query: Any) -> None:
-        # On a Zenoh thread: hand over to the loop, nothing else.
+        # On a Zenoh thread: copy the bytes and put the query in the inbox (a stop in the urgent one), nothing else.
         loop = self._loop
         if loop is None:
             return
-        try:
-            loop.call_soon_threadsafe(self._on_query, query)
-        except RuntimeError:  # the loop is closed
-            pass
+        payload = query.payload.to_bytes() if query.payload is not None else b""
+        att = query.attachment.to_bytes() if query.attachment is not None else None
+        # A guess, to read it first; parse_request decides what it is.
+        urgent = b":stop" in payload and payload.count(b"\n") <= 1
+        with self._inbox_lock:
+            if not urgent and len(self._inbox) >= MAX_QUEUED_TOTAL:
+                full = True
+            else:
+                full = False
+                (self._urgent if urgent else self._inbox).append((query, payload, att))
+                schedule, self._drain_scheduled = not self._drain_scheduled, True
+        if full:  # the loop is behind: refuse here, keeping nothing
+            self.stats.full += 1
+            self._reply_err(query, BridgeFailure("full", f"the bridge has {MAX_QUEUED_TOTAL} queries not yet read; "
+                                                         "not sent"))
+            return
+        if schedule:
+            try:
+                loop.call_soon_threadsafe(self._drain)
+            except RuntimeError:  # the loop is closed
+                pass
 
-    def _on_query(self, query: Any) -> None:
+    def _drain(self) -> None:
+        """A turn of the loop: every stop waiting, then at most _DRAIN_TURN other queries; again next turn if more."""
+        for _ in range(_DRAIN_TURN):
+            with self._inbox_lock:
+                box = self._urgent or self._inbox
+                if not box:
+                    self._drain_scheduled = False
+                    return
+                query, payload, att = box.popleft()
+            self._on_query(query, payload, att)
+        assert self._loop is not None
+        self._loop.call_soon(self._drain)
+
+    def _on_query(self, query: Any, payload: bytes | None = None, att: bytes | None = None) -> None:
         if self._closing:
             self._reply_err(query, BridgeFailure("closed", "the bridge is shutting down; not sent"))
             return
         try:
-            payload = query.payload.to_bytes() if query.payload is not None else b""
-            att = query.attachment.to_bytes() if query.attachment is not None else None
+            if payload is None:
+                payload = query.payload.to_bytes() if query.payload is not None else b""
+                att = query.attachment.to_bytes() if query.attachment is not None else None
             req = parse_request(payload, att)
         except MalformedRequest as exc:
             self.stats.malformed += 1
@@ -290,6 +336,11 @@ class Bridge:
             return
         if req.is_stop:
             self._stop(req, query)
+            return
+        if len(self._jobs) >= MAX_QUEUED_TOTAL:
+            self.stats.full += 1
+            self._reply_err(query, BridgeFailure("full", f"the bridge already holds {len(self._jobs)} batches of all "
+                                                         "applications waiting; not sent"))
             return
         n = self._queued.get(req.app, 0)
         if n >= MAX_QUEUED_PER_APP:
@@ -341,7 +392,8 @@ class Bridge:
 
     def _on_presence(self, app: str, alive: bool) -> None:
         if alive:
-            self.apps.add(app)
+            if len(self.apps) < MAX_APPS_TRACKED:
+                self.apps.add(app)
             return
         self.apps.discard(app)
         gone = [j for j in self._jobs if j.req.app == app]

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from aioadept.protocol import STOP_SKILL, SkillCall, parse_command
 from aioadept.protocol.errors import RemoteProtocolError
 
-__all__ = ["ERR_KINDS", "MAX_QUEUED_PER_APP", "BridgeRequest", "BridgeFailure", "MAX_BATCH", "cmd_key", "app_key", "apps_key",
+__all__ = ["ERR_KINDS", "MAX_QUEUED_PER_APP", "MAX_QUEUED_TOTAL", "BridgeRequest", "BridgeFailure", "MAX_BATCH", "cmd_key", "app_key", "apps_key",
            "state_key", "bridge_key", "claim_key", "claims_key", "parse_request", "encode_request", "encode_failure",
            "parse_failure"]
 
@@ -33,12 +33,16 @@ MAX_BATCH = 64
 """At most this many command lines in one query (the servers admit 64 queued messages per connection)."""
 MAX_QUEUED_PER_APP = 64
 """At most this many batches of one application wait in the bridge; a further query is answered ``busy``."""
-ERR_KINDS = ("malformed", "aborted", "dropped", "lost", "timeout", "closed", "busy")
+MAX_QUEUED_TOTAL = 256
+"""At most this many batches of all applications wait in the bridge (and as many queries wait to be read); a
+further query is answered ``full``. Bounds the bridge's memory whatever the number of application names."""
+ERR_KINDS = ("malformed", "aborted", "dropped", "lost", "timeout", "closed", "busy", "full")
 """``malformed``: the query was refused, nothing sent. ``aborted``: a stop (from ``TEXT``'s application) came
 before the batch was sent: never sent. ``dropped``: the application vanished before its batch was sent.
 ``lost``: the controller link dropped (``ACKED`` known done, ``UNRESOLVED`` may or may not have run).
 ``timeout``: no ack in time (``UNRESOLVED`` may still run). ``closed``: the bridge is shutting down, not sent.
-``busy``: the application already has :data:`MAX_QUEUED_PER_APP` batches waiting in the bridge, not sent."""
+``busy``: the application already has :data:`MAX_QUEUED_PER_APP` batches waiting in the bridge, not sent.
+``full``: the bridge already holds :data:`MAX_QUEUED_TOTAL` batches of all applications, not sent."""
 
 _NAME = re.compile(r"^[A-Za-z0-9_.\-]{1,64}$")
 _ROOT = "aioadept"
