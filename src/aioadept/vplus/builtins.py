@@ -22,6 +22,8 @@ from aioadept.vplus import errors as E
 from aioadept.vplus.errors import VPlusError, VPlusHalt
 from aioadept.vplus.registry import IMPLEMENTATIONS, builtin
 from aioadept.vplus import disk, iodev, status
+from aioadept.vplus import locations as L
+from aioadept.vplus.parse import norm
 from aioadept.vplus.render import _FMT_CACHE, _FMT_RE, _default_number, _fmt_number, _render  # noqa: F401
 from aioadept.vplus.values import _FB, _GOTO, MAX_STRING, _Goto, _LocArray, _Missing, f32  # noqa: F401
 
@@ -247,47 +249,92 @@ def _deg(f):
 
 
 def namespace(rt: Runtime) -> dict[str, Any]:
-    from aioadept.vplus import locations as L
+    """The globals of a runtime's generated code: the built-in functions (``_fn_NAME`` and the table ``_fn``)
+    and the instructions (``_call``, ``_robot``, ``_type`` ...), each group made by its own function below."""
+    fn = _functions(rt)
+    ns = {"_fn_" + k.replace("$", "s").replace("#", "h").replace(".", "_"): f for k, f in fn.items()}
+    ns.update({
+        "_G": rt.globals, "_FB": _FB, "_arr": _arr, "_ix": _ix, "_IX": _IX, "_encv": _encv, "_MC": _MISSING_C,
+        "_loc_store": _loc_store, "_defref": _defref, "_str": _str, "_pp": _pp_check, "_loc": _loc_check,
+        "_dbl": _dbl, "_real": _real, "_f32": f32, "_byval": _byval, "_MISSING": (_MISSING_C, "?"),
+        "_decompose": _decompose_into, "_decode": _decode, "_encode": _encode, "_defined": _defined,
+        "_defarr": _defarr, "_last": _last, "_fn": fn, "_compose": _compose, "_fmod": math.fmod, "_Goto": _Goto,
+        "_GOTO": _GOTO,
+        "_disk_open": lambda T, word, lun, items: disk.open_file(T, word, lun, _render(items)[0] if items else ""),
+        "_io_attach": iodev.attach(rt), "_io_detach": iodev.detach(rt), "_io_fclose": iodev.fclose(rt),
+        "_io_fopen": iodev.fopen(rt), "_io_read": iodev.read(rt), "_io_write": iodev.write(rt),
+    })
+    ns.update(_calls(rt))
+    for group in (_tasks, _events, _console_and_io, _signals, _motion, _robot):
+        ns.update(group(rt))
+    return ns
 
-    G = rt.globals
+
+def _arg(A: tuple, i: int, name: str):
+    # An argument omitted or left blank is undefined in the callee (V+ Language User's Guide v17, p. 45,
+    # "Undefined Arguments"). Each call gets a container of its own: a callee that assigns to it must not
+    # make it defined for the next call (one shared container did).
+    if i >= len(A):
+        return (_Missing(), name)
+    a = A[i]
+    if type(a) is dict or type(a) is _Missing:
+        raise VPlusError(E.ILLEGAL_OPERATION, f"*Illegal operation* (an array passed for {name})")
+    if a[0] is _MISSING_C:
+        return (_Missing(), name)
+    return a
+
+
+def _argarr(A: tuple, i: int, name: str) -> dict:
+    if i >= len(A):
+        return _Missing()         # omitted: undefined in the callee (DEFINED(q[]) is FALSE), its own each call
+    a = A[i]
+    if type(a) is tuple and a[0] is _MISSING_C:
+        return _Missing()         # left blank
+    if type(a) is not dict and type(a) is not _Missing:
+        raise VPlusError(E.ILLEGAL_OPERATION, f"*Illegal operation* ({name}[] needs an array argument)")
+    return a
+
+
+def _progname(v: Any) -> str:
+    if not isinstance(v, str):
+        raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* (CALLS needs a string)")
+    return norm(v.strip())
+
+
+def _calls(rt: Runtime) -> dict[str, Any]:
+    """CALL, CALLS, arguments, EXECUTE, REACTE, the error path and the clock ticks of WAIT."""
 
     def static(T: Task, prog: str) -> dict:
         return T.statics.setdefault(prog, {})
 
-    def arg(A: tuple, i: int, name: str):
-        # An argument omitted or left blank is undefined in the callee (V+ Language User's Guide v17, p. 45,
-        # "Undefined Arguments"). Each call gets a container of its own: a callee that assigns to it must not
-        # make it defined for the next call (one shared container did).
-        if i >= len(A):
-            return (_Missing(), name)
-        a = A[i]
-        if type(a) is dict or type(a) is _Missing:
-            raise VPlusError(E.ILLEGAL_OPERATION, f"*Illegal operation* (an array passed for {name})")
-        if a[0] is _MISSING_C:
-            return (_Missing(), name)
-        return a
-
-    def argarr(A: tuple, i: int, name: str) -> dict:
-        if i >= len(A):
-            return _Missing()         # omitted: undefined in the callee (DEFINED(q[]) is FALSE), its own each call
-        a = A[i]
-        if type(a) is tuple and a[0] is _MISSING_C:
-            return _Missing()         # left blank
-        if type(a) is not dict and type(a) is not _Missing:
-            raise VPlusError(E.ILLEGAL_OPERATION, f"*Illegal operation* ({name}[] needs an array argument)")
-        return a
-
-    def progname(v: Any) -> str:
-        if not isinstance(v, str):
-            raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* (CALLS needs a string)")
-        from aioadept.vplus.parse import norm
-
-        return norm(v.strip())
-
     def tick() -> float:
         return rt.next_tick()
 
-    cond_tick = rt.cond_tick
+    def execute(T: Task, task: Any, prog: str, args: tuple) -> None:
+        # by value; an argument left blank is undefined in the program, as for CALL
+        rt.start_task(int(task) if task is not None else 0, prog,
+                      tuple((_MISSING_C, "?") if a is None else ([_byval(a)], 0) for a in args))
+
+    def reacte(T: Task, prog: str) -> None:
+        T.reacte = prog
+
+    def err(T: Task, exc: BaseException, prog: str, line: int) -> Generator:
+        return rt.on_error(T, exc, prog, line)
+
+    programs = rt.programs          # filled by compile_all after this namespace is built; never replaced
+
+    def call(T: Task, name: str, args: tuple) -> Generator:
+        f = programs.get(name)
+        if f is None:
+            return rt.call(T, name, args)     # the errors: not executable, undefined
+        return f(T, args)
+
+    return {"_static": static, "_arg": _arg, "_argarr": _argarr, "_progname": _progname, "_tick": tick,
+            "_ctick": rt.cond_tick, "_call": call, "_execute": execute, "_reacte": reacte, "_err": err}
+
+
+def _tasks(rt: Runtime) -> dict[str, Any]:
+    """HALT, STOP, PAUSE, ABORT, KILL and CYCLE.END."""
 
     def halt(T: Task, prog: str, line: int) -> None:
         raise VPlusHalt(f"(HALTED) {prog}, line {line}", program=prog, line=line, brakes=True)
@@ -307,44 +354,27 @@ def namespace(rt: Runtime) -> dict[str, Any]:
             yield rt.now + 3600.0
         return None
 
-    def type_(T: Task, items: tuple) -> None:
-        text, no_eol = _render(items)
-        pend = T.statics.setdefault("\0type", {"s": ""})
-        text = pend["s"] + text
-        if no_eol:
-            pend["s"] = text
-            return
-        pend["s"] = ""
-        for ln in text.split("\r\n"):
-            rt.console(T.num, ln)
+    def abort(T: Task, nums: tuple) -> None:
+        for n in nums or (0,):
+            if int(n) == T.num:
+                raise VPlusHalt("", brakes=True)
+            rt.abort(int(n))
 
-    def prompt(T: Task, is_str: bool) -> Generator:
-        while not rt.input:
-            T.io_wait = True
-            yield rt.next_tick()
-        s = rt.input.popleft()
-        return s if is_str else _val(s)
+    def kill(T: Task, nums: tuple) -> None:
+        for n in nums or (0,):
+            rt.kill(int(n))
 
-    def signal(T: Task, nums: tuple) -> None:
-        # SIGNAL n, ...: outputs and soft signals (aioadept.sim.io: numbering, the hand's valves, the change
-        # log); an input or a number that is no signal is an error and changes nothing. Zero is ignored.
-        try:
-            rt.io.signal([k for k in map(vint, nums) if k != 0], rt.now)
-        except RobotError as exc:
-            raise _io_error(exc) from None
+    def cycle_end(T: Task, nums: tuple) -> None:
+        n = int(nums[0]) if nums else 0
+        other = rt.tasks.get(n)
+        if other is not None:
+            other.stop_cycle = True
 
-    def bits_set(T: Task, first: float, count: float, value: float) -> None:
-        try:
-            rt.io.bits_set(first, count, value, rt.now)
-        except RobotError as exc:
-            raise _io_error(exc) from None
+    return {"_halt": halt, "_stop": stop, "_pause": pause, "_abort": abort, "_kill": kill, "_cycle_end": cycle_end}
 
-    def parameter(T: Task, name: str, value: float) -> None:
-        # PARAMETER HAND.TIME = s (the compiler refuses every other parameter)
-        try:
-            rt.io.set_hand_time(float(value))
-        except RobotError as exc:
-            raise _io_error(exc) from None
+
+def _events(rt: Runtime) -> dict[str, Any]:
+    """WAIT.EVENT and SET.EVENT."""
 
     def wait_event(T: Task, args: tuple) -> Generator:
         # WAIT.EVENT mask, timeout: wait for SET.EVENT of this task (mask 1) or until the timeout (seconds).
@@ -371,56 +401,103 @@ def namespace(rt: Runtime) -> dict[str, Any]:
         if other is not None:
             rt.signal_event(other)
 
-    def execute(T: Task, task: Any, prog: str, args: tuple) -> None:
-        # by value; an argument left blank is undefined in the program, as for CALL
-        rt.start_task(int(task) if task is not None else 0, prog,
-                      tuple((_MISSING_C, "?") if a is None else ([_byval(a)], 0) for a in args))
+    return {"_wait_event": wait_event, "_set_event": set_event}
 
-    def abort(T: Task, nums: tuple) -> None:
-        for n in nums or (0,):
-            if int(n) == T.num:
-                raise VPlusHalt("", brakes=True)
-            rt.abort(int(n))
 
-    def kill(T: Task, nums: tuple) -> None:
-        for n in nums or (0,):
-            rt.kill(int(n))
+def _console_and_io(rt: Runtime) -> dict[str, Any]:
+    """TYPE, PROMPT, ENABLE/DISABLE and TIMER."""
 
-    def cycle_end(T: Task, nums: tuple) -> None:
-        n = int(nums[0]) if nums else 0
-        other = rt.tasks.get(n)
-        if other is not None:
-            other.stop_cycle = True
-            if len(nums) > 1 and nums[1]:
-                pass
+    def type_(T: Task, items: tuple) -> None:
+        text, no_eol = _render(items)
+        pend = T.statics.setdefault("\0type", {"s": ""})
+        text = pend["s"] + text
+        if no_eol:
+            pend["s"] = text
+            return
+        pend["s"] = ""
+        for ln in text.split("\r\n"):
+            rt.console(T.num, ln)
 
-    def reacte(T: Task, prog: str) -> None:
-        T.reacte = prog
+    def prompt(T: Task, is_str: bool) -> Generator:
+        while not rt.input:
+            T.io_wait = True
+            yield rt.next_tick()
+        s = rt.input.popleft()
+        return s if is_str else _val(s)
 
-    def err(T: Task, exc: BaseException, prog: str, line: int) -> Generator:
-        return rt.on_error(T, exc, prog, line)
+    def switch(T: Task, names: list[str], on: bool) -> None:
+        for n in names:
+            if n not in rt.switches:
+                raise VPlusError(E.ILLEGAL_VALUE, f"*Illegal value* (no switch {n})")
+            rt.switches[n] = on
+            if n == "DRY.RUN" and rt.robot is not None:
+                rt.robot.dry_run = on
 
-    programs = rt.programs          # filled by compile_all after this namespace is built; never replaced
+    def timer_set(n: float, v: float) -> None:
+        # V+ Reference Guide, TIMER instruction: timers 1 to 15; timer 0 is the system clock and cannot be set
+        k = vint(n)
+        if not 1 <= k <= 15:
+            raise VPlusError(E.ILLEGAL_VALUE, f"*Illegal value* (TIMER {k}: the timer number must be 1 to 15)")
+        rt.timers[k] = rt.now - float(v)
 
-    def call(T: Task, name: str, args: tuple) -> Generator:
-        f = programs.get(name)
-        if f is None:
-            return rt.call(T, name, args)     # the errors: not executable, undefined
-        return f(T, args)
+    return {"_type": type_, "_prompt": prompt, "_switch": switch, "_timer_set": timer_set}
 
-    # -- robot (aioadept.vplus.robot.RobotDevice on the sim's Controller) ----------------------------------
-    def no_robot() -> VPlusError:
-        return VPlusError(E.ROBOT_NOT_ATTACHED, "*Robot not attached* (the emulator has no robot)")
 
-    def robot_of(T: Task):
-        r = rt.robot
-        if r is None:
-            raise no_robot()
-        r.now_s = rt.now
-        if not T.robot_attached and T.num == 0 and r.owner is None:
-            r.attach(0)                  # V+: task 0 has the robot attached when it starts
-            T.robot_attached = True
-        return r
+def _signals(rt: Runtime) -> dict[str, Any]:
+    """SIGNAL, BITS and PARAMETER HAND.TIME: the digital I/O (aioadept.sim.io)."""
+
+    def signal(T: Task, nums: tuple) -> None:
+        # SIGNAL n, ...: outputs and soft signals (aioadept.sim.io: numbering, the hand's valves, the change
+        # log); an input or a number that is no signal is an error and changes nothing. Zero is ignored.
+        try:
+            rt.io.signal([k for k in map(vint, nums) if k != 0], rt.now)
+        except RobotError as exc:
+            raise _io_error(exc) from None
+
+    def bits_set(T: Task, first: float, count: float, value: float) -> None:
+        try:
+            rt.io.bits_set(first, count, value, rt.now)
+        except RobotError as exc:
+            raise _io_error(exc) from None
+
+    def parameter(T: Task, name: str, value: float) -> None:
+        # PARAMETER HAND.TIME = s (the compiler refuses every other parameter)
+        try:
+            rt.io.set_hand_time(float(value))
+        except RobotError as exc:
+            raise _io_error(exc) from None
+
+    return {"_signal": signal, "_bits_set": bits_set, "_parameter": parameter}
+
+
+def _no_robot() -> VPlusError:
+    return VPlusError(E.ROBOT_NOT_ATTACHED, "*Robot not attached* (the emulator has no robot)")
+
+
+def _robot_of(rt: Runtime, T: Task):
+    """The runtime's robot for task ``T``, attached to task 0 when it first moves (V+: task 0 has the robot
+    attached when it starts)."""
+    r = rt.robot
+    if r is None:
+        raise _no_robot()
+    r.now_s = rt.now
+    if not T.robot_attached and T.num == 0 and r.owner is None:
+        r.attach(0)
+        T.robot_attached = True
+    return r
+
+
+def _live_robot(rt: Runtime):
+    r = rt.robot
+    if r is None:
+        raise _no_robot()
+    r.now_s = rt.now
+    return r
+
+
+def _motion(rt: Runtime) -> dict[str, Any]:
+    """Motions and the hand (aioadept.vplus.robot.RobotDevice on the sim's Controller): generators the task
+    runs until the motion is done."""
 
     def drive(T: Task, gen: Generator) -> Generator:
         """Run a RobotDevice motion generator, telling it the time at each resumption."""
@@ -432,7 +509,7 @@ def namespace(rt: Runtime) -> dict[str, Any]:
             r.now_s = rt.now
 
     def robot(T: Task, kind: str, *args: Any) -> Generator:
-        r = robot_of(T)
+        r = _robot_of(rt, T)
         n = T.num
         if kind in ("MOVE", "MOVES"):
             return drive(T, r.move(n, args[0], straight=(kind == "MOVES")))
@@ -446,16 +523,16 @@ def namespace(rt: Runtime) -> dict[str, Any]:
             return drive(T, r.movet(n, args[0], float(args[1]), straight=(kind == "MOVEST")))
         return drive(T, r.break_())
 
-    def duration(T: Task, v: float, always: bool) -> None:
-        robot_of(T).set_duration(T.num, float(v), always=always)
-
-    def config(T: Task, word: str) -> None:
-        robot_of(T).request_config(T.num, word)
-
     def hand(T: Task, kind: str) -> Generator:
-        r = robot_of(T)
+        r = _robot_of(rt, T)
         action = kind.rstrip("I").lower()
         return drive(T, r.hand(T.num, action, immediate=kind.endswith("I")))
+
+    return {"_robot": robot, "_hand": hand}
+
+
+def _robot(rt: Runtime) -> dict[str, Any]:
+    """The robot's settings: BRAKE, SPEED, ACCEL, DURATION, the configuration words and TOOL."""
 
     def brake(T: Task) -> None:
         if rt.robot is not None:
@@ -463,45 +540,79 @@ def namespace(rt: Runtime) -> dict[str, Any]:
             rt.wake_motion_waiters()
 
     def speed(T: Task, v: float, mode: str | None) -> None:
-        r = robot_of(T)
+        r = _robot_of(rt, T)
         if mode == "MONITOR":
             r.monitor_speed = float(v)
         else:
             r.speed(T.num, float(v), always=(mode == "ALWAYS"))
 
     def accel(T: Task, vals: tuple) -> None:
-        ctl = getattr(robot_of(T), "controller", None)
+        ctl = getattr(_robot_of(rt, T), "controller", None)
         if ctl is not None and vals:
             ctl.accel_pct = float(vals[0])
 
-    def tool(T: Task, t: Any) -> None:
-        robot_of(T).set_tool(T.num, loc_check(t))
+    return {
+        "_brake": brake, "_speed": speed, "_accel": accel,
+        "_duration": lambda T, v, always: _robot_of(rt, T).set_duration(T.num, float(v), always=always),
+        "_config": lambda T, word: _robot_of(rt, T).request_config(T.num, word),
+        "_tool": lambda T, t: _robot_of(rt, T).set_tool(T.num, _loc_check(t)),
+    }
 
-    def switch(T: Task, names: list[str], on: bool) -> None:
-        for n in names:
-            if n not in rt.switches:
-                raise VPlusError(E.ILLEGAL_VALUE, f"*Illegal value* (no switch {n})")
-            rt.switches[n] = on
-            if n == "DRY.RUN" and rt.robot is not None:
-                rt.robot.dry_run = on
 
-    def decompose(a: dict, first: int, v: Any, dbl: bool) -> None:
-        vals = L.decompose(v)
-        for i, x in enumerate(vals):
-            a[first + i] = float(x) if dbl else f32(x)
+def _decompose_into(a: dict, first: int, v: Any, dbl: bool) -> None:
+    vals = L.decompose(v)
+    for i, x in enumerate(vals):
+        a[first + i] = float(x) if dbl else f32(x)
 
-    def timer_set(n: float, v: float) -> None:
-        # V+ Reference Guide, TIMER instruction: timers 1 to 15; timer 0 is the system clock and cannot be set
-        k = vint(n)
-        if not 1 <= k <= 15:
-            raise VPlusError(E.ILLEGAL_VALUE, f"*Illegal value* (TIMER {k}: the timer number must be 1 to 15)")
-        rt.timers[k] = rt.now - float(v)
 
-    # -- functions --------------------------------------------------------------------------------------
+def _last(get) -> float:
+    try:
+        a = get()
+    except KeyError:
+        return -1.0
+    return float(max(a)) if a else -1.0
+
+
+def _defined(get) -> float:
+    try:
+        get()
+    except (KeyError, VPlusError):
+        return 0.0
+    return -1.0
+
+
+def _defarr(get) -> float:
+    try:
+        a = get()
+        if type(a) is _Missing and not a:
+            return 0.0            # an array argument the caller did not pass
+        return -1.0 if a is not None else 0.0
+    except KeyError:
+        return 0.0
+
+
+def _loc_check(v: Any) -> Any:
+    if not isinstance(v, L.Transform):
+        raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* (not a transformation)")
+    return v
+
+
+def _pp_check(v: Any) -> Any:
+    if not isinstance(v, L.PrecisionPoint):
+        raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* (not a precision point)")
+    return v
+
+
+def _compose(a: Any, b: Any) -> Any:
+    return L.compose(_loc_check(a), _loc_check(b))
+
+
+def _functions(rt: Runtime) -> dict[str, Any]:
+    """The V+ functions by name: the registry's run-time-free implementations (@builtin), then those that read
+    the run time (TIMER, SIG, TASK, HERE ...) and the location functions."""
+
     def timer(n: float = 0.0) -> float:
         k = vint(n)
-        if k == -3:
-            return rt.now - rt.t0
         if k < 0:
             return rt.now - rt.t0
         return rt.now - rt.timers.get(k, rt.t0)
@@ -528,120 +639,43 @@ def namespace(rt: Runtime) -> dict[str, Any]:
             return 0.0
         return {"running": 4.0, "paused": 2.0}.get(other.state, 0.0)
 
-    def live_robot():
-        r = rt.robot
-        if r is None:
-            raise no_robot()
-        r.now_s = rt.now
-        return r
-
-    def inrange(T: Task, loc: Any) -> float:
-        return float(live_robot().inrange(loc))
-
-    def here(T: Task) -> Any:
-        return live_robot().here()
-
-    def here_pp(T: Task) -> Any:
-        return live_robot().here_ppoint()
-
     def speed_fn(T: Task, sel: float = 0.0) -> float:
-        ctl = getattr(live_robot(), "controller", None)
+        ctl = getattr(_live_robot(rt), "controller", None)
         if ctl is None:
             return 100.0
         return float(ctl.monitor_speed_pct if int(sel) == 0 else ctl.always_speed_pct)
 
-    def last(get) -> float:
-        try:
-            a = get()
-        except KeyError:
-            return -1.0
-        return float(max(a)) if a else -1.0
-
-    def defined(get) -> float:
-        try:
-            get()
-        except (KeyError, VPlusError):
-            return 0.0
-        return -1.0
-
-    def defarr(get) -> float:
-        try:
-            a = get()
-            if type(a) is _Missing and not a:
-                return 0.0            # an array argument the caller did not pass
-            return -1.0 if a is not None else 0.0
-        except KeyError:
-            return 0.0
-
-    def loc_check(v: Any) -> Any:
-        if not isinstance(v, L.Transform):
-            raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* (not a transformation)")
-        return v
-
-    def pp_check(v: Any) -> Any:
-        if not isinstance(v, L.PrecisionPoint):
-            raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* (not a precision point)")
-        return v
-
-    def compose(a: Any, b: Any) -> Any:
-        return L.compose(loc_check(a), loc_check(b))
-
-    def shift(t: Any, dx: float = 0.0, dy: float = 0.0, dz: float = 0.0) -> Any:
-        return L.shift(loc_check(t), dx, dy, dz)
-
-    def trans(*v: Any) -> Any:
-        vals = [0.0 if x is None else float(x) for x in v]
-        return L.trans(*vals)
-
-    def fmax(*v: float) -> float:
-        return float(max(v))
-
-    def fmin(*v: float) -> float:
-        return float(min(v))
-
-    def fn_int(x: float) -> float:
-        return float(int(x))
-
-    fn = dict(IMPLEMENTATIONS)          # the functions that need no run time (@builtin)
+    fn = dict(IMPLEMENTATIONS)
+    fn |= _MATH
+    fn |= _LOCATION_FUNCTIONS
     fn |= {
-        "$ERROR": lambda c: E.text(c),
-        "INT": fn_int, "ABS": abs, "SQRT": math.sqrt, "SQR": lambda x: x * x,
-        "SIN": _deg(math.sin), "COS": _deg(math.cos), "TAN": _deg(math.tan),
-        "ATAN2": lambda y, x: math.degrees(math.atan2(y, x)), "ASIN": lambda x: math.degrees(math.asin(x)),
-        "ACOS": lambda x: math.degrees(math.acos(x)), "MAX": fmax, "MIN": fmin, "TIMER": timer,
-        "SIG": _sig(rt), "IOSTAT": iostat, "TASK": task_fn, "ERROR": error_fn, "INRANGE": inrange,
-        "TRANS": trans, "INVERSE": lambda t: L.inverse(loc_check(t)), "HERE": here, "#HERE": here_pp,
-        "#PPOINT": lambda *j: L.ppoint(*[0.0 if x is None else float(x) for x in j]),
-        "DX": lambda t: loc_check(t).x, "DY": lambda t: loc_check(t).y, "DZ": lambda t: loc_check(t).z,
-        "DISTANCE": lambda a, b: L.distance(loc_check(a), loc_check(b)), "SHIFT": shift,
-        "RX": L.rx, "RY": L.ry, "RZ": L.rz,
-        "SIGN": lambda x: float((x > 0) - (x < 0)), "FRACT": lambda x: x - int(x), "RANDOM": lambda: random.random(),
-        "NULL": lambda: L.NULL,
-        "$TOUPPER": str.upper, "$TOLOWER": str.lower, "SPEED": speed_fn,
+        "TIMER": timer, "SIG": _sig(rt), "IOSTAT": iostat, "TASK": task_fn, "ERROR": error_fn,
+        "INRANGE": lambda T, loc: float(_live_robot(rt).inrange(loc)), "HERE": lambda T: _live_robot(rt).here(),
+        "#HERE": lambda T: _live_robot(rt).here_ppoint(), "SPEED": speed_fn,
         "SWITCH": lambda *a: -1.0 if rt.switches.get("DRY.RUN") else 0.0, "BITS": _bits(rt),
-        "$TIME": lambda *a: "", "NORM": lambda t: t, "$DEFAULT": lambda *a: "",
     }
-
     fn.update(status.functions(rt))      # STATE(), SWITCH(name): the robot's status (aioadept.vplus.status)
-    ns = {"_fn_" + k.replace("$", "s").replace("#", "h").replace(".", "_"): f for k, f in fn.items()}
-    ns.update({
-        "_G": G, "_FB": _FB, "_static": static, "_arg": arg, "_argarr": argarr, "_arr": _arr, "_ix": _ix, "_IX": _IX,
-        "_encv": _encv, "_MC": _MISSING_C, "_loc_store": _loc_store, "_defref": _defref,
-        "_str": _str, "_pp": pp_check, "_loc": loc_check, "_dbl": _dbl, "_real": _real, "_f32": f32,
-        "_byval": _byval, "_MISSING": (_MISSING_C, "?"), "_call": call, "_progname": progname, "_tick": tick, "_ctick": cond_tick,
-        "_halt": halt, "_stop": stop, "_pause": pause, "_type": type_, "_prompt": prompt, "_signal": signal,
-        "_bits_set": bits_set, "_parameter": parameter, "_hand": hand,
-        "_wait_event": wait_event, "_set_event": set_event, "_execute": execute, "_abort": abort, "_kill": kill,
-        "_cycle_end": cycle_end, "_reacte": reacte, "_robot": robot, "_brake": brake, "_speed": speed,
-        "_accel": accel, "_tool": tool, "_decompose": decompose, "_switch": switch, "_timer_set": timer_set,
-        "_duration": duration, "_config": config,
-        "_disk_open": lambda T, word, lun, items: disk.open_file(T, word, lun, _render(items)[0] if items else ""),
-        "_decode": _decode, "_encode": _encode, "_defined": defined, "_defarr": defarr, "_last": last,
-        "_fn": fn, "_compose": compose, "_fmod": math.fmod, "_err": err, "_Goto": _Goto, "_GOTO": _GOTO,
-        "_io_attach": iodev.attach(rt), "_io_detach": iodev.detach(rt), "_io_fclose": iodev.fclose(rt),
-        "_io_fopen": iodev.fopen(rt), "_io_read": iodev.read(rt), "_io_write": iodev.write(rt),
-    })
-    return ns
+    return fn
+
+
+_MATH: dict[str, Any] = {
+    "$ERROR": lambda c: E.text(c), "INT": lambda x: float(int(x)), "ABS": abs, "SQRT": math.sqrt,
+    "SQR": lambda x: x * x, "SIN": _deg(math.sin), "COS": _deg(math.cos), "TAN": _deg(math.tan),
+    "ATAN2": lambda y, x: math.degrees(math.atan2(y, x)), "ASIN": lambda x: math.degrees(math.asin(x)),
+    "ACOS": lambda x: math.degrees(math.acos(x)), "MAX": lambda *v: float(max(v)), "MIN": lambda *v: float(min(v)),
+    "SIGN": lambda x: float((x > 0) - (x < 0)), "FRACT": lambda x: x - int(x), "RANDOM": lambda: random.random(),
+    "$TOUPPER": str.upper, "$TOLOWER": str.lower, "$TIME": lambda *a: "", "$DEFAULT": lambda *a: "",
+}
+
+_LOCATION_FUNCTIONS: dict[str, Any] = {
+    "TRANS": lambda *v: L.trans(*[0.0 if x is None else float(x) for x in v]),
+    "INVERSE": lambda t: L.inverse(_loc_check(t)),
+    "#PPOINT": lambda *j: L.ppoint(*[0.0 if x is None else float(x) for x in j]),
+    "DX": lambda t: _loc_check(t).x, "DY": lambda t: _loc_check(t).y, "DZ": lambda t: _loc_check(t).z,
+    "DISTANCE": lambda a, b: L.distance(_loc_check(a), _loc_check(b)),
+    "SHIFT": lambda t, dx=0.0, dy=0.0, dz=0.0: L.shift(_loc_check(t), dx, dy, dz),
+    "RX": L.rx, "RY": L.ry, "RZ": L.rz, "NULL": lambda: L.NULL, "NORM": lambda t: t,
+}
 
 
 _MISSING_C = _Missing()

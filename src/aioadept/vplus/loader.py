@@ -109,85 +109,118 @@ def load_text(text: str, filename: str, module: Module) -> Module:
 
 
 def _parse_text(text: str, filename: str, module: Module) -> Module:
-    cur: Program | None = None
-    section: str | None = None
-    pending: tuple | None = None         # a location whose values may continue on the next line
+    reader = _Reader(filename, module)
+    n = 0
     for n, raw in enumerate(text.replace("\r\n", "\n").replace("\r", "\n").split("\n"), 1):
-        line = raw.replace("\x0c", "").replace("\x1a", "")
+        reader.line(n, raw.replace("\x0c", "").replace("\x1a", ""))
+    reader.close(n)
+    return module
+
+
+class _Reader:
+    """The state of reading one file line by line: the program or data section it is in."""
+
+    def __init__(self, filename: str, module: Module) -> None:
+        self.filename, self.module = filename, module
+        self.cur: Program | None = None
+        self.section: str | None = None
+        self.pending: tuple | None = None         # a location whose values may continue on the next line
+
+    def problem(self, n: int, line: str, message: str, word: str, program: str | None) -> LoadProblem:
+        """A problem at ``word`` of ``line`` (its column where the word is found)."""
+        return LoadProblem(self.filename, n, message, word, program, line.find(word) + 1 if word else 0)
+
+    def line(self, n: int, line: str) -> None:
         head = line.strip()
         up = head.upper()
-        if cur is None and section is None:
-            if not head or head.startswith(";"):
-                continue
-            # a comment after the .PROGRAM line may hold anything, parentheses too (User's Guide, "Program
-            # Organization": ".PROGRAM program_name(parameter_list) ;Comment")
+        if self.cur is None and self.section is None:
+            self.outside(n, line, head)
+        elif up == ".END":
+            if self.cur is not None:
+                _finish(self.cur, self.module)
+            self.flush()
+            self.cur, self.section = None, None
+        elif self.section is not None:
+            self.data(n, line)
+        elif up.startswith(".PROGRAM"):
+            self.module.problems.append(self.problem(n, line, ".PROGRAM before .END", head.split()[0],
+                                                     self.cur.name))
+            _finish(self.cur, self.module)
             m = _PROG_RE.match(strip_comment(head).strip())
-            if m:
-                probs: list[LoadProblem] = []
-                cur = Program(norm(m.group(1)), _params(m.group(2), filename, n, probs), filename, n)
-                for pr in probs:
-                    cur.problems.append(LoadProblem(pr.file, pr.line, pr.message, pr.word, cur.name))
-                continue
-            key = " ".join(up.split())
-            if key in _SECTIONS:
-                section = _SECTIONS[key]
-                continue
-            module.problems.append(LoadProblem(filename, n, "text outside .PROGRAM/.END", head.split()[0], None))
-            continue
-        if up == ".END":
-            if cur is not None:
-                _finish(cur, module)
-            if pending is not None:
-                _flush_location(pending, filename, module)
-                pending = None
-            cur, section = None, None
-            continue
-        if section is not None:
-            code = strip_comment(line).strip()
-            if code and section in ("LOC", "PPOINT") and _CONTINUATION.match(code):
-                # the second line of a stored transformation (or a long precision point): values, no name
-                if pending is None:
-                    module.problems.append(LoadProblem(filename, n, "values without a location name",
-                                                       code.split()[0], None))
-                else:
-                    pending[3].append((n, code))
-                continue
-            if pending is not None:
-                _flush_location(pending, filename, module)
-                pending = None
-            if code and section in ("LOC", "PPOINT"):
-                pending = (section, n, code, [])
-            elif code:
-                try:
-                    module.data.append(_data_line(section, code))
-                except (ValueError, VSyntaxError) as exc:
-                    module.problems.append(LoadProblem(filename, n, f"bad {section} value: {exc}",
-                                                       code.split()[0], None))
-            continue
-        assert cur is not None
-        if up.startswith(".PROGRAM"):
-            module.problems.append(LoadProblem(filename, n, ".PROGRAM before .END", head.split()[0], cur.name))
-            _finish(cur, module)
-            m = _PROG_RE.match(strip_comment(head).strip())
-            cur = Program(norm(m.group(1)), _params(m.group(2), filename, n, []), filename, n) if m else None
-            continue
+            self.cur = Program(norm(m.group(1)), _params(m.group(2), self.filename, n, []), self.filename, n) \
+                if m else None
+        else:
+            self.statement(n, line)
+
+    def outside(self, n: int, line: str, head: str) -> None:
+        """A line between sections: ``.PROGRAM``, a data section's name, a comment or a problem."""
+        if not head or head.startswith(";"):
+            return
+        # a comment after the .PROGRAM line may hold anything, parentheses too (User's Guide, "Program
+        # Organization": ".PROGRAM program_name(parameter_list) ;Comment")
+        m = _PROG_RE.match(strip_comment(head).strip())
+        if m:
+            probs: list[LoadProblem] = []
+            cur = self.cur = Program(norm(m.group(1)), _params(m.group(2), self.filename, n, probs),
+                                     self.filename, n)
+            for pr in probs:
+                cur.problems.append(self.problem(pr.line, line, pr.message, pr.word, cur.name))
+            return
+        key = " ".join(head.upper().split())
+        if key in _SECTIONS:
+            self.section = _SECTIONS[key]
+            return
+        self.module.problems.append(self.problem(n, line, "text outside .PROGRAM/.END", head.split()[0], None))
+
+    def data(self, n: int, line: str) -> None:
+        """A line of a data section; a location's values may continue on the next lines."""
+        section, code = self.section, strip_comment(line).strip()
+        if code and section in ("LOC", "PPOINT") and _CONTINUATION.match(code):
+            # the second line of a stored transformation (or a long precision point): values, no name
+            if self.pending is None:
+                self.module.problems.append(self.problem(n, line, "values without a location name",
+                                                         code.split()[0], None))
+            else:
+                self.pending[3].append((n, code))
+            return
+        self.flush()
+        if code and section in ("LOC", "PPOINT"):
+            self.pending = (section, n, code, [])
+        elif code:
+            try:
+                self.module.data.append(_data_line(section, code))
+            except (ValueError, VSyntaxError) as exc:
+                self.module.problems.append(self.problem(n, line, f"bad {section} value: {exc}",
+                                                         code.split()[0], None))
+
+    def statement(self, n: int, line: str) -> None:
+        """A line of a program: its statement node, or its problem (and on to the next line)."""
+        cur = self.cur
         code = strip_comment(line).strip()
         if not code:
-            continue
+            return
         cur.source[n] = code
         col0 = cur.indent[n] = len(line) - len(line.lstrip())
         try:
-            cur.steps.append((n, parse_statement(code, filename, n, col0)))
+            cur.steps.append((n, parse_statement(code, self.filename, n, col0)))
         except VSyntaxError as exc:
-            cur.problems.append(LoadProblem(filename, n, exc.message, exc.word, cur.name, exc.col))
-    if cur is not None:
-        module.problems.append(LoadProblem(filename, cur.line, "program not closed by .END", cur.name, cur.name))
-        _finish(cur, module)
-    if pending is not None:
-        _flush_location(pending, filename, module)
-    if section is not None:
-        module.problems.append(LoadProblem(filename, n, "data section not closed by .END", section, None))
-    return module
+            cur.problems.append(LoadProblem(self.filename, n, exc.message, exc.word, cur.name, exc.col))
+
+    def flush(self) -> None:
+        if self.pending is not None:
+            _flush_location(self.pending, self.filename, self.module)
+            self.pending = None
+
+    def close(self, n: int) -> None:
+        """The end of the file: what is still open is a problem."""
+        if self.cur is not None:
+            self.module.problems.append(LoadProblem(self.filename, self.cur.line, "program not closed by .END",
+                                                    self.cur.name, self.cur.name))
+            _finish(self.cur, self.module)
+        self.flush()
+        if self.section is not None:
+            self.module.problems.append(LoadProblem(self.filename, n, "data section not closed by .END",
+                                                    self.section, None))
 
 
 _CONTINUATION = re.compile(r"[-+.\d]")
