@@ -38,3 +38,12 @@ def test_the_result_type_of_a_call_comes_from_the_registry():
     emu = Emulator.from_source(".PROGRAM p()\n  x = INVERSE(a)\n  y = DX(a)\n.END\n", filename="t.V2", robot=False)
     assert [(p.line, p.column, p.message) for p in emu.problems] == \
         [(2, 3, "a location is assigned with SET (SET name = value)")]
+
+
+def test_the_registry_has_a_form_for_every_instruction_the_parser_knows_and_no_other():
+    from aioadept.vplus.parse import STATEMENTS
+
+    assert set(registry.INSTRUCTIONS) == set(STATEMENTS)
+    assert registry.describe("appro", instruction=True) == \
+        "APPRO location, distance (V+ Language Reference Guide v17, APPRO program instruction)"
+    assert registry.describe("MOVEC", instruction=True) is None

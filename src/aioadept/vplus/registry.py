@@ -1,4 +1,4 @@
-"""The V+ functions the emulator implements: name, form, result type and manual section, in one registry.
+"""The V+ functions and instructions the emulator implements: name, form, result type and manual section.
 
 The parser reads it (which ``NAME(`` is a call, and the "not implemented" message for the rest), the code
 generator reads the result types, and a language server's hover and completion can read :func:`describe`.
@@ -30,6 +30,9 @@ class Builtin:
 
 
 FUNCTIONS: dict[str, Builtin] = {}
+INSTRUCTIONS: dict[str, Builtin] = {}
+"""The program instructions by keyword (result ``""``); the parser's table (``parse.STATEMENTS``) has one parse
+function for each, and a test holds the two to the same words."""
 IMPLEMENTATIONS: dict[str, Callable[..., Any]] = {}
 
 
@@ -52,11 +55,14 @@ def builtin(name: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
     return bind
 
 
-def describe(name: str) -> str | None:
-    """Hover text of a function: ``$MID(string, first, count) -> str (V+ Language Reference Guide v17, ...)``."""
-    entry = FUNCTIONS.get(name.upper())
+def describe(name: str, *, instruction: bool = False) -> str | None:
+    """Hover text: ``$MID($string, first, count) -> str (V+ Language Reference Guide v17, $MID function)`` of a
+    function, ``MOVE location (..., MOVE program instruction)`` of an instruction; None if not implemented."""
+    entry = (INSTRUCTIONS if instruction else FUNCTIONS).get(name.upper())
     if entry is None:
         return None
+    if instruction:
+        return f"{entry.form} ({entry.section})"
     return f"{entry.form} -> {entry.result} ({entry.section})"
 
 
@@ -86,3 +92,29 @@ for _item in _TABLE.strip().replace("\n", " | ").split("|"):
     register(_form.split("(")[0], _form, _result)
 register("NULL", "NULL", "loc", call=False)
 register("SHIFT", "SHIFT(location BY dx, dy, dz)", "loc")
+
+# The instructions' forms ([...] optional, ... repeated).
+_INSTRUCTION_TABLE = """
+IF condition THEN | IF condition GOTO label | ELSE | END | WHILE condition DO | DO | UNTIL condition
+FOR variable = start TO stop [STEP step] | CASE value OF | VALUE value, ...: | ANY | GOTO label
+CALL program([argument, ...]) | CALLS $name([argument, ...]) | RETURN | RETURNE | EXIT | NEXT
+WAIT [condition] | WAIT.EVENT [mask], [timeout] | SET.EVENT [task] | HALT | STOP | PAUSE
+AUTO [type] name, ... | LOCAL [type] name, ... | GLOBAL [type] name, ... | TYPE item, ... | PROMPT item, ...
+SIGNAL signal, ... | ATTACH (lun, mode) device | DETACH (lun) | FCLOSE (lun) | FOPEN (lun, mode) attributes
+READ (lun, handle, mode) variable, ... | WRITE (lun, handle) item, ...
+EXECUTE [task,] program([argument, ...]) | ABORT task | KILL task | CYCLE.END task | REACTE program
+MOVE location | MOVES location | APPRO location, distance | APPROS location, distance | DEPART distance
+DEPARTS distance | MOVET location, hand | MOVEST location, hand | BREAK | BRAKE | DELAY time
+SPEED value [ALWAYS] | ACCEL acceleration, deceleration [ALWAYS] | DURATION time [ALWAYS] | TOOL transformation
+HERE location | DECOMPOSE array[] = location | SET location = value | TIMER timer = time | NULL
+ENABLE switch, ... | DISABLE switch, ... | PARAMETER HAND.TIME = value | BITS first, count = value
+OPEN [hand] | OPENI [hand] | CLOSE [hand] | CLOSEI [hand] | RELAX [hand] | RELAXI [hand]
+LEFTY | RIGHTY | ABOVE | BELOW | FLIP | NOFLIP | SINGLE | MULTIPLE
+FOPENR (lun) file | FOPENW (lun) file | FOPENA (lun) file | FOPEND (lun) folder | FDELETE (lun) file
+"""
+
+for _form in _INSTRUCTION_TABLE.strip().replace("\n", " | ").split("|"):
+    _form = _form.strip()
+    _word = _form.split(" ")[0].split("(")[0]
+    if _word not in INSTRUCTIONS:               # IF ... GOTO is the second form of IF
+        INSTRUCTIONS[_word] = Builtin(_word, _form, "", keywords.where(_word) or "emulator extension")
