@@ -32,7 +32,8 @@ HERE = Path(__file__).resolve().parent
 
 # Few iterations per benchmark for --quick; a benchmark not listed here runs with its defaults.
 QUICK_ARGS: dict[str, list[str]] = {
-    "bench_bridge": ["--n", "100", "--blocks", "2", "--warmup", "20", "--stops", "20"],
+    "bench_bridge": ["--n", "100", "--blocks", "2", "--warmup", "20", "--stops", "20", "--names", "5000",
+                     "--name-rounds", "5"],
     "bench_bus": ["--n", "200", "--warmup", "50", "--rounds", "1"],
     "bench_client": ["--quick"],
     "bench_focus_sweep": ["--rounds", "1"],

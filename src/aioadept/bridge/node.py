@@ -73,6 +73,8 @@ MAX_APPS_TRACKED = 1024
 batches are dropped when its token vanishes whether it is in the set or not)."""
 _DRAIN_TURN = 64
 """Queries read per turn of the loop (besides every stop waiting)."""
+_UNREAD_FULL = encode_failure(BridgeFailure("full", f"the bridge has {MAX_QUEUED_TOTAL} queries not yet read; "
+                                                  "not sent"))
 
 log = logging.getLogger("aioadept.bridge")
 
@@ -298,8 +300,12 @@ class Bridge:
                 schedule, self._drain_scheduled = not self._drain_scheduled, True
         if full:  # the loop is behind: refuse here, keeping nothing
             self.stats.full += 1
-            self._reply_err(query, BridgeFailure("full", f"the bridge has {MAX_QUEUED_TOTAL} queries not yet read; "
-                                                         "not sent"))
+            try:
+                query.reply_err(_UNREAD_FULL)
+            except Exception as exc:
+                log.debug("error reply on %s: %r", self._key, exc)
+            finally:
+                query.drop()
             return
         if schedule:
             try:
