@@ -259,6 +259,12 @@ class Bridge:
         if self._closed:
             return
         self._closed = self._closing = True
+        with self._inbox_lock:
+            unread = [*self._urgent, *self._inbox]
+            self._urgent.clear()
+            self._inbox.clear()
+        for query, _, _ in unread:
+            self._reply_err(query, BridgeFailure("closed", "the bridge is shutting down; not sent"))
         for job in self._jobs:
             self._fail(job, BridgeFailure("closed", "the bridge is shutting down; not sent",
                                           unresolved=()))
