@@ -11,7 +11,6 @@ from __future__ import annotations
 import asyncio
 import importlib.util
 import itertools
-import json
 import os
 import signal
 import subprocess

@@ -53,7 +53,7 @@ async def started(bridge: Bridge) -> asyncio.Task[None]:
 
 async def outcome(q: FakeQuery):
     kind, payload = await asyncio.wait_for(q.answer, 5)
-    return (kind, [parse_ack(l) for l in payload.split(b"\r\n") if l]) if kind == "ok" else (kind,
+    return (kind, [parse_ack(line) for line in payload.split(b"\r\n") if line]) if kind == "ok" else (kind,
                                                                                             parse_failure(payload))
 
 

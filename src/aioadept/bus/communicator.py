@@ -221,7 +221,7 @@ class Communicator:
         endpoints."""
         if self._state != "new":
             raise ClientStateError(f"Communicator is {self._state}; create a new one")
-        loop = self._loop = asyncio.get_running_loop()
+        self._loop = asyncio.get_running_loop()
         topics = (b"",) if self._response_topic is None else (self._response_topic,)
         self._sub, self._actual_resp = open_socket(zmq.SUB, self.response_endpoint,
                                                    bind=bool(self._bind),  # None: subscribers connect

@@ -54,7 +54,6 @@ from typing import Any
 
 from aioadept import defaults
 from aioadept.client.registry import (
-    W_LOST as _W_LOST,
     W_TIMED_OUT as _W_TIMED_OUT,
     PendingCalls,
     Submission,

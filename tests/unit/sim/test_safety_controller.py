@@ -11,7 +11,6 @@ from hypothesis import strategies as st
 
 from aioadept.protocol import NO_ID, ErrorCode, Status, parse_command
 from aioadept.errors import RemoteProtocolError
-from aioadept.sim import kinematics as kin
 from aioadept.sim.motion import plan_duration
 
 from test_sim_controller import HOME, Rig  # the shared fake-clock rig (same folder, on sys.path under pytest)
