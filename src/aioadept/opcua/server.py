@@ -307,12 +307,14 @@ class CellServer:
     # -- live values --------------------------------------------------------------------------------------------
 
     async def refresh(self, now_s: float) -> int:
-        """Write every live variable whose reading changed since it was last written; returns how many."""
+        """Write every live variable whose value or quality changed since it was last written; returns how many.
+        A sample that only confirms a value does not rewrite it: its source timestamp stays the time the value
+        last changed, as OPC UA Part 4 defines SourceTimestamp (and a resting arm costs the clients nothing)."""
         written = 0
         for view, nodes in zip(self.views, self._vars):
             for key, reading in view.readings(now_s).items():
                 node = nodes[key]
-                mark = (reading.value, reading.quality, reading.source_time_s)
+                mark = (reading.value, reading.quality)
                 if self._written.get(node.nodeid) == mark:
                     continue
                 self._written[node.nodeid] = mark
