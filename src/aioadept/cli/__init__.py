@@ -26,6 +26,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "pickplace": ("aioadept.cli.pickplace", "pick parts from the feeder and place them on the pallet, vision-guided"),
     "analyze": ("aioadept.cli.analyze", "analyse run folders: the paper's timing metrics and plots"),
     "experiment": ("aioadept.cli.experiment", "repeat the demo over a parameter grid, then analyse"),
+    "vplus": ("aioadept.cli.vplus", "V+ source tools: check files, serve the V+ language server"),
     "calibrate": ("aioadept.cli.calibrate", "estimate the fixed camera's pose in the robot base frame (marker on "
                                             "the tool)"),
 }

@@ -1,0 +1,85 @@
+"""``aioadept vplus check|lsp``: V+ source tools over the language core (:mod:`aioadept.vplus.check`).
+
+``check FILE|DIR ...`` prints every problem of the files (a folder: its ``.V2``/``.pg`` files, recursively),
+loaded together, one line each (``file:line:col: error: message``, or GitHub Actions annotations with
+``--format github``); exit status 1 when there is a problem, 0 when none, 2 for a usage mistake.
+``lsp`` serves the Language Server Protocol on stdin/stdout (:mod:`aioadept.vplus.lsp`, the ``lsp`` extra).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from aioadept.cli.options import DefaultsHelpFormatter
+
+SUFFIXES = (".v2", ".pg")
+"""The files a folder argument contributes (case-insensitive)."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="aioadept vplus", description="V+ source tools (docs/vplus.md)",
+                                formatter_class=DefaultsHelpFormatter)
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    c = sub.add_parser("check", help="report every problem of V+ files without running them",
+                       formatter_class=DefaultsHelpFormatter)
+    c.add_argument("paths", nargs="+", metavar="FILE|DIR", help="V+ files, or folders of them, loaded together")
+    c.add_argument("--format", choices=("text", "github"), default="text",
+                   help="text: file:line:col: error: message; github: GitHub Actions annotations")
+    sub.add_parser("lsp", help="serve the V+ Language Server Protocol on stdin/stdout (editors)")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    if args.command == "lsp":
+        from aioadept.vplus.lsp import serve
+
+        serve()
+        return 0
+    return check_main(args.paths, args.format)
+
+
+def check_main(paths: list[str], fmt: str) -> int:
+    from aioadept.vplus.check import check
+
+    try:
+        files = source_files(paths)
+    except ValueError as exc:
+        print(f"aioadept vplus check: {exc}", file=sys.stderr)
+        return 2
+    problems = check((str(f), f.read_bytes().decode("latin-1")) for f in files)
+    for p in problems:
+        print(github_annotation(p) if fmt == "github" else str(p))
+    return 1 if problems else 0
+
+
+def source_files(paths: list[str]) -> list[Path]:
+    """The files named, and a folder's V+ files in name order; ``ValueError`` naming a path that is neither."""
+    out: list[Path] = []
+    for raw in paths:
+        path = Path(raw)
+        if path.is_dir():
+            found = sorted(f for f in path.rglob("*") if f.is_file() and f.suffix.lower() in SUFFIXES)
+            if not found:
+                raise ValueError(f"{raw}: no V+ files ({', '.join(SUFFIXES)}) in this folder")
+            out.extend(found)
+        elif path.is_file():
+            out.append(path)
+        else:
+            raise ValueError(f"{raw}: no such file")
+    return out
+
+
+def github_annotation(p) -> str:
+    """``::error file=F,line=L,col=C,endColumn=E::message``, escaped as GitHub Actions' workflow commands
+    require (``%``, CR, LF everywhere; ``:`` and ``,`` in a property too)."""
+    def data(s: str) -> str:
+        return s.replace("%", "%25").replace("\r", "%0D").replace("\n", "%0A")
+
+    def prop(s: str) -> str:
+        return data(s).replace(":", "%3A").replace(",", "%2C")
+
+    return (f"::{p.severity} file={prop(p.file)},line={p.line},col={p.column},endColumn={p.end_column}"
+            f"::{data(p.message)}")
