@@ -9,7 +9,10 @@ and an ``aioadept opcua`` following it run as child processes on 127.0.0.1. This
 - **OPC UA**: an asyncua client subscribed (publishing interval ``--interval`` ms) to the six ActualPosition values;
   a data change's latency is its arrival minus its SourceTimestamp, which is the same ``wall_time_s``.
 
-Goal (issue 35): the OPC UA p95 within two publishing intervals (100 ms at 50 ms). The server's CPU (psutil: its
+Goal (issue 35): the OPC UA p95 within two publishing intervals (100 ms at 50 ms). The ``Stop`` method (the
+server runs with ``--allow-commands``) during a motion, from the call to its result, against ``RobotClient.stop()``
+direct, alternating, each from rest at A towards B; both are acked at rest, so both hold the sim's ramp (about 0.1 s
+from the speed reached): goal, the issue's "acked within 100 ms" as what the OPC UA path adds, p95 against p95. The server's CPU (psutil: its
 process's user + system time over a window, % of one core) with ``--clients`` clients each subscribed to the six
 values at 100 ms, against the same window with none; goal: the clients cost <= 10 % of one core.
 
@@ -91,6 +94,49 @@ def cpu_pct(proc, seconds: float) -> float:
     return (sum(proc.cpu_times()[:2]) - c0) / (time.monotonic() - t0) * 100
 
 
+async def stop_trials(url: str, port: int, users: Path, n: int) -> tuple[list[float], list[float]]:
+    """``n`` stops of a running motion each way, alternating: the OPC UA ``Stop`` method (call to result, through
+    ``aioadept opcua``'s RobotClient) and ``RobotClient.stop()`` direct. Both are acked at rest, so both include the
+    deceleration ramp."""
+    from asyncua import Client, ua
+
+    from aioadept.client import RobotClient
+    from aioadept.commands import MoveJoints, SetSpeed
+    from aioadept.errors import CommandAborted
+
+    client = Client(url, timeout=60)
+    client.set_user("bench")
+    client.set_password("bench")
+    via_opc: list[float] = []
+    direct: list[float] = []
+    async with client, RobotClient("127.0.0.1", port) as robot, RobotClient("127.0.0.1", port) as other:
+        vidx = await client.get_namespace_index("urn:aioadept:opcua:commands")
+        idx = await client.get_namespace_index("urn:aioadept:opcua:cell")
+        device = client.get_node(ua.NodeId("MotionDeviceSystem.Robot1", idx))
+        method = await device.get_child([ua.QualifiedName("Stop", vidx)])
+        await robot.cmdexec(SetSpeed(20))
+        for i in range(2 * n):
+            # Every trial the same: from rest at A towards B, stopped 0.1 s after it started moving (the ramp to rest,
+            # part of both figures, depends on the speed reached).
+            await robot.cmdexec(MoveJoints(A))
+            motion = asyncio.create_task(robot.cmdexec(MoveJoints(B)))
+            while not (await other.status()).moving:
+                await asyncio.sleep(0.01)
+            await asyncio.sleep(0.1)  # under way, at speed
+            t0 = time.perf_counter()
+            if i % 2 == 0:
+                await device.call_method(method)
+                via_opc.append(time.perf_counter() - t0)
+            else:
+                await other.stop()
+                direct.append(time.perf_counter() - t0)
+            try:
+                await motion
+            except CommandAborted:
+                pass
+    return via_opc, direct
+
+
 async def bench(args: argparse.Namespace) -> dict:
     import psutil
     from asyncua import Client
@@ -104,9 +150,12 @@ async def bench(args: argparse.Namespace) -> dict:
     url = f"opc.tcp://127.0.0.1:{free_port()}"
     async with running_node("sim", "--port", "0", "--state-rate", str(args.rate), "--state-endpoint",
                             "tcp://127.0.0.1:0", log_path=logs / "sim.log") as sim:
+        users = logs / "users"
+        users.write_text("bench:bench\n")
+        users.chmod(0o600)
         async with running_node("opcua", "--robot", f"127.0.0.1:{sim.ready['port']}", "--state-endpoint",
-                                sim.ready["state"], "--endpoint", url, log_path=logs / "opcua.log",
-                                ready_timeout_s=120) as server:
+                                sim.ready["state"], "--endpoint", url, "--allow-commands", "--users", str(users),
+                                log_path=logs / "opcua.log", ready_timeout_s=120) as server:
             assert server.proc is not None
             server_proc = psutil.Process(server.proc.pid)
             stop = asyncio.Event()
@@ -146,6 +195,7 @@ async def bench(args: argparse.Namespace) -> dict:
                         await c.disconnect()
             stop.set()
             await asyncio.wait_for(mover, 30)
+            stops_opc, stops_direct = await stop_trials(url, int(sim.ready["port"]), users, args.stops)
     opc_p95, bus_p95 = pct(opc.values, 0.95), pct(bus, 0.95)
     cost = cpu_loaded - cpu_idle
     return {
@@ -155,7 +205,14 @@ async def bench(args: argparse.Namespace) -> dict:
         "bus_subscriber": summary_ms(bus), "opcua_data_change": summary_ms(opc.values),
         "server_cpu_pct_one_core": {"with_1_client": round(cpu_idle, 2),
                                     f"with_{args.clients + 1}_clients": round(cpu_loaded, 2)},
+        "stop_via_opcua": summary_ms(stops_opc), "stop_direct": summary_ms(stops_direct),
+        "stop_via_opcua_ms_each": [round(x * 1e3, 1) for x in stops_opc],
+        "stop_direct_ms_each": [round(x * 1e3, 1) for x in stops_direct],
         "verdicts": [
+            verdict("Stop method during a motion, call to ack at rest (vs RobotClient.stop() direct), p95",
+                    pct(stops_opc, 0.95) * 1e3, pct(stops_direct, 0.95) * 1e3, unit="ms",
+                    goal="figure - baseline <= 100 ms (both wait for the ramp to rest)",
+                    passed=pct(stops_opc, 0.95) - pct(stops_direct, 0.95) <= 0.100),
             verdict(f"robot.state sample -> OPC UA data change p95 (vs a bus subscriber's p95), publishing "
                     f"interval {args.interval:g} ms", opc_p95 * 1e3, bus_p95 * 1e3, unit="ms",
                     goal=f"figure <= {2 * args.interval:g} ms", passed=opc_p95 * 1e3 <= 2 * args.interval),
@@ -173,6 +230,7 @@ def main() -> int:
     p.add_argument("--clients", type=int, default=20, help="clients added for the CPU figure")
     p.add_argument("--rate", type=int, default=50, help="the sim's state rate, Hz")
     p.add_argument("--interval", type=float, default=50.0, help="the OPC UA publishing interval, ms")
+    p.add_argument("--stops", type=int, default=10, help="stops of a running motion each way")
     args = p.parse_args()
     print(json.dumps(asyncio.run(bench(args)), indent=2))
     return 0
