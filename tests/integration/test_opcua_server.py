@@ -5,7 +5,8 @@ The client finds the MotionDeviceSystem by its type definition in the Robotics n
 subscribes to the six ActualPosition values while the sim moves and sees them match ``here``'s joints at rest;
 every instantiated node is walked against its type's declarations in the nodesets (every Mandatory child present,
 with the declared data type or type definition); a stalled stream (the sim stopped by SIGSTOP) turns the values
-Uncertain within a second, and Good again when it resumes.
+Uncertain within a second, and Good again when it resumes; the robot server restarting does the same; clients killed
+while subscribed leave the others served.
 """
 
 from __future__ import annotations
@@ -296,3 +297,101 @@ def test_an_endpoint_already_in_use_is_one_line_and_exit_1() -> None:
     assert proc.returncode == 1, proc.stderr
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("aioadept opcua: ") and "address already in use" in lines[0]
+
+
+VANISHING_CLIENT = """
+import asyncio, sys
+from asyncua import Client
+class H:
+    def datachange_notification(self, node, val, data):
+        pass
+async def main():
+    client = Client(sys.argv[1])
+    await client.connect()
+    sub = await client.create_subscription(50, H())
+    await sub.subscribe_data_change([client.get_node(n) for n in sys.argv[2:]])
+    print("SUBSCRIBED", flush=True)
+    await asyncio.sleep(3600)
+asyncio.run(main())
+"""
+
+
+@pytest.mark.timeout(90)
+async def test_a_client_that_vanishes_leaves_the_others_served(tmp_path) -> None:
+    import sys
+
+    from asyncua import Client
+
+    from aioadept.client import RobotClient
+
+    async with opcua_cell(tmp_path) as cell, Client(cell.url) as client:
+        positions = await axis_variables(client, await find_system(client), "ActualPosition")
+        gone = []
+        for _ in range(3):  # three clients subscribed to the six positions, killed without a word (SIGKILL)
+            proc = await asyncio.create_subprocess_exec(
+                sys.executable, "-c", VANISHING_CLIENT, cell.url, *[n.nodeid.to_string() for n in positions],
+                stdout=asyncio.subprocess.PIPE)
+            assert proc.stdout is not None
+            assert await asyncio.wait_for(proc.stdout.readline(), 30) == b"SUBSCRIBED\n"
+            gone.append(proc)
+        async with RobotClient("127.0.0.1", cell.robot_port) as robot:
+            await robot.cmdexec(SetSpeed(100))
+            move = asyncio.create_task(robot.cmdexec(MoveJoints(TARGET)))
+            await asyncio.sleep(0.2)
+            for proc in gone:
+                proc.kill()
+                await proc.wait()
+            await move
+        changes = Changes()
+        sub = await client.create_subscription(50, changes)
+        await sub.subscribe_data_change(positions)
+        await until(lambda: all(changes.last.get(n.nodeid) and abs(changes.last[n.nodeid].Value.Value - t) <= 0.01
+                                for n, t in zip(positions, TARGET)), 10, "the target, to a client that stayed")
+        async with RobotClient("127.0.0.1", cell.robot_port) as robot:
+            await robot.cmdexec(MoveJoints([0.0, -90.0, 180.0, 0.0, 90.0, 0.0]))
+        await until(lambda: abs(changes.last[positions[0].nodeid].Value.Value) <= 0.01, 10, "home again")
+        assert cell.opcua.returncode is None  # still serving
+
+
+@pytest.mark.timeout(120)
+async def test_the_robot_server_restarting_turns_values_uncertain_and_back_to_good(tmp_path) -> None:
+    from asyncua import Client, ua
+
+    from aioadept.apps.cell import free_port
+    from aioadept.testing.nodes import running_node
+
+    port, state = free_port(), f"tcp://127.0.0.1:{free_port()}"
+    sim_args = ("--port", str(port), "--stop-port", "none", "--state-rate", "50", "--state-endpoint", state)
+    url = f"opc.tcp://127.0.0.1:{free_port()}"
+    sim = running_node("sim", *sim_args, log_path=tmp_path / "sim1.log")
+    await sim.__aenter__()
+    try:
+        async with running_node("opcua", "--robot", f"127.0.0.1:{port}", "--state-endpoint", state, "--endpoint",
+                                url, log_path=tmp_path / "opcua.log", ready_timeout_s=60), Client(url) as client:
+            system = await find_system(client)
+            position = (await axis_variables(client, system, "ActualPosition"))[1]
+            rns = await client.get_namespace_index(ROBOTICS_NS)
+            (state_obj,) = await (await system.get_child([ua.QualifiedName("SafetyStates", rns)])).get_children()
+            estop = await child(client, state_obj, ("http://opcfoundation.org/UA/DI/", "ParameterSet"),
+                                (ROBOTICS_NS, "EmergencyStop"))
+            changes = Changes()
+            sub = await client.create_subscription(50, changes)
+            await sub.subscribe_data_change([position, estop])
+
+            def status(node):
+                v = changes.last.get(node.nodeid)
+                return v.StatusCode if v is not None else None
+
+            await until(lambda: status(position) and status(position).is_good() and status(estop)
+                        and status(estop).is_good(), 10, "Good values")
+            await sim.__aexit__(None, None, None)  # the robot server goes away (SIGINT, a clean exit)
+            sim = None
+            await until(lambda: status(position).is_uncertain() and status(estop).is_uncertain(), 5,
+                        "Uncertain values while the robot server is away")
+            sim = running_node("sim", *sim_args, log_path=tmp_path / "sim2.log")
+            await sim.__aenter__()
+            await until(lambda: status(position).is_good() and status(estop).is_good(), 15,
+                        "Good values once the robot server is back")
+    finally:
+        if sim is not None:
+            await sim.__aexit__(None, None, None)
