@@ -32,7 +32,8 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
-EXTRAS: dict[str, str] = {"cv2": "vision", "scipy": "analysis", "matplotlib": "analysis", "asyncua": "opcua"}
+EXTRAS: dict[str, str] = {"cv2": "vision", "scipy": "analysis", "matplotlib": "analysis", "asyncua": "opcua",
+                         "pygls": "lsp", "lsprotocol": "lsp"}
 """Top-level modules of the optional extras (pyproject.toml) -> the extra that installs them."""
 
 
