@@ -108,21 +108,22 @@ async def test_two_bridges_started_at_the_same_instant_never_both_serve(tmp_path
             assert len(err.strip().splitlines()) == 1 and "is taken" in err, err
 
 
-# A bridge that skips the start check (``_claim_name``): what two Zenoh networks joined while each had its bridge
+# A bridge that skips the start check (``NameClaim.take``): what two Zenoh networks joined while each had its bridge
 # look like. ``argv``: router cell name port stop_port claim|- ignore_claims(0|1).
 FORCED = textwrap.dedent("""
     import asyncio, sys
     from aioadept.bus import zenoh as zb
     from aioadept.bridge import node
+    from aioadept.bridge.claim import NameClaim
     from aioadept.client import RobotClient
 
     async def skipped(self, *args):
         pass
 
     async def main(router, cell, name, port, stop_port, claim, ignore):
-        node.Bridge._claim_name = skipped
+        NameClaim.take = skipped
         if ignore == "1":
-            node.Bridge._on_claim = lambda self, *a: None
+            NameClaim._on_claim = lambda self, *a: None
         zb.configure(zb.ZenohOptions.client(router))
         bridge = node.Bridge(RobotClient("127.0.0.1", int(port), stop_port=int(stop_port)), cell=cell, name=name)
         if claim != "-":

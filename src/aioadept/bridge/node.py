@@ -22,33 +22,30 @@ The safety rules it keeps (docs/bridge.md; each has a test in tests/integration/
   abort the other applications' motions too).
 - A malformed query gets an ``err`` reply (``malformed``) and changes nothing.
 - One bridge per name: before it connects to the controller the bridge claims ``aioadept/<cell>/<robot>`` with a
-  liveliness token and refuses to start (:class:`BridgeNameTaken`) if Zenoh shows another bridge's claim or node
-  token for that name; a query goes to one bridge only (the queryable is ``complete``, the client's target
-  ``BEST_MATCHING``), so even two bridges never both run one command (docs/bridge.md, "One bridge per name").
+  liveliness token and refuses to start (:class:`~aioadept.bridge.claim.BridgeNameTaken`) if Zenoh shows another
+  bridge's claim or node token for that name (:mod:`aioadept.bridge.claim`); a query goes to one bridge only (the
+  queryable is ``complete``, the client's target ``BEST_MATCHING``), so even two bridges never both run one command
+  (docs/bridge.md, "One bridge per name").
 """
 
 from __future__ import annotations
 
 import asyncio
 import logging
-import secrets
 import threading
-import time
 from collections import deque
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+from aioadept.bridge.claim import NameClaim, new_claim
 from aioadept.bridge.wire import (
     MAX_QUEUED_PER_APP,
     MAX_QUEUED_TOTAL,
-    SERVING,
     BridgeFailure,
     BridgeRequest,
     MalformedRequest,
     apps_key,
     bridge_key,
-    claim_key,
-    claims_key,
     cmd_key,
     encode_failure,
     parse_request,
@@ -57,7 +54,6 @@ from aioadept.bridge.wire import (
 from aioadept.client import RobotClient
 from aioadept.errors import (
     AckTimeout,
-    AdeptError,
     ClientStateError,
     CommandAborted,
     CommandError,
@@ -66,7 +62,7 @@ from aioadept.errors import (
 )
 from aioadept.protocol import encode_ack
 
-__all__ = ["Bridge", "BridgeNameTaken", "BridgeStats", "MAX_APPS_TRACKED"]
+__all__ = ["Bridge", "BridgeStats", "MAX_APPS_TRACKED"]
 
 MAX_APPS_TRACKED = 1024
 """At most this many live application names are kept in :attr:`Bridge.apps` (information only: an application's
@@ -92,10 +88,6 @@ class BridgeStats:
     full: int = 0
 
 
-class BridgeNameTaken(AdeptError):
-    """Another bridge (or another node) holds this robot's name on the Zenoh network: this one does not serve."""
-
-
 @dataclass
 class _Job:
     req: BridgeRequest
@@ -109,9 +101,9 @@ class Bridge:
     Zenoh session (:func:`aioadept.bus.zenoh.session`, configured by the caller).
 
     ``async with Bridge(robot, cell="demo", name="robot") as bridge: await bridge.taken.wait()``. Entering raises
-    :class:`BridgeNameTaken` (before connecting to the controller) when another bridge has the name; ``taken`` is
-    set when one that started earlier turns up later (two Zenoh networks joined): this bridge has then stopped
-    serving and says why in ``taken_reason``. ``state_endpoint``: the controller's ZeroMQ state stream to relay onto
+    :class:`~aioadept.bridge.claim.BridgeNameTaken` (before connecting to the controller) when another bridge has
+    the name; ``taken`` is set when one that started earlier turns up later (two Zenoh networks joined): this bridge
+    has then stopped serving and says why in ``taken_reason``. ``state_endpoint``: the controller's ZeroMQ state stream to relay onto
     ``aioadept/<cell>/<name>/state`` (``None``: no relay). ``claim_timeout_s``: how long the start waits for Zenoh's
     answer on the claims already there.
     """
@@ -143,10 +135,8 @@ class Bridge:
         self._urgent: deque[tuple[Any, bytes, bytes | None]] = deque()
         self._inbox_lock = threading.Lock()
         self._drain_scheduled = False
-        self.claim = f"{time.time_ns():020d}-{secrets.token_hex(4)}"
-        """This bridge's claim on the name: sorts by start time (ties: by the random part)."""
-        self._serving = False
-        self._rivals: set[str] = set()  # other claims seen while starting
+        self.claim = new_claim()
+        """This bridge's claim on the name (:mod:`aioadept.bridge.claim`)."""
         self._queryable: Any = None
         self.taken = asyncio.Event()
         self.taken_reason = ""
@@ -159,7 +149,9 @@ class Bridge:
         self._loop = asyncio.get_running_loop()
         s = zb.session()
         try:
-            await self._claim_name(s, zenoh)  # before the controller: a second bridge never even connects
+            name_claim = NameClaim(self.cell, self.name, self.claim, self._entities, self._back_off)
+            # Before the controller: a second bridge never even connects.
+            await name_claim.take(s, zenoh, self.claim_timeout_s)
             if not self.robot.connected:
                 await self.robot.connect()
             # complete=True: a query (target BEST_MATCHING, the client's) goes to ONE complete queryable, so even
@@ -176,60 +168,10 @@ class Bridge:
         self._tasks.append(self._loop.create_task(self._pump(), name=f"bridge {self._key}"))
         if self.state_endpoint is not None:
             self._tasks.append(self._loop.create_task(self._relay_state(), name=f"bridge state {self._key}"))
-        self._serving = True
-        self._entities.append(s.liveliness().declare_token(claim_key(self.cell, self.name, self.claim) + "/" +
-                                                           SERVING))
+        name_claim.serve(s)
         # Last: applications waiting for the bridge see it once it serves.
         self._entities.append(zb.declare_node(self.cell, self.name))
         return self
-
-    async def _claim_name(self, s: Any, zenoh: Any) -> None:
-        """Declare this bridge's claim, then ask Zenoh for every claim and node token on the name: any other one
-        (or one the claims subscriber reports meanwhile) and this bridge refuses. Within one router this holds
-        even for two bridges started at the same instant: each declares before it asks, and the router handles one
-        session's messages in order, so at least one of the two sees the other's claim (both may: then both
-        refuse, and starting again settles it)."""
-        base = bridge_key(self.cell, self.name)
-        self._entities.append(s.liveliness().declare_token(claim_key(self.cell, self.name, self.claim)))
-        self._entities.append(s.liveliness().declare_subscriber(
-            claims_key(self.cell, self.name), zenoh.handlers.Callback(self._on_claim_thread), history=True))
-        found = await _live_keys(s, base + "/**", self.claim_timeout_s)
-        node = base in found
-        for key in found:
-            self._on_claim(key, True)
-        if node or self._rivals:
-            what = (f"another bridge's claim {sorted(self._rivals)[0]}" if self._rivals
-                    else "another node's liveliness token")
-            raise BridgeNameTaken(
-                f"the robot name {base} is taken on this Zenoh network ({what}): a second bridge would run every "
-                "command twice; stop the other bridge first or give another --cell/--name (a bridge that just "
-                "died frees the name when Zenoh drops its link)")
-
-    def _on_claim_thread(self, sample: Any) -> None:
-        from aioadept.bus import zenoh as zb
-
-        alive = sample.kind == zb._zenoh().SampleKind.PUT
-        loop = self._loop
-        if loop is not None:
-            try:
-                loop.call_soon_threadsafe(self._on_claim, str(sample.key_expr), alive)
-            except RuntimeError:
-                pass
-
-    def _on_claim(self, key: str, alive: bool) -> None:
-        prefix = bridge_key(self.cell, self.name) + "/bridge/"
-        if not alive or not key.startswith(prefix):
-            return
-        claim, _, mark = key[len(prefix):].partition("/")
-        if claim == self.claim:
-            return
-        if not self._serving:
-            self._rivals.add(claim)
-        elif mark == SERVING and claim < self.claim:
-            self._back_off(claim)
-        else:  # a later bridge: it saw this one's claim when it asked, and refuses (or backs off, if it serves)
-            log.warning("bridge %s: another bridge (claim %s) is starting on this name; it must refuse",
-                        self._key, claim)
 
     def _back_off(self, claim: str) -> None:
         """An earlier bridge serves this name too (two Zenoh networks joined): stop taking queries now, answer the
@@ -518,33 +460,6 @@ class Bridge:
         finally:
             sub.close()
             pub.close()
-
-
-async def _live_keys(s: Any, key: str, timeout_s: float) -> set[str]:
-    """The keys of the liveliness tokens matching ``key`` that Zenoh knows of (a liveliness get, awaited)."""
-    from aioadept.bus import zenoh as zb
-
-    loop = asyncio.get_running_loop()
-    done: asyncio.Future[None] = loop.create_future()
-    keys: set[str] = set()
-
-    def on_reply(rep: Any) -> None:  # a Zenoh thread: hand over
-        if rep.ok is not None:
-            _call_soon(loop, keys.add, str(rep.ok.key_expr))
-
-    def on_done() -> None:
-        _call_soon(loop, lambda: done.done() or done.set_result(None))
-
-    s.liveliness().get(key, zb._zenoh().handlers.Callback(on_reply, on_done), timeout=timeout_s)
-    await asyncio.wait_for(done, timeout_s + 5.0)
-    return keys
-
-
-def _call_soon(loop: asyncio.AbstractEventLoop, fn: Any, *args: Any) -> None:
-    try:
-        loop.call_soon_threadsafe(fn, *args)
-    except RuntimeError:  # the loop is closed
-        pass
 
 
 def _failure_of(exc: BaseException, app_ids: tuple[str, ...], to_app: dict[str, str]) -> BridgeFailure:
