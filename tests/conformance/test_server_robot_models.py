@@ -164,4 +164,4 @@ def test_the_vplus_emulator_refuses_another_model_in_one_line(capsys):
         main(["--vplus", "vplus/rserver.V2", "--run", "rs.main", "--robot-model", "cobra-s600"])
     assert info.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()[-1]
-    assert "--robot-model cobra-s600: the V+ emulator runs the viper-s850 only so far" in err
+    assert "--robot-model cobra-s600: sim --vplus serves the viper-s850 only so far" in err

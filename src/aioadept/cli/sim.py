@@ -335,8 +335,9 @@ def main(argv: list[str] | None = None) -> int:
         if not args.run:
             parser.error("--vplus needs --run PROGRAM")
         if args.robot_model != "viper-s850":
-            parser.error(f"--robot-model {args.robot_model}: the V+ emulator runs the viper-s850 only so far "
-                         f"(docs/sim.md, Robot models); the Python sim runs every model")
+            parser.error(f"--robot-model {args.robot_model}: sim --vplus serves the viper-s850 only so far (the "
+                         f"shipped V+ server is the s850's; V+ programs on another arm: aioadept.vplus.Emulator, "
+                         f"docs/sim.md); the Python sim runs every model")
         for dest, flag, instead in _PYTHON_SERVER_ONLY:
             if getattr(args, dest) != parser.get_default(dest):
                 parser.error(f"{flag} is an option of the Python sim's server; with --vplus the V+ program "

@@ -51,7 +51,7 @@ from typing import Union
 from aioadept.errors import RobotError
 from aioadept.geometry import Pose, inverse_transform
 from aioadept.protocol import ErrorCode
-from aioadept.robots import viper_s850 as kin
+from aioadept.robots.base import JointLimits
 from aioadept.sim.controller import Controller
 from aioadept.vplus import errors as E
 from aioadept.vplus.locations import PrecisionPoint, Transform, compose, trans
@@ -133,8 +133,10 @@ CONFIG_WORDS: dict[str, dict] = {
     "NOFLIP": {"wrist": 1}, "FLIP": {"wrist": -1}, "SINGLE": {"single": True}, "MULTIPLE": {"single": False},
 }
 
-# Joint limits wide enough to see which real limit an IK solution breaks.
-_NO_LIMITS = kin.JointLimits(min_deg=(-1e9,) * 6, max_deg=(1e9,) * 6)
+
+def _no_limits(dof: int) -> JointLimits:
+    """Joint limits wide enough to see which real limit an IK solution breaks."""
+    return JointLimits(min_deg=(-1e9,) * dof, max_deg=(1e9,) * dof)
 
 
 class RobotDevice:
@@ -220,7 +222,7 @@ class RobotDevice:
     def _planned_end(self) -> Transform:
         """Where the planned motions leave the tool: the start of the next motion."""
         ctl = self.controller
-        return Transform.from_pose(kin.forward(ctl.trajectory.end_deg, ctl.tool))
+        return Transform.from_pose(ctl.model.forward(ctl.trajectory.end_deg, ctl.tool))
 
     @property
     def in_motion(self) -> bool:
@@ -248,31 +250,26 @@ class RobotDevice:
         pose = loc.to_pose()
         seed = ctl.trajectory.end_deg
         try:
-            kin.inverse(pose, seed, ctl.tool, limits=limits)
+            ctl.model.inverse(pose, seed, ctl.tool, limits=limits)
             return 0
         except RobotError as exc:
             if exc.code != ErrorCode.JOINT_LIMIT:
                 return self._reach_bits(pose)
         try:
-            joints = kin.inverse(pose, seed, ctl.tool, limits=_NO_LIMITS)
+            joints = ctl.model.inverse(pose, seed, ctl.tool, limits=_no_limits(ctl.model.dof))
         except RobotError:
             return self._reach_bits(pose)
         return _limit_bits(limits, joints) or INRANGE_BITS["config"]
 
     def _reach_bits(self, pose: Pose) -> int:
-        """No configuration reaches ``pose``: too far or too close if the wrist centre lies outside the annulus
-        the upper arm and forearm sweep (for both shoulder choices), else the configuration is the reason."""
+        """No configuration reaches ``pose``: too far or too close if the model says so (a Viper's wrist centre, a
+        SCARA's flange outside the annulus its arm sweeps), else the configuration (or, on a SCARA, the
+        orientation) is the reason."""
         ctl = self.controller
         flange = Transform.from_pose(pose).matrix
         if ctl.tool != Pose():
             flange = flange @ inverse_transform(ctl.tool.to_matrix())
-        wc = flange[:3, 3] - kin.D6_MM * flange[:3, 2]
-        forearm = math.hypot(kin.A3_MM, kin.D4_MM)
-        lo, hi = abs(kin.A2_MM - forearm), kin.A2_MM + forearm
-        dists = [math.hypot(s * math.hypot(wc[0], wc[1]) - kin.A1_MM, wc[2] - kin.D1_MM) for s in (1, -1)]
-        if any(lo <= d <= hi for d in dists):
-            return INRANGE_BITS["config"]
-        return INRANGE_BITS["too_far"] if min(dists) > hi else INRANGE_BITS["too_close"]
+        return INRANGE_BITS[ctl.model.reach_reason(flange) or "config"]
 
     # -- motion ------------------------------------------------------------------------------------------
     def move(self, task: TaskId, target: Location, *, straight: bool = False) -> MotionGen:
@@ -299,7 +296,7 @@ class RobotDevice:
             return
         epoch = self._brakes
         try:
-            if isinstance(target, PrecisionPoint) and len(target.joints_deg) != 6:
+            if isinstance(target, PrecisionPoint) and not ctl.model.dof <= len(target.joints_deg) <= 6:
                 ctl.take_speed_pct()
                 raise VPlusRobotError.of("illegal_value", f"precision point has {len(target.joints_deg)} joints")
             if straight:
@@ -358,7 +355,7 @@ class RobotDevice:
         """The tool pose a straight line goes to: a transformation as it is, a precision point through the forward
         kinematics (with the current TOOL)."""
         if isinstance(target, PrecisionPoint):
-            return kin.forward(target.joints_deg, self.controller.tool)
+            return self.controller.model.forward(target.joints_deg, self.controller.tool)
         return target.to_pose()
 
     def moves(self, task: TaskId, target: Location) -> MotionGen:
@@ -435,7 +432,7 @@ class RobotDevice:
             raise VPlusRobotError.of(key, "(" + ", ".join(bits) + ")")
 
 
-def _limit_bits(limits: kin.JointLimits, joints_deg: tuple[float, ...] | list[float]) -> int:
+def _limit_bits(limits: JointLimits, joints_deg: tuple[float, ...] | list[float]) -> int:
     code = 0
     for j in limits.violations(joints_deg):
         code |= 1 << j
