@@ -32,7 +32,8 @@ async def opcua_cell(tmp_path: Path, *opcua_args: str) -> AsyncIterator[Cell]:
                             log_path=tmp_path / "sim.log") as sim:
         url = f"opc.tcp://127.0.0.1:{free_port()}"
         async with running_node("opcua", "--robot", f"127.0.0.1:{sim.ready['port']}", "--state-endpoint",
-                                sim.ready["state"], "--endpoint", url, *opcua_args,
+                                sim.ready["state"], "--endpoint", url, "--model", "Viper s850", "--category",
+                                "ARTICULATED_ROBOT", *opcua_args,
                                 log_path=tmp_path / "opcua.log", ready_timeout_s=60) as opcua:
             assert opcua.ready["opcua"] == url
             yield Cell(sim, opcua, url)

@@ -133,6 +133,14 @@ async def test_a_client_finds_the_robot_by_type_and_sees_here_s_joints_at_rest(t
         assert estop.StatusCode.is_good() and estop.Value.Value is False  # the sim's status: es=0
         # V+ does not say the operating mode: Bad, and no value made up.
         assert mode.StatusCode.is_bad() and mode.Value.Value is None
+        # The identity the cell gave (opcuacell: --model, --category), and what nobody gave: Bad, no value.
+        (device,) = await (await system.get_child([ua.QualifiedName("MotionDevices", rns)])).get_children()
+        model = await (await child(client, device, (di, "Model"))).read_data_value(raise_on_bad_status=False)
+        category = await (await child(client, device, (ROBOTICS_NS, "MotionDeviceCategory"))).read_value()
+        serial = await (await child(client, device, (di, "SerialNumber"))).read_data_value(raise_on_bad_status=False)
+        assert model.StatusCode.is_good() and model.Value.Value.Text == "Viper s850"
+        assert category == 1  # ARTICULATED_ROBOT
+        assert serial.StatusCode.value == ua.StatusCodes.BadNotSupported and serial.Value.Value is None
 
 
 @pytest.mark.timeout(60)

@@ -31,7 +31,7 @@ STATUS_PERIOD_S = 0.5
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from aioadept.opcua.mapping import STALE_AFTER_S, Identity
+    from aioadept.opcua.mapping import STALE_AFTER_S, Identity, MotionDeviceCategory
 
     ident = Identity()
     p = ArgumentParser(prog="aioadept opcua", description=description(__doc__), formatter_class=DefaultsHelpFormatter)
@@ -51,7 +51,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "must be readable by its owner only)")
     p.add_argument("--name", default=ident.name, help="the robot's MotionDevice browse name")
     p.add_argument("--manufacturer", default=ident.manufacturer, help="the robot's manufacturer")
-    p.add_argument("--model", default=ident.model, help="the robot's model")
+    p.add_argument("--model", default="", help="the robot's model, e.g. Viper s850 (none: the variable is Bad)")
+    p.add_argument("--category", default=None, choices=[c.name for c in MotionDeviceCategory],
+                   help="the robot's MotionDeviceCategory (none: the variable is Bad)")
     p.add_argument("--serial-number", default="", dest="serial_number",
                    help="the robot's serial number (none: the variable is Bad)")
     p.add_argument("--controller-model", default="", dest="controller_model",
@@ -134,7 +136,7 @@ async def poll_robot(host: str, port: int, view, cell) -> None:
 async def run(args: argparse.Namespace, host: str, port: int, users: dict[str, str] | None) -> int:
     from aioadept.errors import AdeptError
     from aioadept.opcua.commands import RobotCommands
-    from aioadept.opcua.mapping import Identity, RobotView
+    from aioadept.opcua.mapping import Identity, MotionDeviceCategory, RobotView
     from aioadept.opcua.server import CellServer
 
     loop = asyncio.get_running_loop()
@@ -142,7 +144,8 @@ async def run(args: argparse.Namespace, host: str, port: int, users: dict[str, s
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, stop.set)
     identity = Identity(name=args.name, manufacturer=args.manufacturer, model=args.model,
-                        serial_number=args.serial_number, controller_model=args.controller_model)
+                        serial_number=args.serial_number, controller_model=args.controller_model,
+                        category=None if args.category is None else MotionDeviceCategory[args.category])
     view = RobotView(identity, stale_after_s=args.stale_after)
     commands = [RobotCommands(host, port)] if users else None
     cell = CellServer(args.endpoint, [view], commands=commands, users=users)

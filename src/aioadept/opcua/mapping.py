@@ -116,13 +116,15 @@ NOT_EXPOSED = Reading(None, Quality.NOT_EXPOSED)
 
 @dataclass(frozen=True, slots=True)
 class Identity:
-    """A robot as the cell knows it. An empty text is not known: its property is Bad, never a made-up text."""
+    """A robot as the cell knows it. An empty text or a None category is not known: its property is Bad, never a
+    made-up value. The manufacturer is the one every V+ controller has; the arm's model and kind are the cell's to
+    say (``aioadept sim`` simulates a Viper s850, an articulated robot)."""
     name: str = "Robot1"
     manufacturer: str = "Omron Adept Technologies"
-    model: str = "Viper s850"
+    model: str = ""
     serial_number: str = ""
     product_code: str = ""
-    category: MotionDeviceCategory = MotionDeviceCategory.ARTICULATED_ROBOT
+    category: MotionDeviceCategory | None = None
     axes: int = 6
     controller_model: str = ""
     controller_serial_number: str = ""

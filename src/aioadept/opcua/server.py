@@ -233,8 +233,10 @@ class CellServer:
         live: dict[tuple, Node] = {}
         dev = await self._make(devices, self._type("MotionDeviceType"), f"MotionDeviceSystem.{n}", n)
         await self._nameplate(dev, ident.manufacturer, ident.model, ident.product_code, ident.serial_number, ident)
-        await self._set(await self._child(dev, (r, "MotionDeviceCategory")), int(ident.category),
-                        ua.VariantType.Int32)
+        category = ident.category
+        await self._set(await self._child(dev, (r, "MotionDeviceCategory")),
+                        None if category is None else int(category), ua.VariantType.Int32,
+                        Quality.NOT_EXPOSED if category is None else Quality.GOOD)
         live[("device", "SpeedOverride")] = await self._child(dev, (DI_NS, "ParameterSet"), (r, "SpeedOverride"))
         axes = await self._child(dev, (r, "Axes"))
         trains = await self._child(dev, (r, "PowerTrains"))
