@@ -265,3 +265,13 @@ def test_reach_reason_tells_too_far_from_too_close_and_says_nothing_inside(m):
         near = here.copy()
         near[0, 3] = near[1, 3] = 0.0
         assert m.reach_reason(near) == "too_close"
+
+
+@pytest.mark.parametrize("name", [n for n in NAMES if n.startswith("cobra")])
+def test_a_scara_takes_the_wires_rounding_of_pitch_180_but_not_a_hundredth_of_a_degree(name):
+    m = model(name)
+    here = m.forward(m.home_deg)
+    rounded = Pose(here.x, here.y, here.z, 0.0, 179.9995, here.roll)  # "179.9995" is what 3 decimals can leave
+    assert m.inverse(rounded, m.home_deg) == pytest.approx(m.home_deg, abs=1e-3)
+    with pytest.raises(RobotError, match="orientation not possible"):
+        m.inverse(Pose(here.x, here.y, here.z, 0.0, 179.99, here.roll), m.home_deg)

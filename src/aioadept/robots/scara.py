@@ -47,9 +47,10 @@ from aioadept.robots.base import (
 ELBOW_FREE_DEG = 5.0
 """Within this many degrees of J2 = 0 (the stretched arm, where LEFTY meets RIGHTY) the seed's choice is not kept."""
 
-TILT_TOLERANCE_RAD = 1e-6
-"""How far the tool axis of a target may lean off vertical (radians) and still count as pointing down: rounding
-of a pose written with pitch 180, not a tilt anybody asked for."""
+TILT_TOLERANCE_RAD = 1e-5
+"""How far the tool axis of a target may lean off vertical (radians) and still count as pointing down: the wire's
+rounding of angles to 3 decimals (0.0005 deg = 8.7e-6 rad), not a tilt anybody asked for; the solution ignores
+it (0.001 mm at the tip of a 100 mm tool)."""
 
 
 @dataclass(frozen=True)
