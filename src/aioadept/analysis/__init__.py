@@ -2,7 +2,8 @@
 
 Where it sits: :mod:`aioadept.capture` records a run folder; this package turns it into the paper's quantities
 (:mod:`.metrics`, eqs. 1-5), distribution fits (:mod:`.fits`), figures like Figs. 9-13 (:mod:`.plots`, matplotlib
-imported only there) and a summary (:mod:`.report`). ``aioadept analyze RUN_DIR...`` is :mod:`.__main__`.
+imported only there), the focus loop's cycle split (:mod:`.cycle`) and a summary (:mod:`.report`).
+``aioadept analyze RUN_DIR...`` is :mod:`.__main__`.
 """
 
 from aioadept.analysis.fits import LogNormalFit, NormalFit, fit_lognormal, fit_normal

@@ -119,7 +119,7 @@ def _print_cycle(run_dir: Path) -> None:
     """The cycle split motion / vision and the vision floor, as summary.json's ``cycle`` holds them (issue 12)."""
     import json
 
-    from aioadept.analysis.report import cycle_line
+    from aioadept.analysis.cycle import cycle_line
 
     try:
         line = cycle_line(json.loads((run_dir / "summary.json").read_text(encoding="utf-8")).get("cycle") or {})

@@ -10,7 +10,7 @@ import pytest
 
 from aioadept.analysis import analyze_runs
 from aioadept.analysis.metrics import Iteration
-from aioadept.analysis.report import cycle_line, cycle_split
+from aioadept.analysis.cycle import cycle_line, cycle_split
 from aioadept.analysis.synthetic import synthetic_recorder
 from aioadept.capture import load_run
 
