@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from aioadept.vplus.check import check
+from aioadept.vplus.check import _problem, check
 
 ROOT = Path(__file__).resolve().parents[2]
 SHIPPED = sorted(p for d in ("vplus", "examples") for p in (ROOT / d).rglob("*") if p.suffix.upper() == ".V2")
@@ -75,3 +75,24 @@ def test_a_cli_mistake_is_one_line_naming_the_path_and_exit_2(tmp_path, args, ne
     assert done.stdout == ""
     assert done.stderr.strip() == f"aioadept vplus check: {needle}" + (" (.v2, .pg) in this folder"
                                                                        if args == ["empty"] else "")
+
+
+def test_after_each_edit_check_gives_exactly_what_the_emulator_refuses_at_load_time():
+    """check keeps the problems of unchanged pieces of a file between calls: after every edit (a line changed,
+    one inserted on top, a mistake mended, a program left open) they are still those of a fresh load."""
+    from aioadept.vplus.emulator import Emulator
+
+    text = (ROOT / "vplus" / "rsskills.V2").read_text("latin-1")
+    middle = text.count("\n") // 2
+    lines = text.split("\n")
+    edits = [text, BAD + text,
+             "\n".join(lines[:middle] + ["    MOVEE a"] + lines[middle + 1:]),
+             "\n".join(lines[:middle] + ["    MOVEE a"] + lines[middle + 1:]).replace("\n", "\n; one more\n", 1),
+             text.replace(".END", "", 1), text]
+    counts = []
+    for edited in edits:
+        fresh = {str(_problem(p)) for p in Emulator.from_source(edited, filename="e.V2", robot=False).problems}
+        got = [str(p) for p in check([("e.V2", edited)])]
+        assert sorted(got) == sorted(fresh)
+        counts.append(len(got))
+    assert counts[0] == counts[-1] == 0 and all(counts[1:-1]), counts
