@@ -18,6 +18,9 @@ MAIN = (".PROGRAM main()\n"          # 0 (LSP lines are 0-based)
 HELPER = ("; a second module, only on disk in the workspace folder\n"
           ".PROGRAM helper(n)\n"     # 1
           "    TYPE n\n"
+          ".END\n"
+          ".PROGRAM again()\n"      # 4
+          "    CALL helper(2)\n"    # 5
           ".END\n")
 
 
@@ -90,3 +93,26 @@ async def test_definition_of_a_call_target_is_its_program_line_in_the_other_modu
     got = await client.text_document_definition_async(T.DefinitionParams(
         T.TextDocumentIdentifier(client.main_uri), _at(3, 12)))
     assert got == T.Location(uri=(tmp_path / "helper.V2").as_uri(), range=T.Range(_at(1, 0), _at(1, 0)))
+
+
+@pytest.mark.timeout(30)
+async def test_references_of_a_program_are_its_calls_in_both_modules_and_its_declaration(client: LanguageClient,
+                                                                                         tmp_path):
+    await _open(client, MAIN)
+    got = await client.text_document_references_async(T.ReferenceParams(
+        text_document=T.TextDocumentIdentifier(client.main_uri), position=_at(3, 12),
+        context=T.ReferenceContext(include_declaration=True)))
+    helper = (tmp_path / "helper.V2").as_uri()
+    assert sorted(got, key=lambda loc: (loc.uri, loc.range.start.line)) == sorted([
+        T.Location(helper, T.Range(_at(1, 0), _at(1, 0))),
+        T.Location(helper, T.Range(_at(5, 9), _at(5, 15))),
+        T.Location(client.main_uri, T.Range(_at(3, 9), _at(3, 15)))], key=lambda loc: (loc.uri, loc.range.start.line))
+
+
+@pytest.mark.timeout(30)
+async def test_document_symbols_are_the_documents_programs(client: LanguageClient):
+    await _open(client, MAIN + ".PROGRAM second(a, $b)\n    TYPE a\n.END\n")
+    got = await client.text_document_document_symbol_async(T.DocumentSymbolParams(
+        T.TextDocumentIdentifier(client.main_uri)))
+    assert [(s.name, s.kind, s.selection_range.start.line, s.range.end.line, s.detail) for s in got] == [
+        ("main", T.SymbolKind.Function, 0, 5, ""), ("second", T.SymbolKind.Function, 6, 8, "a, $b")]

@@ -4,7 +4,8 @@
 - hover on an instruction or function name: its form and manual section (:func:`aioadept.vplus.registry.describe`);
 - completion: the registry's instructions and functions and the workspace's program names;
 - go to definition of a program name (a ``CALL`` target): its ``.PROGRAM`` line in the open documents or the
-  workspace folder's V+ files, loaded by :mod:`aioadept.vplus.loader`.
+  workspace folder's V+ files, loaded by :mod:`aioadept.vplus.loader`; its references (the ``CALL``s of it);
+- document symbols: the document's programs.
 
 Needs the ``lsp`` extra (pygls, lsprotocol).
 """
@@ -22,6 +23,7 @@ from aioadept import __version__
 from aioadept.vplus import registry
 from aioadept.vplus.check import check
 from aioadept.vplus.loader import Module, load_text
+from aioadept.vplus.nodes import CallStmt
 from aioadept.vplus.parse import norm
 
 SUFFIXES = (".v2", ".pg")
@@ -106,8 +108,53 @@ def definition(ls: LanguageServer, params: T.DefinitionParams) -> T.Location | N
     prog = workspace_module(ls).programs.get(norm(found[1]))
     if prog is None:
         return None
-    pos = T.Position(prog.line - 1, 0)
-    return T.Location(uri=from_fs_path(prog.file) or prog.file, range=T.Range(pos, pos))
+    return _location(prog.file, prog.line, 0, 0)
+
+
+_CALL = re.compile(r"\bCALL\s+([A-Za-z][A-Za-z0-9._]*)", re.IGNORECASE)
+
+
+@server.feature(T.TEXT_DOCUMENT_REFERENCES)
+def references(ls: LanguageServer, params: T.ReferenceParams) -> list[T.Location]:
+    """The ``CALL``s of the program named under the cursor in the workspace (and its ``.PROGRAM`` line when the
+    client asks for the declaration too)."""
+    found = _word(ls, params)
+    if found is None:
+        return []
+    target = norm(found[1])
+    module = workspace_module(ls)
+    out: list[T.Location] = []
+    callee = module.programs.get(target)
+    if callee is not None and params.context.include_declaration:
+        out.append(_location(callee.file, callee.line, 0, 0))
+    for prog in module.programs.values():
+        for line, st in prog.steps:
+            m = _CALL.search(prog.source.get(line, "")) if isinstance(st, CallStmt) and norm(st.name) == target \
+                else None
+            if m is not None:
+                col = prog.indent.get(line, 0) + m.start(1)
+                out.append(_location(prog.file, line, col, col + len(m.group(1))))
+    return out
+
+
+@server.feature(T.TEXT_DOCUMENT_DOCUMENT_SYMBOL)
+def symbols(ls: LanguageServer, params: T.DocumentSymbolParams) -> list[T.DocumentSymbol]:
+    """The document's programs, each from its ``.PROGRAM`` line to its last statement."""
+    uri = params.text_document.uri
+    module = load_text(ls.workspace.get_text_document(uri).source, _path(uri), Module())
+    out = []
+    for prog in sorted(module.programs.values(), key=lambda p: p.line):
+        last = max([prog.line, *(line for line, _ in prog.steps)])
+        head = T.Range(T.Position(prog.line - 1, 0), T.Position(prog.line - 1, 0))
+        out.append(T.DocumentSymbol(name=prog.name, kind=T.SymbolKind.Function, selection_range=head,
+                                    range=T.Range(head.start, T.Position(last, 0)),
+                                    detail=", ".join(p.name for p in prog.params)))
+    return out
+
+
+def _location(file: str, line: int, col: int, end: int) -> T.Location:
+    return T.Location(uri=from_fs_path(file) or file, range=T.Range(T.Position(line - 1, col),
+                                                                     T.Position(line - 1, end)))
 
 
 def workspace_module(ls: LanguageServer) -> Module:
