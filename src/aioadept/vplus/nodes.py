@@ -90,10 +90,12 @@ class Array(Expr):
 
 @dataclass(frozen=True, slots=True)
 class Call(Expr):
-    """A built-in function call ``NAME(args)`` (upper-case name; an omitted argument is ``None``)."""
+    """A built-in function call ``NAME(args)`` (upper-case name; an omitted argument is ``None``); ``bare``: written
+    without parentheses (``HERE``, ``TASK``, ``NULL``)."""
 
     name: str
     args: tuple
+    bare: bool = field(default=False, compare=False, kw_only=True)
 
 
 @dataclass(frozen=True, slots=True)

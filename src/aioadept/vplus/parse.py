@@ -336,7 +336,7 @@ class Parser:
         if up in _CONST:
             return N.Num(_CONST[up], text=t.text, span=self.span(i0))
         if up == "NULL" and not self.at_op("(", "["):
-            return N.Call("NULL", (), span=self.span(i0))          # the null transformation (TOOL NULL)
+            return N.Call("NULL", (), bare=True, span=self.span(i0))          # the null transformation (TOOL NULL)
         if up in _SPECIAL_ATOMS and self.at_op("("):
             return _SPECIAL_ATOMS[up](self, i0)
         if self.at_op("(") and up in FUNCTIONS:
@@ -349,7 +349,7 @@ class Parser:
                 return N.Array(norm(t.text), span=self.span(i0))
             return N.Index(norm(t.text), self.names_index(), span=self.span(i0))
         if up in _NOARG_FUNCS:
-            return N.Call(up, (), span=self.span(i0))
+            return N.Call(up, (), bare=True, span=self.span(i0))
         if self.at_op("("):
             raise _unknown_function(t.text, self.col(t))
         if t.text.upper() in _RESERVED_WORDS:

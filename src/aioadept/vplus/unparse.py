@@ -27,7 +27,7 @@ def _list(items: tuple, sep: str = ", ") -> str:
 
 
 def _call(e: N.Call) -> str:
-    if not e.args and e.name in ("HERE", "#HERE", "RANDOM", "TASK", "NULL"):
+    if e.bare:
         return e.name
     return f"{e.name}({_list(e.args)})"
 
