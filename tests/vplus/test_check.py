@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -64,6 +65,16 @@ def test_the_github_format_is_one_error_annotation_per_problem(tmp_path):
     ends = [p.end_column for p in check([("bad.V2", BAD)])]
     assert [ln.split("::")[1] for ln in lines] == [f"error file=bad.V2,line={ln},col={col},endColumn={end}"
                                                    for (ln, col, _), end in zip(WANT, ends)]
+
+
+def test_the_json_format_is_one_array_of_the_problems(tmp_path):
+    (tmp_path / "bad.V2").write_text(BAD)
+    done = run_cli("--format", "json", "bad.V2", cwd=tmp_path)
+    assert done.returncode == 1
+    got = json.loads(done.stdout)
+    assert [(d["file"], d["line"], d["column"], d["severity"]) for d in got] == [("bad.V2", ln, col, "error")
+                                                                               for ln, col, _ in WANT]
+    assert got[0]["end_column"] == 10 and "MOVEE is not a V+ keyword" in got[0]["message"]
 
 
 @pytest.mark.parametrize("args, needle", [(["missing.V2"], "missing.V2: no such file"),

@@ -2,13 +2,14 @@
 
 ``check FILE|DIR ...`` prints every problem of the files (a folder: its ``.V2``/``.pg`` files, recursively),
 loaded together, one line each (``file:line:col: error: message``, or GitHub Actions annotations with
-``--format github``); exit status 1 when there is a problem, 0 when none, 2 for a usage mistake.
+``--format github``; ``--format json``: one JSON array); exit status 1 when there is a problem, 0 when none, 2 for a usage mistake.
 ``lsp`` serves the Language Server Protocol on stdin/stdout (:mod:`aioadept.vplus.lsp`, the ``lsp`` extra).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
@@ -25,8 +26,9 @@ def build_parser() -> argparse.ArgumentParser:
     c = sub.add_parser("check", help="report every problem of V+ files without running them",
                        formatter_class=DefaultsHelpFormatter)
     c.add_argument("paths", nargs="+", metavar="FILE|DIR", help="V+ files, or folders of them, loaded together")
-    c.add_argument("--format", choices=("text", "github"), default="text",
-                   help="text: file:line:col: error: message; github: GitHub Actions annotations")
+    c.add_argument("--format", choices=("text", "github", "json"), default="text",
+                   help="text: file:line:col: error: message; github: GitHub Actions annotations; json: one "
+                        "array of {file, line, column, end_column, severity, message}")
     sub.add_parser("lsp", help="serve the V+ Language Server Protocol on stdin/stdout (editors)")
     return p
 
@@ -50,8 +52,12 @@ def check_main(paths: list[str], fmt: str) -> int:
         print(f"aioadept vplus check: {exc}", file=sys.stderr)
         return 2
     problems = check((str(f), f.read_bytes().decode("latin-1")) for f in files)
-    for p in problems:
-        print(github_annotation(p) if fmt == "github" else str(p))
+    if fmt == "json":
+        print(json.dumps([{f: getattr(p, f) for f in ("file", "line", "column", "end_column", "severity", "message")}
+                          for p in problems], indent=1))
+    else:
+        for p in problems:
+            print(github_annotation(p) if fmt == "github" else str(p))
     return 1 if problems else 0
 
 
