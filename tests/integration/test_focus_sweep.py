@@ -18,7 +18,8 @@ import pytest
 from aioadept.apps.cell import CellConfig
 from aioadept.apps.demo import run_demo
 from aioadept.apps.focus import FocusParams
-from aioadept.apps.sweep import axis_offset_mm, sweep_focus
+from aioadept.apps.sweep import sweep_focus
+from aioadept.apps.sweep_model import axis_offset_mm
 from aioadept.bus import Communicator
 from aioadept.client import RobotClient
 from aioadept.testing.nodes import running_node

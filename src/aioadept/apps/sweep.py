@@ -12,8 +12,8 @@ path::
     fit_peak(offsets, sharpness) -> peak +- sigma; not bracketed: extend; sigma too large: slower, narrower sweep
     MoveToS(A:TRANS(0,0,peak))
 
-The pure parts take numbers and return numbers: :func:`plan_sweep` here, the fit and the frames' positions in
-:mod:`aioadept.apps.sweep_model`; :func:`sweep_focus` is the coroutine that runs a sweep.
+The pure parts take numbers and return numbers: the plans in :mod:`aioadept.apps.sweep_plan`, the fit and the
+frames' positions in :mod:`aioadept.apps.sweep_model`; :func:`sweep_focus` is the coroutine that runs a sweep.
 docs/focus.md explains the method, its assumptions and when the stepwise loop is the better choice.
 
 Safety as in :mod:`aioadept.apps.paper`: after a stop, a cancellation, a lost connection or an ack timeout no motion
@@ -32,8 +32,9 @@ from typing import Any
 
 
 from aioadept.apps.paper import FocusError, FocusResult, Robot, Vision, _retract, init_move
-from aioadept.apps.sweep_model import (PeakFit, StateTrack, _finite, axis_offset_mm, blur_model, clock_offset,
-                                      fit_peak, profile_offset)
+from aioadept.apps.sweep_model import (PeakFit, StateTrack, _finite, axis_offset_mm, clock_offset, fit_peak,
+                                      profile_offset)
+from aioadept.apps.sweep_plan import SweepPlan, check_sweep, max_reach_mm, next_plan, plan_sweep
 from aioadept.commands import Break, MoveToS, SetSpeed
 from aioadept.configfile import Range
 from aioadept.errors import CommandAborted, CommandError
@@ -63,60 +64,6 @@ exposure; ``line_speed_mm_s`` is what 100 % program speed means for a straight l
 
 IN_FLIGHT = 2
 """Vision requests outstanding at once during a sweep (see :func:`_one_sweep`)."""
-
-
-# ------------------------------------------------------------------------------------------------ planning
-@dataclass(frozen=True, slots=True)
-class SweepPlan:
-    """One straight-line sweep from ``from_mm`` to ``to_mm`` (offsets along the approach pose's tool z) at
-    ``speed_pct`` (program speed), which is ``speed_mm_s`` with ``blur_mm`` of travel during one exposure."""
-
-    from_mm: float
-    to_mm: float
-    speed_pct: int
-    speed_mm_s: float
-    blur_mm: float
-    kind: str = "coarse"
-
-    def as_dict(self) -> dict[str, Any]:
-        return {"from_mm": self.from_mm, "to_mm": self.to_mm, "speed_pct": self.speed_pct,
-                "speed_mm_s": self.speed_mm_s, "blur_mm": self.blur_mm, "kind": self.kind}
-
-
-def sweep_speed(params: Any, exposure_ms: float, *, factor: float = 1.0, time_scale: float = 1.0) -> tuple[int, float]:
-    """(program speed %, tool speed mm/s in real time) of a sweep: the fastest whole percent whose travel during
-    one exposure stays within ``max_blur_fraction`` of ``depth_of_field_mm`` and below ``sweep_max_speed_mm_s``
-    (times ``factor``, for the slower fine sweep). ``time_scale``: a simulated robot's speed-up (its motions run
-    that many times faster than the program speed says; the blur happens in real time). ValueError, naming the
-    keys, when even 1 % blurs more than allowed."""
-    if not exposure_ms > 0:
-        raise ValueError(f"exposure_ms = {exposure_ms!r}: a sweep needs the camera's exposure (> 0 ms)")
-    v_blur = params.max_blur_fraction * params.depth_of_field_mm / (exposure_ms / 1e3)
-    v = min(v_blur, params.sweep_max_speed_mm_s) * factor
-    per_pct = params.line_speed_mm_s * time_scale / 100.0
-    pct = min(100, math.floor(v / per_pct + 1e-9))
-    if pct < 1:
-        scaled = f" at time_scale {time_scale:g}" if time_scale != 1.0 else ""
-        raise ValueError(
-            f"max_blur_fraction = {params.max_blur_fraction:g} of depth_of_field_mm = {params.depth_of_field_mm:g} "
-            f"with exposure_ms = {exposure_ms:g} allows {v:.3g} mm/s, below 1 % of line_speed_mm_s = "
-            f"{params.line_speed_mm_s:g}{scaled}: shorten the exposure or use mode = \"stepwise\"")
-    return pct, pct * per_pct
-
-
-def plan_sweep(params: Any, exposure_ms: float, from_mm: float, to_mm: float, *, kind: str = "coarse",
-               factor: float = 1.0, time_scale: float = 1.0) -> SweepPlan:
-    """The :class:`SweepPlan` from ``from_mm`` to ``to_mm`` (see :func:`sweep_speed`)."""
-    pct, v = sweep_speed(params, exposure_ms, factor=factor, time_scale=time_scale)
-    return SweepPlan(float(from_mm), float(to_mm), pct, v, v * exposure_ms / 1e3, kind)
-
-
-def check_sweep(params: Any, exposure_ms: float, time_scale: float = 1.0) -> None:
-    """ValueError (one line, naming the keys) unless a sweep with these values can run: called before anything
-    starts, so ``--mode sweep`` with an exposure too long for the blur budget exits 2 with nothing moved."""
-    if params.mode == "sweep":
-        sweep_speed(params, exposure_ms, time_scale=time_scale)
-        sweep_speed(params, exposure_ms, factor=params.fine_speed_factor, time_scale=time_scale)
 
 
 # ------------------------------------------------------------------------------------------------ the coroutine
@@ -224,8 +171,8 @@ async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: floa
     ``params``: :class:`~aioadept.apps.focus.FocusParams`; ``exposure_ms``: the camera's (sets the speed);
     ``state_endpoint``: the robot state stream (None or silent: the planned profile and the ack times place the
     frames instead; ``ramp_s`` is the robot's ramp time the profile assumes, in robot time); ``time_scale``: a
-    simulated robot's speed-up (:func:`sweep_speed`; its ramps are that much shorter too) when the robot's
-    ``status`` does not report one (:func:`robot_time_scale`). Raises
+    simulated robot's speed-up (:func:`~aioadept.apps.sweep_plan.sweep_speed`; its ramps are that much shorter
+    too) when the robot's ``status`` does not report one (:func:`robot_time_scale`). Raises
     :class:`FocusError` (no peak within ``max_sweeps`` sweeps or the reach, no usable frames, no answer from the
     vision node: after the line ended and a retract to the approach pose) or the robot's own error.
     """
@@ -287,7 +234,7 @@ async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: floa
                     why += f"; the vision node refused {run.errors} frame(s), first: {run.first_error}"
                 raise FocusError(f"no focal plane after {len(run.plans)} sweep(s): {why}",
                                  sharpness=[f.sharpness for f in run.frames])
-            plan = _next_plan(params, exposure_ms, fit, here_mm, time_scale,
+            plan = next_plan(params, exposure_ms, fit, here_mm, time_scale,
                               forward_only=source == "planned-profile")
         peak = fit.peak_mm
         target = approach @ Pose(z=peak)
@@ -339,42 +286,6 @@ async def robot_time_scale(rc: Robot, fallback: float) -> float:
         return fallback
     log.info("robot time scale %g, as the robot's status reports it", reported)
     return reported
-
-
-def max_reach_mm(params: Any) -> float:
-    """How far from the approach pose a sweep may take the tool, either way along z: ``max_steps x delta_z_mm``,
-    the reach the stepwise loop is allowed (80 mm by default), so choosing the sweep never takes the object nearer
-    the camera than the cell already accepts."""
-    return float(params.max_steps * params.delta_z_mm)
-
-
-def _next_plan(params: Any, exposure_ms: float, fit: PeakFit, here_mm: float, time_scale: float, *,
-               forward_only: bool = False) -> SweepPlan:
-    """After a sweep ending at ``here_mm``: extend past the end where the peak was not bracketed (or nothing was
-    fitted), else a slower sweep over ``fine_range_mm`` around the fitted peak, run from the side the robot is
-    on through the whole window."""
-    if not fit.bracketed or not math.isfinite(fit.peak_mm):
-        ext = params.sweep_range_mm / 2.0
-        reach = max_reach_mm(params)
-        if fit.side < 0:  # still rising at the near end: the plane is behind the start
-            lo = min(fit.window_mm[0], here_mm) if math.isfinite(fit.window_mm[0]) else here_mm
-            to = max(lo - ext, -reach)
-        else:
-            hi = max(fit.window_mm[1], here_mm) if math.isfinite(fit.window_mm[1]) else here_mm
-            to = min(hi + ext, reach)
-        if abs(to - here_mm) < 1.0:
-            raise FocusError(f"no sharpness peak within {reach:g} mm of the approach pose (max_steps x delta_z_mm, "
-                             "the stepwise loop's reach too)")
-        return plan_sweep(params, exposure_ms, here_mm, to, kind="extend", time_scale=time_scale)
-    half = params.fine_range_mm / 2.0
-    centre = fit.peak_mm
-    a, b = (centre + half, centre - half) if here_mm >= centre else (centre - half, centre + half)
-    if forward_only:  # placed by the profile: a time offset shifts a sweep along its direction; keep one direction
-        a, b = centre - half, centre + half
-    reach = max_reach_mm(params)
-    a, b = min(max(a, -reach), reach), min(max(b, -reach), reach)
-    return plan_sweep(params, exposure_ms, a, b, kind="fine", factor=params.fine_speed_factor,
-                      time_scale=time_scale)
 
 
 async def _one_sweep(rc: Robot, comm: Vision, approach: Pose, plan: SweepPlan, index: int, run: SweepRun,
@@ -519,5 +430,4 @@ def _place_by_profile(run: SweepRun, frames: list[SweepFrame], result: Any, plan
         f.offset_mm = profile_offset(f.t_mid_s, t0, t1, plan.from_mm, plan.to_mm, ramp)
 
 
-__all__ = ["MODES", "SWEEP_RANGES", "PeakFit", "StateTrack", "SweepPlan", "axis_offset_mm", "blur_model",
-           "check_sweep", "clock_offset", "fit_peak", "plan_sweep", "profile_offset", "sweep_focus", "sweep_speed"]
+__all__ = ["MODES", "SWEEP_RANGES", "sweep_focus"]

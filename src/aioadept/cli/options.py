@@ -148,7 +148,7 @@ def apply_overrides(cfg: "CellConfig", args: argparse.Namespace) -> "CellConfig"
         changes["mode"] = mode
     cfg.focus = dataclasses.replace(cfg.focus, **changes)
     from aioadept.apps.cell import sim_time_scale
-    from aioadept.apps.sweep import check_sweep
+    from aioadept.apps.sweep_plan import check_sweep
 
     # A sweep the exposure cannot allow: one line, nothing started. Checked here, after --mode and --time-scale,
     # not when the file is read: the file's mode or exposure may be overridden.

@@ -10,16 +10,8 @@ import numpy as np
 import pytest
 
 from aioadept.apps.focus import FocusParams
-from aioadept.apps.sweep import (
-    StateTrack,
-    blur_model,
-    check_sweep,
-    clock_offset,
-    fit_peak,
-    plan_sweep,
-    profile_offset,
-    sweep_speed,
-)
+from aioadept.apps.sweep_model import StateTrack, blur_model, clock_offset, fit_peak, profile_offset
+from aioadept.apps.sweep_plan import check_sweep, plan_sweep, sweep_speed
 
 SWEEP = FocusParams(mode="sweep")
 
@@ -135,24 +127,24 @@ def test_cell_values_out_of_range_name_the_key():
 
 def test_next_sweep_extends_past_the_open_end_within_the_reach_and_the_fine_one_crosses_the_peak():
     from aioadept.apps.focus import FocusError
-    from aioadept.apps.sweep import _next_plan, max_reach_mm
+    from aioadept.apps.sweep_plan import max_reach_mm, next_plan
     from aioadept.apps.sweep_model import PeakFit
 
     assert max_reach_mm(SWEEP) == 80.0  # max_steps x delta_z_mm, the stepwise loop's reach
     rising = PeakFit(40.0, math.inf, 3, (30.0, 40.0), False, 1)
-    plan = _next_plan(SWEEP, 5.0, rising, 40.0, 1.0)
+    plan = next_plan(SWEEP, 5.0, rising, 40.0, 1.0)
     assert (plan.kind, plan.from_mm, plan.to_mm) == ("extend", 40.0, 60.0)
-    assert _next_plan(SWEEP, 5.0, rising, 70.0, 1.0).to_mm == 80.0  # capped at the reach
+    assert next_plan(SWEEP, 5.0, rising, 70.0, 1.0).to_mm == 80.0  # capped at the reach
     with pytest.raises(FocusError, match="within 80 mm"):
-        _next_plan(SWEEP, 5.0, PeakFit(80.0, math.inf, 3, (70.0, 80.0), False, 1), 80.0, 1.0)
+        next_plan(SWEEP, 5.0, PeakFit(80.0, math.inf, 3, (70.0, 80.0), False, 1), 80.0, 1.0)
     behind = PeakFit(0.0, math.inf, 3, (0.0, 8.0), False, -1)
-    assert _next_plan(SWEEP, 5.0, behind, 40.0, 1.0).to_mm == -20.0  # back past the start, away from the camera
+    assert next_plan(SWEEP, 5.0, behind, 40.0, 1.0).to_mm == -20.0  # back past the start, away from the camera
     uncertain = PeakFit(21.3, 0.3, 7, (12.0, 33.0), True, 0)
-    fine = _next_plan(SWEEP, 5.0, uncertain, 40.0, 1.0)
+    fine = next_plan(SWEEP, 5.0, uncertain, 40.0, 1.0)
     assert (fine.kind, fine.from_mm, fine.to_mm, fine.speed_mm_s) == ("fine", 27.3, 15.3, 100.0)
-    assert (_next_plan(SWEEP, 5.0, uncertain, 0.0, 1.0).from_mm, _next_plan(SWEEP, 5.0, uncertain, 0.0, 1.0).to_mm) \
+    assert (next_plan(SWEEP, 5.0, uncertain, 0.0, 1.0).from_mm, next_plan(SWEEP, 5.0, uncertain, 0.0, 1.0).to_mm) \
         == (15.3, 27.3)
-    forward = _next_plan(SWEEP, 5.0, uncertain, 40.0, 1.0, forward_only=True)
+    forward = next_plan(SWEEP, 5.0, uncertain, 40.0, 1.0, forward_only=True)
     assert (forward.from_mm, forward.to_mm) == (15.3, 27.3)
 
 
