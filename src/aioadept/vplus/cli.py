@@ -41,32 +41,14 @@ async def run(args: argparse.Namespace, options: Any) -> int:
     """Serve until SIGINT/SIGTERM. ``options`` (:class:`aioadept.sim.server.SimOptions`, from the same command
     line: ``aioadept.cli.sim.options_from_args``) gives the robot, the state stream and the faults exactly as for
     the Python backend."""
-    from aioadept.sim.server import publish_robot_states, robot_state_sample, world_state_sample
-    from aioadept.vplus import Emulator, RealClock
-    from aioadept.vplus import iodev
     from aioadept.vplus.iodev import Network
-    from aioadept.vplus.loader import load_files
-    from aioadept.vplus.parse import norm
-    from aioadept.vplus.robot import RobotDevice
 
     port_map = parse_port_map(args.map_port)
     ctl = options.make_controller()
-
-    def console(task: int, text: str) -> None:
-        print(f"[{task}] {text}", flush=True)
-
-    module = load_files(args.vplus)
-    clock = RealClock()
-    wall0 = time.time() - clock.now
-    emu = Emulator(module, robot=RobotDevice(ctl), clock=clock, console=console, cycle_s=args.vplus_cycle,
-                   disk_dir=getattr(args, "disk", None))
-    for p in emu.problems:
-        print(f"aioadept sim: {p}", file=sys.stderr, flush=True)
-    run_name = norm(args.run)
-    if run_name not in module.programs:
-        print(f"aioadept sim: --run {args.run}: no such program in {', '.join(args.vplus)}", file=sys.stderr,
-              flush=True)
+    made = _make_emulator(args, ctl)
+    if made is None:
         return 2
+    emu, clock, wall0 = made
 
     publisher = None
     state = "none"
@@ -90,13 +72,7 @@ async def run(args: argparse.Namespace, options: Any) -> int:
     loop = asyncio.get_running_loop()
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, stop.set)
-    # the emulator's clock is the controller's time: the stream samples the arm at that time
-    io_cursor = [0]  # each signal change goes out once, in the sample after it
-    world_cursor = [0]  # each world event too
-    world_sample = None if ctl.world is None else (lambda: world_state_sample(ctl, clock.now, wall0, world_cursor))
-    states = None if publisher is None else asyncio.ensure_future(publish_robot_states(
-        publisher, lambda: robot_state_sample(ctl, clock.now, wall0, io_cursor), options.state_rate_hz,
-        world_sample=world_sample))
+    states = None if publisher is None else _stream_states(publisher, ctl, clock, wall0, options)
     emu.rt.on_task_end = sup.on_task_end
     emu.rt.on_task_pause = sup.on_task_pause
     loop.set_exception_handler(sup.on_loop_error)
@@ -107,23 +83,70 @@ async def run(args: argparse.Namespace, options: Any) -> int:
         sup.die(f"emulator internal error {one_line(exc)}; every V+ task was aborted")
     finally:
         sup.closing = True
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            loop.remove_signal_handler(sig)
-        iodev.close_all(emu.rt)
-        for n in list(emu.rt.tasks):
-            emu.rt.abort(n)
-        if states is not None:
-            # the stream shows the braked arm come to rest before it ends (bounded: a stop takes well under this)
-            t_end = loop.time() + REST_WAIT_S
-            while ctl.trajectory.in_motion(clock.now) and loop.time() < t_end:
-                await asyncio.sleep(0.01)
-            await asyncio.sleep(2.0 / options.state_rate_hz)
-            states.cancel()
-            await asyncio.gather(states, return_exceptions=True)
-        if publisher is not None:
-            publisher.close()
-        loop.set_exception_handler(None)
+        await _shut_down(emu, ctl, clock, states, publisher, options)
     return sup.status
+
+
+def _make_emulator(args: argparse.Namespace, ctl: Any) -> tuple[Any, Any, float] | None:
+    """Load ``--vplus`` (problems on stderr) into an emulator on a real clock driving ``ctl``: (emulator, clock,
+    the wall time of clock 0), or None (one line on stderr) when ``--run`` names no loaded program."""
+    from aioadept.vplus import Emulator, RealClock
+    from aioadept.vplus.loader import load_files
+    from aioadept.vplus.parse import norm
+    from aioadept.vplus.robot import RobotDevice
+
+    def console(task: int, text: str) -> None:
+        print(f"[{task}] {text}", flush=True)
+
+    module = load_files(args.vplus)
+    clock = RealClock()
+    wall0 = time.time() - clock.now
+    emu = Emulator(module, robot=RobotDevice(ctl), clock=clock, console=console, cycle_s=args.vplus_cycle,
+                   disk_dir=getattr(args, "disk", None))
+    for p in emu.problems:
+        print(f"aioadept sim: {p}", file=sys.stderr, flush=True)
+    if norm(args.run) not in module.programs:
+        print(f"aioadept sim: --run {args.run}: no such program in {', '.join(args.vplus)}", file=sys.stderr,
+              flush=True)
+        return None
+    return emu, clock, wall0
+
+
+def _stream_states(publisher: Any, ctl: Any, clock: Any, wall0: float, options: Any) -> asyncio.Future:
+    """The state stream's task: samples of the arm (and the world, if any) at the emulator's clock, which is the
+    controller's time."""
+    from aioadept.sim.server import publish_robot_states, robot_state_sample, world_state_sample
+
+    io_cursor = [0]  # each signal change goes out once, in the sample after it
+    world_cursor = [0]  # each world event too
+    world_sample = None if ctl.world is None else (lambda: world_state_sample(ctl, clock.now, wall0, world_cursor))
+    return asyncio.ensure_future(publish_robot_states(
+        publisher, lambda: robot_state_sample(ctl, clock.now, wall0, io_cursor), options.state_rate_hz,
+        world_sample=world_sample))
+
+
+async def _shut_down(emu: Any, ctl: Any, clock: Any, states: asyncio.Future | None, publisher: Any,
+                     options: Any) -> None:
+    """Close every connection, abort every task, let the stream show the arm at rest, then end it."""
+    from aioadept.vplus import iodev
+
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        loop.remove_signal_handler(sig)
+    iodev.close_all(emu.rt)
+    for n in list(emu.rt.tasks):
+        emu.rt.abort(n)
+    if states is not None:
+        # the stream shows the braked arm come to rest before it ends (bounded: a stop takes well under this)
+        t_end = loop.time() + REST_WAIT_S
+        while ctl.trajectory.in_motion(clock.now) and loop.time() < t_end:
+            await asyncio.sleep(0.01)
+        await asyncio.sleep(2.0 / options.state_rate_hz)
+        states.cancel()
+        await asyncio.gather(states, return_exceptions=True)
+    if publisher is not None:
+        publisher.close()
+    loop.set_exception_handler(None)
 
 
 GRACE_S = 0.5
