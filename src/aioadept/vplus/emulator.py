@@ -238,93 +238,108 @@ class Emulator:
     # -- running in real time -------------------------------------------------------------------------------
     async def serve(self, stop: asyncio.Event) -> None:
         """Run the tasks on the asyncio loop, in real time, until ``stop`` is set (needs a :class:`RealClock`)."""
+        await _RealTime(self.rt, stop).serve()
+
+
+BURST_S = 0.002
+"""Longest run of scheduler rounds in :meth:`Emulator.serve` before asyncio serves the sockets."""
+
+
+class _RealTime:
+    """One :meth:`Emulator.serve`: the scheduler's rounds on the asyncio loop.
+
+    While every task waits, the loop sleeps on one future (``sleeper``): a wake-up (I/O, EXECUTE, SET.EVENT), the
+    next task's wake time or ``stop`` completes it. (An asyncio.Event and asyncio.wait over two new tasks cost
+    several loop turns and task creations per sleep: a large part of a round trip.)
+    """
+
+    def __init__(self, rt: Runtime, stop: asyncio.Event) -> None:
+        self.rt = rt
+        self.stop = stop
+        self.loop = asyncio.get_running_loop()
+        self.sleeper: asyncio.Future | None = None
+        self.armed: float | None = None     # the runtime time the sleeping loop's timer is set for
+        self.failed: list[BaseException] = []
+
+    async def serve(self) -> None:
         rt = self.rt
-        loop = asyncio.get_running_loop()
-        # While every task waits, the loop sleeps on one future: a wake-up (I/O, EXECUTE, SET.EVENT), the next
-        # task's wake time or ``stop`` completes it. (An asyncio.Event and asyncio.wait over two new tasks cost
-        # several loop turns and task creations per sleep: a large part of a round trip.)
-        sleeper: list[asyncio.Future | None] = [None]
-        failed: list[BaseException] = []
-
-        def burst() -> None:
-            # Rounds back to back while tasks are ready (a reader handing a line to the executor and the
-            # executor's ack back to the reader take three), then let asyncio serve the sockets: writes leave at
-            # once (transport.write), reads and new connections wait for this yield.
-            # Each round's writes leave right after it (an ack written by the reader does not wait for the
-            # executor's re-test of its WAIT in the next round): latency, not CPU.
-            # At most BURST_S of rounds before the sockets are served: a task kept busy by one client's flood
-            # must not hold another client's stop in the kernel (32 rounds of a busy reader took 300 ms; a stop
-            # behind them waited that long).
-            devices = rt.devices
-            until = loop.time() + BURST_S
-            for _ in range(32):
-                rt.run_round()
-                if devices is not None and devices.pending:
-                    devices.flush()
-                if not rt.any_ready() or loop.time() >= until:
-                    break
-
-        armed: list[float | None] = [None]     # the runtime time the sleeping loop's timer is set for
-
-        def wake() -> None:
-            f = sleeper[0]
-            if f is None or f.done():
-                return
-            if not stop.is_set() and rt.any_ready():
-                # The loop is parked in ``await f``: run the woken tasks now, inside the I/O callback that woke
-                # them (an ack leaves one event-loop turn sooner: the turn and the task wake-up were a tenth of a
-                # here round trip). A wake-up from within these rounds (SET.EVENT) finds no sleeper.
-                sleeper[0] = None
-                try:
-                    burst()
-                except BaseException as exc:  # noqa: BLE001 - re-raised by serve, not by the I/O callback
-                    failed.append(exc)
-                else:
-                    w = rt.next_wake()
-                    if not rt.any_ready() and (w is None or (armed[0] is not None and w >= armed[0])):
-                        # every task waits again, none before the loop's timer: the loop sleeps on (waking it
-                        # to arm the same sleep again was most of a round trip's work after its ack)
-                        sleeper[0] = f
-                        return
-            f.set_result(None)
-
-        def on_timer() -> None:
-            armed[0] = None
-            f = sleeper[0]
-            if f is not None and not f.done():
-                f.set_result(None)
-
-        rt.on_wake = wake
+        loop = self.loop
+        stop = self.stop
+        rt.on_wake = self.wake
         stopper = asyncio.ensure_future(stop.wait())
-        stopper.add_done_callback(lambda _: wake())
+        stopper.add_done_callback(lambda _: self.wake())
         try:
             while not stop.is_set():
                 if rt.any_ready():
-                    burst()
+                    self.burst()
                     await asyncio.sleep(0)
                     continue
                 if rt.devices is not None:
                     rt.devices.flush()
                 w = rt.next_wake()
-                f = sleeper[0] = loop.create_future()
-                armed[0] = w
-                timer = None if w is None else loop.call_at(loop.time() + max(0.0, w - rt.now), on_timer)
+                f = self.sleeper = loop.create_future()
+                self.armed = w
+                timer = None if w is None else loop.call_at(loop.time() + max(0.0, w - rt.now), self.on_timer)
                 try:
                     await f
                 finally:
-                    sleeper[0] = None
-                    armed[0] = None
+                    self.sleeper = None
+                    self.armed = None
                     if timer is not None:
                         timer.cancel()
-                if failed:
-                    raise failed[0]
+                if self.failed:
+                    raise self.failed[0]
         finally:
             rt.on_wake = None
             stopper.cancel()
 
+    def burst(self) -> None:
+        # Rounds back to back while tasks are ready (a reader handing a line to the executor and the
+        # executor's ack back to the reader take three), then let asyncio serve the sockets: writes leave at
+        # once (transport.write), reads and new connections wait for this yield.
+        # Each round's writes leave right after it (an ack written by the reader does not wait for the
+        # executor's re-test of its WAIT in the next round): latency, not CPU.
+        # At most BURST_S of rounds before the sockets are served: a task kept busy by one client's flood
+        # must not hold another client's stop in the kernel (32 rounds of a busy reader took 300 ms; a stop
+        # behind them waited that long).
+        rt = self.rt
+        devices = rt.devices
+        until = self.loop.time() + BURST_S
+        for _ in range(32):
+            rt.run_round()
+            if devices is not None and devices.pending:
+                devices.flush()
+            if not rt.any_ready() or self.loop.time() >= until:
+                break
 
-BURST_S = 0.002
-"""Longest run of scheduler rounds in :meth:`Emulator.serve` before asyncio serves the sockets."""
+    def wake(self) -> None:
+        f = self.sleeper
+        if f is None or f.done():
+            return
+        rt = self.rt
+        if not self.stop.is_set() and rt.any_ready():
+            # The loop is parked in ``await f``: run the woken tasks now, inside the I/O callback that woke
+            # them (an ack leaves one event-loop turn sooner: the turn and the task wake-up were a tenth of a
+            # here round trip). A wake-up from within these rounds (SET.EVENT) finds no sleeper.
+            self.sleeper = None
+            try:
+                self.burst()
+            except BaseException as exc:  # noqa: BLE001 - re-raised by serve, not by the I/O callback
+                self.failed.append(exc)
+            else:
+                w = rt.next_wake()
+                if not rt.any_ready() and (w is None or (self.armed is not None and w >= self.armed)):
+                    # every task waits again, none before the loop's timer: the loop sleeps on (waking it
+                    # to arm the same sleep again was most of a round trip's work after its ack)
+                    self.sleeper = f
+                    return
+        f.set_result(None)
+
+    def on_timer(self) -> None:
+        self.armed = None
+        f = self.sleeper
+        if f is not None and not f.done():
+            f.set_result(None)
 
 
 def make_robot(controller: Any = None) -> Any:
