@@ -602,10 +602,7 @@ def write(rt: Any):
         n = int(lun)
         disk = _disk_of(T, n)
         if disk is not None:
-            from aioadept.vplus import disk as D
-
-            text, no_eol = _render(items)
-            D.write(T, disk, text if no_eol else text + "\r\n")
+            _write_disk(T, disk, items)
             return
         dev = _lun_of(T, n)
         if dev is None:
@@ -613,16 +610,9 @@ def write(rt: Any):
             return
         net = rt.devices
         # A no-wait output still under way on this LUN is waited for first; if it failed, this one is cancelled
-        # and IOSTAT reports the first's error (V+ Language User's Guide, "Output Wait Modes"). (Its state
-        # counts what this burst has not sent yet: sent only when it is not complete, so that a burst of acks
-        # still leaves in one send.)
+        # and IOSTAT reports the first's error (V+ Language User's Guide, "Output Wait Modes").
         if dev.nowait is not None and (st := dev.nowait_state()) != 1:
-            if st == 0:
-                if net is not None:
-                    net.flush()
-                while (st := dev.nowait_state()) == 0:
-                    T.io_wait = True
-                    yield rt.next_tick()
+            st = yield from _wait_nowait(rt, T, dev, net, st)
             if st < 0:
                 dev.nowait_err = 0
                 T.iostat[n] = st
@@ -649,19 +639,45 @@ def write(rt: Any):
         if no_wait or _no_wait(items):
             dev.nowait = tr
             return
-        # V+ WRITE waits until the record is out: here while the peer does not read. A connection lost meanwhile
-        # (reset, closed) fails the WRITE: it never waits for ever on a dead peer.
-        if dev.out_bytes(tr) > _PAUSE_BYTES:
-            if net is not None:
-                net.flush()
-            while dev.out_bytes(tr) > _PAUSE_BYTES:
-                if tr.is_closing() or dev.conns.get(h) is not tr:
-                    T.iostat[n] = E.DEVICE_ERROR
-                    return
-                T.io_wait = True
-                yield rt.next_tick()
+        # V+ WRITE waits until the record is out: here while the peer does not read.
+        if dev.out_bytes(tr) > _PAUSE_BYTES and not (yield from _wait_read(rt, T, dev, net, tr, h)):
+            T.iostat[n] = E.DEVICE_ERROR
 
     return io_write
+
+
+def _write_disk(T: Any, disk: Any, items: tuple) -> None:
+    """WRITE to a disk LUN: the record, with its line end unless an item is /S."""
+    from aioadept.vplus import disk as D
+
+    text, no_eol = _render(items)
+    D.write(T, disk, text if no_eol else text + "\r\n")
+
+
+def _wait_nowait(rt: Any, T: Any, dev: Any, net: Any, st: int) -> Generator:
+    """Wait for the no-wait output under way on ``dev`` (its state ``st`` is not 1, complete): return its final
+    state (1, or its error < 0). (Its state counts what this burst has not sent yet: sent only when it is not
+    complete, so that a burst of acks still leaves in one send.)"""
+    if st == 0:
+        if net is not None:
+            net.flush()
+        while (st := dev.nowait_state()) == 0:
+            T.io_wait = True
+            yield rt.next_tick()
+    return st
+
+
+def _wait_read(rt: Any, T: Any, dev: Any, net: Any, tr: Any, h: int) -> Generator:
+    """Wait while more than _PAUSE_BYTES of what was written to ``tr`` (connection ``h``) is unread: return True,
+    or False when the connection is lost meanwhile (reset, closed): a WRITE never waits for ever on a dead peer."""
+    if net is not None:
+        net.flush()
+    while dev.out_bytes(tr) > _PAUSE_BYTES:
+        if tr.is_closing() or dev.conns.get(h) is not tr:
+            return False
+        T.io_wait = True
+        yield rt.next_tick()
+    return True
 
 
 def close_all(rt: Any) -> None:
