@@ -362,29 +362,9 @@ class Runtime:
                 else:
                     err, T.throw = T.throw, None
                     w = T.gen.throw(err)
-            except StopIteration:
+            except (Exception, VPlusHalt) as exc:
                 T.gen = None
-                self._end_task(T, "done")
-                continue
-            except VPlusHalt as h:
-                T.gen = None
-                if h.program is not None:
-                    prog = self.module.programs.get(h.program)
-                    T.halted_at = (prog.file if prog is not None else None, h.program, h.line or 0)
-                if str(h):
-                    self.console(T.num, str(h))
-                self._end_task(T, "done", brake=h.brakes)
-                continue
-            except VPlusError as e:
-                T.gen = None
-                self.console(T.num, f"{e} (task {T.num})")
-                self._end_task(T, "error", e, brake=True)
-                continue
-            except Exception as e:  # noqa: BLE001 - an emulator bug stops the task, not the emulator
-                T.gen = None
-                err = VPlusError(E.INTERNAL, f"*Emulator internal error* {type(e).__name__}: {e}")
-                self.console(T.num, f"{err} (task {T.num})")
-                self._end_task(T, "error", err, brake=True)
+                self._stopped(T, exc)
                 continue
             if w < 0:
                 preempted += 1
@@ -398,6 +378,26 @@ class Runtime:
         if progress:
             self.wake_conditions()
         return preempted
+
+    def _stopped(self, T: Task, exc: BaseException) -> None:
+        """End task ``T``, whose program raised ``exc`` when resumed: StopIteration (it returned), HALT (with where
+        it halted), a V+ error, or a Python exception (an emulator bug stops the task, not the emulator)."""
+        if isinstance(exc, StopIteration):
+            self._end_task(T, "done")
+        elif isinstance(exc, VPlusHalt):
+            if exc.program is not None:
+                prog = self.module.programs.get(exc.program)
+                T.halted_at = (prog.file if prog is not None else None, exc.program, exc.line or 0)
+            if str(exc):
+                self.console(T.num, str(exc))
+            self._end_task(T, "done", brake=exc.brakes)
+        elif isinstance(exc, VPlusError):
+            self.console(T.num, f"{exc} (task {T.num})")
+            self._end_task(T, "error", exc, brake=True)
+        else:
+            err = VPlusError(E.INTERNAL, f"*Emulator internal error* {type(exc).__name__}: {exc}")
+            self.console(T.num, f"{err} (task {T.num})")
+            self._end_task(T, "error", err, brake=True)
 
     def storage_used(self) -> int:
         """Array elements held now: global arrays, each task's LOCAL arrays and the AUTO arrays of its calls."""
