@@ -139,12 +139,6 @@ class Paren(Expr):
 class Stmt(Node):
     """A statement (one program line)."""
 
-    def __getitem__(self, i: int):
-        """``stmt[0]``: the kind as the statement's tuple form named it (``"GLOBAL"`` for a GLOBAL line)."""
-        if i == 0:
-            return type(self).__name__.upper()
-        raise IndexError(i)
-
 
 @dataclass(frozen=True, slots=True)
 class Nop(Stmt):
@@ -303,9 +297,6 @@ class Declare(Stmt):
     word: str
     names: tuple
     texts: tuple = ()
-
-    def __getitem__(self, i: int):
-        return (self.word, self.names)[i]
 
 
 @dataclass(frozen=True, slots=True)

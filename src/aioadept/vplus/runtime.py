@@ -34,6 +34,7 @@ from typing import Any
 from aioadept.vplus import builtins as B
 from aioadept.vplus import errors as E
 from aioadept.vplus import iodev
+from aioadept.vplus import nodes
 from aioadept.vplus.compiler import BUDGET, compile_program
 from aioadept.vplus.errors import VPlusError, VPlusHalt
 from aioadept.vplus.loader import LoadProblem, Module
@@ -189,8 +190,8 @@ class Runtime:
         out = {name for kind, name, _, _ in self.module.data if kind == "DOUBLE"}
         for prog in self.module.programs.values():
             for _, st in prog.steps:
-                if st[0] == "GLOBAL":
-                    out |= {n for n, t, _ in st[1] if t == "DOUBLE"}
+                if isinstance(st, nodes.Declare) and st.word == "GLOBAL":
+                    out |= {n for n, t, _ in st.names if t == "DOUBLE"}
         return out
 
     def compile_all(self) -> None:
