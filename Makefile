@@ -64,7 +64,7 @@ gige: $(STAMP)
 
 # pytest exits 5 when it collected no tests: that is a failure, not a pass.
 test: $(STAMP) toxiproxy chromium gige
-	$(BIN)/python -m pytest -q -rs $(ARGS); rc=$$?; \
+	$(BIN)/python -m pytest -q -rfEs $(ARGS); rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "no tests were collected" >&2; exit 1; fi; exit $$rc
 
 # Every benchmarks/bench_*.py in turn, each JSON kept under runs/bench-*/, then one verdict table

@@ -65,4 +65,9 @@ async def test_a_non_reading_flooder_cannot_stop_the_reader_reading_anothers_sto
         w.close()
         with contextlib.suppress(OSError):
             await w.wait_closed()
-    assert "its lines fill the reader's ring" in log.read_text()
+    # Whether the flooder's acks back up far enough to fill the reader's ring before the stop comes depends on how
+    # far the kernel grows the sockets' buffers (autotuned up to tcp_wmem's maximum): on some machines the reader
+    # drops it, on others it never has to. The promise is the stop's ack above; a drop, if any, names its reason.
+    text = log.read_text()
+    if "dropping client" in text:
+        assert "its lines fill the reader's ring" in text, text

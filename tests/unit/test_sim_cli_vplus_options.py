@@ -14,7 +14,7 @@ VPLUS = ["--vplus", "vplus/rserver.V2", "vplus/rsskills.V2", "vplus/rsconfig.V2"
     (["--max-clients", "4"], "rs.maxcli"),
     (["--max-queued", "10"], "rs.maxq"),
     (["--allow", "127.0.0.1"], "address"),
-    (["--line-timeout", "3"], "has none"),
+    (["--line-timeout", "3"], "rs.lntmo"),
     (["--stop-window", "2"], "rs.stmo"),
     (["--stop-port", "2000"], "rs.sport"),
 ])

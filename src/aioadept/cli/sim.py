@@ -271,7 +271,7 @@ _PYTHON_SERVER_ONLY = (
     ("max_clients", "--max-clients", "set rs.maxcli in its rsconfig.V2 (FOPEN /CLIENTS)"),
     ("max_queued", "--max-queued", "set rs.maxq in its rsconfig.V2"),
     ("allow", "--allow", "the program cannot see a peer's address; use the controller's network settings"),
-    ("line_timeout", "--line-timeout", "the shipped V+ server has none (docs/vplus.md)"),
+    ("line_timeout", "--line-timeout", "set rs.lntmo in its rsconfig.V2 (0: off)"),
     ("stop_window", "--stop-window", "set rs.stmo in its rsconfig.V2 (the stop port's idle time)"),
     ("stop_port", "--stop-port", "set rs.sport in its rsconfig.V2 and map it with --map-port 1235=N"),
 )
