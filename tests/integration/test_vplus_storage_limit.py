@@ -81,7 +81,9 @@ def free_port() -> int:
 def server_files(tmp_path: Path) -> list[str]:
     cfg = (VPLUS / "rsconfig.V2").read_text()
     end = cfg.rindex(".END")          # rs.config's: the user skills are registered at its end
-    (tmp_path / "rsconfig.V2").write_text(cfg[:end] + USER_SKILLS)
+    # the executor's restart after a stop (rs.unstick, rs.stwd) would free a skill's arrays before the memory error
+    # comes on a loaded machine; this test is about the memory limit, so the restart waits longer than it
+    (tmp_path / "rsconfig.V2").write_text(cfg[:end] + "\trs.stwd = 30\n" + USER_SKILLS)
     return [str(VPLUS / "rserver.V2"), str(VPLUS / "rsskills.V2"), str(tmp_path / "rsconfig.V2")]
 
 
