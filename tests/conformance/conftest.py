@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import socket
 from collections.abc import AsyncIterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,6 +28,7 @@ import pytest
 
 from aioadept.protocol import Ack, parse_ack
 from aioadept.testing.nodes import running_node
+from aioadept.ports import free_port as _free_port
 
 ROOT = Path(__file__).resolve().parents[2]
 VPLUS_FILES = [str(ROOT / "vplus" / f) for f in ("rserver.V2", "rsskills.V2", "rsconfig.V2")]
@@ -49,12 +49,6 @@ def vplus_cli_available() -> bool:
 
 NO_VPLUS = ("LOUD SKIP: `aioadept sim --vplus` does not exist yet, so the V+ backend of the conformance suite "
             "cannot run. It runs for real as soon as the emulator's CLI lands (issue 11).")
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @dataclass

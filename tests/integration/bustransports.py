@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import itertools
 import os
-import socket
+from aioadept.ports import free_port
 
 TRANSPORTS = ("zeromq", "zenoh", "zenoh-queries")
 """``zenoh-queries``: Zenoh with every Communicator sending its requests as queries (``queries=True``), so the whole
@@ -25,12 +25,6 @@ pairing contract is tested on that path too (docs/bus.md, "Requests: publication
 
 _run = os.urandom(4).hex()
 _counter = itertools.count()
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 class BusEndpoints:

@@ -8,7 +8,7 @@ from contextlib import asynccontextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
-from aioadept.apps.cell import free_port
+from aioadept.ports import free_port
 from aioadept.testing.nodes import NodeProcess, running_node
 
 ROBOTICS_NS = "http://opcfoundation.org/UA/Robotics/"

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import asyncio
 import importlib.util
-import socket
 import threading
 from pathlib import Path
 
@@ -20,6 +19,7 @@ import pytest
 import zmq
 
 from aioadept.bus.communicator import Communicator, Responder
+from aioadept.ports import free_port
 
 _spec = importlib.util.spec_from_file_location(
     "epypes_reference", Path(__file__).parents[1] / "unit" / "bus" / "epypes_reference.py")
@@ -31,12 +31,6 @@ def attrs_of(pb) -> dict:
     """EPypes' get_attributes_dict."""
     return {e.key: e.str_val if e.type == 1 else e.double_val if e.type == 2 else e.int_val
             for e in pb.attributes.entries}
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.mark.timeout(10)

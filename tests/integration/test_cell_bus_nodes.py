@@ -22,7 +22,7 @@ from pathlib import Path
 
 import pytest
 
-from aioadept.apps.cell import free_port
+from aioadept.ports import free_port
 from aioadept.bus.messages import ROBOT_STATE_TOPIC, RobotState
 from aioadept.geometry import Pose
 from aioadept.protocol.statestream import StateSample, encode_state_line

@@ -13,7 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from aioadept.apps.cell import CellConfig, free_port, vision_argv
+from aioadept.apps.cell import CellConfig, vision_argv
+from aioadept.ports import free_port
 from aioadept.vision.__main__ import resolve_options
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -9,7 +9,6 @@ is retried too, and the wait ends with ConnectError naming the last failure when
 from __future__ import annotations
 
 import asyncio
-import socket
 from pathlib import Path
 
 import pytest
@@ -18,14 +17,9 @@ from aioadept.client import RobotClient
 from aioadept.errors import ConnectError
 from aioadept.sim.server import SimOptions, SimServer
 from aioadept.testing.nodes import running_node
+from aioadept.ports import free_port
 
 VPLUS = Path(__file__).resolve().parents[2] / "vplus"
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.mark.timeout(30)

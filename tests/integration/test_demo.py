@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from aioadept.apps.cell import free_port
+from aioadept.ports import free_port
 
 AIOADEPT = [sys.executable, "-m", "aioadept"]
 

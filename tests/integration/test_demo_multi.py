@@ -178,7 +178,7 @@ async def test_one_sigint_stops_every_robot_of_the_cell_then_every_node_and_exit
     import asyncio
     import os
 
-    from aioadept.apps.cell import free_port
+    from aioadept.ports import free_port
     from test_sigint import SLOW_SPEED, StateWatch, _finish, _gone, _spawn, at_rest, moving_at
 
     states = [f"tcp://127.0.0.1:{free_port()}" for _ in range(2)]

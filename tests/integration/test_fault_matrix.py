@@ -22,13 +22,13 @@ import os
 import random
 import re
 import signal
-import socket
 import statistics
 import subprocess
 import time
 
 import pytest
 
+from aioadept.ports import free_port
 from aioadept import Break, Here, MoveRelJoints, SetSpeed, Skill
 from aioadept.bus.communicator import Communicator
 from aioadept.bus.endpoints import peer
@@ -497,11 +497,7 @@ async def test_vision_node_killed_mid_request(outcome, tmp_path):
 @pytest.mark.timeout(40)
 async def test_vision_node_joins_after_the_request(outcome, tmp_path):
     """ZeroMQ peer joining late: the vision node starts after the request was published"""
-    ports = []
-    for _ in range(2):
-        with socket.socket() as s:
-            s.bind(("127.0.0.1", 0))
-            ports.append(s.getsockname()[1])
+    ports = [free_port(), free_port()]
     req_ep, resp_ep = (f"tcp://127.0.0.1:{p}" for p in ports)
     seen = _Republishes()
     async with Communicator(req_ep, resp_ep, observers=[seen], republish_max_interval_s=0.2) as comm:

@@ -365,7 +365,7 @@ async def test_a_client_that_vanishes_leaves_the_others_served(tmp_path) -> None
 async def test_the_robot_server_restarting_turns_values_uncertain_and_back_to_good(tmp_path) -> None:
     from asyncua import Client, ua
 
-    from aioadept.apps.cell import free_port
+    from aioadept.ports import free_port
     from aioadept.testing.nodes import running_node
 
     port, state = free_port(), f"tcp://127.0.0.1:{free_port()}"

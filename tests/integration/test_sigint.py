@@ -23,7 +23,7 @@ from pathlib import Path
 
 import pytest
 
-from aioadept.apps.cell import free_port
+from aioadept.ports import free_port
 from aioadept.bus.messages import ROBOT_STATE_TOPIC, RobotState
 from aioadept.bus.pubsub import Subscriber
 from aioadept.geometry import Pose, rel_tool

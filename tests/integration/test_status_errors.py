@@ -4,11 +4,11 @@ its INRANGE check) are not. Real TCP; the V+ server runs on the emulator as a ch
 
 from __future__ import annotations
 
-import socket
 from pathlib import Path
 
 import pytest
 
+from aioadept.ports import free_port
 from aioadept import MoveTo
 from aioadept.client import RobotClient
 from aioadept.errors import CommandError
@@ -40,9 +40,7 @@ async def test_the_v_plus_server_reports_the_last_v_plus_error_of_its_executor(t
     assert "rs.chkrange = TRUE" in cfg
     (tmp_path / "rsconfig.V2").write_text(cfg.replace("rs.chkrange = TRUE", "rs.chkrange = FALSE"))
     files = [str(VPLUS / "rserver.V2"), str(VPLUS / "rsskills.V2"), str(tmp_path / "rsconfig.V2")]
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
+    port = free_port()
     async with running_node("sim", "--vplus", *files, "--run", "rs.main", "--map-port", f"1234={port}",
                             "--state-endpoint", "none", log_path=tmp_path / "sim.log", ready_timeout_s=45):
         async with RobotClient("127.0.0.1", port) as robot:

@@ -14,7 +14,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import importlib.util
-import socket
 import time
 from pathlib import Path
 
@@ -24,17 +23,12 @@ import zmq
 from aioadept import MoveJoints, MoveRelJoints, MoveRelTool, MoveToolZ, SetSpeed
 from aioadept.client import RobotClient
 from aioadept.testing.nodes import running_node
+from aioadept.ports import free_port
 
 _spec = importlib.util.spec_from_file_location(
     "epypes_reference", Path(__file__).parents[1] / "unit" / "bus" / "epypes_reference.py")
 ref = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(ref)
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def attrs_of(pb) -> dict:

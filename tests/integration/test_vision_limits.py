@@ -15,7 +15,6 @@ import asyncio
 import contextlib
 import math
 import signal
-import socket
 import time
 
 import cv2
@@ -33,6 +32,7 @@ from aioadept.geometry import Pose
 from aioadept.testing.nodes import running_node
 from aioadept.vision import raise_for_error
 from aioadept.vision.virtual_camera import paper_approach_pose, paper_camera
+from aioadept.ports import free_port
 
 FREE = "tcp://127.0.0.1:0"
 
@@ -204,12 +204,6 @@ async def test_a_request_over_one_mebibyte_is_dropped_unparsed_and_its_sender_ge
 
 
 # ------------------------------------------------------------------------------------------ frozen pose
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 async def init_move(sim) -> None:
     """The paper's init_move: the calibration object at the approach pose, 20 mm before the focal plane."""
     async with RobotClient(sim.ready["host"], int(sim.ready["port"])) as robot:

@@ -6,7 +6,6 @@ process, real TCP (docs/vplus.md, "stop")."""
 from __future__ import annotations
 
 import asyncio
-import socket
 from pathlib import Path
 
 import pytest
@@ -16,6 +15,7 @@ from aioadept.client import RobotClient
 from aioadept.commands import Break, MoveRelJoints
 from aioadept.errors import CommandAborted
 from aioadept.testing.nodes import running_node
+from aioadept.ports import free_port
 
 VPLUS = Path(__file__).resolve().parents[2] / "vplus"
 
@@ -29,12 +29,6 @@ USER_SKILLS = '''	CALL rs.addskill("spin", 0)
 	END
 .END
 '''
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.mark.timeout(60)

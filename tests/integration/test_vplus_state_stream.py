@@ -5,7 +5,6 @@ joints and pose consistent with ``here``; and the relay reconnects when the cont
 from __future__ import annotations
 
 import asyncio
-import socket
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +17,7 @@ from aioadept.client import RobotClient
 from aioadept.geometry import poses_close
 from aioadept.robots import viper_s850 as kin
 from aioadept.testing.nodes import running_node
+from aioadept.ports import free_port
 
 VPLUS = Path(__file__).resolve().parents[2] / "vplus"
 
@@ -28,12 +28,6 @@ def off_path_mm(p, a, b) -> float:
     ab = np.array([b.x - a.x, b.y - a.y, b.z - a.z])
     t = float(np.clip(pa @ ab / (ab @ ab), 0.0, 1.0)) if ab @ ab > 0 else 0.0
     return float(np.linalg.norm(pa - t * ab))
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def stream_files(tmp_path: Path, *, rate: int = 100) -> list[str]:

@@ -9,24 +9,18 @@ import asyncio
 import os
 import signal
 import statistics
-import socket
 from pathlib import Path
 
 import pytest
 
 from aioadept.testing.nodes import running_node
+from aioadept.ports import free_port
 
 VPLUS = Path(__file__).resolve().parents[2] / "vplus"
 RATE = 100
 PAUSES = 8
 """Pauses in a row: where a pause ends within the 16 ms cycle decides whether the old arithmetic got stuck at 63/s
 (about one time in three), so several pauses make the test see it."""
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def stream_files(tmp_path: Path) -> list[str]:

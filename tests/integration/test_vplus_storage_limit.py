@@ -6,7 +6,6 @@ server serves on. Real child process, real TCP (docs/vplus.md, "Program memory")
 from __future__ import annotations
 
 import asyncio
-import socket
 from pathlib import Path
 
 import pytest
@@ -15,6 +14,7 @@ from aioadept import Skill
 from aioadept.client import RobotClient
 from aioadept.errors import CommandAborted, CommandError
 from aioadept.testing.nodes import running_node
+from aioadept.ports import free_port
 
 VPLUS = Path(__file__).resolve().parents[2] / "vplus"
 
@@ -70,12 +70,6 @@ USER_SKILLS = '''	CALL rs.addskill("grow", 0)
 '''
 
 NO_STORAGE = -611                     # aioadept.vplus.errors.NO_STORAGE
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def server_files(tmp_path: Path) -> list[str]:

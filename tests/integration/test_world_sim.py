@@ -7,7 +7,6 @@ part leaves; and a release from high up is an error in the sim's log."""
 from __future__ import annotations
 
 import asyncio
-import socket
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +19,7 @@ from aioadept.bus.pubsub import Subscriber
 from aioadept.client import RobotClient
 from aioadept.geometry import Pose
 from aioadept.testing.nodes import running_node
+from aioadept.ports import free_port
 
 VPLUS = Path(__file__).resolve().parents[2] / "vplus"
 HOME = Pose(480.0, 0.0, 710.0, 0.0, 180.0, 0.0)  # the sim's home tool pose (tool pointing down)
@@ -41,12 +41,6 @@ x_mm = 480.0
 y_mm = 0.0
 sensor = 1002
 """
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def sim_args(backend: str, port: int) -> list[str]:

@@ -15,7 +15,7 @@ import textwrap
 
 import pytest
 
-from aioadept.apps.cell import free_port
+from aioadept.ports import free_port
 from aioadept.testing.nodes import running_node
 
 pytestmark = pytest.mark.skipif(importlib.util.find_spec("zenoh") is None,

@@ -11,11 +11,11 @@ import dataclasses
 import datetime as _dt
 import json
 import logging
-import socket
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from aioadept.ports import free_port
 from aioadept.apps.cellbus import BusSection, transport_argv, with_transport, zenoh_session
 from aioadept.apps.focus import FocusParams, FocusResult, ufloop
 from aioadept.apps.pickplace import PickPlaceParams
@@ -178,13 +178,6 @@ class CellConfig:
         out = dataclasses.asdict(self)
         out["vision"].pop("state_endpoint", None)
         return out
-
-
-def free_port(host: str = "127.0.0.1") -> int:
-    """A TCP port that was free a moment ago (the OS picks it)."""
-    with contextlib.closing(socket.socket(socket.AF_INET, socket.SOCK_STREAM)) as s:
-        s.bind((host, 0))
-        return int(s.getsockname()[1])
 
 
 def _with_free_port(endpoint: str) -> str:

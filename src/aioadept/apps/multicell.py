@@ -197,7 +197,7 @@ def prepared(multi: MultiCell) -> list[Member]:
     ``:0``, picked once), every stream on its owner's key (``aioadept/<cell>/<robot>/state``,
     ``aioadept/<cell>/<camera>/request``) and every node started with ``--node`` so its liveliness token names
     it. Nothing changes on ZeroMQ."""
-    from aioadept.apps.cell import free_port
+    from aioadept.ports import free_port
 
     bus = multi.base.bus
     if not bus.zenoh:

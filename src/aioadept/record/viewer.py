@@ -30,6 +30,7 @@ import time
 from pathlib import Path
 
 from aioadept.record import VIEWER_INSTALL_HINT, ViewerUnavailable
+from aioadept.ports import free_port
 
 __all__ = ["ViewerServer", "rerun_executable", "viewer_env"]
 
@@ -59,13 +60,6 @@ def viewer_env(config_dir: str | os.PathLike[str]) -> dict[str, str]:
     env["XDG_CACHE_HOME"] = str(Path(config_dir) / "cache")
     env["RERUN_ANALYTICS"] = "0"
     return env
-
-
-def _free_port(host: str) -> int:
-    family = socket.AF_INET6 if ":" in host else socket.AF_INET
-    with contextlib.closing(socket.socket(family, socket.SOCK_STREAM)) as s:
-        s.bind((host, 0))
-        return int(s.getsockname()[1])
 
 
 def _connectable(host: str) -> str:
@@ -116,9 +110,9 @@ class ViewerServer:
         subprocess.run([exe, "analytics", "disable"], env=env, stdout=subprocess.DEVNULL,
                        stderr=subprocess.DEVNULL, timeout=30, check=False)
         if not self.grpc_port:
-            self.grpc_port = _free_port(self.host)
+            self.grpc_port = free_port(self.host)
         if not self.web_port:
-            self.web_port = _free_port(self.host)
+            self.web_port = free_port(self.host)
         argv = [exe, "--serve-web", "--bind", self.host, "--port", str(self.grpc_port),
                 "--web-viewer-port", str(self.web_port), "--server-memory-limit", self.memory_limit]
         out = subprocess.DEVNULL

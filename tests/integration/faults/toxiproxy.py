@@ -17,13 +17,13 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import socket
 import subprocess
 import time
 import urllib.error
 import urllib.request
 from pathlib import Path
 from typing import Any
+from aioadept.ports import free_port as _free_port
 
 INSTALL_HINT = ("toxiproxy-server not found; build it with scripts/install_toxiproxy.sh "
                 "(= go install github.com/Shopify/toxiproxy/v2/cmd/server@v2.5.0) or set TOXIPROXY_SERVER")
@@ -53,12 +53,6 @@ def find_server() -> str | None:
         if c and os.access(c, os.X_OK) and _is_toxiproxy(c):
             return c
     return None
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 class ToxiproxyError(RuntimeError):
