@@ -16,44 +16,25 @@ import importlib.util
 import json
 import os
 import shutil
-import subprocess
-import warnings
 from pathlib import Path
 
 import pytest
 
 from aioadept.commands import Here, MoveJoints, SetSpeed
 
+from npmtree import npm_tree
 from opcuacell import TARGET, opcua_cell
 
 pytestmark = pytest.mark.skipif(importlib.util.find_spec("asyncua") is None,
                                 reason="the [opcua] extra (asyncua) is not installed")
 
 HERE = Path(__file__).resolve().parent / "opcua_node"
-CACHE = HERE.parents[2] / "build" / "node-opcua"
-FILES = ("package.json", "package-lock.json", "robot_client.mjs")
 
 
 @pytest.fixture(scope="module")
 def node_client() -> Path:
-    """The node script, with node-opcua installed beside it (once: again only when the lock file changed)."""
-    node, npm = shutil.which("node"), shutil.which("npm")
-    if node is None or npm is None:
-        reason = ("NODE-OPCUA INTEROP TEST NOT RUN: no node/npm on PATH, so the independent OPC UA client cannot be "
-                  "installed (install Node.js >= 20 with npm)")
-        warnings.warn(reason, stacklevel=1)
-        pytest.skip(reason)
-    CACHE.mkdir(parents=True, exist_ok=True)
-    lock = CACHE / "package-lock.json"
-    stale = (not (CACHE / "node_modules" / "node-opcua-client" / "package.json").exists() or not lock.exists()
-             or lock.read_bytes() != (HERE / "package-lock.json").read_bytes())
-    for name in FILES:
-        shutil.copyfile(HERE / name, CACHE / name)
-    if stale:
-        proc = subprocess.run([npm, "ci", "--no-audit", "--no-fund", "--loglevel=error"], cwd=CACHE,
-                              capture_output=True, text=True, timeout=600)
-        assert proc.returncode == 0, f"npm ci of node-opcua-client failed:\n{proc.stdout}\n{proc.stderr}"
-    return CACHE / "robot_client.mjs"
+    """The node script, with node-opcua installed beside it."""
+    return npm_tree(HERE, "node-opcua", what="NODE-OPCUA INTEROP TEST") / "robot_client.mjs"
 
 
 class Lines:
