@@ -155,6 +155,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --vplus: FOPEN /LOCAL_PORT VPORT binds HOSTPORT instead (0: ephemeral; repeatable)")
     v.add_argument("--vplus-cycle", type=float, default=0.016, dest="vplus_cycle", metavar="SECONDS",
                    help="with --vplus: the trajectory cycle that WAIT waits for")
+    v.add_argument("--strict", action="store_true",
+                   help="with --vplus: refuse to serve (exit 2) when a module has a line that does not load")
     v.add_argument("--disk", metavar="DIR", default=None,
                    help="with --vplus: the folder that holds the program's disk files (FOPENR, FOPENW, ...); "
                         "nothing outside it is reachable; default a new temporary folder")
@@ -334,10 +336,6 @@ def main(argv: list[str] | None = None) -> int:
     if args.vplus is not None:
         if not args.run:
             parser.error("--vplus needs --run PROGRAM")
-        if args.robot_model != "viper-s850":
-            parser.error(f"--robot-model {args.robot_model}: sim --vplus serves the viper-s850 only so far (the "
-                         f"shipped V+ server is the s850's; V+ programs on another arm: aioadept.vplus.Emulator, "
-                         f"docs/sim.md); the Python sim runs every model")
         for dest, flag, instead in _PYTHON_SERVER_ONLY:
             if getattr(args, dest) != parser.get_default(dest):
                 parser.error(f"{flag} is an option of the Python sim's server; with --vplus the V+ program "

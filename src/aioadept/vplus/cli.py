@@ -16,6 +16,7 @@ import asyncio
 import signal
 import sys
 import time
+from pathlib import Path
 from typing import Any
 
 from aioadept.errors import one_line
@@ -98,18 +99,46 @@ def _make_emulator(args: argparse.Namespace, ctl: Any) -> tuple[Any, Any, float]
     def console(task: int, text: str) -> None:
         print(f"[{task}] {text}", flush=True)
 
-    module = load_files(args.vplus)
+    try:
+        module = load_files(args.vplus)
+    except OSError as exc:
+        print(f"aioadept sim: --vplus {exc.filename}: {exc.strerror or exc}", file=sys.stderr, flush=True)
+        return None
+    for path in args.vplus:
+        if not any(prog.file == Path(path).name for prog in module.programs.values()):
+            print(f"aioadept sim: --vplus {path}: no .PROGRAM in it; is it a V+ module?", file=sys.stderr,
+                  flush=True)
+            return None
     clock = RealClock()
     wall0 = time.time() - clock.now
     emu = Emulator(module, robot=RobotDevice(ctl), clock=clock, console=console, cycle_s=args.vplus_cycle,
                    disk_dir=getattr(args, "disk", None))
-    for p in emu.problems:
-        print(f"aioadept sim: {p}", file=sys.stderr, flush=True)
+    if emu.problems:
+        _print_problems(emu.problems, args)
+        if getattr(args, "strict", False):
+            return None
     if norm(args.run) not in module.programs:
         print(f"aioadept sim: --run {args.run}: no such program in {', '.join(args.vplus)}", file=sys.stderr,
               flush=True)
         return None
     return emu, clock, wall0
+
+
+_SHOWN_PROBLEMS = 20
+
+
+def _print_problems(problems: list[Any], args: argparse.Namespace) -> None:
+    """The first lines that did not load, then one line saying how many and what it means (the last word before
+    READY, so that it is not missed above the program's own output)."""
+    for p in problems[:_SHOWN_PROBLEMS]:
+        print(f"aioadept sim: {p}", file=sys.stderr, flush=True)
+    more = len(problems) - _SHOWN_PROBLEMS
+    files = " ".join(args.vplus)
+    head = f"... and {more} more; " if more > 0 else ""
+    then = ("--strict: not serving" if getattr(args, "strict", False)
+            else "their programs do not run; --strict refuses to serve")
+    print(f"aioadept sim: {head}{len(problems)} line(s) did not load ({then}); `aioadept vplus check {files}` "
+          "lists every one", file=sys.stderr, flush=True)
 
 
 def _stream_states(publisher: Any, ctl: Any, clock: Any, wall0: float, options: Any) -> asyncio.Future:
