@@ -101,3 +101,23 @@ def test_an_endpoint_already_taken_is_one_line_with_exit_1():
     assert proc.returncode == 1
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and lines[0].startswith("aioadept state: "), proc.stderr
+
+
+def test_the_state_command_says_at_once_that_nothing_answers_and_keeps_trying(tmp_path):
+    """Pointed at a port where nothing listens, ``aioadept state`` says so after READY (never silence), and keeps
+    trying."""
+    from aioadept.ports import free_port
+
+    port = free_port()
+    proc = subprocess.Popen([sys.executable, "-m", "aioadept", "state", "--robot", f"127.0.0.1:{port}",
+                             "--state-endpoint", "tcp://127.0.0.1:0"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout.readline().startswith("READY ")
+        first = proc.stderr.readline()
+        assert f"no state stream at 127.0.0.1:{port} (nothing listens there); still trying (1 attempt)" in first
+        assert "WARNING" in first and "Traceback" not in first
+        assert proc.poll() is None
+    finally:
+        proc.terminate()
+        proc.wait(10)

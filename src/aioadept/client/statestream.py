@@ -19,6 +19,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import math
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -28,6 +29,9 @@ from aioadept.protocol.framing import LineFramer, Oversize
 from aioadept.protocol.statestream import MAX_STATE_LINE, StateSample, parse_state_line
 
 log = logging.getLogger(__name__)
+
+RETRY_NOTICE_S = 10.0
+"""While the state port cannot be reached, a WARNING at the first failure and then at most this often."""
 
 
 def to_robot_state(sample: StateSample, wall_time_s: float):  # -> aioadept.bus.messages.RobotState
@@ -72,16 +76,25 @@ class StateRelay:
     async def run(self) -> None:
         """Relay until cancelled, reconnecting with backoff whenever the connection is lost or refused."""
         backoff = 0.1
+        failures, told = 0, -math.inf
         while True:
             try:
                 async with asyncio.timeout(self.connect_timeout_s):
                     reader, writer = await asyncio.open_connection(self.host, self.port)
             except (OSError, TimeoutError) as exc:
-                log.info("state stream %s:%d: %s; retrying in %.1f s", self.host, self.port, exc, backoff)
+                failures += 1
+                now = time.monotonic()
+                # Visible at once and then every RETRY_NOTICE_S, so a wrong address is never silence.
+                level = logging.WARNING if now - told >= RETRY_NOTICE_S else logging.DEBUG
+                told = now if level == logging.WARNING else told
+                log.log(level, "no state stream at %s:%d (%s); still trying (%d attempt%s)", self.host, self.port,
+                        self._why(exc), failures, "" if failures == 1 else "s")
                 await asyncio.sleep(backoff)
                 backoff = min(backoff * 2, self.max_backoff_s)
                 continue
-            backoff = 0.1
+            if failures:
+                log.warning("state stream %s:%d connected after %d failed attempts", self.host, self.port, failures)
+            backoff, failures, told = 0.1, 0, -math.inf
             self.stats.connections += 1
             self.connected.set()
             try:
@@ -92,6 +105,13 @@ class StateRelay:
                 with contextlib.suppress(OSError):
                     await writer.wait_closed()
             log.warning("state stream %s:%d closed; reconnecting", self.host, self.port)
+
+    def _why(self, exc: BaseException) -> str:
+        if isinstance(exc, ConnectionRefusedError):
+            return "nothing listens there"
+        if isinstance(exc, TimeoutError):
+            return f"no answer in {self.connect_timeout_s:g} s"
+        return getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
 
     async def _relay(self, reader: asyncio.StreamReader) -> None:
         from aioadept.bus.messages import ROBOT_STATE_TOPIC
