@@ -109,7 +109,7 @@ async def test_two_applications_with_the_same_ids_never_collide(tmp_path):
 
 @pytest.mark.timeout(60)
 async def test_a_malformed_query_gets_an_error_reply_and_the_bridge_stays_usable(tmp_path):
-    from aioadept.bridge import BridgeRefused
+    from aioadept.errors import BridgeRefused
     from aioadept.bridge.wire import cmd_key
     from aioadept.bus import zenoh as zb
 
@@ -185,8 +185,11 @@ async def test_a_vanished_application_s_queued_motion_is_never_sent(tmp_path):
         # ... and the move home it had queued never ran: the arm is at FAR (J1 = 90 deg: y > 0), and at rest.
         assert p1 == p2
         assert p2.y > 300 and abs(p2.x) < 1.0
+        await asyncio.sleep(1.0)   # the watcher's token is gone: the bridge has seen it leave
     log = (tmp_path / "bridge.log").read_text()
     assert "application 'doomed' vanished: 1 queued batch(es) dropped, never sent" in log
+    assert "application 'watcher' left with nothing queued" in log   # a normal exit: INFO, no warning
+    assert "'watcher' vanished" not in log
 
 
 @pytest.mark.timeout(60)

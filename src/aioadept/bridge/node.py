@@ -43,7 +43,6 @@ from aioadept.bridge.wire import (
     MAX_QUEUED_TOTAL,
     BridgeFailure,
     BridgeRequest,
-    MalformedRequest,
     apps_key,
     bridge_key,
     cmd_key,
@@ -51,6 +50,7 @@ from aioadept.bridge.wire import (
     parse_request,
     state_key,
 )
+from aioadept.errors import MalformedRequest
 from aioadept.client import RobotClient
 from aioadept.errors import (
     AckTimeout,
@@ -357,9 +357,12 @@ class Bridge:
             for job in gone:
                 self.stats.dropped_vanished += 1
                 self._fail(job, BridgeFailure("dropped", f"application {app!r} vanished; not sent"))
+        running = self._current is not None and self._current.req.app == app
+        if not gone and not running:
+            log.info("bridge %s: application %r left with nothing queued", self._key, app)
+            return
         log.warning("bridge %s: application %r vanished: %d queued batch(es) dropped, never sent%s", self._key,
-                    app, len(gone), "; its batch on the controller runs to its end"
-                    if self._current is not None and self._current.req.app == app else "")
+                    app, len(gone), "; its batch on the controller runs to its end" if running else "")
 
     # ------------------------------------------------------------------------------------------ the writer
     async def _pump(self) -> None:
