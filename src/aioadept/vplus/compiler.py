@@ -163,8 +163,12 @@ def _nest(steps: list[tuple[int, Any]]) -> tuple[list, list[CompileError]]:
 
 
 class _Gen:
-    def __init__(self, prog: Program, doubles: set[str], boxed: frozenset[str] = frozenset()) -> None:
+    def __init__(self, prog: Program, doubles: set[str], boxed: frozenset[str] = frozenset(),
+                 traced: bool = False) -> None:
         self.prog = prog
+        self.traced = traced                # the instrumented form: a line hook before each statement
+        self.at_line = 0                    # the V+ line of the code being emitted (traced: the hook's)
+        self.line_of: list[int] = []        # traced: the V+ line of each emitted Python line
         self.keep_boxed = boxed             # AUTOs that stay in L (passed on by reference: known from a former pass)
         self.fast: set[str] = set()         # AUTO scalars that are Python locals of the generated function
         self.boxed: set[str] = set()        # AUTOs found passed on by reference in this pass
@@ -184,6 +188,14 @@ class _Gen:
     def emit(self, s: str) -> None:
         for ln in s.split("\n"):
             self.lines.append("    " * self.ind + ln)
+            self.line_of.append(self.at_line)
+
+    def hook(self, line: int) -> None:
+        """Traced form only: the line hook before the statement of V+ line ``line`` (runtime.Runtime.set_tracer):
+        it runs when the task is traced or the line is one the tracer asked for (``_BP``, a set per program)."""
+        if self.traced:
+            self.at_line = line
+            self.emit(f"if T.trace or {line} in _BP: yield from _dbg(T, {line})")
 
     def tmp(self, p: str = "_t") -> str:
         self.n += 1
@@ -345,10 +357,12 @@ class _Gen:
         if special is not None:
             return getattr(self, special)(e)
         vals = ", ".join("None" if a is None else self.val(a)[0] for a in args)
-        if name in ("IOSTAT", "ERROR", "TASK", "INRANGE", "HERE", "#HERE", "SPEED"):
+        if name in ("IOSTAT", "ERROR", "TASK", "INRANGE", "HERE", "#HERE", "SPEED", "GETC"):
             vals = "T" + (", " + vals if vals else "")
         typ = "loc" if name in _LOC_FUNCS else ("pp" if name in _PP_FUNCS else
                                                 ("str" if name in _STR_FUNCS else "num"))
+        if name == "GETC":          # may wait for input: the task yields meanwhile (iodev.getc)
+            return f"(yield from {_fname(name)}({vals}))", typ
         return f"{_fname(name)}({vals})", typ
 
     def call_decode(self, e: N.Call) -> tuple[str, str]:
@@ -507,7 +521,8 @@ class _Gen:
         p = self.prog
         tree, self.problems = _nest(p.steps)
         self.declare(p.steps)
-        self.fast = {n for n in self.autos if n not in self.keep_boxed}
+        # traced: every AUTO stays in L, where a debugger reads and sets it
+        self.fast = set() if self.traced else {n for n in self.autos if n not in self.keep_boxed}
         self.ind = 0
         self.emit("def _prog(T, A):")
         self.ind = 1
@@ -580,6 +595,7 @@ class _Gen:
                 line, st = it
                 if isinstance(st, (N.Declare, N.Nop, N.Label)):
                     continue
+                self.hook(line)
                 try:
                     self.visit(line, st)
                 except CompileError as exc:
@@ -617,6 +633,7 @@ class _Gen:
         getattr(self, "block_" + b.kind)(b)
 
     def block_IF(self, b: _Block) -> None:
+        self.hook(b.line)
         c = self.guarded_cond(b.line, b.head.cond)
         self.emit(f"if {c}:")
         self.ind += 1
@@ -631,6 +648,7 @@ class _Gen:
     def block_WHILE(self, b: _Block) -> None:
         self.emit("while True:")
         self.ind += 1
+        self.hook(b.line)
         c = self.guarded_cond(b.line, b.head.cond)
         self.emit(f"if not {c}: break")
         self.loops.append("WHILE")
@@ -659,6 +677,7 @@ class _Gen:
             vals = [[self.val(x)[0] for x in vs] if vs is not None else None for vs, _ in b.cases]
         except CompileError as exc:
             raise CompileError(b.line, exc.message, exc.word, exc.node) from None
+        self.hook(b.line)
         self.guarded(b.line, [f"{v} = {code}"])
         first = True
         for (vs, body), codes in zip(b.cases, vals):
@@ -684,6 +703,7 @@ class _Gen:
         e, s = self.tmp("_e"), self.tmp("_s")
         dbl = self.is_double(var.name)
         conv = "_dbl" if dbl else "_f32"
+        self.hook(b.line)
         self.guarded(b.line, [f"{e} = float({ecode}); {s} = float({stcode})", f"{v} = {conv}({scode})"])
         const_pos = step is None or (isinstance(step, N.Num) and step.value > 0)
         test = f"{v} <= {e}" if const_pos else f"({v} <= {e} if {s} > 0 else {v} >= {e})"
@@ -975,22 +995,27 @@ def vplus_name(local: str) -> str:
     return "".join(out)
 
 
-def compile_program(prog: Program, doubles: set[str]) -> tuple[str | None, list[Any], list[LoadProblem]]:
+def compile_program(prog: Program, doubles: set[str], *, traced: bool = False
+                    ) -> tuple[str | None, list[Any], list[LoadProblem]]:
     """Python source of one program (defines ``_prog``) and its constants, or the problems that prevent it.
 
     AUTO scalars become Python locals (a local is a few times cheaper than ``L['name']``), except those the
     program passes on by reference (a CALL argument, the string of ``$DECODE``, a READ target or I/O handle,
     ``DEFINED``): the callee or the built-in writes through a ``(container, key)`` pair, so those stay in ``L``.
     Which they are is known after generating the code once; a second pass keeps them in ``L``.
+
+    ``traced``: the instrumented form (a line hook before each statement, every AUTO in ``L``); its constants
+    end with the V+ line of each line of the Python source (index: Python line - 1), read by the tracer for the
+    line a caller's frame is at.
     """
     boxed: frozenset[str] = frozenset()
     for _ in range(3):
-        gen = _Gen(prog, doubles, boxed)
+        gen = _Gen(prog, doubles, boxed, traced)
         src = gen.program()
         if gen.problems:
             return None, [], [_problem(prog, exc) for exc in gen.problems]
         if gen.boxed <= boxed:
-            return src, gen.consts, []
+            return src, gen.consts + [tuple(gen.line_of)] if traced else gen.consts, []
         boxed = boxed | gen.boxed
     raise AssertionError("AUTOs passed by reference did not settle")  # pragma: no cover - boxed only grows
 

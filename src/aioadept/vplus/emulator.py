@@ -224,6 +224,10 @@ class Emulator:
     def abort(self, task: int) -> None:
         self.rt.abort(task)
 
+    def set_tracer(self, tracer: Any, *, all_lines: bool = False) -> None:
+        """Call ``tracer`` at V+ lines and errors (the API: :mod:`aioadept.vplus.trace`); before tasks start."""
+        self.rt.set_tracer(tracer, all_lines=all_lines)
+
     def proceed(self, task: int) -> None:
         """PROCEED a task stopped by PAUSE."""
         T = self.rt.tasks.get(task)

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 import re
+import sys
 import time
 from collections import deque
 from collections.abc import Callable, Generator
@@ -38,6 +39,7 @@ from aioadept.vplus import nodes
 from aioadept.vplus.compiler import BUDGET, compile_program
 from aioadept.vplus.errors import VPlusError, VPlusHalt
 from aioadept.vplus.loader import LoadProblem, Module
+from aioadept.vplus.trace import Every, Frame, stack
 from aioadept.vplus.values import _FB, _GOTO, MAX_STRING, _Goto, _LocArray, _Missing, f32  # noqa: F401 (re-exported)
 
 PREEMPT = -1.0
@@ -118,6 +120,9 @@ class Task:
     halted_at: tuple[str | None, str, int] | None = None   # HALT or PAUSE: (file, program, line)
     trapped: tuple[str, VPlusError] | None = None  # (REACTE program, error) of the last error it trapped
     throw: VPlusError | None = None    # raised in the task where it yielded, when it next runs (storage full)
+    trace: bool = False                # a tracer's line hook runs at every statement (stepping: aioadept.vplus.trace)
+    held: bool = False                 # a tracer holds the task at a line or an error until Runtime.release
+    frames: list[Frame] | None = None  # while held: its V+ call stack, innermost first
 
 
 class Runtime:
@@ -159,6 +164,8 @@ class Runtime:
         self.slice_end = math.inf          # real time: when the running task's slice ends (time.monotonic)
         self.storage_limit = storage_limit
         self._storage_at = 0.0             # when storage is next counted (once per cycle: it costs ~20 us)
+        self.tracer: Any = None            # set_tracer (aioadept.vplus.trace)
+        self._trace_lines: dict[str, Any] = {}
         self._load_data()
         self.compile_all()
 
@@ -194,7 +201,9 @@ class Runtime:
                     out |= {n for n, t, _ in st.names if t == "DOUBLE"}
         return out
 
-    def compile_all(self) -> None:
+    def compile_all(self, traced: bool = False) -> None:
+        """Compile every program (``traced``: the instrumented form, aioadept.vplus.trace) into ``programs``,
+        which is updated in place (the generated code's CALL holds it)."""
         ns_base = self._namespace()
         doubles = self.doubles()
         for name, prog in self.module.programs.items():
@@ -202,23 +211,68 @@ class Runtime:
                 self.not_executable[name] = prog.problems
                 continue
             key = (prog.file, prog.name, prog.line, repr(prog.params), repr(sorted(prog.source.items())),
-                   frozenset(doubles))
+                   frozenset(doubles), traced)
             hit = _COMPILED.get(key)
             if hit is None:
-                src, consts, problems = compile_program(prog, doubles)
+                src, consts, problems = compile_program(prog, doubles, traced=traced)
                 code = None if problems else compile(src, f"<V+ {prog.name} ({prog.file})>", "exec")
                 if len(_COMPILED) >= 4096:
                     _COMPILED.clear()
                 hit = _COMPILED[key] = (code, consts, problems)
             code, consts, problems = hit
             if problems:
-                self.not_executable[name] = problems
-                self.problems.extend(problems)
+                if not traced:        # the plain form was compiled first and has reported them
+                    self.not_executable[name] = problems
+                    self.problems.extend(problems)
                 continue
             ns = dict(ns_base)
             ns["_K"] = consts
+            if traced:
+                ns["_PROG"] = prog
+                ns["_BP"] = self._trace_lines.setdefault(name, set())
             exec(code, ns)
             self.programs[name] = ns["_prog"]
+
+    # -- tracing (aioadept.vplus.trace) ---------------------------------------------------------------------
+    def set_tracer(self, tracer: Any, *, all_lines: bool = False) -> None:
+        """Run the programs in their instrumented form, calling ``tracer`` (aioadept.vplus.trace); before any task
+        starts. ``all_lines``: its line hook runs before every statement (line coverage)."""
+        if self.active():
+            raise RuntimeError("set_tracer: a task is running; set the tracer before tasks start")
+        self.tracer = tracer
+        if all_lines:
+            self._trace_lines = {name: Every() for name in self.module.programs}
+        self.compile_all(traced=True)
+
+    def trace_lines(self, program: str) -> set[int]:
+        """The lines of ``program`` at which the tracer's line hook runs for every task (breakpoints)."""
+        return self._trace_lines.setdefault(program, set())
+
+    def release(self, T: Task) -> None:
+        """Let a task held by the tracer go on."""
+        T.held = False
+        if T.state == "running":
+            T.wake = self.now
+            self._poke()
+
+    def _line_hook(self, T: Task, line: int) -> Generator:
+        """``_dbg`` of the instrumented code: the tracer's line hook, and the wait while it holds the task."""
+        tracer = self.tracer
+        if tracer is not None:
+            f = sys._getframe(1)             # the program that runs the hook
+            prog = f.f_globals["_PROG"]
+            tracer.line(T, Frame(prog.name, prog.file, line, prog, f))
+            if T.held:
+                T.frames = stack(f, line)
+                yield from self._hold(T)
+
+    def _hold(self, T: Task) -> Generator:
+        try:
+            while T.held:
+                T.wake = self.next_tick()
+                yield T.wake
+        finally:
+            T.frames = None
 
     # -- console ------------------------------------------------------------------------------------------
     def console(self, task: int, text: str) -> None:
@@ -512,6 +566,12 @@ class Runtime:
             err.file = prog.file if prog is not None else None     # run-time errors name the file too
         err.task = T.num
         T.last_error = err.code
+        if self.tracer is not None:
+            frames = stack(sys._getframe(1), line)      # the program whose statement failed, and its callers
+            self.tracer.error(T, err, frames)
+            if T.held:
+                T.frames = frames
+                yield from self._hold(T)
         if T.reacte is not None and not T.in_reaction:
             handler, T.reacte = T.reacte, None      # V+: REACTE is disarmed when it triggers
             T.trapped = (handler, err)
@@ -554,6 +614,7 @@ class Runtime:
     # -- the namespace of generated code ------------------------------------------------------------------
     def _namespace(self) -> dict[str, Any]:
         ns = B.namespace(self)
+        ns["_dbg"] = self._line_hook
         # time slices (module docstring): the generated code counts loop iterations in _b from _BUDGET and then
         # asks _slice_over(); in real time a CALL ends the slice too once it has run SLICE_S
         if not self.realtime:
