@@ -21,7 +21,7 @@ from aioadept.protocol import ErrorCode
 from aioadept.vplus import errors as E
 from aioadept.vplus.errors import VPlusError, VPlusHalt
 from aioadept.vplus.registry import IMPLEMENTATIONS, builtin
-from aioadept.vplus import disk, iodev, status
+from aioadept.vplus import binary, disk, iodev, status  # noqa: F401  (binary: $LNGB ... register themselves)
 from aioadept.vplus import locations as L
 from aioadept.vplus.parse import norm
 from aioadept.vplus.render import _FMT_CACHE, _FMT_RE, _default_number, _fmt_number, _render  # noqa: F401
@@ -263,6 +263,7 @@ def namespace(rt: Runtime) -> dict[str, Any]:
         "_disk_open": lambda T, word, lun, items: disk.open_file(T, word, lun, _render(items)[0] if items else ""),
         "_io_attach": iodev.attach(rt), "_io_detach": iodev.detach(rt), "_io_fclose": iodev.fclose(rt),
         "_io_fopen": iodev.fopen(rt), "_io_read": iodev.read(rt), "_io_write": iodev.write(rt),
+        "_io_fcmnd": iodev.fcmnd(rt),
     })
     ns.update(_calls(rt))
     for group in (_tasks, _events, _console_and_io, _signals, _motion, _robot):
@@ -653,6 +654,7 @@ def _functions(rt: Runtime) -> dict[str, Any]:
         "INRANGE": lambda T, loc: float(_live_robot(rt).inrange(loc)), "HERE": lambda T: _live_robot(rt).here(),
         "#HERE": lambda T: _live_robot(rt).here_ppoint(), "SPEED": speed_fn,
         "SWITCH": lambda *a: -1.0 if rt.switches.get("DRY.RUN") else 0.0, "BITS": _bits(rt),
+        "GETC": iodev.getc(rt),
     }
     fn.update(status.functions(rt))      # STATE(), SWITCH(name): the robot's status (aioadept.vplus.status)
     return fn

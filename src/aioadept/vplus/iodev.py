@@ -296,21 +296,45 @@ class TcpLun:
         else:
             out = self.events.popleft()
         if out[0] == 1:
-            h = out[1]
-            self.buffered -= len(out[2])
-            n = self.inbuf[h] = self.inbuf.get(h, 0) - len(out[2])
-            if n <= self.buffer_size // 2:
-                if h in self.held:
-                    self._release(h)
-                elif h in self.paused:
-                    self.paused.discard(h)
-                    tr = self.conns.get(h)
-                    if tr is not None:
-                        tr.resume_reading()
+            self._taken(out[1], len(out[2]))
         elif out[0] == 101:
             self.reserved.discard(out[1])
             self.inbuf.pop(out[1], None)
         return out
+
+    def _taken(self, h: int, n: int) -> None:
+        """The program has taken ``n`` characters of connection ``h``'s input: below half its buffer, the rest
+        that waits (held, or in the socket) comes in."""
+        self.buffered -= n
+        left = self.inbuf[h] = self.inbuf.get(h, 0) - n
+        if left <= self.buffer_size // 2:
+            if h in self.held:
+                self._release(h)
+            elif h in self.paused:
+                self.paused.discard(h)
+                tr = self.conns.get(h)
+                if tr is not None:
+                    tr.resume_reading()
+
+    def byte(self) -> int | None:
+        """GETC: the next byte of input (0..255), END_OF_FILE when a connection's end comes first, None when
+        nothing has arrived. A connect event in front is taken on the way (its data follows it)."""
+        while self.events:
+            ev = self.events[0]
+            if ev[0] != 1:
+                self.pop()
+                if ev[0] == 101:
+                    return E.END_OF_FILE
+                continue
+            ch = ev[2][:1]
+            if len(ev[2]) <= 1:
+                self.events.popleft()
+            else:
+                ev[2] = ev[2][1:]
+            self._taken(ev[1], 1)
+            if ch:
+                return ord(ch)
+        return None
 
     def _behind_others(self) -> None:
         """Move the first event (the rest of a connection's data), and every later event of that connection, behind
@@ -585,6 +609,69 @@ def read(rt: Any):
         T.iostat[n] = kind
 
     return io_read
+
+
+def getc(rt: Any):
+    """GETC(lun, mode): the next byte of a TCP or disk LUN's input, without waiting for a whole record (V+
+    Language User's Guide v17, p. 212: "returns the next data byte from an I/O device without waiting for a
+    complete data record"). A negative value is the error instead of a byte, and is IOSTAT(lun) too: END_OF_FILE
+    at the end of a disk file or of a connection, NO_DATA when ``mode`` is not 0 and nothing has arrived (mode 0,
+    or omitted, waits). UNCONFIRMED: the Reference Guide's GETC page (its mode bits and codes) was not in our copy;
+    these are the emulator's READ rules (docs/vplus.md). The compiled code calls it with ``yield from``."""
+
+    def getc_(T: Any, lun: Any, mode: Any = None) -> Generator:
+        n = int(lun)
+        disk = _disk_of(T, n)
+        if disk is not None:
+            code = _disk_byte(disk)
+            T.iostat[n] = 1 if code >= 0 else code
+            return float(code)
+        dev = _lun_of(T, n)
+        if dev is None:
+            T.iostat[n] = E.NOT_ATTACHED
+            return float(E.NOT_ATTACHED)
+        while (code := dev.byte()) is None:
+            net = rt.devices
+            if net is not None and net.pending:
+                net.flush()          # as READ: what the program wrote leaves before it waits for the answer
+            if mode:
+                T.iostat[n] = E.NO_DATA
+                return float(E.NO_DATA)
+            T.io_wait = True
+            yield rt.next_tick()
+        T.iostat[n] = 1 if code >= 0 else code
+        return float(code)
+
+    return getc_
+
+
+def _disk_byte(disk: Any) -> int:
+    """The next byte of the file open for reading on a disk LUN (what a READ left of a long record first)."""
+    if disk.file is None or disk.mode != "R":
+        return E.NOT_OPEN
+    if disk.rest:
+        ch, disk.rest = disk.rest[0], disk.rest[1:]
+        return ord(ch)
+    b = disk.file.read(1)
+    return b[0] if b else E.END_OF_FILE
+
+
+def fcmnd(rt: Any):
+    """FCMND (lun, command) ...: a device-specific command. UNCONFIRMED: the Reference Guide's FCMND page and its
+    command codes were not in our copy, so no code is emulated: each sets IOSTAT(lun) to *Device error* and says
+    so on the console (an I/O instruction's error never stops the program, User's Guide p. 210), rather than
+    doing what we would have to guess."""
+
+    def io_fcmnd(T: Any, refs: tuple, text: tuple) -> Generator:
+        lun = _lun_number(refs)
+        code = refs[1][1] if len(refs) > 1 and refs[1] is not None else None
+        T.iostat[lun] = E.NOT_ATTACHED if lun not in T.luns else E.DEVICE_ERROR
+        rt.console(T.num, f"*Device error* FCMND ({lun}, {code if code is None else f'{float(code):g}'}) is not "
+                          "implemented by the emulator (docs/vplus.md)")
+        return
+        yield  # pragma: no cover
+
+    return io_fcmnd
 
 
 _FMT_N = ("fmt", "N")

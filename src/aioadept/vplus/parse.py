@@ -830,7 +830,7 @@ STATEMENTS = _table(
     ("VALUE", _value), ("GOTO", _goto), ("CALL", _call), ("CALLS", _calls), ("EXIT NEXT", _loop_jump),
     ("WAIT", _wait), ("WAIT.EVENT SET.EVENT", _event), ("AUTO LOCAL GLOBAL", _declare),
     ("TYPE", _type), ("PROMPT", _prompt), ("SIGNAL", _signal), ("ATTACH DETACH FCLOSE", _attach),
-    ("FOPEN", _fopen), ("READ", _read), ("WRITE", _write), ("EXECUTE", _execute),
+    ("FOPEN FCMND", _fopen), ("READ", _read), ("WRITE", _write), ("EXECUTE", _execute),
     ("ABORT KILL CYCLE.END", _task_control), ("REACTE", _reacte),
     ("MOVE MOVES TOOL DEPART DEPARTS DELAY", _robot1), ("APPRO APPROS MOVET MOVEST", _robot2),
     ("DURATION", _duration), (" ".join(CONFIG_INSTRUCTIONS), _config),

@@ -85,6 +85,9 @@ FRACT(value) num | RANDOM num | $TRUNCATE($string) str | RX(angle) loc | RY(angl
 $LEFT($string, count) str | $RIGHT($string, count) str | HERE loc | #HERE pp | SPEED(select) num
 $TOUPPER($string) str | $TOLOWER($string) str | SWITCH(name) num | BITS(first, count) num | $TIME(...) str
 NORM(location) num | $DEFAULT(...) str | STATE(select) num | BMASK(bit, ...) num
+$INTB(value) str | INTB($string, first_char) num | $LNGB(value) str | LNGB($string, first_char) num
+$FLTB(value) str | FLTB($string, first_char) num | $DBLB(value) str | DBLB($string, first_char) num
+GETC(lun, mode) num
 """
 
 for _item in _TABLE.strip().replace("\n", " | ").split("|"):
@@ -101,7 +104,7 @@ CALL program([argument, ...]) | CALLS $name([argument, ...]) | RETURN | RETURNE 
 WAIT [condition] | WAIT.EVENT [mask], [timeout] | SET.EVENT [task] | HALT | STOP | PAUSE
 AUTO [type] name, ... | LOCAL [type] name, ... | GLOBAL [type] name, ... | TYPE item, ... | PROMPT item, ...
 SIGNAL signal, ... | ATTACH (lun, mode) device | DETACH (lun) | FCLOSE (lun) | FOPEN (lun, mode) attributes
-READ (lun, handle, mode) variable, ... | WRITE (lun, handle) item, ...
+READ (lun, handle, mode) variable, ... | WRITE (lun, handle) item, ... | FCMND (lun, command) item, ...
 EXECUTE [task,] program([argument, ...]) | ABORT task | KILL task | CYCLE.END task | REACTE program
 MOVE location | MOVES location | APPRO location, distance | APPROS location, distance | DEPART distance
 DEPARTS distance | MOVET location, hand | MOVEST location, hand | BREAK | BRAKE | DELAY time
