@@ -2,10 +2,12 @@
 
 - diagnostics of a document on open, change and save: :func:`aioadept.vplus.check.check`;
 - hover on an instruction or function name: its form and manual section (:func:`aioadept.vplus.registry.describe`);
-- completion: the registry's instructions and functions and the workspace's program names;
-- go to definition of a program name (a ``CALL`` target): its ``.PROGRAM`` line in the open documents or the
-  workspace folder's V+ files, loaded by :mod:`aioadept.vplus.loader`; its references (the ``CALL``s of it);
-- document symbols: the document's programs.
+  on a program name: its ``.PROGRAM`` line and where it is;
+- go to definition, find references (programs across the workspace's modules, step labels, variables: a
+  program's own or global), document symbols (programs and their labels), workspace symbols (programs and
+  ``GLOBAL`` variables) and completion (instructions, functions, the workspace's programs with their argument
+  lists, the variables in scope): :mod:`aioadept.vplus.symbols`, over the workspace folders' V+ files with the
+  open documents' current text in place of their files'.
 
 Needs the ``lsp`` extra (pygls, lsprotocol).
 """
@@ -22,9 +24,7 @@ from pygls.uris import from_fs_path, to_fs_path
 from aioadept import __version__
 from aioadept.vplus import registry
 from aioadept.vplus.check import check
-from aioadept.vplus.loader import Module, load_text
-from aioadept.vplus.nodes import CallStmt
-from aioadept.vplus.parse import norm
+from aioadept.vplus.symbols import DEFINITION, LABEL, PROGRAM, Occurrence, Workspace, file_symbols
 
 SUFFIXES = (".v2", ".pg")
 _WORD = re.compile(r"[$#]?[A-Za-z][A-Za-z0-9._]*")
@@ -62,117 +62,144 @@ def word_at(line: str, character: int) -> tuple[str, int] | None:
     return None
 
 
-def _word(ls: LanguageServer, params) -> tuple[str, str, int] | None:
-    doc = ls.workspace.get_text_document(params.text_document.uri)
-    lines = doc.lines
-    if params.position.line >= len(lines):
-        return None
-    line = lines[params.position.line]
-    found = word_at(line, params.position.character)
-    return (line, *found) if found else None
+def _occurrence(ls: LanguageServer, params) -> tuple[Workspace, Occurrence | None]:
+    ws = workspace(ls)
+    return ws, ws.at(_path(params.text_document.uri), params.position.line + 1, params.position.character + 1)
 
 
 @server.feature(T.TEXT_DOCUMENT_HOVER)
 def hover(ls: LanguageServer, params: T.HoverParams) -> T.Hover | None:
-    found = _word(ls, params)
+    doc = ls.workspace.get_text_document(params.text_document.uri)
+    if params.position.line >= len(doc.lines):
+        return None
+    line = doc.lines[params.position.line]
+    found = word_at(line, params.position.character)
     if found is None:
         return None
-    line, word, start = found
+    word, start = found
     # the statement's first word is an instruction (MOVE), any other a function (SIG( ... ) ; a name that is
     # both (TIMER, SPEED) is described as what it is where it stands
-    first = line[:start].strip() == "" or re.fullmatch(r"\s*\d+\s*", line[:start]) is not None
-    text = (registry.describe(word, instruction=first) or registry.describe(word, instruction=not first))
+    first = re.fullmatch(r"\s*(\d+\s+)?", line[:start]) is not None
+    text = registry.describe(word, instruction=first) or registry.describe(word, instruction=not first)
     if text is None:
-        return None
+        ws, occ = _occurrence(ls, params)
+        if occ is None or occ.kind != PROGRAM:
+            return None
+        text = "\n".join(_program_line(prog) + f" ({Path(prog.file).name}:{prog.line})"
+                         for prog, _ in ws.programs() if prog.name == occ.name)
+        if not text:
+            return None
     return T.Hover(contents=T.MarkupContent(kind=T.MarkupKind.PlainText, value=text))
+
+
+def _program_line(prog) -> str:
+    return f".PROGRAM {prog.name}({', '.join(p.name + ('[]' if p.is_array else '') for p in prog.params)})"
 
 
 @server.feature(T.TEXT_DOCUMENT_COMPLETION)
 def completion(ls: LanguageServer, params: T.CompletionParams) -> T.CompletionList:
+    """Instructions, functions, the workspace's programs (the detail is the ``.PROGRAM`` line, the label's
+    detail the argument list) and the variables in scope at the cursor (the program's own first)."""
     items = [T.CompletionItem(label=name, kind=T.CompletionItemKind.Keyword, detail=registry.describe(
         name, instruction=True)) for name in registry.INSTRUCTIONS]
     items += [T.CompletionItem(label=name, kind=T.CompletionItemKind.Function, detail=registry.describe(name))
               for name in registry.FUNCTIONS if name not in registry.INSTRUCTIONS]
-    for prog in workspace_module(ls).programs.values():
-        args = ", ".join(p.name + ("[]" if p.is_array else "") for p in prog.params)
-        items.append(T.CompletionItem(label=prog.name, kind=T.CompletionItemKind.Module,
-                                      detail=f".PROGRAM {prog.name}({args}) ({Path(prog.file).name})"))
+    ws = workspace(ls)
+    seen: set[str] = set()
+    for prog, _ in ws.programs():
+        if prog.name not in seen:
+            seen.add(prog.name)
+            head = _program_line(prog)
+            items.append(T.CompletionItem(
+                label=prog.name, kind=T.CompletionItemKind.Module, detail=f"{head} ({Path(prog.file).name})",
+                label_details=T.CompletionItemLabelDetails(detail=head[len(".PROGRAM ") + len(prog.name):])))
+    own, glob = ws.in_scope(_path(params.text_document.uri), params.position.line + 1)
+    items += [T.CompletionItem(label=name, kind=T.CompletionItemKind.Variable, detail="local", sort_text="0" + name)
+              for name in own]
+    items += [T.CompletionItem(label=name, kind=T.CompletionItemKind.Variable, detail="global", sort_text="1" + name)
+              for name in glob]
     return T.CompletionList(is_incomplete=False, items=items)
 
 
 @server.feature(T.TEXT_DOCUMENT_DEFINITION)
-def definition(ls: LanguageServer, params: T.DefinitionParams) -> T.Location | None:
-    found = _word(ls, params)
-    if found is None:
+def definition(ls: LanguageServer, params: T.DefinitionParams) -> list[T.Location] | None:
+    """Where the program, label or variable under the cursor is defined (a global that no ``GLOBAL`` declares:
+    the statements that assign it)."""
+    ws, occ = _occurrence(ls, params)
+    if occ is None:
         return None
-    prog = workspace_module(ls).programs.get(norm(found[1]))
-    if prog is None:
-        return None
-    return _location(prog.file, prog.line, 0, 0)
-
-
-_CALL = re.compile(r"\bCALL\s+([A-Za-z][A-Za-z0-9._]*)", re.IGNORECASE)
+    return [_location(o) for o in ws.definitions(occ)] or None
 
 
 @server.feature(T.TEXT_DOCUMENT_REFERENCES)
 def references(ls: LanguageServer, params: T.ReferenceParams) -> list[T.Location]:
-    """The ``CALL``s of the program named under the cursor in the workspace (and its ``.PROGRAM`` line when the
-    client asks for the declaration too)."""
-    found = _word(ls, params)
-    if found is None:
+    """Every use in the workspace of the program, label or variable under the cursor (and its definitions when
+    the client asks for the declaration too)."""
+    ws, occ = _occurrence(ls, params)
+    if occ is None:
         return []
-    target = norm(found[1])
-    module = workspace_module(ls)
-    out: list[T.Location] = []
-    callee = module.programs.get(target)
-    if callee is not None and params.context.include_declaration:
-        out.append(_location(callee.file, callee.line, 0, 0))
-    for prog in module.programs.values():
-        for line, st in prog.steps:
-            m = _CALL.search(prog.source.get(line, "")) if isinstance(st, CallStmt) and norm(st.name) == target \
-                else None
-            if m is not None:
-                col = prog.indent.get(line, 0) + m.start(1)
-                out.append(_location(prog.file, line, col, col + len(m.group(1))))
-    return out
+    return [_location(o) for o in ws.references(occ, declaration=params.context.include_declaration)]
 
 
 @server.feature(T.TEXT_DOCUMENT_DOCUMENT_SYMBOL)
 def symbols(ls: LanguageServer, params: T.DocumentSymbolParams) -> list[T.DocumentSymbol]:
-    """The document's programs, each from its ``.PROGRAM`` line to its last statement."""
+    """The document's programs, each from its ``.PROGRAM`` line to its ``.END``, with its labels inside."""
     uri = params.text_document.uri
-    module = load_text(ls.workspace.get_text_document(uri).source, _path(uri), Module())
+    fs = file_symbols(_path(uri), ls.workspace.get_text_document(uri).source)
     out = []
-    for prog in sorted(module.programs.values(), key=lambda p: p.line):
-        last = max([prog.line, *(line for line, _ in prog.steps)])
-        head = T.Range(T.Position(prog.line - 1, 0), T.Position(prog.line - 1, 0))
+    for prog, end in fs.programs:
+        defs = [o for o in fs.occurrences if o.role == DEFINITION and prog.line <= o.line <= end]
+        name = next((o for o in defs if o.kind == PROGRAM and o.line == prog.line), None)
+        head = _range(name) if name else T.Range(T.Position(prog.line - 1, 0), T.Position(prog.line - 1, 0))
+        labels = [T.DocumentSymbol(name=o.name, kind=T.SymbolKind.Key, range=_range(o), selection_range=_range(o))
+                  for o in defs if o.kind == LABEL]
         out.append(T.DocumentSymbol(name=prog.name, kind=T.SymbolKind.Function, selection_range=head,
-                                    range=T.Range(head.start, T.Position(last, 0)),
-                                    detail=", ".join(p.name for p in prog.params)))
+                                    range=T.Range(T.Position(prog.line - 1, 0), T.Position(end - 1, 4)),
+                                    detail=", ".join(p.name for p in prog.params), children=labels))
     return out
 
 
-def _location(file: str, line: int, col: int, end: int) -> T.Location:
-    return T.Location(uri=from_fs_path(file) or file, range=T.Range(T.Position(line - 1, col),
-                                                                     T.Position(line - 1, end)))
+@server.feature(T.WORKSPACE_SYMBOL)
+def workspace_symbols(ls: LanguageServer, params: T.WorkspaceSymbolParams) -> list[T.SymbolInformation]:
+    """The workspace's programs and ``GLOBAL`` variables whose name holds the query."""
+    return [T.SymbolInformation(name=o.name, location=_location(o), container_name=Path(o.file).name,
+                                kind=T.SymbolKind.Function if o.kind == PROGRAM else T.SymbolKind.Variable)
+            for o in workspace(ls).symbols(params.query)]
 
 
-def workspace_module(ls: LanguageServer) -> Module:
-    """The programs of the workspace folders' V+ files, with the open documents' current text in place of
-    their files' (the file names are full paths, so that a definition can point at its file)."""
+def _range(o: Occurrence) -> T.Range:
+    return T.Range(T.Position(o.line - 1, o.col - 1), T.Position(o.line - 1, o.end - 1))
+
+
+def _location(o: Occurrence) -> T.Location:
+    return T.Location(uri=from_fs_path(o.file) or o.file, range=_range(o))
+
+
+_DISK: dict[str, tuple[float, str]] = {}
+"""The workspace folders' V+ files by path: (modification time, text), read again only when it changed."""
+
+
+def _read(path: Path) -> str:
+    mtime = path.stat().st_mtime
+    got = _DISK.get(str(path))
+    if got is None or got[0] != mtime:
+        got = _DISK[str(path)] = (mtime, path.read_bytes().decode("latin-1"))
+    return got[1]
+
+
+def workspace(ls: LanguageServer) -> Workspace:
+    """The workspace folders' V+ files, with the open documents' current text in place of their files' (the
+    file names are full paths, so that a definition can point at its file)."""
     texts: dict[str, str] = {}
     for folder in ls.workspace.folders.values():
         root = Path(_path(folder.uri))
         if root.is_dir():
             for f in sorted(root.rglob("*")):
                 if f.suffix.lower() in SUFFIXES and f.is_file():
-                    texts[str(f)] = f.read_bytes().decode("latin-1")
+                    texts[str(f)] = _read(f)
     for uri, doc in ls.workspace.text_documents.items():
         texts[_path(uri)] = doc.source
-    module = Module()
-    for name, text in texts.items():
-        load_text(text, name, module)
-    return module
+    return Workspace(texts.items())
 
 
 def serve() -> None:
