@@ -1,8 +1,9 @@
 """``aioadept vplus check|lsp``: V+ source tools over the language core (:mod:`aioadept.vplus.check`).
 
 ``check FILE|DIR ...`` prints every problem of the files (a folder: its ``.V2``/``.pg`` files, recursively),
-loaded together, one line each (``file:line:col: error: message``, or GitHub Actions annotations with
-``--format github``; ``--format json``: one JSON array); exit status 1 when there is a problem, 0 when none, 2 for a usage mistake.
+loaded together, one line each (``file:line:col: error|warning: message [code]``, or GitHub Actions annotations
+with ``--format github``; ``--format json``: one JSON array; ``--format sarif``: a SARIF 2.1.0 log); exit status 1
+when there is an error (with ``--strict`` a warning too), 0 otherwise, 2 for a usage mistake.
 ``lsp`` serves the Language Server Protocol on stdin/stdout (:mod:`aioadept.vplus.lsp`, the ``lsp`` extra).
 """
 
@@ -26,9 +27,11 @@ def build_parser() -> argparse.ArgumentParser:
     c = sub.add_parser("check", help="report every problem of V+ files without running them",
                        formatter_class=DefaultsHelpFormatter)
     c.add_argument("paths", nargs="+", metavar="FILE|DIR", help="V+ files, or folders of them, loaded together")
-    c.add_argument("--format", choices=("text", "github", "json"), default="text",
-                   help="text: file:line:col: error: message; github: GitHub Actions annotations; json: one "
-                        "array of {file, line, column, end_column, severity, message}")
+    c.add_argument("--format", choices=("text", "github", "json", "sarif"), default="text",
+                   help="text: file:line:col: error|warning: message [code]; github: GitHub Actions annotations; "
+                        "json: one array of {file, line, column, end_column, severity, code, message}; sarif: a "
+                        "SARIF 2.1.0 log (code scanning)")
+    c.add_argument("--strict", action="store_true", help="exit 1 on a warning too (else only on an error)")
     sub.add_parser("lsp", help="serve the V+ Language Server Protocol on stdin/stdout (editors)")
     return p
 
@@ -40,25 +43,27 @@ def main(argv: list[str] | None = None) -> int:
 
         serve()
         return 0
-    return check_main(args.paths, args.format)
+    return check_main(args.paths, args.format, args.strict)
 
 
-def check_main(paths: list[str], fmt: str) -> int:
-    from aioadept.vplus.check import check
+def check_main(paths: list[str], fmt: str, strict: bool = False) -> int:
+    from aioadept.vplus.check import check, sarif
 
     try:
         files = source_files(paths)
     except ValueError as exc:
         print(f"aioadept vplus check: {exc}", file=sys.stderr)
         return 2
-    problems = check((str(f), f.read_bytes().decode("latin-1")) for f in files)
+    problems = check(((str(f), f.read_bytes().decode("latin-1")) for f in files), warnings=True)
     if fmt == "json":
-        print(json.dumps([{f: getattr(p, f) for f in ("file", "line", "column", "end_column", "severity", "message")}
-                          for p in problems], indent=1))
+        print(json.dumps([{f: getattr(p, f) for f in ("file", "line", "column", "end_column", "severity", "code",
+                                                      "message")} for p in problems], indent=1))
+    elif fmt == "sarif":
+        print(json.dumps(sarif(problems), indent=1))
     else:
         for p in problems:
             print(github_annotation(p) if fmt == "github" else str(p))
-    return 1 if problems else 0
+    return 1 if any(p.severity == "error" or strict for p in problems) else 0
 
 
 def source_files(paths: list[str]) -> list[Path]:
@@ -79,13 +84,14 @@ def source_files(paths: list[str]) -> list[Path]:
 
 
 def github_annotation(p) -> str:
-    """``::error file=F,line=L,col=C,endColumn=E::message``, escaped as GitHub Actions' workflow commands
-    require (``%``, CR, LF everywhere; ``:`` and ``,`` in a property too)."""
+    """``::error file=F,line=L,col=C,endColumn=E,title=CODE::message [CODE]`` (``::warning`` for a warning),
+    escaped as GitHub Actions' workflow commands require (``%``, CR, LF everywhere; ``:`` and ``,`` in a property
+    too)."""
     def data(s: str) -> str:
         return s.replace("%", "%25").replace("\r", "%0D").replace("\n", "%0A")
 
     def prop(s: str) -> str:
         return data(s).replace(":", "%3A").replace(",", "%2C")
 
-    return (f"::{p.severity} file={prop(p.file)},line={p.line},col={p.column},endColumn={p.end_column}"
-            f"::{data(p.message)}")
+    return (f"::{p.severity} file={prop(p.file)},line={p.line},col={p.column},endColumn={p.end_column},"
+            f"title={prop(p.code)}::{data(p.message)} [{data(p.code)}]")
