@@ -31,7 +31,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 
-from aioadept.apps.paper import FocusError, FocusResult, Robot, Vision, _retract, init_move
+from aioadept.apps.paper import FocusResult, Robot, Vision, _retract, init_move
+from aioadept.errors import FocusError
 from aioadept.apps.sweep_model import (PeakFit, StateTrack, _finite, axis_offset_mm, clock_offset, fit_peak,
                                       profile_offset)
 from aioadept.apps.sweep_plan import SweepPlan, check_sweep, max_reach_mm, next_plan, plan_sweep
@@ -216,7 +217,8 @@ async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: floa
             if known is not None and fit.ok and fit.bracketed and fit.sigma_mm <= params.max_peak_sigma_mm:
                 t_known = known  # decided while the robot was still moving (state stream)
             log.info("sweep %d %.1f..%.1f mm at %d %% (tool %.0f mm/s at time scale %g): %s", len(run.plans) - 1,
-                     plan.from_mm, plan.to_mm, plan.speed_pct, plan.speed_mm_s, time_scale, fit)
+                     plan.from_mm, plan.to_mm, plan.speed_pct, plan.speed_mm_s, time_scale, fit.summary())
+            log.debug("sweep %d fit: %s", len(run.plans) - 1, fit)
             # Without the state stream a finer sweep cannot be placed better than the first (the ack timing, not
             # the frames, limits it): the first bracketed fit stands, its sigma including that timing.
             certain = fit.sigma_mm <= params.max_peak_sigma_mm or source == "planned-profile"

@@ -49,6 +49,13 @@ class PeakFit:
     """The fitted ``(a, b, z0, w, c)`` of :func:`blur_model`, for sharpness ``scale / blur_model(params, z)``."""
     scale: float = math.nan
 
+    def summary(self) -> str:
+        """One line for a log: the peak and its uncertainty, or why there is none."""
+        if not self.ok:
+            return f"no peak: {self.why}"
+        where = "bracketed" if self.bracketed else f"not bracketed (rising at the {'far' if self.side > 0 else 'near'} end)"
+        return f"peak {self.peak_mm:.2f} +- {self.sigma_mm:.3f} mm from {self.n_points} frames, {where}"
+
     def sharpness_at(self, z: Any) -> np.ndarray:
         """The fitted sharpness at offsets ``z`` (mm)."""
         return self.scale / blur_model(self.params, np.asarray(z, float))

@@ -116,7 +116,7 @@ def test_planned_profile_is_a_trapezoid_between_the_acks():
 
 def test_cell_values_out_of_range_name_the_key():
     from aioadept.apps.cell import CellConfig
-    from aioadept.configfile import ConfigError
+    from aioadept.errors import ConfigError
 
     with pytest.raises(ConfigError, match=r"\[focus\].*max_blur_fraction = 0"):
         CellConfig.from_dict({"focus": {"max_blur_fraction": 0}})
@@ -126,7 +126,7 @@ def test_cell_values_out_of_range_name_the_key():
 
 
 def test_next_sweep_extends_past_the_open_end_within_the_reach_and_the_fine_one_crosses_the_peak():
-    from aioadept.apps.focus import FocusError
+    from aioadept.errors import FocusError
     from aioadept.apps.sweep_plan import max_reach_mm, next_plan
     from aioadept.apps.sweep_model import PeakFit
 
@@ -161,3 +161,12 @@ def test_the_sweep_figure_shows_frames_fit_and_plane(tmp_path):
     path = plot_sweep(result, tmp_path / "fig09b_sweep.png")
     assert path.stat().st_size > 10_000 and path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert np.allclose(fit.sharpness_at(z[3:8]), s[3:8], rtol=1e-3)  # the curve drawn is the one fitted
+
+
+def test_a_fit_logs_as_one_readable_line():
+    good = PeakFit(19.518, 0.2687, 8, (15.3, 27.3), True, model="m", params=(1.0,), scale=2.0)
+    assert good.summary() == "peak 19.52 +- 0.269 mm from 8 frames, bracketed"
+    rising = PeakFit(40.0, math.inf, 3, (30.0, 40.0), False, 1)
+    assert rising.summary().endswith("not bracketed (rising at the far end)")
+    failed = PeakFit(math.nan, math.inf, 6, (math.nan, math.nan), False, ok=False, why="6 frames")
+    assert failed.summary() == "no peak: 6 frames"
