@@ -45,10 +45,11 @@ from pathlib import Path
 from typing import IO, Any
 
 from aioadept.geometry import Pose
+from aioadept.errors import RunSaveError
 
 __all__ = [
     "FORMAT_VERSION", "MARK_COLUMNS", "ROBOT_COLUMNS", "VISION_COLUMNS", "Mark", "Recorder", "RobotRecord", "Run",
-    "RunSaveError", "VisionRecord", "load_run", "note_not_written", "write_atomic",
+    "VisionRecord", "load_run", "note_not_written", "write_atomic",
 ]
 
 FORMAT_VERSION = 1
@@ -300,24 +301,6 @@ class Recorder:
         if failed:
             raise RunSaveError(path, files, failed)
         return path
-
-
-class RunSaveError(OSError):
-    """Some files of a run folder could not be written (disk full, permission, ...).
-
-    ``written``: file names written; ``not_written``: file name -> reason. Files that were not written keep
-    whatever content they had before (none is left truncated).
-    """
-
-    def __init__(self, run_dir: str | os.PathLike[str], written: Iterable[str], not_written: Mapping[str, str]) -> None:
-        self.run_dir = Path(run_dir)
-        self.written = tuple(written)
-        self.not_written = dict(not_written)
-        parts = "; ".join(f"{name} ({why})" for name, why in self.not_written.items())
-        super().__init__(f"run folder {self.run_dir}: not written: {parts}")
-
-    def merged(self, other: RunSaveError) -> RunSaveError:
-        return RunSaveError(self.run_dir, (*self.written, *other.written), {**self.not_written, **other.not_written})
 
 
 def note_not_written(run_dir: str | os.PathLike[str], not_written: Mapping[str, str]) -> bool:

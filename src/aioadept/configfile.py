@@ -18,13 +18,10 @@ import types
 import typing
 from pathlib import Path
 from typing import Any
+from aioadept.errors import ConfigError
 
 EXIT_USAGE = 2
 """Exit code of every ``aioadept`` subcommand for a usage or configuration mistake (nothing was started)."""
-
-
-class ConfigError(ValueError):
-    """A configuration file that cannot be used; the message is one line naming the file and what is wrong."""
 
 
 def load_toml(path: str | Path) -> dict[str, Any]:

@@ -1,5 +1,5 @@
 """The cell file's ``[world]`` table -> :class:`aioadept.sim.world.WorldConfig`, every value checked before anything
-starts (one line naming the file, the key and what was expected: :class:`aioadept.configfile.ConfigError`).
+starts (one line naming the file, the key and what was expected: :class:`aioadept.errors.ConfigError`).
 
 The table, as ``examples/cell.toml`` shows it::
 
@@ -34,7 +34,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from aioadept.configfile import ConfigError, Range, check_ranges, check_section, ranged
+from aioadept.configfile import Range, check_ranges, check_section, ranged
+from aioadept.errors import ConfigError
 from aioadept.worldmodel import (COLOURS, SHAPES, Feeder, Pallet, PartSpec, ToolMarker, WorldCamera, WorldConfig,
                                  fed_parts, label_mm)
 

@@ -12,8 +12,9 @@ from aioadept.bus import epypes_pb2
 from aioadept.bus.communicator import Communicator, Request, Responder, Response
 from aioadept.bus.messages import EventMessage, decode_event, encode_event
 from aioadept.bus.pubsub import Publisher, Subscriber
-from aioadept.bus.errors import RemoteError
+from aioadept.errors import RemoteError
 from aioadept.errors import BusError, ClientStateError, RequestTimeout
+
 
 class Recorder:
     def __init__(self) -> None:

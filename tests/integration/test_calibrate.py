@@ -88,7 +88,8 @@ async def test_the_routine_moves_through_the_poses_and_recovers_the_camera():
 
 @pytest.mark.timeout(60)
 async def test_a_wrong_marker_id_fails_with_too_few_views_and_a_low_pose_moves_nothing():
-    from aioadept.apps.calibrate import CalibrationError, calibrate, calibration_poses
+    from aioadept.apps.calibrate import calibrate, calibration_poses
+    from aioadept.errors import CalibrationError
     from aioadept.client.robot import RobotClient
 
     poses = calibration_poses(Pose(450.0, 0.0, 300.0, 0.0, 180.0, 0.0), 4, seed=2)

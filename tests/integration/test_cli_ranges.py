@@ -16,7 +16,8 @@ import pytest
 
 from aioadept.apps.cell import CellConfig, RobotSection
 from aioadept.apps.focus import FocusParams
-from aioadept.configfile import ConfigError, Range, range_of
+from aioadept.configfile import Range, range_of
+from aioadept.errors import ConfigError
 from aioadept.vision.options import VisionOptions
 
 AIOADEPT = [sys.executable, "-m", "aioadept"]

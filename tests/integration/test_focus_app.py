@@ -14,15 +14,8 @@ import numpy as np
 import pytest
 
 from aioadept import Here, MoveToolZ
-from aioadept.apps.focus import (
-    FocusError,
-    FocusParams,
-    FocusStopped,
-    StopFailed,
-    init_move,
-    ufloop,
-    ufloop_with_stop,
-)
+from aioadept.apps.focus import FocusParams, init_move, ufloop, ufloop_with_stop
+from aioadept.errors import FocusError, FocusStopped, StopFailed
 from aioadept.bus import Communicator, Responder
 from aioadept.bus.messages import encode_event
 from aioadept.bus.pubsub import Publisher, Subscriber

@@ -130,7 +130,7 @@ async def test_a_plane_beyond_the_first_sweep_is_found_by_extending_it(tmp_path)
 
 
 async def test_no_peak_within_the_reach_fails_and_goes_back_to_the_approach_pose(tmp_path):
-    from aioadept.apps.focus import FocusError
+    from aioadept.errors import FocusError
     from aioadept.commands import Here
 
     params = FocusParams(mode="sweep", max_steps=10)  # reach 10 x 2 mm: the plane at 30 mm is out of it
@@ -148,7 +148,7 @@ async def test_a_vision_node_that_never_answers_ends_the_sweep_at_rest_then_retr
     """The first request times out while the line still runs (1 s at 40 mm/s, 0.3 s timeout): the line runs to its
     planned end, and only then does the run fail and go back to the approach pose (a retract never queues behind
     a motion under way)."""
-    from aioadept.apps.focus import FocusError
+    from aioadept.errors import FocusError
     from aioadept.commands import Here
     from aioadept.testing.sim import running_sim
     from aioadept.vision.virtual_camera import paper_approach_pose

@@ -21,7 +21,8 @@ from pathlib import Path
 import pytest
 
 from aioadept.apps.cell import CellConfig, new_run_dir
-from aioadept.apps.pickplace import LocateAnswer, PickPlaceError, PickPlaceParams, pickplace
+from aioadept.apps.pickplace import LocateAnswer, PickPlaceParams, pickplace
+from aioadept.errors import PickPlaceError
 from aioadept.client import RobotClient
 from aioadept.testing.sim import running_sim
 from aioadept.testing.world_truth import WorldTruthLocator

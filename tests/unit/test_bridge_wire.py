@@ -8,7 +8,6 @@ from aioadept.bridge.wire import (
     ERR_KINDS,
     MAX_BATCH,
     BridgeFailure,
-    MalformedRequest,
     app_key,
     apps_key,
     bridge_key,
@@ -19,6 +18,7 @@ from aioadept.bridge.wire import (
     parse_request,
     state_key,
 )
+from aioadept.errors import MalformedRequest
 from aioadept.commands import Break, MoveJoints, SetSpeed
 from aioadept.protocol import SkillCall
 

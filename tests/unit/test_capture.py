@@ -209,7 +209,7 @@ def _disk_full_for(monkeypatch, names, room=10):
 
 
 def test_a_full_disk_keeps_the_previous_files_whole_and_names_what_was_not_written(tmp_path, monkeypatch):
-    from aioadept.capture import RunSaveError
+    from aioadept.errors import RunSaveError
 
     out = _filled().save(tmp_path / "r", metadata={"try": 1})
     before = {p.name: p.read_bytes() for p in out.iterdir()}
@@ -232,7 +232,7 @@ def test_a_full_disk_keeps_the_previous_files_whole_and_names_what_was_not_writt
 
 
 def test_a_full_disk_at_run_json_reports_it_and_leaves_no_partial_run_json(tmp_path, monkeypatch):
-    from aioadept.capture import RunSaveError
+    from aioadept.errors import RunSaveError
 
     _disk_full_for(monkeypatch, ["run.json"])
     with pytest.raises(RunSaveError) as info:
@@ -257,7 +257,7 @@ def test_write_atomic_replaces_whole_or_not_at_all(tmp_path, monkeypatch):
 
 
 def test_a_run_folder_that_cannot_be_created_is_a_run_save_error(tmp_path):
-    from aioadept.capture import RunSaveError
+    from aioadept.errors import RunSaveError
 
     blocker = tmp_path / "not-a-folder"
     blocker.write_text("a file where the run folder's parent should be")

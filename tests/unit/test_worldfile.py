@@ -8,7 +8,7 @@ import json
 import pytest
 
 from aioadept.apps.cell import CellConfig, write_world_file
-from aioadept.configfile import ConfigError
+from aioadept.errors import ConfigError
 from aioadept.sim.io import INPUTS
 from aioadept.worldfile import INPUT_SIGNALS, load_world, world_from_table, world_to_table
 

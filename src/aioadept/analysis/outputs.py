@@ -12,23 +12,9 @@ import os
 import shutil
 from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
-from typing import Any
-
-from aioadept.capture import RunSaveError
-
-__all__ = ["AnalysisSaveError", "publish", "staging"]
 
 
-class AnalysisSaveError(RunSaveError):
-    """Outputs of an analysis that could not be written (disk full, ...); the others were written. ``summary``: the
-    analysis itself (a :class:`~aioadept.analysis.report.Summary`, whose ``not_written`` names the same files)."""
-
-    def __init__(self, out_dir: str | os.PathLike[str], written: Iterable[str], not_written: Mapping[str, str], *,
-                 summary: Any = None) -> None:
-        super().__init__(out_dir, written, not_written)
-        self.summary = summary
-        parts = "; ".join(f"{name} ({why})" for name, why in self.not_written.items())
-        self.args = (f"analysis in {self.run_dir}: not written: {parts}",)
+__all__ = ["publish", "staging"]
 
 
 @contextlib.contextmanager

@@ -24,7 +24,8 @@ from typing import Any
 from aioadept.analysis.cycle import cycle_split
 from aioadept.analysis.fits import fit_for
 from aioadept.analysis.metrics import QUANTITIES, Iteration, Stats, describe, iterations_of_run, quantity_values
-from aioadept.analysis.outputs import AnalysisSaveError, publish, staging
+from aioadept.analysis.outputs import publish, staging
+from aioadept.errors import AnalysisSaveError
 from aioadept.capture import Run, load_run, write_atomic
 
 __all__ = ["ANALYSIS_FILES", "AnalysisSaveError", "DEFAULT_GROUP_BY", "FIGURES", "Group", "RunInfo", "Summary", "analyze_runs", "expand_run_dirs",
@@ -351,7 +352,7 @@ def analyze_runs(run_dirs: Iterable[str | os.PathLike[str]], out_dir: str | os.P
     ``FileNotFoundError`` for a path with no run and ``ValueError`` for a run folder that does not parse. A run
     with no complete iteration is not an error: its stats have ``n = 0``. The outputs replace the folder's previous
     analysis as a whole (:mod:`aioadept.analysis.outputs`); those the disk could not take raise
-    :class:`~aioadept.analysis.outputs.AnalysisSaveError` naming them, after the others are in place.
+    :class:`~aioadept.errors.AnalysisSaveError` naming them, after the others are in place.
     """
     paths = expand_run_dirs(run_dirs)
     if not paths:

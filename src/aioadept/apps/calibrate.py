@@ -22,12 +22,9 @@ import numpy as np
 from aioadept.bus.located import LOCATE_REQUEST, parts_from_attributes
 from aioadept.geometry import Pose
 from aioadept.vision.calibration import CameraCalibration, MarkerView, calibrate_eye_to_hand
+from aioadept.errors import CalibrationError
 
 log = logging.getLogger(__name__)
-
-
-class CalibrationError(ValueError):
-    """The calibration could not be made: too few usable views, a failed vision request, a bad pose list."""
 
 
 def calibration_poses(centre: Pose, n: int = 12, *, spread_mm: float = 60.0, tilt_deg: float = 20.0,
@@ -117,4 +114,4 @@ async def calibrate(robot, vision, poses: Sequence[Pose], nominal: CameraCalibra
     return CalibrationRun(cal, tuple(views), tuple(skipped))
 
 
-__all__ = ["CalibrationError", "CalibrationRun", "calibrate", "calibration_poses", "check_poses", "collect_views"]
+__all__ = ["CalibrationRun", "calibrate", "calibration_poses", "check_poses", "collect_views"]

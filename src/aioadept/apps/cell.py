@@ -107,7 +107,8 @@ class CellConfig:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any], *, source: str = "config") -> CellConfig:
-        from aioadept.configfile import ConfigError, check_ranges, check_section
+        from aioadept.configfile import check_ranges, check_section
+        from aioadept.errors import ConfigError
 
         known = {"robot": RobotSection, "vision": VisionSection, "focus": FocusParams, "run": RunSection,
                  "world": WorldConfig, "bus": BusSection, "pickplace": PickPlaceParams}
@@ -288,7 +289,7 @@ class RunOutcome:
     result: FocusResult | None
     error: str | None
     save_error: OSError | None = None
-    """Files of the run folder that could not be written (:class:`aioadept.capture.RunSaveError`), if any."""
+    """Files of the run folder that could not be written (:class:`aioadept.errors.RunSaveError`), if any."""
 
 
 async def run_focus_once(cfg: CellConfig, run_dir: Path, *, params: FocusParams | None = None,
@@ -438,7 +439,7 @@ class Cell:
         self.nodes = nodes
 
     async def run(self, coro: Any) -> Any:
-        """Await ``coro``; if a node dies first, cancel it and raise :class:`~aioadept.apps.processes.NodeError`
+        """Await ``coro``; if a node dies first, cancel it and raise :class:`~aioadept.errors.NodeError`
         (:func:`~aioadept.apps.processes.run_watched`: the run folder names the node)."""
         return await run_watched(coro, *self.nodes)
 

@@ -25,7 +25,8 @@ async def run_experiment(cfg: CellConfig, grid: list[tuple[int, float]], runs: i
     and logged)."""
     from rich.progress import Progress
 
-    from aioadept.capture import RunSaveError, note_not_written
+    from aioadept.capture import note_not_written
+    from aioadept.errors import RunSaveError
 
     done: list[Path] = []
     failures = 0

@@ -39,27 +39,9 @@ from aioadept.apps.paper import (  # noqa: F401  (the paper's coroutines, re-exp
 )
 from aioadept.apps.sweep import MODES, SWEEP_RANGES
 from aioadept.configfile import check_ranges, ranged
-from aioadept.errors import AdeptError
+from aioadept.errors import AdeptError, FocusStopped, StopFailed
 
 log = logging.getLogger(__name__)
-
-class FocusStopped(FocusError):
-    """A stop event ended the run; the robot was stopped where it was and is NOT moved back."""
-
-    def __init__(self, message: str, *, stop_id: str = "") -> None:
-        super().__init__(message)
-        self.stop_id = stop_id
-
-
-class StopFailed(AdeptError):
-    """A stop was asked for (a stop event) but the robot did not confirm it: the robot may still be moving.
-
-    Not a :class:`FocusStopped`: the run did not end in a known state. ``__cause__`` is the stop's own error.
-    """
-
-    def __init__(self, message: str, *, stop_id: str = "") -> None:
-        super().__init__(message)
-        self.stop_id = stop_id
 
 
 @dataclass(frozen=True, slots=True)

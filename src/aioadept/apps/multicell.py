@@ -32,7 +32,8 @@ from pathlib import Path
 from typing import Any
 
 from aioadept.apps.cell import CellConfig, RobotSection, RunOutcome, run_focus_once, running_cell
-from aioadept.configfile import ConfigError, Range, check_ranges, check_section
+from aioadept.configfile import Range, check_ranges, check_section
+from aioadept.errors import ConfigError
 from aioadept.vision.options import VisionOptions
 
 __all__ = ["MAX_ROBOTS", "Member", "MemberOutcome", "MultiCell", "is_multi", "multi_from_dict", "prepared",

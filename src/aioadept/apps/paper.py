@@ -14,14 +14,13 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 from aioadept.bus.messages import VISION_REQUEST as _VISION_REQUEST
 from aioadept.commands import SPEED_MAX, SPEED_MIN, MoveJoints, MoveRelJoints, MoveRelTool, MoveTo, MoveToolZ, SetSpeed
 from aioadept.configfile import Range
-from aioadept.errors import AdeptError, CommandAborted, CommandError, VisionError
+from aioadept.errors import AdeptError, CommandAborted, CommandError, FocusError, VisionError
 from aioadept.geometry import Pose
 from aioadept.robots import paper_cell
 
@@ -39,15 +38,6 @@ HOME_JOINTS_DEG = paper_cell.HOME_JOINTS_DEG
 """The paper's "home" joint configuration: upper arm vertical, forearm horizontal, tool pointing down."""
 
 VISION_REQUEST = _VISION_REQUEST
-
-
-class FocusError(AdeptError):
-    """Focus calibration failed; the robot was sent back to the approach pose (``retracted``)."""
-
-    def __init__(self, message: str, *, sharpness: Sequence[float] = (), retracted: bool = False) -> None:
-        super().__init__(message)
-        self.sharpness = tuple(sharpness)
-        self.retracted = retracted
 
 
 class Robot(Protocol):

@@ -29,7 +29,7 @@ from aioadept.bus.located import LOCATE_REQUEST, LocatedPart, parts_from_attribu
 from aioadept.commands import (SPEED_MAX, SPEED_MIN, Appros, CloseHand, Departs, MoveToS, OpenHand, SetSpeed, Sig,
                                WaitSig)
 from aioadept.configfile import Range, check_ranges, ranged
-from aioadept.errors import AdeptError, CommandError
+from aioadept.errors import AdeptError, CommandError, PickPlaceError
 from aioadept.geometry import Pose
 from aioadept.protocol.codes import ErrorCode
 from aioadept.worldmodel import Feeder, Pallet
@@ -40,16 +40,6 @@ log = logging.getLogger(__name__)
 _SPEED = Range(SPEED_MIN, SPEED_MAX, integer=True, unit="%")
 MOTION_SKILLS = frozenset({"appros", "appro", "departs", "depart", "move_to_s", "move_to", "move_rel_tool_s"})
 HAND_SKILLS = frozenset({"open_hand", "close_hand"})
-
-
-class PickPlaceError(AdeptError):
-    """A pick-and-place run stopped: ``moved`` says whether the robot was moved in the failing cycle (False for
-    every fault found before its first motion: no part, a failed locate, a target outside the workspace)."""
-
-    def __init__(self, message: str, *, moved: bool = False, part: int = 0) -> None:
-        super().__init__(message)
-        self.moved = moved
-        self.part = part
 
 
 @dataclass(frozen=True, slots=True)

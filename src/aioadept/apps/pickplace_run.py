@@ -23,7 +23,8 @@ from typing import Any, Callable
 
 from aioadept.apps.cell import CellConfig, _guarded, stop_port_of
 from aioadept.apps.runfolder import abandon_run, run_error
-from aioadept.apps.pickplace import BusLocator, PickPlaceError, PickPlaceParams, PickPlaceResult, pickplace
+from aioadept.apps.pickplace import BusLocator, PickPlaceParams, PickPlaceResult, pickplace
+from aioadept.errors import PickPlaceError
 
 log = logging.getLogger(__name__)
 

@@ -18,17 +18,7 @@ import sys
 from pathlib import Path
 from typing import IO, Any
 
-from aioadept.errors import AdeptError
-
-
-class NodeError(AdeptError):
-    """A node process failed to start or died while the cell was running. ``headline``: what happened, in one line
-    (the message may go on with the tail of the node's log)."""
-
-    def __init__(self, message: str, *, headline: str | None = None) -> None:
-        super().__init__(message)
-        self.headline = headline or message.splitlines()[0]
-
+from aioadept.errors import NodeError
 
 # Process groups of the nodes started and not yet reaped, for kill_all_now() (a signal handler's exit path).
 _LIVE_GROUPS: set[int] = set()

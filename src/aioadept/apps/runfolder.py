@@ -12,7 +12,7 @@ from typing import Any
 
 def merged_save_error(err: OSError | None, run_dir: Path, not_written: dict[str, str]) -> OSError:
     """``err`` (a run's ``save_error``, or None) with more files not written (name -> reason) added."""
-    from aioadept.capture import RunSaveError
+    from aioadept.errors import RunSaveError
 
     more = RunSaveError(run_dir, (), not_written)
     if err is None:
@@ -54,9 +54,10 @@ def discard_run_dir(run_dir: Path) -> None:
 def save_run(recorder: Any, run_dir: Path, meta: dict[str, Any]) -> OSError | None:
     """Write ``focus.json`` (the result, first: it matters most) and the recorder's tables; never raises OSError.
 
-    Returns a :class:`~aioadept.capture.RunSaveError` naming every file not written, or None.
+    Returns a :class:`~aioadept.errors.RunSaveError` naming every file not written, or None.
     """
-    from aioadept.capture import RunSaveError, write_atomic
+    from aioadept.capture import write_atomic
+    from aioadept.errors import RunSaveError
 
     err: RunSaveError | None = None
     try:

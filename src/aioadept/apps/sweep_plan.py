@@ -15,7 +15,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from aioadept.apps.paper import FocusError
+from aioadept.errors import FocusError
 from aioadept.apps.sweep_model import PeakFit
 
 __all__ = ["SweepPlan", "check_sweep", "max_reach_mm", "next_plan", "plan_sweep", "sweep_speed"]

@@ -8,8 +8,8 @@
 See docs/bridge.md. Needs the ``[zenoh]`` extra at run time; importing this package does not import Zenoh.
 """
 
-from aioadept.bridge.claim import BridgeNameTaken
-from aioadept.bridge.client import BridgeClient, BridgeRefused
+from aioadept.bridge.client import BridgeClient
+from aioadept.errors import BridgeNameTaken, BridgeRefused
 from aioadept.bridge.node import Bridge, BridgeStats
 
 __all__ = ["Bridge", "BridgeClient", "BridgeNameTaken", "BridgeRefused", "BridgeStats"]

@@ -17,15 +17,11 @@ from collections.abc import Callable
 from typing import Any
 
 from aioadept.bridge.wire import SERVING, bridge_key, claim_key, claims_key
-from aioadept.errors import AdeptError
+from aioadept.errors import BridgeNameTaken
 
-__all__ = ["BridgeNameTaken", "NameClaim", "new_claim"]
+__all__ = ["NameClaim", "new_claim"]
 
 log = logging.getLogger("aioadept.bridge")
-
-
-class BridgeNameTaken(AdeptError):
-    """Another bridge (or another node) holds this robot's name on the Zenoh network: this one does not serve."""
 
 
 def new_claim() -> str:

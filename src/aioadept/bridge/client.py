@@ -47,6 +47,7 @@ from aioadept.errors import (
     AbortedBeforeSend,
     AckTimeout,
     AdeptError,
+    BridgeRefused,
     ClientStateError,
     CommandAborted,
     CommandError,
@@ -58,20 +59,12 @@ from aioadept.geometry import Pose
 from aioadept.protocol import HELLO_SKILL, HERE_SKILL, STOP_SKILL, IdAllocator, SkillCall, Status, parse_ack
 from aioadept.protocol.robotstatus import STATUS_SKILL, RobotStatus, parse_status_fields
 
-__all__ = ["BridgeClient", "BridgeRefused"]
+__all__ = ["BridgeClient"]
 
 log = logging.getLogger("aioadept.bridge")
 
 _MARGIN_S = 5.0
 """The Zenoh query outlives the ack wait by this much, so the bridge's own timeout answer arrives first."""
-
-
-class BridgeRefused(AdeptError):
-    """The bridge refused a query (``malformed``, or ``closed``: shutting down); nothing of it was sent."""
-
-    def __init__(self, message: str, *, kind: str = "malformed") -> None:
-        super().__init__(message)
-        self.kind = kind
 
 
 class BridgeClient:

@@ -23,7 +23,8 @@ import re
 from dataclasses import dataclass
 
 from aioadept.protocol import STOP_SKILL, SkillCall, parse_command
-from aioadept.protocol.errors import RemoteProtocolError
+from aioadept.errors import RemoteProtocolError
+from aioadept.errors import MalformedRequest
 
 __all__ = ["ERR_KINDS", "MAX_QUEUED_PER_APP", "MAX_QUEUED_TOTAL", "BridgeRequest", "BridgeFailure", "MAX_BATCH", "cmd_key", "app_key", "apps_key",
            "state_key", "bridge_key", "claim_key", "claims_key", "parse_request", "encode_request", "encode_failure",
@@ -102,10 +103,6 @@ class BridgeRequest:
     @property
     def is_stop(self) -> bool:
         return self.calls[0].skill == STOP_SKILL
-
-
-class MalformedRequest(ValueError):
-    """A query the bridge refuses (answered ``malformed``; nothing sent)."""
 
 
 def encode_request(ids: tuple[str, ...], calls: tuple[SkillCall, ...]) -> bytes:

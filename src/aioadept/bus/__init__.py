@@ -9,14 +9,14 @@ By role, over one socket layer:
 - :mod:`aioadept.bus.responder`: the responder side (a node answering requests).
 - :mod:`aioadept.bus.messages`: the edge to Protobuf: EPypes ``Event``/``Image`` and our ``RobotState`` <-> bytes.
 - :mod:`aioadept.bus.endpoints`, :mod:`aioadept.bus.security`: CZMQ endpoints, CURVE.
-- :mod:`aioadept.bus.errors`: what the bus raises (``BusError`` and below, ``RemoteError`` for an ``error``
-  answer). The bus knows none of its users: vision maps its errors itself (:func:`aioadept.vision.responses.raise_for_error`).
+- What the bus raises (``BusError`` and below, ``RemoteError`` for an ``error`` answer) is in
+  :mod:`aioadept.errors`, re-exported here. The bus knows none of its users: vision maps its errors itself (:func:`aioadept.vision.responses.raise_for_error`).
 
 See docs/bus.md for the schema, endpoints and the request/response protocol.
 """
 
 from aioadept.bus.communicator import Communicator
-from aioadept.bus.errors import BusEncodeError, BusError, RemoteError, RequestTimeout
+from aioadept.errors import BusEncodeError, BusError, RemoteError, RequestTimeout
 from aioadept.bus.messages import (
     ROBOT_STATE_TOPIC,
     EventMessage,

@@ -18,7 +18,7 @@ from collections.abc import Hashable, Iterator
 from dataclasses import dataclass
 from typing import Generic, Protocol, TypeVar
 
-from aioadept.bus.errors import RemoteError
+from aioadept.errors import RemoteError
 from aioadept.errors import ClientStateError
 
 __all__ = ["BusObserver", "PendingRegistry", "Request", "Response", "new_request_id", "response_type_for"]
@@ -70,7 +70,7 @@ class Response:
         return None if err is None else str(err)
 
     def raise_for_error(self) -> Response:
-        """Raise :class:`~aioadept.bus.errors.RemoteError` (with the attributes) if the peer answered with an
+        """Raise :class:`~aioadept.errors.RemoteError` (with the attributes) if the peer answered with an
         ``error``; else return self. A vision caller wants :func:`aioadept.vision.responses.raise_for_error` instead, which
         raises :class:`~aioadept.errors.VisionError`."""
         if "error" in self.attributes:

@@ -49,7 +49,8 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(sys.argv[1:] if argv is None else argv)
     from rich.console import Console
 
-    from aioadept.analysis.report import AnalysisSaveError, analyze_runs, fits_table, summary_table
+    from aioadept.analysis.report import analyze_runs, fits_table, summary_table
+    from aioadept.errors import AnalysisSaveError
     from aioadept.apps.interrupt import interrupt_handled
     from aioadept.cli.report import stop_signals_interrupt
 

@@ -75,7 +75,8 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     # stdout carries the TOML table only (pipe it into a file); log lines go to stderr
     setup_logging(logging.DEBUG if args.verbose else logging.INFO, fmt="%(levelname)s %(name)s: %(message)s")
-    from aioadept.apps.calibrate import CalibrationError, calibration_poses, check_poses
+    from aioadept.apps.calibrate import calibration_poses, check_poses
+    from aioadept.errors import CalibrationError
     from aioadept.apps.cell import CellConfig
     from aioadept.apps.cellbus import with_transport, zenoh_session
     from aioadept.geometry import Pose
@@ -160,7 +161,7 @@ def _starts(args: argparse.Namespace, cfg) -> tuple[bool, bool]:  # noqa: ANN001
     """Whether to start the sim and the vision node: what the cell file (``--config``) says this machine starts,
     unless the command line names the node to use. A started vision node must be one calibration can use: the world
     camera's part locator, with a marker on the tool (else a ConfigError, before anything starts)."""
-    from aioadept.configfile import ConfigError
+    from aioadept.errors import ConfigError
 
     if args.config is None:
         return False, False

@@ -14,7 +14,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from aioadept import defaults
-from aioadept.configfile import ConfigError, report
+from aioadept.configfile import report
+from aioadept.errors import ConfigError
 
 if TYPE_CHECKING:
     from aioadept.apps.cell import CellConfig
@@ -303,7 +304,7 @@ def apply_cell_bus(values: dict, bus: "BusSection", given: set[str], streams: di
     connects to the router; it is never the router because of the file), an endpoint over the key the file's would
     become. On Zenoh every endpoint of ``streams`` (option -> (owner node, topic)) the command line did not give
     becomes the cell's key unless it is ``zenoh:`` or ``none`` (:func:`~aioadept.apps.cellbus.on_cell_key`).
-    ValueError naming the option, or :class:`~aioadept.configfile.ConfigError` naming the file and the key."""
+    ValueError naming the option, or :class:`~aioadept.errors.ConfigError` naming the file and the key."""
     if "transport" not in given:
         values["transport"] = bus.transport
     if values.get("transport") != "zenoh":

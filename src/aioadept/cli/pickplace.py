@@ -75,7 +75,8 @@ def pickplace_config(args: argparse.Namespace):  # noqa: ANN201
     if w.feeder is not None and w.feeder.sensor != p.part_sensor:
         raise ValueError(f"{path} [pickplace]: part_sensor = {p.part_sensor}: the feeder's sensor is input "
                          f"{w.feeder.sensor} ([world.feeder] sensor)")
-    from aioadept.apps.pickplace import PickPlaceError, slot_targets
+    from aioadept.apps.pickplace import slot_targets
+    from aioadept.errors import PickPlaceError
 
     try:  # every slot inside the workspace, before anything starts
         slot_targets(w.pallet, p, w.table_z_mm + 1.0)

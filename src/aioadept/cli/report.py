@@ -80,7 +80,8 @@ def report_saving(outcome: Any, *, analyze: bool, prog: str) -> int:
     is named, with its reason, in one line on stderr and in ``run.json``'s ``not_written``. Returns 0, or
     :data:`EXIT_NOT_SAVED`.
     """
-    from aioadept.capture import RunSaveError, note_not_written
+    from aioadept.capture import note_not_written
+    from aioadept.errors import RunSaveError
 
     run_dir = Path(outcome.run_dir)
     err = outcome.save_error
@@ -91,7 +92,8 @@ def report_saving(outcome: Any, *, analyze: bool, prog: str) -> int:
         not_written["run folder"] = str(err)
     complete = "run.json" not in not_written and (run_dir / "run.json").is_file()
     if analyze and complete:
-        from aioadept.analysis.report import AnalysisSaveError, analyze_runs
+        from aioadept.analysis.report import analyze_runs
+        from aioadept.errors import AnalysisSaveError
 
         try:
             analyze_runs([run_dir], run_dir)

@@ -149,7 +149,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def load_config(path: str) -> dict[str, Any]:
     """Options from a TOML file, checked against the one vision schema (:class:`VisionOptions`); raises
-    :class:`aioadept.configfile.ConfigError` naming the file and the key.
+    :class:`aioadept.errors.ConfigError` naming the file and the key.
 
     A file with a ``[vision]`` (or ``[robot]``, ``[focus]``, ``[run]``, ``[bus]``) table is read as a cell file
     (``examples/cell.toml``: the whole file is checked as ``demo`` checks it; the node takes ``[vision]``, and the

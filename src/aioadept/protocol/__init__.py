@@ -10,8 +10,8 @@ simulated server (:mod:`aioadept.sim.server`) both drive it::
     for ack in AckReader().feed(chunk):       # the client side: Ack, or BadAck / Oversize for a non-ack line
         ...
 
-Its errors (the root ``AdeptError`` and the protocol errors) are in :mod:`aioadept.protocol.errors`, re-exported
-by :mod:`aioadept.errors`.
+Its errors (``ProtocolError`` and below) are in :mod:`aioadept.errors`, the one module outside this package it
+imports besides :mod:`aioadept.geometry` (neither imports anything of aioadept).
 """
 
 from aioadept.protocol.codes import DEFAULT_TEXT, ErrorCode, describe

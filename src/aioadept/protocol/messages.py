@@ -26,7 +26,7 @@ from enum import Enum
 
 from aioadept.geometry import Pose
 from aioadept.protocol.codes import DEFAULT_TEXT, ErrorCode
-from aioadept.protocol.errors import LocalProtocolError, RemoteProtocolError
+from aioadept.errors import LocalProtocolError, RemoteProtocolError
 from aioadept.protocol.framing import DELIMITER, MAX_LINE
 
 ID_LENGTH = 8

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 from aioadept.geometry import Pose
 from aioadept.protocol.codes import ErrorCode
-from aioadept.protocol.errors import RemoteProtocolError
+from aioadept.errors import RemoteProtocolError
 from aioadept.protocol.framing import MAX_ACK_LINE, LineFramer, Oversize
 from aioadept.protocol.messages import ID_LENGTH, Ack, Status, _make_ack, parse_ack
 

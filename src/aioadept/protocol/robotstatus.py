@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 
 from aioadept.protocol.codes import ErrorCode
-from aioadept.protocol.errors import RemoteProtocolError
+from aioadept.errors import RemoteProtocolError
 
 STATUS_SKILL = "status"
 

@@ -24,7 +24,7 @@ from types import MappingProxyType
 
 from aioadept.geometry import Pose
 from aioadept.protocol.codes import ErrorCode
-from aioadept.protocol.errors import RemoteProtocolError
+from aioadept.errors import RemoteProtocolError
 
 STATE_TAG = "S1"
 """The format tag of the lines this module reads and writes."""

@@ -845,7 +845,7 @@ class SimServer:
         self._send_failures.send(lambda: self._send_state(robot, world))
 
     def _send_state(self, robot: Any, world: Any) -> None:
-        from aioadept.bus.errors import BusError
+        from aioadept.errors import BusError
         from aioadept.bus.messages import ROBOT_STATE_TOPIC, WORLD_STATE_TOPIC
 
         assert self._publisher is not None

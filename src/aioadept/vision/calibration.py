@@ -32,7 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from aioadept.configfile import ConfigError, Range, check_ranges, check_section, ranged
+from aioadept.configfile import Range, check_ranges, check_section, ranged
+from aioadept.errors import ConfigError
 from aioadept.geometry import Pose, decompose, inverse_transform
 
 _XYZ = Range(-5000.0, 5000.0, unit="mm")

@@ -31,10 +31,7 @@ from aioadept.vision.calibration import CameraCalibration
 from aioadept.vision.graph import CompGraph
 from aioadept.vision.locate import COLOURS, locate, locate_graph
 from aioadept.vision.node import NodeResponder, VisionNode
-
-
-class BadLocateRequest(ValueError):
-    """A locate request attribute out of its range or of the wrong type (answered as ``error``)."""
+from aioadept.errors import BadLocateRequest
 
 
 def _number(attributes: Mapping[str, Any], key: str, lo: float, hi: float) -> float | None:
@@ -112,4 +109,4 @@ def locate_responder(request_endpoint: str, response_endpoint: str, node: Locato
     return NodeResponder(request_endpoint, response_endpoint, node, **options)
 
 
-__all__ = ["BadLocateRequest", "LocatorNode", "locate_responder", "request_overrides"]
+__all__ = ["LocatorNode", "locate_responder", "request_overrides"]

@@ -46,7 +46,7 @@ from typing import Any, Literal
 
 from aioadept.bus.communicator import Responder
 from aioadept.bus.messages import VISION_REQUEST
-from aioadept.errors import VisionError
+from aioadept.errors import BadRequest, VisionError
 from aioadept.vision.acquisition import DEFAULT_POLICY, Acquisition, Policy
 from aioadept.vision.graph import CompGraph
 from aioadept.vision.sharpness import measure, sharpness_graph
@@ -69,10 +69,6 @@ its jitter on a loaded machine, short against the time a focus step takes to mov
 
 SAVE_NICE = 10
 """Nice value of the node's frame-writer thread (``--save-frames``): it yields the cores to serving."""
-
-
-class BadRequest(ValueError):
-    """A request attribute the node cannot use (answered as an ``error``, never raised to the Responder)."""
 
 
 def noop_graph() -> CompGraph:

@@ -3,7 +3,7 @@ vision --config FILE`` and the cell file of ``demo``/``focus``/``experiment`` (`
 
 :class:`VisionOptions` lists every option with its type and default; :meth:`VisionOptions.from_table` checks a TOML
 table against it once (unknown keys, wrong types, bad values), with errors naming the file and the key
-(:class:`aioadept.configfile.ConfigError`). :data:`SOURCES` is the registry of camera sources a ``source`` spec may
+(:class:`aioadept.errors.ConfigError`). :data:`SOURCES` is the registry of camera sources a ``source`` spec may
 name. Importing this module loads neither OpenCV nor ZeroMQ.
 """
 
@@ -102,8 +102,9 @@ class VisionOptions:
     @classmethod
     def from_table(cls, table: Any, where: str) -> VisionOptions:
         """The options of a TOML table (keys with ``_`` or ``-``), checked once; ``where`` names the file and table
-        in messages (``"cell.toml [vision]"``). Raises :class:`~aioadept.configfile.ConfigError`."""
-        from aioadept.configfile import ConfigError, check_section
+        in messages (``"cell.toml [vision]"``). Raises :class:`~aioadept.errors.ConfigError`."""
+        from aioadept.configfile import check_section
+        from aioadept.errors import ConfigError
 
         if isinstance(table, dict):
             table = {str(k).replace("-", "_"): v for k, v in table.items()}

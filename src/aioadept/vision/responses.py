@@ -1,7 +1,7 @@
 """Vision's reading of the bus's answers: a node's ``error`` result becomes :class:`~aioadept.errors.VisionError`.
 
 The bus (:mod:`aioadept.bus`) knows nothing of its users: it returns a :class:`~aioadept.bus.Response` and, asked
-to, raises its own :class:`~aioadept.bus.errors.RemoteError`. A MasterControlNode talking to a vision node wants
+to, raises its own :class:`~aioadept.errors.RemoteError`. A MasterControlNode talking to a vision node wants
 the vision error instead::
 
     from aioadept.vision import raise_for_error
@@ -10,7 +10,7 @@ the vision error instead::
 
 from __future__ import annotations
 
-from aioadept.bus.errors import RemoteError
+from aioadept.errors import RemoteError
 from aioadept.bus.pairing import Response
 from aioadept.errors import VisionError
 

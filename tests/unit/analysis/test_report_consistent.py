@@ -11,7 +11,8 @@ import pytest
 
 from aioadept import capture
 from aioadept.analysis import FIGURES, analyze_runs
-from aioadept.analysis.report import ANALYSIS_FILES, AnalysisSaveError
+from aioadept.analysis.report import ANALYSIS_FILES
+from aioadept.errors import AnalysisSaveError
 from aioadept.analysis.synthetic import synthetic_recorder
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from aioadept.apps.cell import CellConfig, vision_argv
-from aioadept.configfile import ConfigError
+from aioadept.errors import ConfigError
 
 
 def test_defaults_are_software_trigger_where_possible_and_5_ms():

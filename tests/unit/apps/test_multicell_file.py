@@ -11,7 +11,7 @@ import pytest
 
 from aioadept.apps.cell import CellConfig
 from aioadept.apps.multicell import MAX_ROBOTS, is_multi, multi_from_dict, prepared
-from aioadept.configfile import ConfigError
+from aioadept.errors import ConfigError
 
 pytestmark = pytest.mark.timeout(20)
 

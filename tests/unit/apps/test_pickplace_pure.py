@@ -7,8 +7,17 @@ import math
 
 import pytest
 
-from aioadept.apps.pickplace import (LocatedPart, PickPlaceError, PickPlaceParams, check_workspace, fold_heading,
-                                     on_feeder, parts_of, slot_targets, tool_down)
+from aioadept.apps.pickplace import (
+    LocatedPart,
+    PickPlaceParams,
+    check_workspace,
+    fold_heading,
+    on_feeder,
+    parts_of,
+    slot_targets,
+    tool_down,
+)
+from aioadept.errors import PickPlaceError
 from aioadept.worldmodel import Feeder, Pallet
 
 

@@ -3,7 +3,7 @@
 import re
 
 from aioadept.bus.communicator import Response, new_request_id, response_type_for
-from aioadept.bus.errors import RemoteError
+from aioadept.errors import RemoteError
 from aioadept.errors import BusError, VisionError
 from aioadept.vision import raise_for_error
 

@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from aioadept.configfile import ConfigError
+from aioadept.errors import ConfigError
 from aioadept.geometry import Pose
 from aioadept.sim.controller import Controller
 from aioadept.sim.world import World

@@ -8,7 +8,7 @@ import tomllib
 import numpy as np
 import pytest
 
-from aioadept.configfile import ConfigError
+from aioadept.errors import ConfigError
 from aioadept.geometry import Pose, decompose, pose_error, trans
 from aioadept.vision.calibration import (CameraCalibration, MarkerView, calibrate_eye_to_hand, load_calibration,
                                          write_calibration)

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from aioadept.configfile import ConfigError
+from aioadept.errors import ConfigError
 from aioadept.geometry import Pose
 from aioadept.vision.locate import detect_markers
 from aioadept.vision.world_camera import WorldCameraSource, WorldView, parts_at_rest
