@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from aioadept.apps.focus import FocusParams
-from aioadept.apps.sweep_model import StateTrack, blur_model, clock_offset, fit_peak, profile_offset
+from aioadept.apps.sweep_model import PeakFit, StateTrack, blur_model, clock_offset, fit_peak, profile_offset
 from aioadept.apps.sweep_plan import check_sweep, plan_sweep, sweep_speed
 
 SWEEP = FocusParams(mode="sweep")
@@ -128,7 +128,6 @@ def test_cell_values_out_of_range_name_the_key():
 def test_next_sweep_extends_past_the_open_end_within_the_reach_and_the_fine_one_crosses_the_peak():
     from aioadept.errors import FocusError
     from aioadept.apps.sweep_plan import max_reach_mm, next_plan
-    from aioadept.apps.sweep_model import PeakFit
 
     assert max_reach_mm(SWEEP) == 80.0  # max_steps x delta_z_mm, the stepwise loop's reach
     rising = PeakFit(40.0, math.inf, 3, (30.0, 40.0), False, 1)
