@@ -14,7 +14,7 @@ import pytest
 
 from aioadept.geometry import Pose, poses_close
 from aioadept.protocol import ErrorCode, Status, parse_ack
-from aioadept.sim import kinematics as kin
+from aioadept.robots import viper_s850 as kin
 
 HOME = "0,-90,180,0,90,0"
 ACK_RE = re.compile(rb"^[0-9A-Za-z]{8}:(done|error|aborted):\d+\.\d{3},\d+\.\d{3}:"

@@ -16,7 +16,7 @@ import pytest
 from aioadept.geometry import Pose, poses_close
 from aioadept.protocol import NO_ID, ErrorCode, Status
 from aioadept.protocol.robotstatus import parse_status_fields
-from aioadept.sim import kinematics as kin
+from aioadept.robots import viper_s850 as kin
 
 HOME = "0,-90,180,0,90,0"
 

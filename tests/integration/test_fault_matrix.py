@@ -39,7 +39,7 @@ from aioadept.errors import AckTimeout, ConnectError, ConnectionLost, RequestTim
 from aioadept.geometry import poses_close
 from aioadept.protocol import MAX_LINE, NO_ID, ErrorCode, LineFramer, Oversize, SkillCall, Status, encode_ack, \
     parse_ack
-from aioadept.sim import kinematics as kin
+from aioadept.robots import viper_s850 as kin
 from aioadept.testing.sim import running_sim
 from faults import netns
 from faults.procs import client_proc, rss_kib, sim_node, vision_node

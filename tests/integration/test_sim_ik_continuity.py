@@ -14,7 +14,7 @@ from aioadept import Here, MoveJoints, MoveRelTool, MoveRelWorld, MoveToolZ
 from aioadept.client import RobotClient
 from aioadept.errors import CommandError
 from aioadept.protocol import ErrorCode
-from aioadept.sim.kinematics import HOME_JOINTS_DEG
+from aioadept.robots.viper_s850 import HOME_JOINTS_DEG
 from aioadept.sim.server import SimOptions, SimServer
 
 PAPER_INIT_MOVE = tuple(a + d for a, d in zip(HOME_JOINTS_DEG, (-90, 60, 30, -90, 0, 0)))

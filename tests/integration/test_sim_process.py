@@ -13,7 +13,7 @@ from aioadept.client import RobotClient
 from aioadept.errors import CommandError
 from aioadept.geometry import Pose, poses_close, rel_tool
 from aioadept.protocol import ErrorCode
-from aioadept.sim import kinematics as kin
+from aioadept.robots import viper_s850 as kin
 from aioadept.testing.nodes import running_node
 
 

@@ -12,7 +12,7 @@ from aioadept.client import RobotClient
 from aioadept.errors import AckTimeout, CommandAborted, CommandError, ConnectionLost
 from aioadept.geometry import Pose, poses_close, rel_tool
 from aioadept.protocol import NO_ID, ErrorCode, LineFramer, Status, parse_ack
-from aioadept.sim import kinematics as kin
+from aioadept.robots import viper_s850 as kin
 from aioadept.testing.sim import running_sim
 
 HOME = kin.HOME_JOINTS_DEG

@@ -30,7 +30,7 @@ import rerun as rr  # noqa: E402
 from aioadept.geometry import Pose  # noqa: E402
 from aioadept.record.rrd import CellLogger, default_blueprint  # noqa: E402
 from aioadept.record.viewer import ViewerServer  # noqa: E402
-from aioadept.sim import kinematics as kin  # noqa: E402
+from aioadept.robots import viper_s850 as kin  # noqa: E402
 
 CHROMIUM = "/usr/bin/chromium"
 FIGURE = Path(__file__).resolve().parents[2] / "docs" / "figures" / "viewer.png"

@@ -13,7 +13,7 @@ from aioadept import MoveToolZ, SetSpeed
 from aioadept.bus.messages import ROBOT_STATE_TOPIC, RobotState
 from aioadept.bus.pubsub import Subscriber
 from aioadept.client import RobotClient
-from aioadept.sim import kinematics as kin
+from aioadept.robots import viper_s850 as kin
 from aioadept.testing.nodes import running_node
 
 VPLUS = Path(__file__).resolve().parents[2] / "vplus"

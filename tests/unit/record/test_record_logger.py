@@ -12,7 +12,7 @@ import rerun as rr  # noqa: E402
 from aioadept.geometry import Pose  # noqa: E402
 from aioadept.record.read import read_rrd  # noqa: E402
 from aioadept.record.rrd import IMAGE_MAX_WIDTH, CellLogger  # noqa: E402
-from aioadept.sim import kinematics as kin  # noqa: E402
+from aioadept.robots import viper_s850 as kin  # noqa: E402
 
 pytestmark = pytest.mark.timeout(60)
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from aioadept.record.model import chain_points_mm, joints_from_pose
-from aioadept.sim import kinematics as kin
+from aioadept.robots import viper_s850 as kin
 
 pytestmark = pytest.mark.timeout(30)
 

@@ -17,8 +17,8 @@ from hypothesis import strategies as st
 from aioadept.errors import RobotError
 from aioadept.geometry import Pose, decompose, pose_error, rel_tool
 from aioadept.protocol import ErrorCode
-from aioadept.sim import kinematics as kin
-from aioadept.sim.kinematics import (
+from aioadept.robots import viper_s850 as kin
+from aioadept.robots.viper_s850 import (
     DEFAULT_JUMP_LIMIT,
     HOME_JOINTS_DEG,
     VIPER_S850_LIMITS,

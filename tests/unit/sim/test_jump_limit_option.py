@@ -8,7 +8,7 @@ import pytest
 from aioadept.protocol import ErrorCode, Status
 from aioadept.sim.__main__ import build_parser, options_from_args
 from aioadept.sim.controller import Controller
-from aioadept.sim.kinematics import DEFAULT_JUMP_LIMIT, JumpLimit
+from aioadept.robots.viper_s850 import DEFAULT_JUMP_LIMIT, JumpLimit
 
 # Just off the wrist singularity: a 1 deg tilt of the tool at right angles to the bend needs J4 to swing ~76 deg.
 Q = (0.0, -90.0, 180.0, 90.0, 0.3, 0.0)

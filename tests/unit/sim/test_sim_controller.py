@@ -6,7 +6,7 @@ import pytest
 
 from aioadept.geometry import Pose, poses_close, rel_tool, rel_world
 from aioadept.protocol import NO_ID, ErrorCode, LineFramer, Status, encode_ack, parse_ack
-from aioadept.sim import kinematics as kin
+from aioadept.robots import viper_s850 as kin
 from aioadept.sim.controller import AIR_SIGNAL, Controller, SkillResult
 from aioadept.sim.motion import plan_duration
 

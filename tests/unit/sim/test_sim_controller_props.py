@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aioadept.protocol import Status, encode_ack
-from aioadept.sim import kinematics as kin
+from aioadept.robots import viper_s850 as kin
 from aioadept.sim.controller import Controller
 
 LIM = kin.VIPER_S850_LIMITS

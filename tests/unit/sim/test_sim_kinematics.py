@@ -11,8 +11,8 @@ from aioadept.errors import RobotError
 from aioadept.geometry import Pose, poses_close, rel_tool
 from aioadept.protocol import ErrorCode
 from aioadept.robots import viper_s850 as viper
-from aioadept.sim import kinematics as kin
-from aioadept.sim.kinematics import HOME_JOINTS_DEG, VIPER_S850_LIMITS, configuration, forward, inverse
+from aioadept.robots import viper_s850 as kin
+from aioadept.robots.viper_s850 import HOME_JOINTS_DEG, VIPER_S850_LIMITS, configuration, forward, inverse
 
 LIM = VIPER_S850_LIMITS
 

@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from aioadept.sim.kinematics import HOME_JOINTS_DEG, MAX_JOINT_SPEED_DEG_S
+from aioadept.robots.viper_s850 import HOME_JOINTS_DEG, MAX_JOINT_SPEED_DEG_S
 from aioadept.sim.motion import MotionLimits, Segment, Trajectory, plan_duration
 
 HOME = HOME_JOINTS_DEG

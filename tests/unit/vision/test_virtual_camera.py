@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from aioadept.geometry import Pose, poses_close
-from aioadept.sim import kinematics as kin
+from aioadept.robots import viper_s850 as kin
 from aioadept.vision.sharpness import measure
 from aioadept.vision.virtual_camera import (CalibrationTarget, LensOptics, PoseHistory, VirtualCamera,
                                             camera_facing_tool, disk_kernel, paper_approach_pose, paper_camera)

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from aioadept.sim import kinematics as kin
+from aioadept.robots import viper_s850 as kin
 from aioadept.sim.controller import Controller
 from aioadept.vplus.locations import PrecisionPoint, decompose, ppoint, trans
 from aioadept.vplus.robot import INRANGE_BITS, VPLUS_ERRORS, RobotDevice, VPlusRobotError, inrange_reasons

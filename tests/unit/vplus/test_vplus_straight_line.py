@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from aioadept.protocol import ErrorCode
-from aioadept.sim import kinematics as kin
+from aioadept.robots import viper_s850 as kin
 from aioadept.sim.controller import Controller
 from aioadept.vplus.locations import PrecisionPoint, decompose, trans
 from aioadept.vplus.robot import RobotDevice, VPlusRobotError
