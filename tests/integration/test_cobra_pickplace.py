@@ -1,6 +1,7 @@
-"""The classic Cobra cell (examples/cobra-pickplace.toml) end to end on the Python sim: a Cobra s600 SCARA picks 20
-parts off the feeder and places them on the pallet within 1 mm and 1 deg (real sim and vision node processes, the
-part locator on the world camera's images, real TCP and ZeroMQ)."""
+"""The classic Cobra cell (examples/cobra-pickplace.toml) end to end on both backends, the Python sim and the shipped
+V+ server on the emulator (``[robot] sim_args = ["--vplus", ...]``): a Cobra s600 SCARA picks 20 parts off the
+feeder and places them on the pallet within 1 mm and 1 deg (real sim and vision node processes, the part locator on
+the world camera's images, real TCP and ZeroMQ)."""
 
 from __future__ import annotations
 
@@ -15,15 +16,19 @@ from aioadept.robots import model
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "examples" / "cobra-pickplace.toml"
+VPLUS = ["--vplus", *(str(ROOT / "vplus" / f) for f in ("rserver.V2", "rsskills.V2", "rsconfig.V2")), "--run", "rs.main"]
 
 
 @pytest.mark.timeout(240)
-def test_a_cobra_places_20_of_20_parts_within_1_mm_and_1_deg(tmp_path):
+@pytest.mark.parametrize("backend", ["python", "vplus"])
+def test_a_cobra_places_20_of_20_parts_within_1_mm_and_1_deg(tmp_path, backend):
     from aioadept.cli.pickplace import run
 
     cfg = CellConfig.from_toml(EXAMPLE)
     assert (cfg.robot.model, cfg.pickplace.parts) == ("cobra-s600", 20)
-    cfg.robot.time_scale = 5.0
+    cfg.robot.time_scale = 10.0
+    if backend == "vplus":
+        cfg.robot.sim_args = VPLUS
     cfg.run.out_dir = str(tmp_path / "runs")
     cfg.run.name = "t"
     cfg.run.record = False  # run.rrd/run.mcap draw the Viper s850 only so far (docs/sim.md, Robot models)
