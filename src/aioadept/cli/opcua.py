@@ -35,6 +35,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     ident = Identity()
     p = ArgumentParser(prog="aioadept opcua", description=description(__doc__), formatter_class=DefaultsHelpFormatter)
+    p.add_argument("--config", metavar="FILE",
+                   help="cell file: [opcua] (endpoint, allow_commands, users, stale_after_s, name, and "
+                        "[opcua.devices.NAME] identities) and the robots: [robot] or every [[robots]] entry (host, "
+                        "port, state_endpoint, model), one MotionDevice each (docs/opcua.md); options given here "
+                        "override it")
     p.add_argument("--robot", default=f"{defaults.ROBOT_HOST}:{defaults.ROBOT_PORT}", metavar="HOST[:PORT]",
                    help="the robot server (aioadept sim, or the V+ server): asked for hello and status")
     p.add_argument("--state-endpoint", default=defaults.STATE_ENDPOINT, dest="state_endpoint",
@@ -49,6 +54,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--users", metavar="FILE",
                    help="with --allow-commands: NAME:PASSWORD lines, the users who may call the methods (the file "
                         "must be readable by its owner only)")
+    p.add_argument("--robot-model", default=None, dest="robot_model", metavar="NAME",
+                   help="the arm (aioadept sim --robot-model): its axes (a Cobra's four, J3 linear in mm), and the "
+                        "Model and MotionDeviceCategory unless --model/--category say otherwise (none: the Viper "
+                        "s850's six axes, Model and category Bad)")
     p.add_argument("--name", default=ident.name, help="the robot's MotionDevice browse name")
     p.add_argument("--manufacturer", default=ident.manufacturer, help="the robot's manufacturer")
     p.add_argument("--model", default="", help="the robot's model, e.g. Viper s850 (none: the variable is Bad)")
@@ -133,22 +142,81 @@ async def poll_robot(host: str, port: int, view, cell) -> None:
             await asyncio.sleep(1.0)
 
 
-async def run(args: argparse.Namespace, host: str, port: int, users: dict[str, str] | None) -> int:
+ROBOT_OPTIONS = ("robot", "state_endpoint", "robot_model", "name", "manufacturer", "model", "category",
+                 "serial_number", "controller_model")
+"""The options that describe the one robot of the command line (with ``[[robots]]`` each entry says its own)."""
+
+
+def _given(parser: argparse.ArgumentParser, args: argparse.Namespace) -> set[str]:
+    """The options whose value is not their default (given on the command line)."""
+    return {k for k, v in vars(args).items() if v != parser.get_default(k)}
+
+
+def identity_of(args: argparse.Namespace, given: set[str], base=None):
+    """The one robot's identity: ``base`` (the cell file's, or none) with the options given; ``--robot-model`` names
+    the axes, and the Model and category unless ``--model``/``--category`` do."""
+    import dataclasses
+
+    from aioadept.opcua.mapping import MotionDeviceCategory, identity_of_model
+
+    said = {k: getattr(args, k) for k in ("name", "manufacturer", "model", "serial_number", "controller_model")
+            if base is None or k in given}
+    if args.category is not None:
+        said["category"] = MotionDeviceCategory[args.category]
+    if base is None:
+        if args.robot_model is None:  # the sim's arm, but no Model or category the cell did not say
+            said.setdefault("category", None)
+        elif not args.model:
+            del said["model"]  # the model's own
+        return identity_of_model(args.robot_model or "viper-s850", **said)
+    if "robot_model" in given:
+        fresh = identity_of_model(args.robot_model, name=base.name)
+        base = dataclasses.replace(base, axes=fresh.axes, linear=fresh.linear, axis_names=fresh.axis_names,
+                                   model=fresh.model, category=fresh.category)
+    return dataclasses.replace(base, **said)
+
+
+def robot_plans(parser: argparse.ArgumentParser, args: argparse.Namespace) -> list:
+    """The robots to serve, from the options or the cell file (``--config``, whose ``[opcua]`` settings go into
+    ``args`` unless given on the command line). ValueError (one line naming the option, or the file and key)."""
+    from aioadept.cli.options import parse_robot_address
+    from aioadept.opcua.config import RobotPlan, load_plan
+
+    given = _given(parser, args)
+    if not args.config:
+        host, port = parse_robot_address(args.robot, defaults.ROBOT_PORT)
+        return [RobotPlan(host, port, args.state_endpoint, identity_of(args, given))]
+    cell = load_plan(args.config)
+    o = cell.opcua
+    for opt, value in (("endpoint", o.endpoint), ("users", o.users or None), ("stale_after", o.stale_after_s)):
+        if opt not in given:
+            setattr(args, opt, value)
+    args.allow_commands = args.allow_commands or o.allow_commands
+    if cell.many:
+        mine = [k for k in ROBOT_OPTIONS if k in given]
+        if mine:
+            raise ValueError(f"--{mine[0].replace('_', '-')}: {args.config} has [[robots]]: each robot's entry says "
+                             f"its own")
+        return list(cell.robots)
+    r = cell.robots[0]
+    host, port = parse_robot_address(args.robot, defaults.ROBOT_PORT) if "robot" in given else (r.host, r.port)
+    state = args.state_endpoint if "state_endpoint" in given else r.state_endpoint
+    return [RobotPlan(host, port, state, identity_of(args, given, r.identity))]
+
+
+async def run(args: argparse.Namespace, robots: list, users: dict[str, str] | None) -> int:
     from aioadept.errors import AdeptError
     from aioadept.opcua.commands import RobotCommands
-    from aioadept.opcua.mapping import Identity, MotionDeviceCategory, RobotView
+    from aioadept.opcua.mapping import RobotView
     from aioadept.opcua.server import CellServer
 
     loop = asyncio.get_running_loop()
     stop = asyncio.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, stop.set)
-    identity = Identity(name=args.name, manufacturer=args.manufacturer, model=args.model,
-                        serial_number=args.serial_number, controller_model=args.controller_model,
-                        category=None if args.category is None else MotionDeviceCategory[args.category])
-    view = RobotView(identity, stale_after_s=args.stale_after)
-    commands = [RobotCommands(host, port)] if users else None
-    cell = CellServer(args.endpoint, [view], commands=commands, users=users)
+    views = [RobotView(r.identity, stale_after_s=args.stale_after) for r in robots]
+    commands = [RobotCommands(r.host, r.port) for r in robots] if users else None
+    cell = CellServer(args.endpoint, views, commands=commands, users=users)
     tasks: list[asyncio.Task] = []
     try:
         await cell.start()
@@ -157,10 +225,13 @@ async def run(args: argparse.Namespace, host: str, port: int, users: dict[str, s
                 await c.connect()
             except (AdeptError, OSError) as exc:  # the methods connect when called; said here once
                 logging.getLogger("aioadept.opcua").warning("commands: robot server not reachable yet: %s", exc)
-        tasks = [asyncio.create_task(follow_state(args.state_endpoint, view, cell), name="opcua-state"),
-                 asyncio.create_task(watch(cell), name="opcua-watch"),
-                 asyncio.create_task(poll_robot(host, port, view, cell), name="opcua-robot")]
-        print(f"READY opcua={args.endpoint} state={args.state_endpoint} robot={host}:{port}", flush=True)
+        tasks = [asyncio.create_task(watch(cell), name="opcua-watch")]
+        for r, view in zip(robots, views):
+            tasks += [asyncio.create_task(follow_state(r.state_endpoint, view, cell), name=f"opcua-state-{r.name}"),
+                      asyncio.create_task(poll_robot(r.host, r.port, view, cell), name=f"opcua-robot-{r.name}")]
+        first = robots[0]
+        print(f"READY opcua={args.endpoint} state={first.state_endpoint} robot={first.host}:{first.port}"
+              + (f" robots={len(robots)}" if len(robots) > 1 else ""), flush=True)
         stopped = asyncio.create_task(stop.wait())
         done, _ = await asyncio.wait({*tasks, stopped}, return_when=asyncio.FIRST_COMPLETED)
         stopped.cancel()
@@ -180,16 +251,17 @@ async def run(args: argparse.Namespace, host: str, port: int, users: dict[str, s
 
 
 def main(argv: list[str] | None = None) -> int:
-    from aioadept.cli.options import parse_robot_address, report, run_node, setup_logging
+    from aioadept.cli.options import report, run_node, setup_logging
 
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
     setup_logging(args.log_level)
     # asyncua says much about the nodesets it imports, and logs a failed bind with its traceback before raising
     # it (said here in one line): its own log only with --log-level DEBUG.
     debug = logging.getLogger().level <= logging.DEBUG
     logging.getLogger("asyncua").setLevel(logging.DEBUG if debug else logging.CRITICAL)
     try:
-        host, port = parse_robot_address(args.robot, defaults.ROBOT_PORT)
+        robots = robot_plans(parser, args)
         check_endpoint(args.endpoint, args.insecure)
         if not args.stale_after > 0:
             raise ValueError(f"--stale-after {args.stale_after!r}: expected seconds > 0")
@@ -203,7 +275,7 @@ def main(argv: list[str] | None = None) -> int:
             users = read_users(args.users)
     except (ValueError, OSError) as exc:   # one line naming the option or the file, no usage block
         return report("aioadept opcua", exc)
-    return run_node("aioadept opcua", run(args, host, port, users))
+    return run_node("aioadept opcua", run(args, robots, users))
 
 
 if __name__ == "__main__":  # pragma: no cover

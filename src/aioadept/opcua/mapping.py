@@ -6,8 +6,11 @@ before it (for the axes' speeds) and its latest status; :meth:`RobotView.reading
 :class:`Reading` at a given moment, so a stream that has stalled turns its values Uncertain by itself.
 The asyncua side (:mod:`aioadept.opcua.server`) only writes these readings into the nodes their keys name.
 
-Units are the Robotics specification's for a rotary axis (OPC 40010-1, AxisType: ActualPosition, ActualSpeed):
-degrees and degrees per second, as UNECE codes in an ``EUInformation`` (:data:`DEGREE`, :data:`DEGREE_PER_SECOND`).
+Units are the Robotics specification's (OPC 40010-1, AxisType: ActualPosition, ActualSpeed): degrees and degrees per
+second for a rotary axis, millimetres and millimetres per second for a linear one (a SCARA's quill, J3), as UNECE
+codes in an ``EUInformation`` (:data:`DEGREE`, :data:`DEGREE_PER_SECOND`, :data:`MILLIMETRE`,
+:data:`MILLIMETRE_PER_SECOND`). Which axes a robot has, and which of them slide, is its model's
+(:func:`identity_of_model`, :mod:`aioadept.robots`).
 """
 
 from __future__ import annotations
@@ -17,9 +20,10 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["DEGREE", "DEGREE_CELSIUS", "DEGREE_PER_SECOND", "DI_NS", "IA_NS", "INSTANCE_NS", "NODESETS", "ROBOTICS_NS",
-           "STALE_AFTER_S", "AxisMotionProfile", "EngineeringUnit", "Identity", "MotionDeviceCategory",
-           "OperationalMode", "Quality", "Reading", "RobotView", "unece_unit_id"]
+__all__ = ["DEGREE", "DEGREE_CELSIUS", "DEGREE_PER_SECOND", "DI_NS", "IA_NS", "INSTANCE_NS", "MILLIMETRE",
+           "MILLIMETRE_PER_SECOND", "NODESETS", "ROBOTICS_NS", "STALE_AFTER_S", "AxisMotionProfile", "EngineeringUnit",
+           "Identity", "MotionDeviceCategory", "OperationalMode", "Quality", "Reading", "RobotView", "identity_of_model",
+           "model_title", "unece_unit_id"]
 
 DI_NS = "http://opcfoundation.org/UA/DI/"
 IA_NS = "http://opcfoundation.org/UA/IA/"
@@ -89,6 +93,8 @@ class EngineeringUnit:
 DEGREE = EngineeringUnit("DD", "°", "degree")
 DEGREE_PER_SECOND = EngineeringUnit("E96", "°/s", "degree per second")
 DEGREE_CELSIUS = EngineeringUnit("CEL", "°C", "degree Celsius")
+MILLIMETRE = EngineeringUnit("MMT", "mm", "millimetre")
+MILLIMETRE_PER_SECOND = EngineeringUnit("C16", "mm/s", "millimetre per second")
 
 
 class Quality(enum.Enum):
@@ -128,9 +134,53 @@ class Identity:
     axes: int = 6
     controller_model: str = ""
     controller_serial_number: str = ""
+    linear: tuple[bool, ...] = ()
+    """Per axis, whether it slides (LINEAR, mm) rather than turns (ROTARY, degrees); () is every axis rotary."""
+    axis_names: tuple[str, ...] = ()
+    """Per axis, the model's joint name (its DisplayName; the URDF's and ROS's ``joint_1`` ...); (): ``Axis<i>``."""
+
+    def __post_init__(self) -> None:
+        if self.axes < 1 or len(self.linear) not in (0, self.axes) or len(self.axis_names) not in (0, self.axes):
+            raise ValueError(f"{self.name}: {self.axes} axes, {len(self.linear)} linear flags, "
+                             f"{len(self.axis_names)} axis names: expected one flag and one name per axis")
 
     def text(self, value: str) -> Reading:
         return Reading(value, Quality.GOOD) if value else NOT_EXPOSED
+
+    def is_linear(self, axis: int) -> bool:
+        """Whether axis ``axis`` (from 1) slides."""
+        return bool(self.linear) and self.linear[axis - 1]
+
+    def profile(self, axis: int) -> AxisMotionProfile:
+        """Axis ``axis``'s MotionProfile (from 1): a V+ joint has stops at its limits, so never the ENDLESS kinds."""
+        return AxisMotionProfile.LINEAR if self.is_linear(axis) else AxisMotionProfile.ROTARY
+
+    def units(self, axis: int) -> tuple[EngineeringUnit, EngineeringUnit]:
+        """Axis ``axis``'s position and speed units (from 1)."""
+        return (MILLIMETRE, MILLIMETRE_PER_SECOND) if self.is_linear(axis) else (DEGREE, DEGREE_PER_SECOND)
+
+
+_CATEGORY_OF_FAMILY = {"viper": MotionDeviceCategory.ARTICULATED_ROBOT, "scara": MotionDeviceCategory.SCARA_ROBOT}
+
+
+def model_title(model_name: str) -> str:
+    """A registry name as people write it: ``"cobra-s600"`` is ``"Cobra s600"``."""
+    family, _, size = model_name.partition("-")
+    return f"{family.capitalize()} {size}".strip()
+
+
+def identity_of_model(model_name: str, **identity: Any) -> Identity:
+    """The :class:`Identity` of a robot of model ``model_name`` (:func:`aioadept.robots.model`; ValueError naming the
+    known ones): its axes, which of them slide and their names, and, unless ``identity`` gives them, its Model text
+    (:func:`model_title`) and MotionDeviceCategory (SCARA_ROBOT for a Cobra, ARTICULATED_ROBOT for a Viper).
+    ``identity``: the other :class:`Identity` fields."""
+    from aioadept.robots import model
+
+    m = model(model_name)
+    identity.setdefault("model", model_title(m.name))
+    identity.setdefault("category", _CATEGORY_OF_FAMILY[m.family])
+    return Identity(axes=m.dof, linear=tuple(m.prismatic), axis_names=tuple(j.name for j in m.urdf_joints),
+                    **identity)
 
 
 def _key_axis(i: int, name: str) -> tuple[str, int, str]:

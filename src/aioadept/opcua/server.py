@@ -7,9 +7,9 @@ names in :data:`~aioadept.opcua.mapping.INSTANCE_NS`)::
 
     Objects/DeviceSet/MotionDeviceSystem                     MotionDeviceSystemType
         MotionDevices/<robot>                                MotionDeviceType (identity, SpeedOverride)
-            Axes/Axis1..6                                    AxisType (MotionProfile ROTARY;
-                ParameterSet/ActualPosition, ActualSpeed      degrees, degrees per second)
-            PowerTrains/PowerTrain1..6                       PowerTrainType, Moves -> its axis
+            Axes/Axis1..N (the model's axes)                 AxisType (MotionProfile ROTARY: degrees, degrees
+                ParameterSet/ActualPosition, ActualSpeed      per second; LINEAR, a SCARA's J3: mm, mm/s)
+            PowerTrains/PowerTrain1..N                       PowerTrainType, Moves -> its axis
                 Motor                                        MotorType (nothing known: Bad)
         Controllers/<robot>Controller                        ControllerType, Controls -> the robot
             Software/RobotServer                             SoftwareType (the server's hello)
@@ -31,10 +31,11 @@ from typing import Any
 
 from asyncua import Node, Server, ua
 from asyncua.common.instantiate_util import instantiate
+from asyncua.common.manage_nodes import delete_nodes
 
 from aioadept.opcua.commands import VENDOR_NS
-from aioadept.opcua.mapping import (DEGREE, DEGREE_CELSIUS, DEGREE_PER_SECOND, DI_NS, INSTANCE_NS, NODESETS, ROBOTICS_NS,
-                                    AxisMotionProfile, EngineeringUnit, Identity, Quality, Reading, RobotView)
+from aioadept.opcua.mapping import (DEGREE_CELSIUS, DI_NS, INSTANCE_NS, NODESETS, ROBOTICS_NS, EngineeringUnit, Identity,
+                                    Quality, Reading, RobotView)
 
 __all__ = ["CellServer", "STATUS_CODES", "load_nodesets", "without_design_tool_only"]
 
@@ -117,6 +118,7 @@ class CellServer:
         s.set_server_name("aioadept opcua")
         s.set_identity_tokens([ua.AnonymousIdentityToken] + ([ua.UserNameIdentityToken] if self.commands else []))
         await load_nodesets(s)
+        _cache_reference_subtypes(s)
         for uri in (DI_NS, ROBOTICS_NS):
             self._idx[uri] = await s.get_namespace_index(uri)
         self._idx[INSTANCE_NS] = await s.register_namespace(INSTANCE_NS)
@@ -147,7 +149,16 @@ class CellServer:
                                   bname=self._qn(name), dname=ua.LocalizedText(name), instantiate_optional=False)
         placeholders = [n for n in nodes[1:] if (await n.read_browse_name()).Name.startswith("<")]
         if placeholders:
-            await self.server.delete_nodes(placeholders, recursive=True)
+            # Only the new nodes refer to a placeholder's subtree: drop those references here, rather than have
+            # asyncua look for references to each deleted node in the whole address space (seconds per node).
+            deleted, _ = await delete_nodes(self.server.iserver.isession, placeholders, recursive=True,
+                                            delete_target_references=False)
+            gone = {n.nodeid for n in deleted}
+            aspace = self.server.iserver.aspace
+            for n in nodes:
+                if n.nodeid not in gone:
+                    data = aspace[n.nodeid]
+                    data.references = [ref for ref in data.references if ref.NodeId not in gone]
         return nodes[0]
 
     async def _child(self, node: Node, *path: tuple[str, str]) -> Node:
@@ -242,13 +253,17 @@ class CellServer:
         trains = await self._child(dev, (r, "PowerTrains"))
         for i in range(1, ident.axes + 1):
             axis = await self._make(axes, self._type("AxisType"), f"MotionDeviceSystem.{n}.Axis{i}", f"Axis{i}")
-            await self._set(await self._child(axis, (r, "MotionProfile")), int(AxisMotionProfile.ROTARY),
+            if ident.axis_names:
+                await axis.write_attribute(ua.AttributeIds.DisplayName, ua.DataValue(ua.Variant(
+                    ua.LocalizedText(ident.axis_names[i - 1]), ua.VariantType.LocalizedText)))
+            await self._set(await self._child(axis, (r, "MotionProfile")), int(ident.profile(i)),
                             ua.VariantType.Int32)
             params = await self._child(axis, (DI_NS, "ParameterSet"))
             pos = await self._child(params, (r, "ActualPosition"))
-            await self._units(pos, DEGREE)
+            pos_unit, speed_unit = ident.units(i)
+            await self._units(pos, pos_unit)
             speed = await self._optional_analog(params, f"MotionDeviceSystem.{n}.Axis{i}.ActualSpeed", "ActualSpeed")
-            await self._units(speed, DEGREE_PER_SECOND)
+            await self._units(speed, speed_unit)
             live[("axis", i, "ActualPosition")] = pos
             live[("axis", i, "ActualSpeed")] = speed
             train = await self._make(trains, self._type("PowerTrainType"), f"MotionDeviceSystem.{n}.PowerTrain{i}",
@@ -376,6 +391,23 @@ class _Roles:
 
     def check_validity(self, user: Any, action_type_id: ua.NodeId, body: Any) -> bool:
         return action_type_id in self._allowed.get(user.role, set())
+
+
+def _cache_reference_subtypes(server: Server) -> None:
+    """Make asyncua's browse look up each reference type's subtypes once: it walks the type tree again for every
+    reference of every browsed node (most of the time building the address space took, and of every client's
+    browse). The reference types are all in once the nodesets are loaded; none is added after."""
+    view = server.iserver.view_service
+    walk = view._get_sub_ref
+    subtypes: dict[ua.NodeId, frozenset[ua.NodeId]] = {}
+
+    def cached(ref: ua.NodeId) -> frozenset[ua.NodeId]:
+        found = subtypes.get(ref)
+        if found is None:
+            found = subtypes[ref] = frozenset(walk(ref))
+        return found
+
+    view._get_sub_ref = cached
 
 
 def _refuse_writes_as_not_writable(server: Server) -> None:
