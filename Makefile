@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: venv venv-install demo demo-multi test bench docs proto clean toxiproxy chromium gige
+.PHONY: venv venv-install demo demo-multi test bench docs proto clean toxiproxy chromium gige nvim
 
 # Two makes started at once (two terminals on a fresh clone) must not install into one .venv together: the
 # install runs under a lock, and a make that waited for it finds the stamp fresh and installs nothing.
@@ -46,6 +46,16 @@ chromium:
 	  echo "chromium install failed: the viewer's browser test will skip" >&2; \
 	else echo "no /usr/bin/chromium and no root apt-get: the viewer's browser test will skip" >&2; fi
 
+# Neovim (Debian's neovim) for the V+ language server's editor test (tests/integration/test_vplus_neovim.py),
+# installed when missing and this machine allows it (root with apt-get); without it that test skips and says why.
+nvim:
+	@if command -v nvim >/dev/null 2>&1; then :; \
+	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	  echo "installing neovim (Debian package) for the V+ language server's editor test" >&2; \
+	  (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq neovim >/dev/null) || \
+	  echo "neovim install failed: the V+ editor test will skip" >&2; \
+	else echo "no nvim and no root apt-get: the V+ editor test will skip" >&2; fi
+
 # The GigE Vision source's extra (pyproject's [gige]: aravis-python, PyGObject) and the Debian packages PyGObject
 # builds with, installed when missing and this machine allows it (root with apt-get). Without them the GigE tests
 # (tests/integration/test_gige_camera.py, against Aravis's fake camera on 127.0.0.1) skip and say why.
@@ -63,7 +73,7 @@ gige: $(STAMP)
 	fi
 
 # pytest exits 5 when it collected no tests: that is a failure, not a pass.
-test: $(STAMP) toxiproxy chromium gige
+test: $(STAMP) toxiproxy chromium gige nvim
 	$(BIN)/python -m pytest -q -rfEs $(ARGS); rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "no tests were collected" >&2; exit 1; fi; exit $$rc
 

@@ -144,7 +144,8 @@ def facts(prog: Program) -> Facts:
     walk = _Walk()
     for line, st in prog.steps:
         walk.stmt(line, st)
-    lost = {n: code for n, code in prog.source.items() if n not in {line for line, _ in prog.steps}}
+    parsed = {line for line, _ in prog.steps}
+    lost = {n: code for n, code in prog.source.items() if n not in parsed}
     for code in lost.values():
         for w in _WORD.findall(code):
             walk.writes.add(norm(w))
@@ -169,7 +170,9 @@ def facts(prog: Program) -> Facts:
             col, end = _column(prog, line, key.removesuffix("[]"), after=word)
             out.own.append(Finding(prog.file, line, col, end, "W104",
                                    f"{word} {_shown(key)} is never used in {prog.name}"))
-    out.own.extend(_long_strings(prog))
+    out.own.extend(Finding(prog.file, line, span.col or 1, span.end or 1, "W106",
+                           f"a string constant of {length} characters in {prog.name}: V+ takes at most {MAX_STRING}")
+                   for line, span, length in walk.long_strings)
     if not lost:
         out.own.extend(_unused_labels(prog, walk.targets))
         out.own.extend(_unreachable(prog))
@@ -198,11 +201,21 @@ class _Walk:
         self.used: set[str] = set()
         self.calls: list[Use] = []
         self.targets: set[int] = set()
+        self.long_strings: list[tuple[int, N.Span, int]] = []
         self.line = 0
 
     def read(self, e: N.Node | None) -> None:
         """An expression whose variables are read."""
-        if e is None:
+        t = type(e)
+        if t is N.Num or t is N.Fmt or e is None:
+            return
+        if t is N.BinOp:
+            self.read(e.left)
+            self.read(e.right)
+            return
+        if t is N.Str:
+            if len(e.value) > MAX_STRING and not e.bare:
+                self.long_strings.append((self.line, e.span, len(e.value)))
             return
         if isinstance(e, (N.Name, N.Index, N.Array)):
             key = e.name + ("" if isinstance(e, N.Name) else "[]")
@@ -329,22 +342,6 @@ class _Walk:
     def s_Decompose(self, st: N.Decompose) -> None:
         self.write(st.target)
         self.read(st.value)
-
-
-def _walk_nodes(node: N.Node) -> Iterator[N.Node]:
-    yield node
-    for c in node.children():
-        yield from _walk_nodes(c)
-
-
-def _long_strings(prog: Program) -> Iterator[Finding]:
-    for line, st in prog.steps:
-        for node in _walk_nodes(st):
-            if isinstance(node, N.Str) and not node.bare and len(node.value) > MAX_STRING:
-                span = node.span
-                yield Finding(prog.file, line, span.col or 1, span.end or 1, "W106",
-                              f"a string constant of {len(node.value)} characters in {prog.name}: V+ takes at "
-                              f"most {MAX_STRING}")
 
 
 def _unused_labels(prog: Program, targets: set[int]) -> Iterator[Finding]:
