@@ -49,7 +49,7 @@ def test_the_server_without_its_skills_module_names_the_missing_program(tmp_path
               "--map-port", "1234=0", "--map-port", "1235=0")
     assert res.returncode == 1
     err = [ln for ln in res.stderr.splitlines() if ln.strip()]
-    assert len(err) == 1 and "*Undefined program* hello" in err[0]
+    assert len(err) == 1 and "*Undefined program or variable name* hello" in err[0]
     assert "no loaded file defines hello (load its module too)" in err[0]
 
 

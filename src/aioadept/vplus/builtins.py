@@ -529,7 +529,16 @@ def _motion(rt: Runtime) -> dict[str, Any]:
         action = kind.rstrip("I").lower()
         return drive(T, r.hand(T.num, action, immediate=kind.endswith("I")))
 
-    return {"_robot": robot, "_hand": hand}
+    def calibrate(T: Task, mode: Any, status: tuple | None) -> Generator:
+        # The emulated arm is calibrated from the start: CALIBRATE waits for the arm to be at rest (no motion of
+        # its own, ever) and reports success in ``status`` (1, IOSTAT's convention: UNCONFIRMED, docs/vplus.md)
+        r = _robot_of(rt, T)
+        r._check_owner(T.num)
+        yield from drive(T, r.break_())
+        if status is not None:
+            status[0][status[1]] = 1.0
+
+    return {"_robot": robot, "_hand": hand, "_calibrate": calibrate}
 
 
 def _robot(rt: Runtime) -> dict[str, Any]:
@@ -552,8 +561,15 @@ def _robot(rt: Runtime) -> dict[str, Any]:
         if ctl is not None and vals:
             ctl.accel_pct = float(vals[0])
 
+    def select(T: Task, device: str, unit: float) -> None:
+        # SELECT ROBOT = n: robot 1 is the one arm; another number is an error (text and code UNCONFIRMED)
+        n = vint(unit)
+        if n != 1:
+            raise VPlusError(E.ILLEGAL_VALUE, f"*Illegal value* (SELECT ROBOT = {n}: the emulator has one robot, "
+                                              "robot 1)")
+
     return {
-        "_brake": brake, "_speed": speed, "_accel": accel,
+        "_brake": brake, "_speed": speed, "_accel": accel, "_select": select,
         "_duration": lambda T, v, always: _robot_of(rt, T).set_duration(T.num, float(v), always=always),
         "_config": lambda T, word: _robot_of(rt, T).request_config(T.num, word),
         "_tool": lambda T, t: _robot_of(rt, T).set_tool(T.num, _loc_check(t)),
@@ -646,6 +662,10 @@ def _functions(rt: Runtime) -> dict[str, Any]:
             return 100.0
         return float(ctl.monitor_speed_pct if int(sel) == 0 else ctl.always_speed_pct)
 
+    def parameter_fn(name: str) -> float:
+        # PARAMETER(name): what PARAMETER name = value set (HAND.TIME); NOT.CALIBRATED is 0, every robot calibrated
+        return float(rt.io.hand_time_s) if name == "HAND.TIME" else 0.0
+
     fn = dict(IMPLEMENTATIONS)
     fn |= _MATH
     fn |= _LOCATION_FUNCTIONS
@@ -654,7 +674,7 @@ def _functions(rt: Runtime) -> dict[str, Any]:
         "INRANGE": lambda T, loc: float(_live_robot(rt).inrange(loc)), "HERE": lambda T: _live_robot(rt).here(),
         "#HERE": lambda T: _live_robot(rt).here_ppoint(), "SPEED": speed_fn,
         "SWITCH": lambda *a: -1.0 if rt.switches.get("DRY.RUN") else 0.0, "BITS": _bits(rt),
-        "GETC": iodev.getc(rt),
+        "GETC": iodev.getc(rt), "PARAMETER": parameter_fn, "SELECT": lambda device: 1.0,
     }
     fn.update(status.functions(rt))      # STATE(), SWITCH(name): the robot's status (aioadept.vplus.status)
     return fn

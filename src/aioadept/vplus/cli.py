@@ -303,6 +303,6 @@ def _explain(err: Any) -> str:
     else:
         text = str(err)
     if getattr(err, "code", None) == E.UNDEFINED_PROGRAM:
-        name = str(err.message).replace("*Undefined program*", "").strip()
+        name = str(err.message).replace(E.text(E.UNDEFINED_PROGRAM), "").strip()
         text += f": no loaded file defines {name} (load its module too)"
     return text

@@ -922,6 +922,14 @@ class _Gen:
             raise CompileError(line, f"PARAMETER {st.name} is not implemented by the emulator", "PARAMETER", st)
         self.guarded(line, [f"_parameter(T, {st.name!r}, {self.val(st.value)[0]})"])
 
+    def visit_Select(self, line: int, st: N.Select) -> None:
+        self.guarded(line, [f"_select(T, {st.device!r}, {self.val(st.unit)[0]})"])
+
+    def visit_Calibrate(self, line: int, st: N.Calibrate) -> None:
+        mode = "None" if st.mode is None else self.val(st.mode)[0]
+        status = "None" if st.status is None else "({}, {})".format(*self.ref(st.status))
+        self.guarded(line, [f"yield from _calibrate(T, {mode}, {status})"])
+
     def visit_Bits(self, line: int, st: N.Bits) -> None:
         count = "1.0" if st.count is None else self.val(st.count)[0]
         self.guarded(line, [f"_bits_set(T, {self.val(st.first)[0]}, {count}, {self.val(st.value)[0]})"])

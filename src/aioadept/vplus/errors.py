@@ -37,7 +37,7 @@ TEXT: dict[int, str] = {
     ILLEGAL_VALUE: "*Illegal value*",
     ILLEGAL_OPERATION: "*Illegal operation*",
     STRING_TOO_LONG: "*String too long*",
-    UNDEFINED_PROGRAM: "*Undefined program*",
+    UNDEFINED_PROGRAM: "*Undefined program or variable name*",   # V+'s text for a CALL of no program
     NOT_EXECUTABLE: "*Program not executable*",
     ILLEGAL_ARRAY_INDEX: "*Illegal array index*",
     DIVISION_BY_ZERO: "*Division by 0*",

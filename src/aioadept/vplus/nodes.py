@@ -270,9 +270,10 @@ class Signal(Items):
 
 @dataclass(frozen=True, slots=True)
 class Accel(Items):
-    """``ACCEL acc, dec [ALWAYS]``."""
+    """``ACCEL [(profile)] acc, dec [ALWAYS]``."""
 
     always: bool = False
+    profile: Expr | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -411,6 +412,22 @@ class Hand(Stmt):
 class Parameter(Stmt):
     name: str
     value: Expr
+
+
+@dataclass(frozen=True, slots=True)
+class Select(Stmt):
+    """``SELECT device = unit`` (the emulator: ROBOT)."""
+
+    device: str
+    unit: Expr
+
+
+@dataclass(frozen=True, slots=True)
+class Calibrate(Stmt):
+    """``CALIBRATE [mode[, status]]``: ``status`` is a variable."""
+
+    mode: Expr | None = None
+    status: Expr | None = None
 
 
 @dataclass(frozen=True, slots=True)

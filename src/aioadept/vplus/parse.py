@@ -79,9 +79,11 @@ def tokenize(text: str) -> list[Tok]:
         elif kind == "hex":
             # V+ radix constants (Language User's Guide v17 p. 102, "Numeric Representation"): ^H hexadecimal,
             # ^B binary (at most 8 bits), ^ and digits octal, ^D a double-precision integer. Right after an
-            # operand, '^' is the power operator instead (x^2, a[1]^2).
+            # operand, '^' is the power operator instead (x^2, a[1]^2); a word operator (x = ^B1001001 BAND
+            # ^B1110011, the same page) or the instruction word that starts the line (SIGNAL ^B101) is no operand.
             prev = out[-1] if out else None
-            if prev is not None and (prev.kind in ("num", "str", "name") or prev.text in (")", "]")):
+            if prev is not None and (prev.kind in ("num", "str") or prev.text in (")", "]")
+                                     or (prev.kind == "name" and not _keyword_before(out))):
                 out.append(Tok("op", "^", None, start))
                 pos = m.start() + 1
                 continue
@@ -93,6 +95,15 @@ def tokenize(text: str) -> list[Tok]:
         else:
             out.append(Tok(kind, s, None, start))
     return out
+
+
+def _keyword_before(out: list[Tok]) -> bool:
+    """The last token is a word operator, or the instruction word that starts the line (after a label)."""
+    up = out[-1].text.upper()
+    if up in _RESERVED_WORDS:
+        return True
+    first = 1 if out[0].kind == "num" else 0
+    return len(out) == first + 1 and up in STATEMENTS
 
 
 def _radix(s: str, start: int) -> float:
@@ -394,8 +405,31 @@ def _switch_fn(p: Parser, i0: int) -> N.Expr:
     return N.Call("SWITCH", (name,), span=p.span(i0))
 
 
+def _named_fn(fn: str, names: frozenset[str]) -> Callable[[Parser, int], N.Expr]:
+    """``FN(name)`` whose argument names a system parameter or device, not a variable: PARAMETER(HAND.TIME),
+    SELECT(ROBOT). A name the emulator does not have is refused at load, saying so."""
+
+    def parse(p: Parser, i0: int) -> N.Expr:
+        p.take()
+        j = p.i
+        arg = p.take()
+        if arg.kind != "name":
+            raise p.error(f"{fn} needs a name", arg)
+        if arg.text.upper() not in names:
+            raise p.error(f"{fn}({arg.text.upper()}) is not implemented by the emulator (it has "
+                          f"{', '.join(sorted(names))})", arg)
+        name = N.Str(arg.text.upper(), bare=True, span=p.span(j))
+        p.expect_op(")")
+        return N.Call(fn, (name,), span=p.span(i0))
+    return parse
+
+
 # Functions with their own argument syntax.
-_SPECIAL_ATOMS: dict[str, Callable[[Parser, int], N.Expr]] = {"SHIFT": _shift, "SWITCH": _switch_fn}
+_SPECIAL_ATOMS: dict[str, Callable[[Parser, int], N.Expr]] = {
+    "SHIFT": _shift, "SWITCH": _switch_fn,
+    "PARAMETER": _named_fn("PARAMETER", frozenset({"HAND.TIME", "NOT.CALIBRATED"})),
+    "SELECT": _named_fn("SELECT", frozenset({"ROBOT"})),
+}
 
 FUNCTIONS = frozenset(name for name, entry in registry.FUNCTIONS.items() if entry.call)
 """The functions ``NAME(`` calls: those the registry (:mod:`aioadept.vplus.registry`) has."""
@@ -756,11 +790,48 @@ def _speed(p: Parser, w: str) -> N.Stmt:
 
 
 def _accel(p: Parser, w: str) -> N.Stmt:
+    # ACCEL (profile) acceleration, deceleration: a parenthesised value followed by another value is the profile
+    # (V+ Language Reference Guide, ACCEL); followed by nothing, ',' or an operator it is the acceleration itself
+    profile = None
+    if p.at_op("("):
+        i0 = p.i
+        p.take()
+        e = p.expr()
+        p.expect_op(")")
+        nxt = p.peek()
+        if nxt is not None and (nxt.kind != "op" or nxt.text == "(") and nxt.text.upper() not in _INFIX_WORDS:
+            profile = e
+        else:
+            p.i = i0
     e = _exprs(p)
     always = p.at_word("ALWAYS")
     if always:
         p.take()
-    return N.Accel(e, always)
+    return N.Accel(e, always, profile)
+
+
+_INFIX_WORDS = {"AND", "OR", "XOR", "BAND", "BOR", "BXOR", "MOD", "ALWAYS"}
+
+
+def _select(p: Parser, w: str) -> N.Stmt:
+    """SELECT ROBOT = unit: the robot the task's motion instructions drive (the emulator has robot 1)."""
+    dev = p.take()
+    if dev.kind != "name":
+        raise p.error("expected a device name (SELECT ROBOT = unit)", dev)
+    if dev.text.upper() != "ROBOT":
+        raise p.error(f"SELECT {dev.text.upper()} is not implemented by the emulator (it has SELECT ROBOT)", dev)
+    p.expect_op("=")
+    return N.Select("ROBOT", p.expr())
+
+
+def _calibrate(p: Parser, w: str) -> N.Stmt:
+    """CALIBRATE [mode[, status]]: ``status`` is a variable that receives the outcome."""
+    mode = None if p.done() or p.at_op(",") else p.expr()
+    status = None
+    if p.at_op(","):
+        p.take()
+        status = p.lvalue()
+    return N.Calibrate(mode, status)
 
 
 def _here(p: Parser, w: str) -> N.Stmt:
@@ -837,6 +908,7 @@ STATEMENTS = _table(
     ("FOPENR FOPENW FOPENA FOPEND FDELETE", _disk_open), ("SPEED", _speed), ("ACCEL", _accel),
     ("HERE", _here), ("DECOMPOSE", _decompose), ("ENABLE DISABLE", _switch),
     (" ".join(HAND_INSTRUCTIONS), _hand), ("PARAMETER", _parameter), ("BITS", _bits), ("TIMER", _timer),
+    ("SELECT", _select), ("CALIBRATE", _calibrate),
 )
 """The statement parsers by leading keyword (disk files: aioadept.vplus.disk; digital I/O and the hand:
 aioadept.sim.io). A keyword missing here is reported by :func:`_unknown_instruction`."""

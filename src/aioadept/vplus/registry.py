@@ -87,7 +87,7 @@ $TOUPPER($string) str | $TOLOWER($string) str | SWITCH(name) num | BITS(first, c
 NORM(location) num | $DEFAULT(...) str | STATE(select) num | BMASK(bit, ...) num
 $INTB(value) str | INTB($string, first_char) num | $LNGB(value) str | LNGB($string, first_char) num
 $FLTB(value) str | FLTB($string, first_char) num | $DBLB(value) str | DBLB($string, first_char) num
-GETC(lun, mode) num
+GETC(lun, mode) num | PARAMETER(name) num | SELECT(device) num
 """
 
 for _item in _TABLE.strip().replace("\n", " | ").split("|"):
@@ -108,11 +108,11 @@ READ (lun, handle, mode) variable, ... | WRITE (lun, handle) item, ... | FCMND (
 EXECUTE [task,] program([argument, ...]) | ABORT task | KILL task | CYCLE.END task | REACTE program
 MOVE location | MOVES location | APPRO location, distance | APPROS location, distance | DEPART distance
 DEPARTS distance | MOVET location, hand | MOVEST location, hand | BREAK | BRAKE | DELAY time
-SPEED value [ALWAYS] | ACCEL acceleration, deceleration [ALWAYS] | DURATION time [ALWAYS] | TOOL transformation
+SPEED value [ALWAYS] | ACCEL [(profile)] acceleration, deceleration [ALWAYS] | DURATION time [ALWAYS] | TOOL transformation
 HERE location | DECOMPOSE array[] = location | SET location = value | TIMER timer = time | NULL
 ENABLE switch, ... | DISABLE switch, ... | PARAMETER HAND.TIME = value | BITS first, count = value
 OPEN [hand] | OPENI [hand] | CLOSE [hand] | CLOSEI [hand] | RELAX [hand] | RELAXI [hand]
-LEFTY | RIGHTY | ABOVE | BELOW | FLIP | NOFLIP | SINGLE | MULTIPLE
+LEFTY | RIGHTY | ABOVE | BELOW | FLIP | NOFLIP | SINGLE | MULTIPLE | SELECT ROBOT = unit | CALIBRATE [mode[, status]]
 FOPENR (lun) file | FOPENW (lun) file | FOPENA (lun) file | FOPEND (lun) folder | FDELETE (lun) file
 """
 

@@ -313,7 +313,7 @@ class Runtime:
             if name in self.not_executable:
                 p = self.not_executable[name][0]
                 raise VPlusError(E.NOT_EXECUTABLE, f"*Program not executable* {name}: {p}")
-            raise VPlusError(E.UNDEFINED_PROGRAM, f"*Undefined program* {name}")
+            raise VPlusError(E.UNDEFINED_PROGRAM, f"{E.text(E.UNDEFINED_PROGRAM)} {name}")
         return f(T, args)
 
     def _release(self, T: Task) -> None:

@@ -103,7 +103,8 @@ _RENDER: dict[type, Callable] = {
     N.Type: lambda st: ("TYPE " + _list(st.items)).rstrip(),
     N.Prompt: lambda st: ("PROMPT " + _list(st.items)).rstrip(),
     N.Signal: lambda st: "SIGNAL " + _list(st.items),
-    N.Accel: lambda st: "ACCEL " + _list(st.items) + (" ALWAYS" if st.always else ""),
+    N.Accel: lambda st: "ACCEL " + _opt("(", st.profile) + (") " if st.profile is not None else "") + _list(st.items)
+    + (" ALWAYS" if st.always else ""),
     N.TaskControl: lambda st: (st.word + " " + _list(st.items)).rstrip(),
     N.Event: lambda st: (st.word + " " + _list(st.items)).rstrip(),
     N.Declare: _declare,
@@ -122,6 +123,9 @@ _RENDER: dict[type, Callable] = {
     N.Switch: lambda st: f"{st.word} {', '.join(st.names)}",
     N.Hand: lambda st: st.word + _opt(" ", st.arg),
     N.Parameter: lambda st: f"PARAMETER {st.name} = {unparse(st.value)}",
+    N.Select: lambda st: f"SELECT {st.device} = {unparse(st.unit)}",
+    N.Calibrate: lambda st: ("CALIBRATE" + _opt(" ", st.mode) + _opt(", ", st.status)).replace("CALIBRATE, ",
+                                                                                                  "CALIBRATE , "),
     N.Bits: lambda st: f"BITS {unparse(st.first)}" + _opt(", ", st.count) + f" = {unparse(st.value)}",
     N.TimerSet: lambda st: f"TIMER {unparse(st.timer)} = {unparse(st.value)}",
 }
