@@ -158,6 +158,9 @@ class RobotDevice:
         """Longest a motion wait sleeps before it looks again (a BRAKE from another task may have ended it)."""
         self.owner: TaskId | None = None
         self._brakes = 0  # counts BRAKEs, so a motion instruction waiting for its turn notices one
+        # the trajectory's plan as the last BRAKE left it: while it is still the plan, no motion was planned since
+        # (the trajectory replaces its list of segments on every stop and every new motion)
+        self._braked_plan: object = None
 
     # -- time --------------------------------------------------------------------------------------------
     @property
@@ -394,7 +397,15 @@ class RobotDevice:
             self.now_s = now_s
         self._brakes += 1
         self.controller.io.pending_hand = None  # a deferred OPEN/CLOSE does not act on the motion after a stop
-        return self.controller.trajectory.stop(self.now_s)
+        traj = self.controller.trajectory
+        rest = traj.stop(self.now_s)
+        self._braked_plan = traj._segments
+        return rest
+
+    @property
+    def braked(self) -> bool:
+        """The last motion was ended by a BRAKE and none was planned since (V+ STATE(2) 5 and 6)."""
+        return self._braked_plan is not None and self.controller.trajectory._segments is self._braked_plan
 
     def delay(self, task: TaskId, seconds: float) -> MotionGen:
         """V+ ``DELAY s``: the arm holds still for ``s`` seconds (see the module docstring for the difference)."""
