@@ -162,3 +162,41 @@ def test_a_stopped_task_stops_no_other_and_pause_stops_a_running_one(dbg):
     dbg.set_breakpoints(dbg.path, [])
     dbg.emu.run(5.0)
     assert dbg.emu.globals["n"] == 100.0 and dbg.emu.console[-1] == "[0] a=16"
+
+
+MOVER = """.PROGRAM mover()
+    HERE #p
+    DECOMPOSE j[] = #p
+    MOVE #PPOINT(j[0]+60, j[1], j[2], j[3], j[4], j[5])
+    TYPE "moving"
+    WAIT
+    TYPE "on"
+.END
+"""
+
+
+def _moving(tmp_path, bp_line: int | None):
+    path = tmp_path / "mover.V2"
+    path.write_text(MOVER)
+    emu = Emulator.load(path)
+    d = Debugger(emu.rt)
+    if bp_line is not None:
+        d.set_breakpoints(str(path), [{"line": bp_line}])
+    emu.execute(0, "mover")
+    return emu, d
+
+
+def test_a_task_that_stops_during_a_motion_brakes_the_arm_and_ending_the_session_brakes_too(tmp_path):
+    emu, d = _moving(tmp_path, 5)                 # stops right after the MOVE started
+    emu.run(until=lambda: 0 in d.stopped)
+    traj = emu.controller.trajectory
+    j0 = emu.controller.joints_at(emu.time_s)[0]
+    emu.run(2.0)                                  # far longer than a brake takes
+    assert not traj.in_motion(emu.time_s)
+    assert emu.controller.joints_at(emu.time_s)[0] < j0 + 10      # came to rest, far from the 60 degrees
+    emu, d = _moving(tmp_path, None)              # no breakpoint: the session ends mid-motion
+    emu.run(until=lambda: any("moving" in c for c in emu.console))
+    assert emu.controller.trajectory.in_motion(emu.time_s)
+    d.end()
+    emu.run(2.0)
+    assert not emu.controller.trajectory.in_motion(emu.time_s) and emu.task(0).state == "aborted"

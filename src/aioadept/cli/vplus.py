@@ -5,6 +5,7 @@ loaded together, one line each (``file:line:col: error|warning: message [code]``
 with ``--format github``; ``--format json``: one JSON array; ``--format sarif``: a SARIF 2.1.0 log); exit status 1
 when there is an error (with ``--strict`` a warning too), 0 otherwise, 2 for a usage mistake.
 ``lsp`` serves the Language Server Protocol on stdin/stdout (:mod:`aioadept.vplus.lsp`, the ``lsp`` extra).
+``dap`` serves the Debug Adapter Protocol on stdin/stdout or ``--listen 127.0.0.1:PORT`` (:mod:`aioadept.vplus.dap`).
 """
 
 from __future__ import annotations
@@ -33,6 +34,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "SARIF 2.1.0 log (code scanning)")
     c.add_argument("--strict", action="store_true", help="exit 1 on a warning too (else only on an error)")
     sub.add_parser("lsp", help="serve the V+ Language Server Protocol on stdin/stdout (editors)")
+    d = sub.add_parser("dap", help="serve the V+ Debug Adapter Protocol on stdin/stdout (debuggers; docs/vplus.md, "
+                                   "Debugging)", formatter_class=DefaultsHelpFormatter)
+    d.add_argument("--listen", metavar="127.0.0.1:PORT", default=None,
+                   help="serve one session on this loopback TCP address instead of stdin/stdout")
     return p
 
 
@@ -43,7 +48,30 @@ def main(argv: list[str] | None = None) -> int:
 
         serve()
         return 0
+    if args.command == "dap":
+        return dap_main(args.listen)
     return check_main(args.paths, args.format, args.strict)
+
+
+def dap_main(listen: str | None) -> int:
+    import asyncio
+
+    from aioadept.vplus import dap
+
+    if listen is None:
+        asyncio.run(dap.serve_stdio())
+        return 0
+    try:
+        host, port = dap.parse_listen(listen)
+    except ValueError as exc:
+        print(f"aioadept vplus dap: {exc}", file=sys.stderr)
+        return 2
+    try:
+        asyncio.run(dap.serve_tcp(host, port, lambda p: print(f"LISTENING {host}:{p}", flush=True)))
+    except OSError as exc:
+        print(f"aioadept vplus dap: --listen {listen}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
+    return 0
 
 
 def check_main(paths: list[str], fmt: str, strict: bool = False) -> int:

@@ -37,7 +37,7 @@ from aioadept.vplus.locations import PrecisionPoint, Transform
 from aioadept.vplus.parse import Parser, VSyntaxError, tokenize
 from aioadept.vplus.program import Program
 from aioadept.vplus.runtime import Runtime, Task
-from aioadept.vplus.trace import Frame, is_program_frame
+from aioadept.vplus.trace import Frame, is_program_frame, suspended_stack
 
 EXCEPTION_MODES = ("all", "untrapped", "none")
 
@@ -278,10 +278,12 @@ class Debugger:
 
     # -- inspection -------------------------------------------------------------------------------------------
     def frames(self, num: int) -> list[Frame]:
+        """Task ``num``'s call stack, innermost first: where it is stopped, or (a task that runs on, read between
+        the scheduler's rounds) where it waits or was preempted."""
         T = self.task(num)
-        if not T.held or T.frames is None:
-            raise DebugError(f"task {num} is running: pause it to see its stack")
-        return T.frames
+        if T.held and T.frames is not None:
+            return T.frames
+        return suspended_stack(T.gen)
 
     def scopes(self, frame: Frame) -> dict[str, list[tuple[str, Any]]]:
         """The variables of a frame by scope: ``AUTO`` (arguments first), ``LOCAL``, ``Globals``."""

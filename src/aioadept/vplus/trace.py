@@ -109,3 +109,17 @@ class Every:
 
     def __contains__(self, _line: object) -> bool:
         return True
+
+
+def suspended_stack(gen: Any) -> list[Frame]:
+    """The V+ frames of a task that is not running now (between the scheduler's rounds), innermost first: its
+    generators, each suspended where it yielded, from ``task.gen`` inwards."""
+    out: list[Frame] = []
+    while gen is not None:
+        f = getattr(gen, "gi_frame", None)
+        if f is not None and is_program_frame(f):
+            prog: Program = f.f_globals["_PROG"]
+            out.append(Frame(prog.name, prog.file, _vline(f.f_globals["_K"][-1], f.f_lineno), prog, f))
+        gen = getattr(gen, "gi_yieldfrom", None)
+    out.reverse()
+    return out
