@@ -1,6 +1,8 @@
-"""``aioadept opcua --config CELL`` (issue 35 item 1, issue 36 item 4): many robots of one cell file, one MotionDevice
-each, their axes and MotionDeviceCategory from each robot's model. Real processes on 127.0.0.1: a Viper s850 sim and
-a Cobra s600 sim, each publishing its state, one ``aioadept opcua`` following both, asyncua's client."""
+"""``aioadept opcua --config CELL`` (issue 35 items 1 and 2, issue 36 item 4): many robots of one cell file, one
+MotionDevice each, their axes and MotionDeviceCategory from each robot's model; the server offering SecurityPolicy
+None and Basic256Sha256 SignAndEncrypt, and an authenticated Stop over an encrypted session. Real processes on
+127.0.0.1: a Viper s850 sim and a Cobra s600 sim, each publishing its state, one ``aioadept opcua`` following both,
+asyncua's client."""
 
 from __future__ import annotations
 
@@ -17,7 +19,9 @@ pytestmark = pytest.mark.skipif(importlib.util.find_spec("asyncua") is None,
                                 reason="the [opcua] extra (asyncua) is not installed")
 
 DI = "http://opcfoundation.org/UA/DI/"
-CELL = '[opcua.devices.arm]\nserial_number = "V-0042"\ncontroller_model = "SmartController EX"\n'
+CELL = ('allow_commands = true\nusers = "users"\nsecurity = ["none", "sign-and-encrypt"]\n'
+        'certificate = "server-cert.der"\nprivate_key = "server-key.pem"\n'
+        '[opcua.devices.arm]\nserial_number = "V-0042"\ncontroller_model = "SmartController EX"\n')
 
 
 async def devices(client, system) -> dict:
@@ -47,7 +51,12 @@ async def test_a_cell_file_of_a_viper_and_a_cobra_is_two_motion_devices_with_the
     from asyncua import Client
 
     from aioadept.client import RobotClient
+    from aioadept.opcua.security import server_certificate
 
+    users = tmp_path / "users"
+    users.write_text("operator:s3cret\n")
+    users.chmod(0o600)
+    await server_certificate("127.0.0.1", tmp_path)  # server-cert.der, server-key.pem, as the cell file names them
     async with opcua_cell_file(tmp_path, {"arm": "viper-s850", "scara": "cobra-s600"}, CELL) as cell, \
             Client(cell.url) as client:
         system = await find_system(client)
@@ -90,6 +99,56 @@ async def test_a_cell_file_of_a_viper_and_a_cobra_is_two_motion_devices_with_the
                        for v, w in zip(vals, want))
 
         await until(lambda: at(scara, target[:4]) and at(arm, home), 10, "each robot's own joints")
+        await stop_over_an_encrypted_session(tmp_path, cell)
+
+
+async def stop_over_an_encrypted_session(tmp_path, cell) -> None:
+    """The endpoints offered are None and Basic256Sha256 SignAndEncrypt; a client with its own certificate and a user
+    of the users file stops the Cobra during a motion over SignAndEncrypt: acked ``done``, and the arm rests."""
+    import asyncio
+    import time
+
+    from asyncua import Client, ua
+    from asyncua.crypto.cert_gen import setup_self_signed_certificate
+    from asyncua.crypto.security_policies import SecurityPolicyBasic256Sha256
+    from cryptography.x509.oid import ExtendedKeyUsageOID
+
+    from aioadept.client import RobotClient
+    from aioadept.errors import CommandAborted
+
+    async with Client(cell.url) as anonymous:
+        offered = {(e.SecurityPolicyUri.rsplit("#", 1)[-1], e.SecurityMode) for e in await anonymous.get_endpoints()}
+    assert offered == {("None", ua.MessageSecurityMode.None_),
+                       ("Basic256Sha256", ua.MessageSecurityMode.SignAndEncrypt)}, offered
+    uri = "urn:aioadept:test:client"
+    key, cert = tmp_path / "client-key.pem", tmp_path / "client-cert.der"
+    await setup_self_signed_certificate(key, cert, uri, "localhost", [ExtendedKeyUsageOID.CLIENT_AUTH],
+                                        {"commonName": "test client"})
+    client = Client(cell.url)
+    client.application_uri = uri
+    await client.set_security(SecurityPolicyBasic256Sha256, str(cert), str(key),
+                              mode=ua.MessageSecurityMode.SignAndEncrypt)
+    client.set_user("operator")
+    client.set_password("s3cret")
+    port = int(cell.sims["scara"].ready["port"])
+    async with client, RobotClient("127.0.0.1", port) as robot, RobotClient("127.0.0.1", port) as watcher:
+        assert client.security_policy.Mode == ua.MessageSecurityMode.SignAndEncrypt
+        found = await devices(client, await find_system(client))
+        vidx = await client.get_namespace_index("urn:aioadept:opcua:commands")
+        stop = await found["scara"].get_child([ua.QualifiedName("Stop", vidx)])
+        await robot.cmdexec(SetSpeed(10))
+        motion = asyncio.create_task(robot.cmdexec(MoveJoints([-20.0, 100.0, 120.0, -10.0, 0.0, 0.0])))
+        t_end = time.monotonic() + 5
+        while not (await watcher.status()).moving:
+            assert time.monotonic() < t_end, "the motion did not start"
+            await asyncio.sleep(0.02)
+        ack = await found["scara"].call_method(stop)
+        assert ":done:" in ack, ack
+        with pytest.raises(CommandAborted):
+            await motion
+        rest = await watcher.here()
+        await asyncio.sleep(0.3)
+        assert not (await watcher.status()).moving and await watcher.here() == rest
 
 
 def _qn0(name: str):

@@ -7,9 +7,10 @@ server at ``--endpoint``: each axis's ActualPosition and ActualSpeed (degrees, d
 time as source timestamp, the E-stop, the server's name and version. What V+ does not say (the operating mode, a
 protective stop, serial numbers nobody gave) is left Bad, never made up; a stream that stalls turns the live values
 Uncertain within a second, and they are Good again when it comes back. Read-only unless ``--allow-commands``
-(Stop and RunSkill, for the users of ``--users`` only). No security policy yet: it binds only to loopback unless
-``--insecure`` says otherwise. Prints ``READY opcua=ENDPOINT state=ENDPOINT robot=HOST:PORT``
-once it serves; runs until SIGINT/SIGTERM. docs/opcua.md.
+(Stop and RunSkill, for the users of ``--users`` only). ``--security`` offers SecurityPolicy None and/or
+Basic256Sha256 Sign, SignAndEncrypt; beyond loopback only SignAndEncrypt starts without ``--insecure``. ``--config
+CELL`` serves every robot of a cell file, one MotionDevice each. Prints ``READY opcua=ENDPOINT state=ENDPOINT
+robot=HOST:PORT`` (the first robot's) once it serves; runs until SIGINT/SIGTERM. docs/opcua.md.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import logging
 import signal
 import sys
 import time
+from pathlib import Path
 from urllib.parse import urlsplit
 
 from aioadept import defaults
@@ -46,6 +48,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the robot.state stream to follow (a ZeroMQ endpoint, as aioadept sim --state-endpoint)")
     p.add_argument("--endpoint", default=DEFAULT_ENDPOINT,
                    help="the OPC UA endpoint to serve, opc.tcp://HOST:PORT")
+    p.add_argument("--security", default="none", metavar="MODES",
+                   help="the security modes offered, comma-separated: none (no signature, no encryption: loopback "
+                        "only unless --insecure), sign, sign-and-encrypt (Basic256Sha256)")
+    p.add_argument("--certificate", metavar="FILE",
+                   help="the server's certificate (DER or PEM) for sign/sign-and-encrypt, with --private-key; none: "
+                        "one made self-signed at first start and kept in ~/.local/share/aioadept/opcua")
+    p.add_argument("--private-key", metavar="FILE", dest="private_key", help="the certificate's private key (PEM)")
     add_insecure_option(p)
     p.add_argument("--allow-commands", action="store_true", dest="allow_commands",
                    help="give each robot the methods Stop() and RunSkill(Skill, Arguments) (vendor namespace "
@@ -73,10 +82,13 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def check_endpoint(endpoint: str, insecure: bool) -> str:
+def check_endpoint(endpoint: str, insecure: bool, security: tuple[str, ...] = ("none",)) -> str:
     """``endpoint`` if it is ``opc.tcp://HOST:PORT``; ValueError naming it otherwise. Beyond loopback it is refused
-    unless ``insecure`` (the server has no security policy: nothing authenticates a reader, and a password crosses in
-    clear text), as every listener of the project (:func:`aioadept.cli.options.check_listeners`)."""
+    unless every mode of ``security`` encrypts, or ``insecure`` (with SecurityPolicy None a password crosses in clear
+    text and anyone on the way may change what is said; signed only, anyone on the way reads it), as every listener
+    of the project (:func:`aioadept.cli.options.check_listeners`)."""
+    from aioadept.opcua.security import ENCRYPTED
+
     from aioadept.cli.options import Listener, check_listeners
 
     parts = urlsplit(endpoint)
@@ -86,8 +98,11 @@ def check_endpoint(endpoint: str, insecure: bool) -> str:
         port = None
     if parts.scheme != "opc.tcp" or not parts.hostname or port is None:
         raise ValueError(f"--endpoint {endpoint!r}: expected opc.tcp://HOST:PORT")
-    check_listeners("aioadept opcua", [Listener("--endpoint", endpoint, risk="read the cell, and see in clear text "
-                                                "the password of a user who commands it")], insecure)
+    unencrypted = [m for m in security if m != ENCRYPTED]
+    check_listeners("aioadept opcua", [Listener(
+        "--endpoint", endpoint, authenticated=not unencrypted,
+        risk=f"connect with --security {unencrypted[0] if unencrypted else ''} and read what the cell and its users "
+             f"say in clear text (offer sign-and-encrypt only)")], insecure)
     return endpoint
 
 
@@ -188,7 +203,9 @@ def robot_plans(parser: argparse.ArgumentParser, args: argparse.Namespace) -> li
         return [RobotPlan(host, port, args.state_endpoint, identity_of(args, given))]
     cell = load_plan(args.config)
     o = cell.opcua
-    for opt, value in (("endpoint", o.endpoint), ("users", o.users or None), ("stale_after", o.stale_after_s)):
+    for opt, value in (("endpoint", o.endpoint), ("users", o.users or None), ("stale_after", o.stale_after_s),
+                       ("security", ",".join(o.security)), ("certificate", o.certificate or None),
+                       ("private_key", o.private_key or None)):
         if opt not in given:
             setattr(args, opt, value)
     args.allow_commands = args.allow_commands or o.allow_commands
@@ -204,7 +221,8 @@ def robot_plans(parser: argparse.ArgumentParser, args: argparse.Namespace) -> li
     return [RobotPlan(host, port, state, identity_of(args, given, r.identity))]
 
 
-async def run(args: argparse.Namespace, robots: list, users: dict[str, str] | None) -> int:
+async def run(args: argparse.Namespace, robots: list, users: dict[str, str] | None,
+              security: tuple[str, ...] = ("none",)) -> int:
     from aioadept.errors import AdeptError
     from aioadept.opcua.commands import RobotCommands
     from aioadept.opcua.mapping import RobotView
@@ -216,7 +234,9 @@ async def run(args: argparse.Namespace, robots: list, users: dict[str, str] | No
         loop.add_signal_handler(sig, stop.set)
     views = [RobotView(r.identity, stale_after_s=args.stale_after) for r in robots]
     commands = [RobotCommands(r.host, r.port) for r in robots] if users else None
-    cell = CellServer(args.endpoint, views, commands=commands, users=users)
+    cell = CellServer(args.endpoint, views, commands=commands, users=users, security=security,
+                      certificate=args.certificate and Path(args.certificate),
+                      private_key=args.private_key and Path(args.private_key))
     tasks: list[asyncio.Task] = []
     try:
         await cell.start()
@@ -251,7 +271,8 @@ async def run(args: argparse.Namespace, robots: list, users: dict[str, str] | No
 
 
 def main(argv: list[str] | None = None) -> int:
-    from aioadept.cli.options import report, run_node, setup_logging
+    from aioadept.cli.options import run_node, setup_logging
+    from aioadept.configfile import report
 
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -262,7 +283,17 @@ def main(argv: list[str] | None = None) -> int:
     logging.getLogger("asyncua").setLevel(logging.DEBUG if debug else logging.CRITICAL)
     try:
         robots = robot_plans(parser, args)
-        check_endpoint(args.endpoint, args.insecure)
+        from aioadept.opcua.security import check_modes
+
+        security = check_modes(args.security.split(","))
+        check_endpoint(args.endpoint, args.insecure, security)
+        if (args.certificate is None) != (args.private_key is None):
+            raise ValueError("--certificate and --private-key go together (neither: one made at first start)")
+        if security == ("none",) and args.certificate:
+            raise ValueError("--certificate: only for --security sign or sign-and-encrypt")
+        for option, path in (("--certificate", args.certificate), ("--private-key", args.private_key)):
+            if path and not Path(path).is_file():
+                raise ValueError(f"{option} {path}: no such file")
         if not args.stale_after > 0:
             raise ValueError(f"--stale-after {args.stale_after!r}: expected seconds > 0")
         if args.allow_commands != bool(args.users):
@@ -275,7 +306,7 @@ def main(argv: list[str] | None = None) -> int:
             users = read_users(args.users)
     except (ValueError, OSError) as exc:   # one line naming the option or the file, no usage block
         return report("aioadept opcua", exc)
-    return run_node("aioadept opcua", run(args, robots, users))
+    return run_node("aioadept opcua", run(args, robots, users, security))
 
 
 if __name__ == "__main__":  # pragma: no cover

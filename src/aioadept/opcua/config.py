@@ -16,6 +16,7 @@ from typing import Any
 
 from aioadept.configfile import ConfigError, check_ranges, check_section, load_toml
 from aioadept.opcua.mapping import STALE_AFTER_S, Identity, MotionDeviceCategory, identity_of_model
+from aioadept.opcua.security import check_modes
 
 __all__ = ["DEFAULT_ENDPOINT", "CellPlan", "DeviceSection", "OpcuaSection", "RobotPlan", "plan_from_dict",
            "load_plan"]
@@ -47,6 +48,11 @@ class OpcuaSection:
     users: str = ""
     """The users file (relative to the cell file), needed with ``allow_commands``."""
     stale_after_s: float = STALE_AFTER_S
+    security: list[str] = field(default_factory=lambda: ["none"])
+    """The modes offered (aioadept.opcua.security.MODES)."""
+    certificate: str = ""
+    """The server's certificate (relative to the cell file), with ``private_key``; none: one made at first start."""
+    private_key: str = ""
     name: str = DEFAULT_NAME
     """The MotionDevice's browse name of a cell with one ``[robot]`` (``[[robots]]`` entries have their own)."""
     devices: dict[str, Any] = field(default_factory=dict)
@@ -120,8 +126,13 @@ def plan_from_dict(data: dict[str, Any], *, source: str = "config") -> CellPlan:
     section = OpcuaSection(**check_section(OpcuaSection, data.get("opcua", {}), f"{source} [opcua]"))
     if not section.stale_after_s > 0:
         raise ConfigError(f"{source} [opcua]: stale_after_s = {section.stale_after_s!r}: expected seconds > 0")
-    if section.users and Path(source).is_file():  # relative to the cell file, as its other files
-        section.users = str(Path(source).parent / section.users)
+    try:
+        check_modes(section.security, f"{source} [opcua]: security =")
+    except ValueError as exc:
+        raise ConfigError(str(exc)) from None
+    for key in ("users", "certificate", "private_key"):
+        if getattr(section, key) and Path(source).is_file():  # relative to the cell file, as its other files
+            setattr(section, key, str(Path(source).parent / getattr(section, key)))
     many = is_multi(rest)
     shared = {k: v for k, v in rest.items() if k not in ("robots", "cameras")}
     cell = CellConfig.from_dict(shared, source=source)  # the shared tables checked as every node checks them

@@ -27,6 +27,8 @@ import logging
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from importlib import resources
+from pathlib import Path
+from urllib.parse import urlsplit
 from typing import Any
 
 from asyncua import Node, Server, ua
@@ -34,6 +36,7 @@ from asyncua.common.instantiate_util import instantiate
 from asyncua.common.manage_nodes import delete_nodes
 
 from aioadept.opcua.commands import VENDOR_NS
+from aioadept.opcua.security import APPLICATION_URI, check_modes, server_certificate
 from aioadept.opcua.mapping import (DEGREE_CELSIUS, DI_NS, INSTANCE_NS, NODESETS, ROBOTICS_NS, EngineeringUnit, Identity,
                                     Quality, Reading, RobotView)
 
@@ -52,6 +55,8 @@ _ROBOTICS_TYPES = {"MotionDeviceSystemType": 1002, "ControllerType": 1003, "Moti
                    "HasSafetyStates": 18182}
 _DI_SOFTWARE_TYPE = 15106
 _DI_DEVICE_SET = 5001
+_POLICIES = {"none": ua.SecurityPolicyType.NoSecurity, "sign": ua.SecurityPolicyType.Basic256Sha256_Sign,
+             "sign-and-encrypt": ua.SecurityPolicyType.Basic256Sha256_SignAndEncrypt}
 _PLACEHOLDERS = (ua.ObjectIds.ModellingRule_MandatoryPlaceholder, ua.ObjectIds.ModellingRule_OptionalPlaceholder)
 
 
@@ -90,7 +95,8 @@ class CellServer:
     :meth:`refresh` writes what changed in the views since the last call; :meth:`stop` closes it."""
 
     def __init__(self, endpoint: str, views: Sequence[RobotView], *, commands: Sequence[Any] | None = None,
-                 users: dict[str, str] | None = None) -> None:
+                 users: dict[str, str] | None = None, security: Sequence[str] = ("none",),
+                 certificate: Path | None = None, private_key: Path | None = None) -> None:
         names = [v.identity.name for v in views]
         if not names or len(set(names)) != len(names):
             raise ValueError(f"robots {names}: expected at least one, each with its own name")
@@ -99,9 +105,13 @@ class CellServer:
         self.endpoint = endpoint
         self.views = list(views)
         self.commands = None if commands is None else list(commands)
+        self.security = check_modes(security)
+        if (certificate is None) != (private_key is None):
+            raise ValueError("a certificate needs its private key, and a private key its certificate")
+        self.certificate, self.private_key = certificate, private_key
         self.server = Server(user_manager=_Users(users or {}))
         # Anonymous sessions read and browse; only a user of the users file may call a method.
-        self.server.set_security_policy([ua.SecurityPolicyType.NoSecurity], permission_ruleset=_Roles())
+        self.server.set_security_policy([_POLICIES[m] for m in self.security], permission_ruleset=_Roles())
         _refuse_writes_as_not_writable(self.server)
         self.system: Node | None = None
         self._vars: list[dict[tuple, Node]] = []
@@ -116,6 +126,13 @@ class CellServer:
         await s.init()
         s.set_endpoint(self.endpoint)
         s.set_server_name("aioadept opcua")
+        await s.set_application_uri(APPLICATION_URI)
+        if self.security != ("none",):
+            cert, key = self.certificate, self.private_key
+            if cert is None or key is None:
+                cert, key = await server_certificate(urlsplit(self.endpoint).hostname or "localhost")
+            await s.load_certificate(str(cert))
+            await s.load_private_key(str(key))
         s.set_identity_tokens([ua.AnonymousIdentityToken] + ([ua.UserNameIdentityToken] if self.commands else []))
         await load_nodesets(s)
         _cache_reference_subtypes(s)
