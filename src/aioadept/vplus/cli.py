@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import errno
 import signal
 import sys
 import time
@@ -69,7 +70,13 @@ async def run(args: argparse.Namespace, options: Any) -> int:
         announce_ready()  # --transport zenoh: the node's liveliness token (no-op on ZeroMQ)
         print(f"READY host={host} port={port} vport={vport} state={state}", flush=True)
 
-    emu.rt.devices = Network(args.host, port_map, on_listen, faults=options.faults)
+    def on_bind_error(vport: int, host: str, port: int, exc: OSError) -> None:
+        # The program has its IOSTAT error, as on a controller, but this host serves the ports of its command line:
+        # one it cannot bind ends the run (the Python sim's rule), rather than a server that looks alive
+        why = "already in use" if exc.errno == errno.EADDRINUSE else one_line(exc)
+        sup.die(f"V+ port {vport} ({host}:{port}) cannot be bound: {why} (--map-port {vport}=0 binds a free port)")
+
+    emu.rt.devices = Network(args.host, port_map, on_listen, faults=options.faults, on_bind_error=on_bind_error)
     loop = asyncio.get_running_loop()
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, stop.set)

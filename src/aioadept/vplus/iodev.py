@@ -62,6 +62,9 @@ class Network:
     host: str = "127.0.0.1"
     port_map: dict[int, int] = field(default_factory=dict)
     on_listen: Callable[[int, str, int], None] | None = None
+    # a /LOCAL_PORT server that could not bind (port in use, no permission): (V+ port, host, host port, the OS
+    # error). The program gets its IOSTAT error, as on a controller; the host may decide more (aioadept.vplus.cli)
+    on_bind_error: Callable[[int, str, int, OSError], None] | None = None
     # WRITEs of the current burst of scheduler rounds, per connection, sent together by flush(): one send for
     # several acks instead of one each (the system call, not the interpreter, dominated pipelined acks)
     pending: dict[asyncio.Transport, list[bytes]] = field(default_factory=dict)
@@ -520,7 +523,10 @@ def fopen(rt: Any):
         if exc is not None:
             dev.open = False
             T.iostat[lun] = E.DEVICE_ERROR
-            rt.console(T.num, f"*Device error* FOPEN: {exc}")
+            what = f"/LOCAL_PORT {vport} on {net.host}:{port}" if "LOCAL_PORT" in opts else f"{host}:{port}"
+            rt.console(T.num, f"*Device error* FOPEN {what}: {exc}")
+            if "LOCAL_PORT" in opts and net.on_bind_error is not None and isinstance(exc, OSError):
+                net.on_bind_error(vport, net.host, port, exc)
             return
         if "LOCAL_PORT" in opts:
             dev.server = fut.result()
