@@ -7,6 +7,8 @@ Three figures, each against a baseline measured in the same run (prints one JSON
 - **here round trip**: ``aioadept sim --vplus vplus/rserver.V2 vplus/rsskills.V2 vplus/rsconfig.V2 --run rs.main``
   vs ``aioadept sim`` (the Python skill table), both child processes, this process the client: write ``ID:here``,
   read its ack, one after another. Goal: p50 of the emulated server <= 2x the Python sim's.
+- **debugger attached**: the same loop with the V+ debugger attached and no breakpoint (the instrumented form,
+  aioadept.vplus.trace) vs no debugger, best of 3 runs each in turns. Goal: <= 1.5x.
 - **pipelined throughput**: 10 ``here`` lines written at once, then their 10 acks read; acks per second.
   Goal: emulated >= 0.5x the Python sim.
 
@@ -72,6 +74,27 @@ def bench_loop(n: int) -> dict:
     stmts = 4 * n
     return {"iterations": n, "statements": stmts, "vplus_s": round(t_vplus, 3), "python_baseline_s": round(t_py, 3),
             "statements_per_s": round(stmts / t_vplus), "ratio_vs_python": round(t_vplus / t_py, 2)}
+
+
+def bench_debugger_loop(n: int, rounds: int = 3) -> dict:
+    """The loop with the debugger attached (aioadept.vplus.debugger: the instrumented form, no breakpoint) vs
+    without, in turns; each side's best of ``rounds`` (the machine's load changes between runs)."""
+    from aioadept.vplus.debugger import Debugger
+
+    best = {"none": float("inf"), "attached": float("inf")}
+    for _ in range(rounds):
+        for side in best:
+            emu = Emulator.from_source(loop_source(n), robot=False)
+            if side == "attached":
+                Debugger(emu.rt)
+            t0 = time.perf_counter()
+            emu.call("bench")
+            best[side] = min(best[side], time.perf_counter() - t0)
+    stmts = 4 * n
+    return {"iterations": n, "no_debugger_s": round(best["none"], 3), "debugger_s": round(best["attached"], 3),
+            "no_debugger_statements_per_s": round(stmts / best["none"]),
+            "debugger_statements_per_s": round(stmts / best["attached"]),
+            "ratio": round(best["attached"] / best["none"], 2)}
 
 
 # -- the servers ---------------------------------------------------------------------------------------------
@@ -221,6 +244,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.quick:
         args.loop, args.messages, args.warmup, args.blocks = 100_000, 200, 50, 3
     loop = bench_loop(args.loop)
+    debug = bench_debugger_loop(args.loop)
     servers = asyncio.run(bench_servers(args))
     v, s = servers["vplus"], servers["python_sim"]
     rtt_ratio = servers["here_p50_ratio_per_block"]["median"]
@@ -231,11 +255,15 @@ def main(argv: list[str] | None = None) -> int:
         "python": platform.python_version(),
         "machine": platform.machine(),
         "loop": loop,
+        "debugger_loop": debug,
         "servers": servers,
         "verdicts": [
             verdict(f"V+ loop of {args.loop} iterations vs the same loop in Python", loop["vplus_s"],
                     loop["python_baseline_s"], unit="s",
                     goal=">= 1 M V+ statements/s", passed=sps >= 1_000_000),
+            verdict(f"V+ loop of {args.loop} iterations with the debugger attached, no breakpoint, vs no debugger "
+                    "(best of 3 each, in turns)", debug["debugger_s"], debug["no_debugger_s"], unit="s",
+                    ratio=debug["ratio"], goal="ratio <= 1.5", passed=debug["ratio"] <= 1.5),
             verdict("here round trip p50, vplus/ server in the emulator vs the Python sim (median of per-block "
                     "ratios)", v["here_p50_us_per_block"]["median"], s["here_p50_us_per_block"]["median"],
                     unit="us", ratio=rtt_ratio, goal="ratio <= 2", passed=rtt_ratio <= 2),
