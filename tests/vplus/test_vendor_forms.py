@@ -65,3 +65,9 @@ def test_a_call_of_a_program_not_loaded_is_vplus_undefined_program_or_variable_n
         emu.call("t")
     assert info.value.message.startswith("*Undefined program or variable name* nothere")
 
+
+
+def test_speed_in_mm_per_second_is_named_not_implemented_not_unexpected():
+    bad = Emulator.from_source(".PROGRAM t()\n\tSPEED 50 MMPS ALWAYS\n.END\n", filename="v.V2", robot=False)
+    assert [(p.column, p.message) for p in bad.problems] == \
+        [(11, "SPEED ... MMPS is not implemented by the emulator (its speeds are percent of the maximum)")]

@@ -784,6 +784,9 @@ def _speed(p: Parser, w: str) -> N.Stmt:
     if p.at_op(","):
         p.take()
         rot = p.expr()        # rotational speed: accepted, the model has one speed
+    if p.at_word("MMPS", "IPS"):
+        raise p.error(f"SPEED ... {p.peek().text.upper()} is not implemented by the emulator (its speeds are "
+                      "percent of the maximum)", p.peek())
     if p.at_word("ALWAYS", "MONITOR"):
         mode = p.take().text.upper()
     return N.Speed(e, mode, rot)
