@@ -7,6 +7,8 @@ asyncua's client."""
 from __future__ import annotations
 
 import importlib.util
+import os
+import signal
 
 import pytest
 
@@ -99,12 +101,28 @@ async def test_a_cell_file_of_a_viper_and_a_cobra_is_two_motion_devices_with_the
                        for v, w in zip(vals, want))
 
         await until(lambda: at(scara, target[:4]) and at(arm, home), 10, "each robot's own joints")
-        await stop_over_an_encrypted_session(tmp_path, cell)
+
+        # One robot's stream stalls (its sim stopped): its values turn Uncertain within a second, the other robot's
+        # stay Good; Good again when it resumes.
+        def quality(axes, good: bool) -> bool:
+            return all(changes.last[pos.nodeid].StatusCode.is_good() == good for _, _, pos, _ in axes)
+
+        os.kill(cell.sims["scara"].proc.pid, signal.SIGSTOP)
+        try:
+            waited = await until(lambda: quality(scara, False), 3, "the stalled Cobra's values not Good")
+            assert waited < 1.0, waited
+            assert all(changes.last[pos.nodeid].StatusCode.is_uncertain() for _, _, pos, _ in scara)
+            assert quality(arm, True)
+        finally:
+            os.kill(cell.sims["scara"].proc.pid, signal.SIGCONT)
+        await until(lambda: quality(scara, True) and quality(arm, True), 5, "Good values once the Cobra resumes")
+        await stop_over_an_encrypted_session(tmp_path, cell, scara[0][2])
 
 
-async def stop_over_an_encrypted_session(tmp_path, cell) -> None:
+async def stop_over_an_encrypted_session(tmp_path, cell, position) -> None:
     """The endpoints offered are None and Basic256Sha256 SignAndEncrypt; a client with its own certificate and a user
-    of the users file stops the Cobra during a motion over SignAndEncrypt: acked ``done``, and the arm rests."""
+    of the users file stops the Cobra during a motion over SignAndEncrypt: acked ``done``, and the arm rests. The
+    user may not write a value either (``position``, a live variable): BadNotWritable."""
     import asyncio
     import time
 
@@ -136,6 +154,9 @@ async def stop_over_an_encrypted_session(tmp_path, cell) -> None:
         found = await devices(client, await find_system(client))
         vidx = await client.get_namespace_index("urn:aioadept:opcua:commands")
         stop = await found["scara"].get_child([ua.QualifiedName("Stop", vidx)])
+        with pytest.raises(ua.UaStatusCodeError) as refused:
+            await client.get_node(position.nodeid).write_value(ua.DataValue(ua.Variant(1.0, ua.VariantType.Double)))
+        assert refused.value.code == ua.StatusCodes.BadNotWritable
         await robot.cmdexec(SetSpeed(10))
         motion = asyncio.create_task(robot.cmdexec(MoveJoints([-20.0, 100.0, 120.0, -10.0, 0.0, 0.0])))
         t_end = time.monotonic() + 5
