@@ -85,8 +85,8 @@ def hover(ls: LanguageServer, params: T.HoverParams) -> T.Hover | None:
         ws, occ = _occurrence(ls, params)
         if occ is None or occ.kind != PROGRAM:
             return None
-        text = "\n".join(_program_line(prog) + f" ({Path(prog.file).name}:{prog.line})"
-                         for prog, _ in ws.programs() if prog.name == occ.name)
+        text = "\n".join(_program_line(prog) + f" ({Path(prog.file).name}:{line})"
+                         for prog, line, _ in ws.programs() if prog.name == occ.name)
         if not text:
             return None
     return T.Hover(contents=T.MarkupContent(kind=T.MarkupKind.PlainText, value=text))
@@ -106,7 +106,7 @@ def completion(ls: LanguageServer, params: T.CompletionParams) -> T.CompletionLi
               for name in registry.FUNCTIONS if name not in registry.INSTRUCTIONS]
     ws = workspace(ls)
     seen: set[str] = set()
-    for prog, _ in ws.programs():
+    for prog, _, _ in ws.programs():
         if prog.name not in seen:
             seen.add(prog.name)
             head = _program_line(prog)
@@ -147,14 +147,14 @@ def symbols(ls: LanguageServer, params: T.DocumentSymbolParams) -> list[T.Docume
     uri = params.text_document.uri
     fs = file_symbols(_path(uri), ls.workspace.get_text_document(uri).source)
     out = []
-    for prog, end in fs.programs:
-        defs = [o for o in fs.occurrences if o.role == DEFINITION and prog.line <= o.line <= end]
-        name = next((o for o in defs if o.kind == PROGRAM and o.line == prog.line), None)
-        head = _range(name) if name else T.Range(T.Position(prog.line - 1, 0), T.Position(prog.line - 1, 0))
+    for prog, start, end in fs.programs:
+        defs = [o for o in fs.occurrences if o.role == DEFINITION and start <= o.line <= end]
+        name = next((o for o in defs if o.kind == PROGRAM and o.line == start), None)
+        head = _range(name) if name else T.Range(T.Position(start - 1, 0), T.Position(start - 1, 0))
         labels = [T.DocumentSymbol(name=o.name, kind=T.SymbolKind.Key, range=_range(o), selection_range=_range(o))
                   for o in defs if o.kind == LABEL]
         out.append(T.DocumentSymbol(name=prog.name, kind=T.SymbolKind.Function, selection_range=head,
-                                    range=T.Range(T.Position(prog.line - 1, 0), T.Position(end - 1, 4)),
+                                    range=T.Range(T.Position(start - 1, 0), T.Position(end - 1, 4)),
                                     detail=", ".join(p.name for p in prog.params), children=labels))
     return out
 

@@ -20,6 +20,7 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 
 from aioadept.vplus import nodes as N
+from aioadept.vplus.check import _pieces
 from aioadept.vplus.loader import Module, load_text
 from aioadept.vplus.parse import VSyntaxError, norm, tokenize
 from aioadept.vplus.program import Program
@@ -53,10 +54,11 @@ class Occurrence:
 
 @dataclass(slots=True)
 class FileSymbols:
-    """What one file defines and uses: its programs (each with the line of its ``.END``) and occurrences."""
+    """What one file defines and uses: its programs, each as ``(program, its .PROGRAM line, its .END line)`` in
+    this file (a program's own line numbers are those of the piece it was read from), and occurrences."""
 
     file: str
-    programs: list[tuple[Program, int]] = field(default_factory=list)
+    programs: list[tuple[Program, int, int]] = field(default_factory=list)
     occurrences: list[Occurrence] = field(default_factory=list)
     locals: dict[int, set[str]] = field(default_factory=dict)      # per .PROGRAM line: its parameters, AUTO, LOCAL
 
@@ -67,27 +69,54 @@ class FileSymbols:
                 return o
         return None
 
-    def program_at(self, line: int) -> Program | None:
+    def program_at(self, line: int) -> tuple[Program, int, int] | None:
         """The program whose ``.PROGRAM`` ... ``.END`` holds ``line``."""
-        for prog, end in self.programs:
-            if prog.line <= line <= end:
-                return prog
+        for entry in self.programs:
+            if entry[1] <= line <= entry[2]:
+                return entry
         return None
 
 
-_CACHE: dict[tuple[str, str], FileSymbols] = {}
-"""By (file name, text): the server asks again for every request, and most files do not change between them.
-Bounded: cleared when it grows past 256."""
+_CACHE: dict[tuple[str, str, int], FileSymbols] = {}
+"""By (file name, text, first line): whole files (first line 0) and their pieces (:func:`aioadept.vplus.check._pieces`,
+cut after each ``.END``) at the line where each starts. The server asks again for every request, and after an edit
+only the changed program is read again (and, when lines were inserted or deleted, the programs below it moved).
+Bounded: cleared when it grows past 4096."""
 
 
 def file_symbols(file: str, text: str) -> FileSymbols:
     """The programs and occurrences of ``text``, the contents of ``file``."""
-    got = _CACHE.get((file, text))
+    got = _CACHE.get((file, text, 0))
     if got is None:
-        if len(_CACHE) >= 256:
-            _CACHE.clear()
-        got = _CACHE[(file, text)] = _read(file, text)
+        got = FileSymbols(file)
+        for first, piece in _pieces(text):
+            part = _piece(file, piece, first)
+            got.programs.extend(part.programs)
+            got.locals.update(part.locals)
+            got.occurrences.extend(part.occurrences)
+        _keep((file, text, 0), got)
     return got
+
+
+def _piece(file: str, piece: str, first: int) -> FileSymbols:
+    got = _CACHE.get((file, piece, first))
+    if got is None:
+        got = _CACHE.get((file, piece, 1)) or _keep((file, piece, 1), _read(file, piece))
+        if first != 1:
+            d = first - 1
+            got = _keep((file, piece, first), FileSymbols(
+                file, [(prog, start + d, end + d) for prog, start, end in got.programs],
+                [Occurrence(o.file, o.line + d, o.col, o.end, o.kind, o.name, o.scope + d if o.scope else 0, o.role,
+                            o.program) for o in got.occurrences],
+                {start + d: names for start, names in got.locals.items()}))
+    return got
+
+
+def _keep(key: tuple[str, str, int], value: FileSymbols) -> FileSymbols:
+    if len(_CACHE) >= 4096:
+        _CACHE.clear()
+    _CACHE[key] = value
+    return value
 
 
 _NAME = re.compile(r"[$#]?[A-Za-z][A-Za-z0-9._]*")
@@ -104,7 +133,7 @@ def _read(file: str, text: str) -> FileSymbols:
             continue
         end = next((n for n in range(prog.line + 1, len(lines) + 1)
                     if lines[n - 1].replace("\x0c", "").replace("\x1a", "").strip().upper() == ".END"), len(lines))
-        out.programs.append((prog, end))
+        out.programs.append((prog, prog.line, end))
         out.occurrences.extend(_program_occurrences(prog, lines[prog.line - 1], out.locals))
     return out
 
@@ -225,7 +254,7 @@ class Workspace:
         ``declaration``)."""
         return [o for o in self._same(target) if declaration or o.role != DEFINITION]
 
-    def programs(self) -> Iterator[tuple[Program, int]]:
+    def programs(self) -> Iterator[tuple[Program, int, int]]:
         for fs in self.files.values():
             yield from fs.programs
 
@@ -233,8 +262,8 @@ class Workspace:
         """The variables usable at ``line`` of ``file``: the enclosing program's own (parameters, ``AUTO``,
         ``LOCAL``) and the workspace's globals, each sorted."""
         fs = self.files.get(file)
-        prog = fs.program_at(line) if fs else None
-        own = sorted(fs.locals.get(prog.line, set())) if prog is not None else []
+        entry = fs.program_at(line) if fs else None
+        own = sorted(fs.locals.get(entry[1], set())) if entry is not None else []
         glob = sorted({o.name for o in self.occurrences() if o.kind == VARIABLE and not o.scope} - set(own))
         return own, glob
 
