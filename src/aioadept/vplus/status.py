@@ -55,7 +55,7 @@ def functions(rt: Any) -> dict[str, Callable[..., float]]:
         if sel == 2:
             traj = ctl.trajectory
             estop = bool(getattr(ctl, "estop", False))
-            braked = rt.robot.braked
+            braked = bool(getattr(rt.robot, "braked", False))
             if traj.in_motion(ctl.now_s):
                 return 7.0 if estop else (5.0 if braked else 1.0)
             if estop:
