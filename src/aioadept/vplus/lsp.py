@@ -15,6 +15,7 @@ Needs the ``lsp`` extra (pygls, lsprotocol).
 from __future__ import annotations
 
 import re
+import time
 from pathlib import Path
 
 from lsprotocol import types as T
@@ -187,16 +188,31 @@ def _read(path: Path) -> str:
     return got[1]
 
 
+_LISTED: dict[Path, tuple[float, list[Path]]] = {}
+LISTING_TTL = 2.0
+"""Seconds a workspace folder's list of V+ files is kept: every request needs it, and walking a large folder
+on each would be felt while typing; a file added is seen within this time."""
+
+
+def _listing(root: Path) -> list[Path]:
+    got = _LISTED.get(root)
+    if got is None or time.monotonic() - got[0] > LISTING_TTL:
+        files = sorted(f for f in root.rglob("*") if f.suffix.lower() in SUFFIXES and f.is_file()) \
+            if root.is_dir() else []
+        got = _LISTED[root] = (time.monotonic(), files)
+    return got[1]
+
+
 def workspace(ls: LanguageServer) -> Workspace:
     """The workspace folders' V+ files, with the open documents' current text in place of their files' (the
     file names are full paths, so that a definition can point at its file)."""
     texts: dict[str, str] = {}
     for folder in ls.workspace.folders.values():
-        root = Path(_path(folder.uri))
-        if root.is_dir():
-            for f in sorted(root.rglob("*")):
-                if f.suffix.lower() in SUFFIXES and f.is_file():
-                    texts[str(f)] = _read(f)
+        for f in _listing(Path(_path(folder.uri))):
+            try:
+                texts[str(f)] = _read(f)
+            except OSError:            # deleted since it was listed
+                continue
     for uri, doc in ls.workspace.text_documents.items():
         texts[_path(uri)] = doc.source
     return Workspace(texts.items())
