@@ -135,3 +135,15 @@ def test_fcmnd_loads_and_says_at_run_time_that_it_is_not_emulated():
     emu = run('\tAUTO lun\n\tATTACH (lun, 4) "TCP"\n\tFCMND (lun, 7) "x"\n\ts = IOSTAT(lun)\n\tTYPE "after"')
     assert emu.globals["s"] == -500.0 and emu.console[-1].endswith("after")   # an I/O error: IOSTAT, the program goes on
     assert any("FCMND (20, 7) is not implemented by the emulator" in ln for ln in emu.console), emu.console
+
+
+def test_a_transformation_round_trips_through_transb_by_column():
+    emu = run("\tSET a = TRANS(10, -20, 30.5, 15, 40, -60)\n\t$s = \"xy\"+$TRANSB(a)\n"
+              "\tSET b = TRANSB($s, 3)\n\tDECOMPOSE d[] = b\n\tx1 = FLTB($s, 3)\n\tpz = FLTB($s, 47)\n\tn = LEN($s)")
+    g = emu.globals
+    assert g["n"] == 50.0 and g["pz"] == 30.5                     # the position is the last column
+    assert g["x1"] == pytest.approx(g["b"].rows[0], abs=1e-6)     # the first number: the x axis' x
+    assert [g["d"][i] for i in range(6)] == pytest.approx([10, -20, 30.5, 15, 40, -60], abs=1e-3)
+    with pytest.raises(VPlusError, match="TRANSB: its 3x3 rotation"):
+        run("\tSET b = TRANSB($FLTB(2)+$FLTB(0)+$FLTB(0)+$FLTB(0)+$FLTB(1)+$FLTB(0)+$FLTB(0)+$FLTB(0)+$FLTB(1)"
+            "+$FLTB(0)+$FLTB(0)+$FLTB(0))")

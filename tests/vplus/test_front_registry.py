@@ -27,9 +27,9 @@ def test_every_registered_function_has_a_form_a_result_a_section_and_an_implemen
 def test_a_registered_function_parses_as_a_call_and_an_unregistered_keyword_is_named_not_implemented():
     assert isinstance(parse_statement("x = FRACT(1.5)").value, N.Call)
     with pytest.raises(VSyntaxError) as info:
-        parse_statement("x = TRANSB(1)")
-    assert info.value.message == ("V+ function TRANSB is not implemented by the emulator "
-                                  "(see V+ Language Reference Guide v17, TRANSB function)")
+        parse_statement("x = OUTSIDE(1)")
+    assert info.value.message == ("V+ function OUTSIDE is not implemented by the emulator "
+                                  "(see V+ Language Reference Guide v17, OUTSIDE function)")
     assert info.value.col == 5
 
 

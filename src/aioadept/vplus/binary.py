@@ -1,4 +1,5 @@
-"""Binary values in V+ strings: ``$INTB``/``INTB``, ``$LNGB``/``LNGB``, ``$FLTB``/``FLTB``, ``$DBLB``/``DBLB``.
+"""Binary values in V+ strings: ``$INTB``/``INTB``, ``$LNGB``/``LNGB``, ``$FLTB``/``FLTB``, ``$DBLB``/``DBLB``,
+``$TRANSB``/``TRANSB``.
 
 What binary TCP protocols and binary data files in V+ are built from: a number packed into 2, 4 or 8 characters
 of a string (each character one byte, 0..255), and read back from a position in a string. The byte order is the
@@ -17,6 +18,7 @@ import math
 import struct
 
 from aioadept.vplus import errors as E
+from aioadept.vplus import locations as L
 from aioadept.vplus.errors import VPlusError
 from aioadept.vplus.registry import builtin
 
@@ -113,3 +115,20 @@ def _dblb(s: str, first: float | None = None) -> float:
     if exp == 2047:
         raise VPlusError(E.ILLEGAL_VALUE, "*Illegal value* (DBLB: exponent 2047, an overflow)")
     return float(struct.unpack(">d", b)[0])
+
+
+@builtin("$TRANSB")
+def _s_transb(t: L.Transform) -> str:
+    """48 bytes: the transformation's 12 numbers by column (x, y, z axes, then the position), each as $FLTB."""
+    if not isinstance(t, L.Transform):
+        raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* ($TRANSB needs a transformation)")
+    return _chars(struct.pack(">12f", *L.columns(t)))
+
+
+@builtin("TRANSB")
+def _transb(s: str, first: float | None = None) -> L.Transform:
+    """48 bytes as a transformation (the inverse of $TRANSB); a rotation that is none is *Illegal value*."""
+    try:
+        return L.Transform(L.by_column(struct.unpack(">12f", _bytes(s, first, 48, "TRANSB"))))
+    except ValueError as exc:
+        raise VPlusError(E.ILLEGAL_VALUE, f"*Illegal value* (TRANSB: {exc})") from None

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from aioadept.vplus import locations as L
 from aioadept.vplus.compiler import compile_program
 from aioadept.vplus.parse import VSyntaxError, norm, parse_statement
 from aioadept.vplus.program import LoadProblem, Param, Program
@@ -224,8 +225,6 @@ class _Reader:
 
 
 _CONTINUATION = re.compile(r"[-+.\d]")
-ROTATION_TOLERANCE = 1e-3
-"""How far a stored rotation may be from orthonormal (STORE writes about 6 significant digits)."""
 
 
 def _flush_location(pending: tuple, filename: str, module: Module) -> None:
@@ -237,24 +236,6 @@ def _flush_location(pending: tuple, filename: str, module: Module) -> None:
     except (ValueError, VSyntaxError) as exc:
         name = code.split()[0]
         module.problems.append(LoadProblem(filename, line, f"location {name} not loaded: {exc}", name, None))
-
-
-def _stored_transform(nums: list[float]) -> tuple[float, ...]:
-    """12 numbers as STORE writes them (the 3x4 matrix by column: x axis, y axis, z axis, position) to the
-    row-major 3x4 of :class:`aioadept.vplus.locations.Transform`; ``ValueError`` if the rotation is none."""
-    cols = [nums[0:3], nums[3:6], nums[6:9]]
-    for i in range(3):
-        for j in range(i, 3):
-            dot = sum(cols[i][k] * cols[j][k] for k in range(3))
-            if abs(dot - (1.0 if i == j else 0.0)) > ROTATION_TOLERANCE:
-                raise ValueError("its 3x3 rotation (the first 9 of the 12 values, by column) is not orthonormal")
-    x, y, z = cols
-    det = (x[0] * (y[1] * z[2] - y[2] * z[1]) - y[0] * (x[1] * z[2] - x[2] * z[1])
-           + z[0] * (x[1] * y[2] - x[2] * y[1]))
-    if det < 0:
-        raise ValueError("its 3x3 rotation (the first 9 of the 12 values, by column) is a reflection")
-    p = nums[9:12]
-    return tuple(v for r in range(3) for v in (x[r], y[r], z[r], p[r]))
 
 
 def _finish(prog: Program, module: Module) -> None:
@@ -309,7 +290,7 @@ def _data_line(section: str, code: str) -> tuple[str, str, Any, Any]:
             raise ValueError("expected joint values")
         return ("PPOINT", name, index, tuple(nums))
     if len(nums) == 12:
-        return ("LOC", name, index, _stored_transform(nums))
+        return ("LOC", name, index, L.by_column(nums))
     if len(nums) != 6:
         raise ValueError(f"expected the 12 values of a stored transformation (or x y z yaw pitch roll), "
                          f"got {len(nums)}")

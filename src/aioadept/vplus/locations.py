@@ -231,3 +231,32 @@ def from_values(values: Iterable[float]) -> Transform:
     if len(vals) != 6:
         raise ValueError(f"expected 6 values, got {len(vals)}")
     return trans(*vals)
+
+
+ROTATION_TOLERANCE = 1e-3
+"""How far a stored rotation may be from orthonormal (STORE writes about 6 significant digits)."""
+
+
+def by_column(nums: Sequence[float]) -> tuple[float, ...]:
+    """12 numbers of a transformation by column, as STORE and ``$TRANSB`` give them (V+ Language Reference Guide,
+    ``TRANSB``/``$TRANSB``: x axis, y axis, z axis, position), to the row-major 3x4 of :class:`Transform`;
+    ``ValueError`` if the rotation is none (not orthonormal within :data:`ROTATION_TOLERANCE`, or a reflection)."""
+    cols = [nums[0:3], nums[3:6], nums[6:9]]
+    for i in range(3):
+        for j in range(i, 3):
+            dot = sum(cols[i][k] * cols[j][k] for k in range(3))
+            if abs(dot - (1.0 if i == j else 0.0)) > ROTATION_TOLERANCE:
+                raise ValueError("its 3x3 rotation (the first 9 of the 12 values, by column) is not orthonormal")
+    x, y, z = cols
+    det = (x[0] * (y[1] * z[2] - y[2] * z[1]) - y[0] * (x[1] * z[2] - x[2] * z[1])
+           + z[0] * (x[1] * y[2] - x[2] * y[1]))
+    if det < 0:
+        raise ValueError("its 3x3 rotation (the first 9 of the 12 values, by column) is a reflection")
+    p = nums[9:12]
+    return tuple(float(v) for r in range(3) for v in (x[r], y[r], z[r], p[r]))
+
+
+def columns(t: Transform) -> tuple[float, ...]:
+    """The 12 numbers of ``t`` by column (the inverse of :func:`by_column`)."""
+    r = t.rows
+    return tuple(r[4 * row + col] for col in range(4) for row in range(3))

@@ -87,7 +87,8 @@ $TOUPPER($string) str | $TOLOWER($string) str | SWITCH(name) num | BITS(first, c
 NORM(location) num | $DEFAULT(...) str | STATE(select) num | BMASK(bit, ...) num
 $INTB(value) str | INTB($string, first_char) num | $LNGB(value) str | LNGB($string, first_char) num
 $FLTB(value) str | FLTB($string, first_char) num | $DBLB(value) str | DBLB($string, first_char) num
-GETC(lun, mode) num | PARAMETER(name) num | SELECT(device) num
+GETC(lun, mode) num | PARAMETER(name) num | SELECT(device) num | $TRANSB(location) str
+TRANSB($string, first_char) loc
 """
 
 for _item in _TABLE.strip().replace("\n", " | ").split("|"):
