@@ -78,23 +78,25 @@ class FileSymbols:
 
 
 _CACHE: dict[tuple[str, str, int], FileSymbols] = {}
-"""By (file name, text, first line): whole files (first line 0) and their pieces (:func:`aioadept.vplus.check._pieces`,
-cut after each ``.END``) at the line where each starts. The server asks again for every request, and after an edit
-only the changed program is read again (and, when lines were inserted or deleted, the programs below it moved).
-Bounded: cleared when it grows past 4096."""
+"""The pieces of files (:func:`aioadept.vplus.check._pieces`, cut after each ``.END``) by (file name, text, the
+line where the piece starts): after an edit only the changed program is read again (and, when lines were
+inserted or deleted, the programs below it are moved). Bounded: cleared when it grows past 4096."""
+_LATEST: dict[str, tuple[str, FileSymbols]] = {}
+"""Each file's last text and what it holds: the server asks again for every request, mostly of unchanged text."""
 
 
 def file_symbols(file: str, text: str) -> FileSymbols:
     """The programs and occurrences of ``text``, the contents of ``file``."""
-    got = _CACHE.get((file, text, 0))
-    if got is None:
-        got = FileSymbols(file)
-        for first, piece in _pieces(text):
-            part = _piece(file, piece, first)
-            got.programs.extend(part.programs)
-            got.locals.update(part.locals)
-            got.occurrences.extend(part.occurrences)
-        _keep((file, text, 0), got)
+    last = _LATEST.get(file)
+    if last is not None and last[0] == text:
+        return last[1]
+    got = FileSymbols(file)
+    for first, piece in _pieces(text):
+        part = _piece(file, piece, first)
+        got.programs.extend(part.programs)
+        got.locals.update(part.locals)
+        got.occurrences.extend(part.occurrences)
+    _LATEST[file] = (text, got)
     return got
 
 
@@ -113,6 +115,7 @@ def _piece(file: str, piece: str, first: int) -> FileSymbols:
 
 
 def _keep(key: tuple[str, str, int], value: FileSymbols) -> FileSymbols:
+    """Keep ``value`` under ``key`` in the pieces' cache."""
     if len(_CACHE) >= 4096:
         _CACHE.clear()
     _CACHE[key] = value
