@@ -147,16 +147,21 @@ def symbols(ls: LanguageServer, params: T.DocumentSymbolParams) -> list[T.Docume
     """The document's programs, each from its ``.PROGRAM`` line to its ``.END``, with its labels inside."""
     uri = params.text_document.uri
     fs = file_symbols(_path(uri), ls.workspace.get_text_document(uri).source)
+    names: dict[int, Occurrence] = {}
+    labels: dict[int, list[T.DocumentSymbol]] = {}
+    for o in fs.occurrences:
+        if o.role == DEFINITION and o.kind == PROGRAM:
+            names[o.line] = o
+        elif o.role == DEFINITION and o.kind == LABEL:      # a label's scope is its program's .PROGRAM line
+            labels.setdefault(o.scope, []).append(T.DocumentSymbol(name=o.name, kind=T.SymbolKind.Key,
+                                                                   range=_range(o), selection_range=_range(o)))
     out = []
     for prog, start, end in fs.programs:
-        defs = [o for o in fs.occurrences if o.role == DEFINITION and start <= o.line <= end]
-        name = next((o for o in defs if o.kind == PROGRAM and o.line == start), None)
+        name = names.get(start)
         head = _range(name) if name else T.Range(T.Position(start - 1, 0), T.Position(start - 1, 0))
-        labels = [T.DocumentSymbol(name=o.name, kind=T.SymbolKind.Key, range=_range(o), selection_range=_range(o))
-                  for o in defs if o.kind == LABEL]
         out.append(T.DocumentSymbol(name=prog.name, kind=T.SymbolKind.Function, selection_range=head,
                                     range=T.Range(T.Position(start - 1, 0), T.Position(end - 1, 4)),
-                                    detail=", ".join(p.name for p in prog.params), children=labels))
+                                    detail=", ".join(p.name for p in prog.params), children=labels.get(start, [])))
     return out
 
 
