@@ -24,8 +24,9 @@ def first_statement(path: Path, program: str) -> int:
 
 
 class DapClient:
-    def __init__(self, proc: asyncio.subprocess.Process) -> None:
+    def __init__(self, reader: asyncio.StreamReader, writer, proc: asyncio.subprocess.Process | None = None) -> None:
         self.proc = proc
+        self.reader, self.writer = reader, writer
         self.seq = 0
         self.events: list[dict] = []
         self._waiters: dict[int, asyncio.Future] = {}
@@ -36,11 +37,16 @@ class DapClient:
     async def start(cls) -> DapClient:
         proc = await asyncio.create_subprocess_exec(sys.executable, "-m", "aioadept", "vplus", "dap",
                                                     stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.PIPE)
-        return cls(proc)
+        return cls(proc.stdout, proc.stdin, proc)
+
+    @classmethod
+    async def connect(cls, port: int) -> DapClient:
+        """A session over TCP (``aioadept sim --vplus --debug-port``)."""
+        reader, writer = await asyncio.open_connection("127.0.0.1", port)
+        return cls(reader, writer)
 
     async def _read(self) -> None:
-        out = self.proc.stdout
-        assert out is not None
+        out = self.reader
         while True:
             header = await out.readline()
             if not header:
@@ -61,8 +67,7 @@ class DapClient:
         self.seq += 1
         msg = {"seq": self.seq, "type": "request", "command": command, "arguments": arguments or {}}
         body = json.dumps(msg).encode()
-        assert self.proc.stdin is not None
-        self.proc.stdin.write(b"Content-Length: %d\r\n\r\n" % len(body) + body)
+        self.writer.write(b"Content-Length: %d\r\n\r\n" % len(body) + body)
         fut = asyncio.get_running_loop().create_future()
         self._waiters[self.seq] = fut
         return fut
@@ -87,7 +92,12 @@ class DapClient:
     def outputs(self) -> str:
         return "".join(e["body"]["output"] for e in self.events if e["event"] == "output")
 
-    async def close(self) -> int:
+    async def close(self) -> int | None:
+        if self.proc is None:
+            await asyncio.wait_for(self.send("disconnect"), 10)
+            self.writer.close()
+            self._reader.cancel()
+            return None
         try:
             if self.proc.returncode is None:
                 await asyncio.wait_for(self.send("disconnect", {"terminateDebuggee": True}), 10)

@@ -10,6 +10,7 @@ import pytest
 from dapclient import MODULES, VPLUS, DapClient, first_statement
 
 from aioadept.ports import free_port
+from aioadept.testing.nodes import running_node
 
 pytestmark = pytest.mark.timeout(60)
 RSERVER = str(VPLUS / "rserver.V2")
@@ -120,27 +121,39 @@ async def test_the_v_plus_server_under_the_debugger_a_tcp_client_and_a_breakpoin
     assert any(e["event"] == "terminated" for e in client.events)
 
 
-async def test_a_breakpoint_in_the_executor_during_a_motion_leaves_stop_to_the_reader_and_the_arm_rests():
+async def test_attached_to_a_running_sim_a_breakpoint_in_the_executor_during_a_motion_leaves_stop_to_the_reader(
+        tmp_path):
+    """``aioadept sim --vplus --debug-port``: a DAP session attaches; a breakpoint in the executor right after a
+    skill's MOVE stops it (the arm is braked); the reader serves the stop meanwhile (its watchdog restarts the
+    executor, which acks); the arm rests; the session's end leaves the server serving."""
     text = (VPLUS / "rserver.V2").read_text(encoding="latin-1").splitlines()
     after_skill = next(i + 3 for i, t in enumerate(text) if "CALLS $p(rs.xa[])" in t)    # after CALLS ... END
     assert "IF rs.stopin <> rs.stopout THEN" in text[after_skill - 1]
-    client = await DapClient.start()
-    try:
-        port, bps = await launched(client, {RSERVER: [{"line": after_skill}]}, [])
-        assert bps[RSERVER]["breakpoints"][0]["verified"]
+    debug_port = free_port()
+    async with running_node("sim", "--vplus", *MODULES, "--run", "rs.main", "--map-port", "1234=0",
+                            "--map-port", "1235=0", "--state-endpoint", "none", "--debug-port", str(debug_port),
+                            log_path=tmp_path / "sim.log") as node:
+        port = int(node.ready["port"])
+        client = await DapClient.connect(debug_port)
+        await client.request("initialize", {"adapterID": "vplus"})
+        await client.request("attach", {})
+        await client.event("initialized")
+        bps = await client.request("setBreakpoints", {"source": {"path": RSERVER},
+                                                      "breakpoints": [{"line": after_skill}]})
+        assert bps["breakpoints"][0]["verified"]
+        await client.request("configurationDone")
         reader, writer = await asyncio.open_connection("127.0.0.1", port)
         writer.write(b"00000001:here\r\n")
         start = await asyncio.wait_for(reader.readline(), 10)
-        n = len(client.events)
         writer.write(b"00000002:move_rel_joints:0,0,0,0,0,90\r\n")
-        tid, frames = await stopped(client, n, "breakpoint")
-        assert tid == 0 and frames[0]["line"] == after_skill          # the executor, the MOVE issued
+        tid, frames = await stopped(client, 0, "breakpoint")
+        assert tid == 0 and frames[0]["line"] == after_skill and frames[0]["name"].startswith("rs.run1(")
         writer.write(b"00000003:stop\r\n")
         # the reader serves the stop: it brakes, and its watchdog (rs.unstick, rs.stwd) restarts the executor,
         # held at the breakpoint, which acks the move aborted and the stop done
         acks = [await asyncio.wait_for(reader.readline(), 10) for _ in range(2)]
         assert acks[0].startswith(b"00000002:aborted:") and acks[1].startswith(b"00000003:done:"), acks
-        assert "executor restarted" in client.outputs()
+        assert "executor restarted" in node.tail()
         poses = []
         for i in (4, 5):
             writer.write(b"0000000%d:here\r\n" % i)
@@ -148,7 +161,7 @@ async def test_a_breakpoint_in_the_executor_during_a_motion_leaves_stop_to_the_r
             await asyncio.sleep(0.3)
         # the arm came to rest where the breakpoint braked it: the 90 degree move never went on
         assert poses[0] == poses[1] == acks[1].split(b":", 3)[3] == start.split(b":", 3)[3]
+        await client.close()                  # detach: the breakpoint goes, the server serves on
+        writer.write(b"00000006:here\r\n")
+        assert (await asyncio.wait_for(reader.readline(), 10)).startswith(b"00000006:done")
         writer.close()
-    finally:
-        code = await client.close()
-    assert code == 0

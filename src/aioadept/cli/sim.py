@@ -160,6 +160,9 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--disk", metavar="DIR", default=None,
                    help="with --vplus: the folder that holds the program's disk files (FOPENR, FOPENW, ...); "
                         "nothing outside it is reachable; default a new temporary folder")
+    v.add_argument("--debug-port", type=int, default=None, dest="debug_port", metavar="PORT",
+                   help="with --vplus: serve V+ debugger (Debug Adapter Protocol) attach sessions on 127.0.0.1:PORT "
+                        "(docs/vplus.md, Debugging)")
     add_node_transport_options(p)
     return p
 

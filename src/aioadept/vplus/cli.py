@@ -51,6 +51,9 @@ async def run(args: argparse.Namespace, options: Any) -> int:
     if made is None:
         return 2
     emu, clock, wall0 = made
+    debug_server = await _debug_port(args, emu)
+    if debug_server is False:
+        return 2
 
     publisher = None
     state = "none"
@@ -91,8 +94,29 @@ async def run(args: argparse.Namespace, options: Any) -> int:
         sup.die(f"emulator internal error {one_line(exc)}; every V+ task was aborted")
     finally:
         sup.closing = True
+        if debug_server is not None:
+            debug_server.close()
         await _shut_down(emu, ctl, clock, states, publisher, options)
     return sup.status
+
+
+async def _debug_port(args: argparse.Namespace, emu: Any) -> Any:
+    """``--debug-port PORT``: the emulator runs its instrumented form under a debugger, and DAP ``attach``
+    sessions are served on 127.0.0.1:PORT (aioadept.vplus.dap; ``DEBUG host=127.0.0.1 port=P`` on stdout). The
+    server, None without the option, False (one line on stderr) when the port cannot be bound."""
+    port = getattr(args, "debug_port", None)
+    if port is None:
+        return None
+    from aioadept.vplus import dap
+    from aioadept.vplus.debugger import Debugger
+
+    try:
+        server = await dap.serve_attach(emu, Debugger(emu.rt), "127.0.0.1", port)
+    except (OSError, OverflowError) as exc:
+        print(f"aioadept sim: --debug-port {port}: {getattr(exc, 'strerror', None) or exc}", file=sys.stderr, flush=True)
+        return False
+    print(f"DEBUG host=127.0.0.1 port={server.sockets[0].getsockname()[1]}", flush=True)
+    return server
 
 
 def _make_emulator(args: argparse.Namespace, ctl: Any) -> tuple[Any, Any, float] | None:

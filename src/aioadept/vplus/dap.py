@@ -76,11 +76,16 @@ def frame_message(msg: dict) -> bytes:
 class Adapter:
     """One debug session: requests in (:meth:`handle`), responses and events out through ``send``."""
 
-    def __init__(self, send: Callable[[bytes], None]) -> None:
+    def __init__(self, send: Callable[[bytes], None], attached: tuple[Any, Debugger] | None = None) -> None:
+        """``attached``: (emulator, its debugger) of a running ``aioadept sim --vplus --debug-port``: the session
+        attaches to it instead of launching."""
         self._send = send
         self.seq = 0
         self.emu: Any = None
         self.debugger: Debugger | None = None
+        self.attached = attached is not None
+        if attached is not None:
+            self.emu, self.debugger = attached
         self.stop = asyncio.Event()          # set: the emulator stops serving
         self.done = asyncio.Event()          # set: the session is over
         self._serving: asyncio.Future | None = None
@@ -126,7 +131,17 @@ class Adapter:
     def req_initialize(self, args: dict, req: dict) -> dict:
         return CAPABILITIES
 
+    def req_attach(self, args: dict, req: dict) -> dict:
+        if not self.attached or self.debugger is None:
+            raise DebugError("attach: nothing to attach to here (connect to a running aioadept sim --vplus with "
+                             "a debug port, or launch)")
+        self.debugger.on_event = self.event
+        self.event("initialized")
+        return {}
+
     def req_launch(self, args: dict, req: dict) -> object:
+        if self.attached:
+            raise LaunchError("launch: this session is attached to a running emulator (use attach)")
         self._args = launch_args(args)
         self.emu = make_emulator(self._args, self._console, self._listening)
         for p in self.emu.problems:
@@ -257,6 +272,8 @@ class Adapter:
         return {}
 
     def req_terminate(self, args: dict, req: dict) -> dict:
+        if self.attached and self.debugger is not None:
+            self.debugger.end()           # brake, abort every task: the sim's supervisor ends the server
         self.end()
         return {}
 
@@ -272,6 +289,11 @@ class Adapter:
         if self._ended:
             return
         self._ended = True
+        if self.attached:
+            if self.debugger is not None:
+                self.debugger.detach()
+            self.event("terminated")
+            return
         if self.debugger is not None:
             self.emu.rt.on_task_end = None
             self.debugger.end()
@@ -390,7 +412,10 @@ def make_emulator(a: dict, console: Callable[[int, str], None], on_listen: Calla
 
 async def session(reader: asyncio.StreamReader, send: Callable[[bytes], None]) -> None:
     """Serve one debug session until ``disconnect`` or the end of the input (which also ends the emulator)."""
-    adapter = Adapter(send)
+    await run(Adapter(send), reader)
+
+
+async def run(adapter: Adapter, reader: asyncio.StreamReader) -> None:
     try:
         while not adapter.done.is_set():
             msg = await read_message(reader)
@@ -402,6 +427,29 @@ async def session(reader: asyncio.StreamReader, send: Callable[[bytes], None]) -
         adapter.end()
         if adapter._serving is not None:
             await asyncio.gather(adapter._serving, return_exceptions=True)
+
+
+async def serve_attach(emu: Any, debugger: Debugger, host: str, port: int) -> asyncio.Server:
+    """Serve ``attach`` sessions to a running emulator on ``host:port`` (loopback), one at a time (a second
+    connection is closed at once)."""
+    busy = [False]
+
+    async def one(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        if busy[0]:
+            writer.close()
+            return
+        busy[0] = True
+        adapter = Adapter(writer.write, attached=(emu, debugger))
+        try:
+            await run(adapter, reader)
+            await writer.drain()
+        except (ConnectionError, ValueError):
+            adapter.end()                 # a client gone or garbled: the session ends as a disconnect
+        finally:
+            busy[0] = False
+            writer.close()
+
+    return await asyncio.start_server(one, host, port)
 
 
 async def serve_stdio() -> None:

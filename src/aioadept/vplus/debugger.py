@@ -267,6 +267,23 @@ class Debugger:
                 self._pause.add(n)
                 T.trace = True
 
+    def detach(self) -> None:
+        """The session ends and leaves the program running (an attached debugger): no breakpoint, step or pause
+        is left, the arm is braked (the safe side: a motion a stopped task had started does not go on), and the
+        stopped tasks go on."""
+        for key in list(self._by_file):
+            self.set_breakpoints(key, [])
+        self._steps.clear()
+        self._pause.clear()
+        self._entry.clear()
+        for T in self.rt.tasks.values():
+            T.trace = False
+        robot = self.rt.robot
+        if robot is not None:
+            robot.brake(self.rt.now)
+        self.resume()
+        self.on_event = lambda name, body: None
+
     def end(self) -> None:
         """The session ends: the arm is braked, every task aborted."""
         robot = self.rt.robot
