@@ -52,7 +52,8 @@ import zmq
 from verdicts import verdict
 import zmq.asyncio
 
-from aioadept.bus.communicator import Communicator, Responder
+from aioadept.bus.communicator import Communicator
+from aioadept.bus.responder import Responder
 from aioadept.bus.messages import encode_event
 from aioadept.errors import RequestTimeout
 

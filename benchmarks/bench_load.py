@@ -45,7 +45,7 @@ import sys
 import time
 from typing import Any
 
-from aioadept.apps.focus import INIT_MOVE
+from aioadept.apps.paper import INIT_MOVE
 from aioadept.bus.communicator import Communicator
 from aioadept.client import RobotClient
 from aioadept.commands import MoveRelJoints

@@ -73,7 +73,7 @@ async def presence(n_cameras: int, restarts: int, tmp: Path) -> dict:
     from aioadept.apps.processes import NodeProcess
     from aioadept.bus import zenoh as zb
     from aioadept.bus.presence import NodeWatcher
-    from aioadept.apps.cell import free_port
+    from aioadept.ports import free_port
 
     router = f"tcp/127.0.0.1:{free_port()}"
     zb.configure(zb.ZenohOptions.router(router))

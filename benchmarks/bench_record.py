@@ -75,7 +75,7 @@ class Timed:
 
 
 async def one_run(sim, frames: Path, steps: int, record: bool, out: Path, speed: int) -> dict:  # noqa: ANN001
-    from aioadept.apps.focus import ufloop
+    from aioadept.apps.paper import ufloop
     from aioadept.bus import Communicator, Responder
     from aioadept.capture import Recorder
     from aioadept.client import RobotClient
@@ -149,7 +149,7 @@ async def main_async(args: argparse.Namespace) -> dict:
     import cv2
     import numpy as np
 
-    from aioadept.apps.focus import init_move
+    from aioadept.apps.paper import init_move
     from aioadept.client import RobotClient
     from aioadept.testing.sim import running_sim
 

@@ -4,29 +4,43 @@ The data path, as the package tree reads: ``protocol`` (sans-IO line protocol) �
 → ``sim`` (simulated controller) → ``bus`` (ZeroMQ + Protobuf) → ``vision`` → ``apps`` → ``analysis``.
 """
 
+from aioadept.client import RobotClient
 from aioadept.commands import (
+    Appro,
+    Appros,
     Break,
+    CloseHand,
     Command,
+    Depart,
+    Departs,
     DisableAir,
     EnableAir,
+    GetStatus,
     Here,
     Joined,
     MoveJoints,
     MoveRelJoints,
     MoveRelTool,
+    MoveRelToolS,
     MoveRelWorld,
     MoveTo,
+    MoveToS,
     MoveToolZ,
+    OpenHand,
+    RelaxHand,
     SetSpeed,
+    Sig,
+    Signal,
     Skill,
+    WaitSig,
 )
-from aioadept.commands import CloseHand, OpenHand, RelaxHand, Sig, Signal, WaitSig  # digital I/O and the hand
 from aioadept.geometry import Pose
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "Break", "Command", "DisableAir", "EnableAir", "Here", "Joined", "MoveJoints", "MoveRelJoints", "MoveRelTool",
-    "MoveRelWorld", "MoveTo", "MoveToolZ", "Pose", "SetSpeed", "Skill", "__version__",
-    "CloseHand", "OpenHand", "RelaxHand", "Sig", "Signal", "WaitSig",
+    "Appro", "Appros", "Break", "CloseHand", "Command", "Depart", "Departs", "DisableAir", "EnableAir",
+    "GetStatus", "Here", "Joined", "MoveJoints", "MoveRelJoints", "MoveRelTool", "MoveRelToolS", "MoveRelWorld",
+    "MoveTo", "MoveToS", "MoveToolZ", "OpenHand", "Pose", "RelaxHand", "RobotClient", "SetSpeed", "Sig",
+    "Signal", "Skill", "WaitSig", "__version__"
 ]

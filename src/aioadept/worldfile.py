@@ -1,4 +1,4 @@
-"""The cell file's ``[world]`` table -> :class:`aioadept.sim.world.WorldConfig`, every value checked before anything
+"""The cell file's ``[world]`` table -> :class:`aioadept.worldmodel.WorldConfig`, every value checked before anything
 starts (one line naming the file, the key and what was expected: :class:`aioadept.errors.ConfigError`).
 
 The table, as ``examples/cell.toml`` shows it::
@@ -9,7 +9,7 @@ The table, as ``examples/cell.toml`` shows it::
     id = 1
     shape = "box"             # or "cylinder" (size_mm = [diameter, height])
     size_mm = [40, 30, 20]
-    colour = "red"            # a name of aioadept.sim.world.COLOURS or [r, g, b]
+    colour = "red"            # a name of aioadept.worldmodel.COLOURS or [r, g, b]
     marker = 3                # ArUco id on the top face (omit: none); marker_mm its side
     x_mm = 450.0
     y_mm = 150.0

@@ -42,7 +42,7 @@ def pytest_configure(config: pytest.Config) -> None:
 
 
 def vplus_cli_available() -> bool:
-    from aioadept.sim.__main__ import build_parser
+    from aioadept.cli.sim import build_parser
 
     return any("--vplus" in a.option_strings for a in build_parser()._actions)
 

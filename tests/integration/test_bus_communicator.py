@@ -9,7 +9,9 @@ import time
 import pytest
 
 from aioadept.bus import epypes_pb2
-from aioadept.bus.communicator import Communicator, Request, Responder, Response
+from aioadept.bus.communicator import Communicator
+from aioadept.bus.responder import Responder
+from aioadept.bus.pairing import Request, Response
 from aioadept.bus.messages import EventMessage, decode_event, encode_event
 from aioadept.bus.pubsub import Publisher, Subscriber
 from aioadept.errors import RemoteError

@@ -18,7 +18,8 @@ from pathlib import Path
 import pytest
 import zmq
 
-from aioadept.bus.communicator import Communicator, Responder
+from aioadept.bus.communicator import Communicator
+from aioadept.bus.responder import Responder
 from aioadept.ports import free_port
 
 _spec = importlib.util.spec_from_file_location(

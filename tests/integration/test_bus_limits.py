@@ -14,7 +14,8 @@ import pytest
 import zmq
 import zmq.asyncio
 
-from aioadept.bus.communicator import DEFAULT_MAX_QUEUE, DEFAULT_MAX_REQUEST_BYTES, Communicator, Responder
+from aioadept.bus.responder import DEFAULT_MAX_QUEUE, DEFAULT_MAX_REQUEST_BYTES, Responder
+from aioadept.bus.communicator import Communicator
 from aioadept.bus.messages import decode_event, encode_event
 
 ANY = "tcp://127.0.0.1:*"

@@ -14,7 +14,8 @@ from collections import Counter
 
 import pytest
 
-from aioadept.bus.communicator import Communicator, Responder
+from aioadept.bus.communicator import Communicator
+from aioadept.bus.responder import Responder
 from aioadept.bus.messages import decode_event
 
 @pytest.mark.timeout(10)

@@ -15,7 +15,7 @@ import pytest
 
 from aioadept.apps.cell import CellConfig, vision_argv
 from aioadept.ports import free_port
-from aioadept.vision.__main__ import resolve_options
+from aioadept.cli.vision import resolve_options
 
 ROOT = Path(__file__).resolve().parents[2]
 CELL = ROOT / "examples" / "cell.toml"

@@ -174,7 +174,7 @@ class _NoMotion:
 
 @pytest.mark.parametrize(("delta_z", "speed"), [(0.0, 25), (-2.0, 25), (2.0, 0), (2.0, 150)])
 def test_ufloop_refuses_a_bad_value_before_any_motion(delta_z, speed):
-    from aioadept.apps.focus import ufloop
+    from aioadept.apps.paper import ufloop
 
     with pytest.raises(ValueError, match="expected"):
         asyncio.run(ufloop(_NoMotion(), None, delta_z, speed))

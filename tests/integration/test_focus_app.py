@@ -14,7 +14,9 @@ import numpy as np
 import pytest
 
 from aioadept import Here, MoveToolZ
-from aioadept.apps.focus import FocusParams, init_move, ufloop, ufloop_with_stop
+from aioadept.apps.focus import FocusParams, ufloop_with_stop
+from aioadept.apps.paper import init_move
+from aioadept.apps.paper import ufloop
 from aioadept.errors import FocusError, FocusStopped, StopFailed
 from aioadept.bus import Communicator, Responder
 from aioadept.bus.messages import encode_event

@@ -15,8 +15,11 @@ import zmq.asyncio
 from zmq.utils.monitor import parse_monitor_message
 
 from aioadept.bus import security
-from aioadept.bus.communicator import Communicator, Responder
-from aioadept.bus.pubsub import Publisher, Subscriber, close_socket, open_socket
+from aioadept.bus.communicator import Communicator
+from aioadept.bus.responder import Responder
+from aioadept.bus.pubsub import Publisher, Subscriber
+from aioadept.bus.sockets import open_socket
+from aioadept.bus.sockets import close_socket
 from aioadept.bus.security import CurveClient, CurveKeyPair, CurveServer, load_keypair, save_keypair
 from aioadept.errors import RequestTimeout
 

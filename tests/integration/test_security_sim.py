@@ -21,7 +21,7 @@ from aioadept.client import RobotClient
 from aioadept.errors import CommandError, ConnectionLost
 from aioadept.geometry import Pose, poses_close
 from aioadept.protocol import NO_ID, ErrorCode, LineFramer, Status, parse_ack
-from aioadept.sim.__main__ import build_parser, options_from_args
+from aioadept.cli.sim import build_parser, options_from_args
 from aioadept.sim.controller import Controller
 from aioadept.sim.server import SimOptions
 from aioadept.testing.sim import running_sim

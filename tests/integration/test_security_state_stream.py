@@ -42,8 +42,8 @@ def test_command_line_key_files_configure_both_ends(tmp_path):
     import argparse
 
     from aioadept.bus.security import load_keypair, save_keypair
-    from aioadept.sim.__main__ import build_parser, options_from_args
-    from aioadept.vision.__main__ import _state_curve
+    from aioadept.cli.sim import build_parser, options_from_args
+    from aioadept.vision.service import _state_curve
 
     sim_pub, sim_sec = save_keypair(tmp_path, "sim")
     cam_pub, cam_sec = save_keypair(tmp_path, "camera")

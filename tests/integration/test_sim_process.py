@@ -103,7 +103,7 @@ async def test_sim_subprocess_publishes_state_and_injects_faults():
 
 
 def test_bad_options_exit_with_usage_error():
-    from aioadept.sim.__main__ import main
+    from aioadept.cli.sim import main
 
     with pytest.raises(SystemExit) as info:
         main(["--fault", "explode"])

@@ -24,7 +24,8 @@ import zmq.asyncio
 
 from aioadept.bus.endpoints import resolve
 from aioadept import MoveJoints, MoveRelJoints, MoveRelTool
-from aioadept.bus.communicator import Communicator, Response
+from aioadept.bus.communicator import Communicator
+from aioadept.bus.pairing import Response
 from aioadept.bus.messages import decode_event, encode_event
 from aioadept.client import RobotClient
 from aioadept.errors import VisionError

@@ -143,7 +143,7 @@ def python_skills() -> set[str]:
 def expected_nargs() -> dict[str, set[int]]:
     """Argument counts per skill, from the simulator's skill table if it is there."""
     try:
-        from aioadept.sim.controller import default_skills
+        from aioadept.sim.skills import default_skills
     except Exception:  # the simulator is built elsewhere; fall back to the paper's counts
         return {k: {v} for k, v in FALLBACK_NARGS.items()}
     out: dict[str, set[int]] = {}

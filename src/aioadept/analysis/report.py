@@ -28,9 +28,11 @@ from aioadept.analysis.outputs import publish, staging
 from aioadept.errors import AnalysisSaveError
 from aioadept.capture import Run, load_run, write_atomic
 
-__all__ = ["ANALYSIS_FILES", "AnalysisSaveError", "DEFAULT_GROUP_BY", "FIGURES", "Group", "RunInfo", "Summary", "analyze_runs", "expand_run_dirs",
-           "fits_table", "gantt_bars", "group_stats", "summary_table", "vision_spans",
-           "write_figures"]
+__all__ = [
+    "ANALYSIS_FILES", "DEFAULT_GROUP_BY", "FIGURES", "Group", "RunInfo", "Summary", "analyze_runs",
+    "expand_run_dirs", "fits_table", "gantt_bars", "group_stats", "summary_table", "vision_spans",
+    "write_figures"
+]
 
 FIGURES = {
     "sharpness": "fig09_sharpness.png",

@@ -17,7 +17,8 @@ from typing import Any
 
 from aioadept.ports import free_port
 from aioadept.apps.cellbus import BusSection, transport_argv, with_transport, zenoh_session
-from aioadept.apps.focus import FocusParams, FocusResult, ufloop
+from aioadept.apps.focus import FocusParams
+from aioadept.apps.paper import FocusResult, ufloop
 from aioadept.apps.pickplace import PickPlaceParams
 from aioadept.apps.processes import NodeProcess, run_watched
 from aioadept.apps.runfolder import abandon_run, merged_save_error, run_error, save_run

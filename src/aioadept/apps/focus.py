@@ -5,9 +5,10 @@ axis towards the camera, asks the vision node for the image sharpness after each
 falls: the previous position, one step back, is the inspection-start pose (the paper's xi_is).
 
 The three coroutines of the paper are kept, with the same names and roles (``init_move``, ``move_tool_z``,
-``ufloop``; written once in :mod:`aioadept.apps.paper` and re-exported here), and take a :class:`~aioadept.client.RobotClient` and a :class:`~aioadept.bus.Communicator`. What a
-real cell needs on top: a step limit, a clear error when the vision node sees no object, a retract to the approach
-pose after a failure the loop detected itself, and the found pose returned with the sharpness series.
+``ufloop``, in :mod:`aioadept.apps.paper`), and take a :class:`~aioadept.client.RobotClient` and a
+:class:`~aioadept.bus.Communicator`. What a real cell needs on top: a step limit, a clear error when the vision
+node sees no object, a retract to the approach pose after a failure the loop detected itself, and the found pose
+returned with the sharpness series.
 :func:`stop_listener` shows the paper's "composition of coroutines": a second coroutine that stops the robot when a
 stop event arrives on the bus.
 
@@ -23,18 +24,10 @@ import logging
 from dataclasses import dataclass
 from typing import Any
 
-from aioadept.apps.paper import (  # noqa: F401  (the paper's coroutines, re-exported: their old import path)
-    HOME_JOINTS_DEG,
-    INIT_MOVE,
-    VISION_REQUEST,
+from aioadept.apps.paper import (
     FOCUS_RANGES,
-    FocusError,
     FocusResult,
-    Robot,
     Vision,
-    init_move,
-    measure,
-    move_tool_z,
     ufloop,
 )
 from aioadept.apps.sweep import MODES, SWEEP_RANGES

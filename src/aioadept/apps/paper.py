@@ -17,7 +17,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
-from aioadept.bus.messages import VISION_REQUEST as _VISION_REQUEST
+from aioadept.bus.messages import VISION_REQUEST
 from aioadept.commands import SPEED_MAX, SPEED_MIN, MoveJoints, MoveRelJoints, MoveRelTool, MoveTo, MoveToolZ, SetSpeed
 from aioadept.configfile import Range
 from aioadept.errors import AdeptError, CommandAborted, CommandError, FocusError, VisionError
@@ -36,8 +36,6 @@ INIT_MOVE = (
 
 HOME_JOINTS_DEG = paper_cell.HOME_JOINTS_DEG
 """The paper's "home" joint configuration: upper arm vertical, forearm horizontal, tool pointing down."""
-
-VISION_REQUEST = _VISION_REQUEST
 
 
 class Robot(Protocol):

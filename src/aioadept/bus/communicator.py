@@ -23,8 +23,8 @@ other side's explicit endpoints.
   or not anybody awaits them yet (the paper-style ``send()`` without ``recv()``).
 
 Observers get :class:`Request` (on the first publish) and :class:`Response`; their ``t_*_s`` are ``loop.time()``.
-The node side, :class:`~aioadept.bus.responder.Responder`, lives in :mod:`aioadept.bus.responder` and is
-re-exported here, as are the shared names of :mod:`aioadept.bus.pairing`.
+The node side, :class:`~aioadept.bus.responder.Responder`, lives in :mod:`aioadept.bus.responder`; the names both
+sides share in :mod:`aioadept.bus.pairing`.
 """
 
 from __future__ import annotations
@@ -43,32 +43,17 @@ from aioadept.bus import epypes_pb2
 from aioadept.bus.endpoints import parse_endpoint, peer_actual
 from aioadept.bus.messages import EventMessage, decode_event, encode_event, event_from_pb, event_to_pb
 from aioadept.bus.pairing import (
-    BusObserver,
     PendingRegistry,
     Request,
     Response,
     new_request_id,
-    response_type_for,
 )
 from aioadept.bus.pubsub import DEFAULT_REQUEST_ENDPOINT, DEFAULT_RESPONSE_ENDPOINT
-from aioadept.bus.responder import DEFAULT_MAX_QUEUE, DEFAULT_MAX_REQUEST_BYTES, Handler, Responder
 from aioadept.bus.security import Curve
 from aioadept.bus.sockets import SocketReader, as_topic, close_socket, nobody_takes, open_socket
 from aioadept.errors import BusEncodeError, BusError, ClientStateError, RequestTimeout
 
-__all__ = [
-    "DEFAULT_MAX_QUEUE",
-    "DEFAULT_MAX_REQUEST_BYTES",
-    "MAX_UNRECEIVED",
-    "BusObserver",
-    "Communicator",
-    "Handler",
-    "Request",
-    "Responder",
-    "Response",
-    "new_request_id",
-    "response_type_for",
-]
+__all__ = ["MAX_UNRECEIVED", "Communicator"]
 
 log = logging.getLogger(__name__)
 

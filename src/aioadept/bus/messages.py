@@ -380,12 +380,12 @@ WORLD_STATE_TOPIC = b"world.state"
 class WorldState:
     """One sample of the simulated world (:mod:`aioadept.sim.world`): at server time ``t_s`` (epoch
     ``wall_time_s``) every part's pose and whether it is held or fell, the world's inputs that are on, and the
-    events since the previous sample (:class:`aioadept.sim.world.WorldEvent`; ``seq`` is not sent: 0 here)."""
+    events since the previous sample (:class:`aioadept.worldmodel.WorldEvent`; ``seq`` is not sent: 0 here)."""
 
     t_s: float
     wall_time_s: float
-    parts: tuple = ()        # tuple[aioadept.sim.world.PartState, ...]
-    events: tuple = ()       # tuple[aioadept.sim.world.WorldEvent, ...]
+    parts: tuple = ()        # tuple[aioadept.worldmodel.PartState, ...]
+    events: tuple = ()       # tuple[aioadept.worldmodel.WorldEvent, ...]
     sensors_on: tuple[int, ...] = ()
 
     def to_bytes(self) -> bytes:
@@ -417,7 +417,7 @@ class WorldState:
             sensors_on=tuple(pb.sensors_on),
         )
 
-    def part(self, part_id: int):  # -> aioadept.sim.world.PartState
+    def part(self, part_id: int):  # -> aioadept.worldmodel.PartState
         for p in self.parts:
             if p.id == part_id:
                 return p

@@ -1,7 +1,6 @@
 """The publish and subscribe roles of the bus: owned PUB/SUB sockets with topic frames (the robot state stream, the
 virtual camera's state reader, tools). Sockets are opened and closed by the one socket layer,
-:mod:`aioadept.bus.sockets`, which request/response pairing uses too; ``as_topic``, ``open_socket`` and
-``close_socket`` are re-exported here for code that imported them from this module.
+:mod:`aioadept.bus.sockets`, which request/response pairing uses too.
 
 Frames on the wire:
 
@@ -34,20 +33,12 @@ from typing import Any
 import zmq
 
 from aioadept.bus.security import Curve
-from aioadept.bus.sockets import as_topic, attach, close_socket, make_socket, open_socket
+from aioadept.bus.sockets import as_topic, attach, close_socket, make_socket
 from aioadept.errors import BusError
 
 __all__ = [
-    "DEFAULT_REQUEST_ENDPOINT",
-    "DEFAULT_RESPONSE_ENDPOINT",
-    "DEFAULT_STATE_ENDPOINT",
-    "Publisher",
-    "SyncPublisher",
-    "Subscriber",
-    "SyncSubscriber",
-    "as_topic",
-    "close_socket",
-    "open_socket",
+    "DEFAULT_REQUEST_ENDPOINT", "DEFAULT_RESPONSE_ENDPOINT", "DEFAULT_STATE_ENDPOINT", "Publisher",
+    "SyncPublisher", "Subscriber", "SyncSubscriber"
 ]
 
 from aioadept import defaults as _defaults  # noqa: E402

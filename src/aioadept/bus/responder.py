@@ -32,10 +32,10 @@ from aioadept.bus.endpoints import peer_actual
 from aioadept.bus.messages import AttributeValue, decode_event, encode_event
 from aioadept.bus.pairing import PendingRegistry, response_type_for
 from aioadept.bus.security import Curve
-from aioadept.bus.sockets import READ_BATCH, SocketReader, as_topic, close_socket, open_socket
+from aioadept.bus.sockets import SocketReader, as_topic, close_socket, open_socket
 from aioadept.errors import BusEncodeError, BusError, ClientStateError
 
-__all__ = ["DEFAULT_MAX_QUEUE", "DEFAULT_MAX_REQUEST_BYTES", "READ_BATCH", "Handler", "Responder"]
+__all__ = ["DEFAULT_MAX_QUEUE", "DEFAULT_MAX_REQUEST_BYTES", "Handler", "Responder"]
 
 log = logging.getLogger(__name__)
 

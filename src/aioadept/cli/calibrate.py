@@ -20,8 +20,16 @@ import sys
 from pathlib import Path
 
 from aioadept import defaults
-from aioadept.cli.options import (ArgumentParser, add_robot_option, add_verbose, description, parse_robot_address,
-                                  report, setup_logging, with_default)
+from aioadept.cli.options import (
+    ArgumentParser,
+    add_robot_option,
+    add_verbose,
+    description,
+    parse_robot_address,
+    setup_logging,
+    with_default,
+)
+from aioadept.configfile import report
 from aioadept.configfile import Range
 
 log = logging.getLogger("aioadept.calibrate")

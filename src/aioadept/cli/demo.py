@@ -16,8 +16,17 @@ from pathlib import Path
 
 from aioadept.apps.cell import CellConfig, new_run_dir
 from aioadept.apps.demo import run_demo
-from aioadept.cli.options import (ArgumentParser, add_cell_options, add_mode_option, apply_overrides, check_option,
-                                  configure_logging, description, option_help, report)
+from aioadept.cli.options import (
+    ArgumentParser,
+    add_cell_options,
+    add_mode_option,
+    apply_overrides,
+    check_option,
+    configure_logging,
+    description,
+    option_help,
+)
+from aioadept.configfile import report
 from aioadept.cli.report import run_once
 
 log = logging.getLogger("aioadept.demo")

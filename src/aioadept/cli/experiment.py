@@ -15,8 +15,15 @@ from pathlib import Path
 from aioadept.apps.cell import CellConfig
 from aioadept.apps.experiment import run_experiment
 from aioadept.apps.interrupt import Interrupter, run_interruptible
-from aioadept.cli.options import (ArgumentParser, add_config, add_verbose, check_option, configure_logging,
-                                  description, report)
+from aioadept.cli.options import (
+    ArgumentParser,
+    add_config,
+    add_verbose,
+    check_option,
+    configure_logging,
+    description,
+)
+from aioadept.configfile import report
 
 log = logging.getLogger("aioadept.experiment")
 

@@ -12,9 +12,19 @@ from pathlib import Path
 
 from aioadept.apps.cell import CellConfig, new_run_dir, run_focus_once
 from aioadept import defaults
-from aioadept.cli.options import (ArgumentParser, add_cell_options, add_insecure_option, add_mode_option, add_robot_option,
-                                  apply_overrides, configure_logging, description, parse_robot_address, report,
-                                  with_default)
+from aioadept.cli.options import (
+    ArgumentParser,
+    add_cell_options,
+    add_insecure_option,
+    add_mode_option,
+    add_robot_option,
+    apply_overrides,
+    configure_logging,
+    description,
+    parse_robot_address,
+    with_default,
+)
+from aioadept.configfile import report
 from aioadept.cli.report import run_once
 
 log = logging.getLogger("aioadept.focus")
@@ -94,7 +104,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(cfg: CellConfig, run_dir: Path) -> int:
-    from aioadept.apps.cell import resolve_ports, zenoh_session
+    from aioadept.apps.cell import resolve_ports
+    from aioadept.apps.cellbus import zenoh_session
     from aioadept.errors import BusError
 
     cfg = resolve_ports(cfg)  # [bus] transport = "zenoh": the cell's keys, and this process joins its router

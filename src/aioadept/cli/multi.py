@@ -36,7 +36,7 @@ def main_multi(args: argparse.Namespace, data: dict[str, Any], options: Callable
     """``options(cfg, args, from_file=True)``: the demo's options applied to one robot's cell."""
     from aioadept.apps.interrupt import run_interruptible
     from aioadept.apps.multicell import new_multi_run_dir, run_multi
-    from aioadept.cli.options import report
+    from aioadept.configfile import report
     from aioadept.record.hook import keep_frames
 
     if getattr(args, "view", False):

@@ -14,17 +14,18 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from aioadept import defaults
-from aioadept.configfile import report
 from aioadept.errors import ConfigError
 
 if TYPE_CHECKING:
     from aioadept.apps.cell import CellConfig
     from aioadept.apps.cellbus import BusSection
 
-__all__ = ["ArgumentParser", "DefaultsHelpFormatter", "Listener", "ROBOT_HELP", "add_cell_options", "add_config",
-           "add_insecure_option", "add_verbose", "apply_cell_bus", "apply_overrides", "check_listeners", "check_option",
-           "configure_logging", "description", "is_loopback", "option_help", "parse_robot_address", "report",
-           "zenoh_authenticates"]
+__all__ = [
+    "ArgumentParser", "DefaultsHelpFormatter", "Listener", "ROBOT_HELP", "add_cell_options", "add_config",
+    "add_insecure_option", "add_verbose", "apply_cell_bus", "apply_overrides", "check_listeners",
+    "check_option", "configure_logging", "description", "is_loopback", "option_help", "parse_robot_address",
+    "zenoh_authenticates"
+]
 
 
 def description(doc: str | None) -> str:

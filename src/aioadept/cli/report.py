@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from aioadept.apps.focus import FocusResult
+    from aioadept.apps.paper import FocusResult
     from aioadept.apps.interrupt import Interrupter
 
 log = logging.getLogger(__name__)

@@ -101,7 +101,8 @@ async def run(host: str, port: int, endpoint: str, curve) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from aioadept.cli.options import apply_node_transport, parse_robot_address, report
+    from aioadept.cli.options import apply_node_transport, parse_robot_address
+    from aioadept.configfile import report
     from aioadept.cli.sim import _state_curve
 
     parser = build_parser()

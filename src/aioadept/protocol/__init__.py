@@ -38,11 +38,11 @@ from aioadept.protocol.messages import (
     recover_id,
     sanitize_text,
 )
-from aioadept.protocol.reader import AckParser, AckReader, BadAck
+from aioadept.protocol.reader import AckReader, BadAck
 
 __all__ = [
     "DEFAULT_TEXT", "DELIMITER", "HELLO_SKILL", "HERE_SKILL", "ID_LENGTH", "MAX_ACK_LINE", "MAX_LINE", "MAX_SKILL_NAME", "NO_ID", "PROTOCOL_VERSION", "STOP_SKILL",
-    "Ack", "AckParser", "AckReader", "BadAck", "CommandMessage", "ErrorCode", "IdAllocator", "LineFramer", "Oversize", "SkillCall", "Status",
+    "Ack", "AckReader", "BadAck", "CommandMessage", "ErrorCode", "IdAllocator", "LineFramer", "Oversize", "SkillCall", "Status",
     "check_skill_name", "describe", "encode_ack", "encode_command", "format_arg", "parse_ack", "parse_command",
     "recover_id", "sanitize_text",
 ]

@@ -28,7 +28,7 @@ from aioadept.errors import RemoteProtocolError
 from aioadept.protocol.framing import MAX_ACK_LINE, LineFramer, Oversize
 from aioadept.protocol.messages import ID_LENGTH, Ack, Status, _make_ack, parse_ack
 
-__all__ = ["AckParser", "AckReader", "BadAck"]
+__all__ = ["AckReader", "BadAck"]
 
 _DONE = Status.DONE
 # The twin class behind _make_ack, for feed()'s inline build (a call per ack costs more than the object).
@@ -187,6 +187,3 @@ class AckReader:
                 raise RemoteProtocolError(ErrorCode.LINE_TOO_LONG, f"ack line over {self._framer.max_line} bytes",
                                           line=item.head)
         return out  # type: ignore[return-value]
-
-AckParser = AckReader
-"""The former name of the per-line parser (:meth:`AckReader.parse`); the same class."""

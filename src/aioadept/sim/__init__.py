@@ -11,7 +11,8 @@ Layers, from pure to I/O (see docs/sim.md)::
 In-process use for tests: :func:`aioadept.testing.sim.running_sim`.
 """
 
-from aioadept.sim.controller import Controller, SkillResult, SkillSpec
+from aioadept.sim.controller import Controller
+from aioadept.sim.skills import SkillResult, SkillSpec
 from aioadept.robots.viper_s850 import HOME_JOINTS_DEG, forward, inverse
 from aioadept.sim.server import Faults, SimOptions, SimServer
 

@@ -2,7 +2,7 @@
 
 import sys
 
-from aioadept.cli.sim import build_parser, main, options_from_args, run  # noqa: F401
+from aioadept.cli.sim import main
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(main())

@@ -83,11 +83,10 @@ from aioadept.robots.viper import VIPER_S850
 from aioadept.sim.io import DigitalIO, HandState, IoSnapshot
 from aioadept.sim.line import CartesianLimits, LinePath, plan_tool_line
 from aioadept.sim.motion import MotionLimits, Trajectory
-from aioadept.sim.world import World, WorldEvent, WorldSnapshot
+from aioadept.sim.world import World
+from aioadept.worldmodel import WorldEvent, WorldSnapshot
 
-# The table's names, re-exported: their old import path.
-from aioadept.sim.skills import (_STOP_RUN, AIR_SIGNAL, MAX_JOINT_DEG, MAX_POSITION_MM, MAX_ROTATION_DEG,  # noqa: F401
-                                 MIN_SPEED_PCT, SERVER_NAME, SkillFunc, SkillGen, SkillResult, SkillSpec,
+from aioadept.sim.skills import (_STOP_RUN, AIR_SIGNAL, MIN_SPEED_PCT, SkillFunc, SkillGen, SkillResult, SkillSpec,
                                  default_skills)
 
 ConnId = Hashable
@@ -650,7 +649,4 @@ class Controller:
         return None
 
 
-__all__ = [
-    "AIR_SIGNAL", "SERVER_NAME", "Controller", "ControllerState", "Outgoing", "SkillResult",
-    "SkillSpec", "default_skills",
-]
+__all__ = ["Controller", "ControllerState", "Outgoing"]

@@ -49,7 +49,8 @@ from aioadept.robots.base import DEFAULT_JUMP_LIMIT, JumpLimit, model_joints
 from aioadept.sim.controller import Controller, Outgoing
 from aioadept.sim.io import HAND_TIME_S, DigitalIO, HandConfig
 from aioadept.sim.line import CartesianLimits
-from aioadept.sim.world import World, WorldConfig
+from aioadept.sim.world import World
+from aioadept.worldmodel import WorldConfig
 
 log = logging.getLogger(__name__)
 

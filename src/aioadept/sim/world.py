@@ -28,7 +28,7 @@ Rules (docs/sim.md, "The world"):
   (not in a snapshot, never grasped). :meth:`World.step` makes it arrive; the controller calls it whenever its
   I/O advances, so both backends and the state stream see the same arrivals.
 
-The values (configuration, part states, events, snapshots) live in :mod:`aioadept.worldmodel`, re-exported here.
+The values (configuration, part states, events, snapshots) live in :mod:`aioadept.worldmodel`.
 Poses are 4 x 4 matrices inside and :class:`~aioadept.geometry.Pose` values (Adept Z-Y-Z) outside.
 """
 
@@ -40,7 +40,7 @@ from collections import deque
 import numpy as np
 
 from aioadept.geometry import Pose, inverse_transform
-from aioadept.worldmodel import (COLOURS, SHAPES, Feeder, Pallet, PartSpec, PartState, WorldCamera, WorldConfig,
+from aioadept.worldmodel import (PartState, WorldConfig,
                                  WorldEvent, WorldSnapshot, flat_matrix)
 
 MAX_EVENTS = 4096
@@ -225,7 +225,4 @@ class World:
         return [self._event(t_s, "sensor", signal=feeder.sensor, on=on)]
 
 
-__all__ = [
-    "COLOURS", "MAX_EVENTS", "SHAPES", "Feeder", "Pallet", "PartSpec", "PartState", "World", "WorldCamera",
-    "WorldConfig", "WorldEvent", "WorldSnapshot", "flat_matrix",
-]
+__all__ = ["MAX_EVENTS", "World"]

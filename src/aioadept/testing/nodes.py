@@ -16,7 +16,7 @@ from pathlib import Path
 
 from aioadept.apps.processes import NodeProcess
 
-__all__ = ["running_node", "NodeProcess"]
+__all__ = ["running_node"]
 
 
 @asynccontextmanager

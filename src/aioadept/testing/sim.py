@@ -17,7 +17,7 @@ from typing import Any
 
 from aioadept.sim.server import Faults, SimOptions, SimServer
 
-__all__ = ["running_sim", "SimServer"]
+__all__ = ["running_sim"]
 
 
 @asynccontextmanager

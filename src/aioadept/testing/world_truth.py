@@ -8,7 +8,8 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from aioadept.apps.pickplace import LocateAnswer, LocatedPart
+from aioadept.apps.pickplace import LocateAnswer
+from aioadept.bus.located import LocatedPart
 from aioadept.apps.pickplace_run import WorldWatch
 from aioadept.worldmodel import WorldConfig
 

@@ -1,7 +1,7 @@
 """The processing node (the paper's ImProcNode): a vision request in, the frame(s) for its time through the graph,
 a response out.
 
-Where it sits: :class:`aioadept.bus.communicator.Responder` receives ``VisionRequest`` events and calls
+Where it sits: :class:`aioadept.bus.responder.Responder` receives ``VisionRequest`` events and calls
 :meth:`VisionNode.handle` on the event loop; the node picks the frame for ``t_request`` from the
 :class:`Acquisition` ring buffers (policy ``nearest``: at once; ``after``: awaited on the loop, woken by the grabbing
 thread, no thread blocked), runs the computational graph, and returns the response attributes of
@@ -44,7 +44,7 @@ from collections.abc import Awaitable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, Literal
 
-from aioadept.bus.communicator import Responder
+from aioadept.bus.responder import Responder
 from aioadept.bus.messages import VISION_REQUEST
 from aioadept.errors import BadRequest, VisionError
 from aioadept.vision.acquisition import DEFAULT_POLICY, Acquisition, Policy

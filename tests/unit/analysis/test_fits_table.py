@@ -4,7 +4,8 @@ fit said ``lognormal`` beside rows that said ``log-normal``."""
 from __future__ import annotations
 
 from aioadept.analysis import analyze_runs
-from aioadept.analysis.report import FAMILY_NAMES, QUANTITIES, fits_table
+from aioadept.analysis.report import FAMILY_NAMES, fits_table
+from aioadept.analysis.metrics import QUANTITIES
 from aioadept.bus import Request, Response
 from aioadept.capture import Recorder
 from aioadept.client import MessageResult, SentMessage

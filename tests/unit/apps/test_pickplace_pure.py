@@ -7,8 +7,8 @@ import math
 
 import pytest
 
+from aioadept.bus.located import LocatedPart
 from aioadept.apps.pickplace import (
-    LocatedPart,
     PickPlaceParams,
     check_workspace,
     fold_heading,

@@ -2,7 +2,8 @@
 
 import re
 
-from aioadept.bus.communicator import Response, new_request_id, response_type_for
+from aioadept.bus.pairing import Response, new_request_id
+from aioadept.bus.pairing import response_type_for
 from aioadept.errors import RemoteError
 from aioadept.errors import BusError, VisionError
 from aioadept.vision import raise_for_error

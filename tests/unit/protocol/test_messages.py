@@ -325,10 +325,10 @@ def test_garbage_raises_only_protocol_errors(data):
                                                  b"0000000b:done:1.5,x:1,2,3,4,5,6",
                                                  b"000\xff000b:done:1.5,2:1,2,3,4,5,6",
                                                  b"0000000c:done:nan,2:1,2,3,4,5,6"])), max_size=20))
-def test_ack_parser_gives_exactly_what_parse_ack_gives(items):
-    from aioadept.protocol import AckParser
+def test_ack_reader_parse_gives_exactly_what_parse_ack_gives(items):
+    from aioadept.protocol import AckReader
 
-    parser = AckParser()
+    parser = AckReader()
     for line in items:
         try:
             want = parse_ack(line)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from aioadept.protocol import ErrorCode, Status
-from aioadept.sim.__main__ import build_parser, options_from_args
+from aioadept.cli.sim import build_parser, options_from_args
 from aioadept.sim.controller import Controller
 from aioadept.robots.viper_s850 import DEFAULT_JUMP_LIMIT, JumpLimit
 

@@ -7,7 +7,8 @@ import pytest
 from aioadept.geometry import Pose, poses_close, rel_tool, rel_world
 from aioadept.protocol import NO_ID, ErrorCode, LineFramer, Status, encode_ack, parse_ack
 from aioadept.robots import viper_s850 as kin
-from aioadept.sim.controller import AIR_SIGNAL, Controller, SkillResult
+from aioadept.sim.skills import AIR_SIGNAL, SkillResult
+from aioadept.sim.controller import Controller
 from aioadept.sim.motion import plan_duration
 
 HOME = kin.HOME_JOINTS_DEG

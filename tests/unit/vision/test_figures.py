@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from aioadept.vision.__main__ import main
+from aioadept.cli.vision import main
 
 
 def test_figures_command_writes_three_pngs(tmp_path, capsys):

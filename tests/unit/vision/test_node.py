@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from aioadept.geometry import Pose
-from aioadept.vision.__main__ import make_sources, resolve_options
+from aioadept.vision.service import make_sources
+from aioadept.cli.vision import resolve_options
 from aioadept.vision.acquisition import Acquisition
 from aioadept.vision.node import VisionNode, noop_graph
 from aioadept.vision.sources import Camera, Frame
