@@ -31,7 +31,7 @@ def test_a_cobra_places_20_of_20_parts_within_1_mm_and_1_deg(tmp_path, backend):
         cfg.robot.sim_args = VPLUS
     cfg.run.out_dir = str(tmp_path / "runs")
     cfg.run.name = "t"
-    cfg.run.record = False  # run.rrd/run.mcap draw the Viper s850 only so far (docs/sim.md, Robot models)
+    cfg.run.record = False  # what run.rrd/run.mcap of a Cobra hold: tests/unit/record (a recording here costs ~10 s)
     run_dir = new_run_dir(cfg)
     code = run(cfg, run_dir)
     assert code == 0, (run_dir / "logs" / "vision.log").read_text()[-3000:]

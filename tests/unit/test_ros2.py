@@ -307,3 +307,34 @@ def test_a_relative_topic_goes_into_the_nodes_namespace_on_the_wire_and_in_its_t
                                                            namespace="/c1")
     assert "/%c1%joint_states/" in pub.publisher_token
     pub.close()
+
+
+class _Putter(_Undeclarable):
+    def put(self, payload, attachment=None) -> None:
+        self.log.append(("put", bytes(payload)))
+
+
+class _PutSession(_FakeSession):
+    def declare_publisher(self, key, **opts):
+        self.log.append(("publisher", key, opts))
+        return _Putter(self.log, ("unpublisher", key))
+
+
+def test_a_cobras_joint_states_are_its_four_joints_in_ros_units(store) -> None:
+    from aioadept.bus.messages import RobotState
+    from aioadept.robots import model
+
+    cobra = model("cobra-s600")
+    s = _PutSession(ZID)
+    pub = ros2.JointStatePublisher("/joint_states", session=s, arm=cobra)
+    q = (20.0, 60.0, 120.0, -30.0)
+    pub.publish(RobotState(t_s=1.0, wall_time_s=1764270000.5, joints_deg=q, pose=cobra.forward(q)))
+    msg = store.deserialize_cdr([e for e in s.log if e[0] == "put"][0][1], TYPE)
+    assert list(msg.name) == ["joint_1", "joint_2", "joint_3", "joint_4"]
+    # revolute joints in radians, the quill (prismatic) in metres
+    assert list(msg.position) == pytest.approx([math.radians(20.0), math.radians(60.0), 0.12, math.radians(-30.0)])
+    viper_q = (0.0, -90.0, 180.0, 0.0, 90.0, 0.0)
+    with pytest.raises(BusError, match="has 6 joints, the cobra-s600 has 4"):
+        pub.publish(RobotState(t_s=2.0, wall_time_s=2.0, joints_deg=viper_q, pose=cobra.forward(q)))
+    assert pub.published == 1
+    pub.close()

@@ -26,8 +26,9 @@ does), each written out (rmw_zenoh leaves a default empty, but its default durab
 rmw_zenoh's source and examples, not against a running ROS 2 (docs/bus.md, "ROS 2", says what was checked and how);
 the attachment's GID is random, not rmw_zenoh's hash of the token.
 
-Joint names are the URDF's (:mod:`aioadept.robots.viper_s850_urdf`: ``joint_1`` .. ``joint_6``), positions in
-radians as ROS wants them (the V+ joint angles, converted), stamped with the state's own ``wall_time_s``.
+Joint names are the URDF's of the robot model (:func:`aioadept.robots.urdf.urdf`: ``joint_1`` .. ``joint_6`` on a
+Viper, ``joint_1`` .. ``joint_4`` on a Cobra), positions in ROS's units (:func:`joint_positions`: radians, metres for
+a prismatic joint such as a Cobra's quill), stamped with the state's own ``wall_time_s``.
 """
 
 from __future__ import annotations
@@ -46,8 +47,8 @@ from aioadept.errors import BusError
 
 __all__ = ["ADMIN_SPACE", "DEFAULT_NODE_NAME", "JOINT_STATE_DDS_TYPE", "JOINT_STATE_HASH", "JOINT_STATE_QOS",
            "RMW_ZENOH_DEFAULT_QOS", "Durability", "History", "JointStatePublisher", "Qos", "Reliability", "attachment",
-           "check_namespace", "check_node_name", "encode_joint_state", "expand_topic_name", "mangle", "node_token_key",
-           "publisher_token_key", "topic_key", "zenoh_publisher_options"]
+           "check_namespace", "check_node_name", "encode_joint_state", "expand_topic_name", "joint_positions", "mangle",
+           "node_token_key", "publisher_token_key", "topic_key", "zenoh_publisher_options"]
 
 JOINT_STATE_DDS_TYPE = "sensor_msgs::msg::dds_::JointState_"
 JOINT_STATE_HASH = "RIHS01_a13ee3a330e346c9d87b5aa18d24e11690752bd33a0350f11c5882bc9179260e"
@@ -319,24 +320,37 @@ def attachment(seq: int, t_ns: int, gid: bytes) -> bytes:
     return ext.z_serialize((ext.Int64(seq), ext.Int64(t_ns), bytes(gid))).to_bytes()
 
 
+def joint_positions(arm: Any, joints_deg: Sequence[float]) -> list[float]:
+    """A JointState's positions of the robot model ``arm`` from V+ joint values: radians for a revolute joint, metres
+    for a prismatic one (V+ degrees and mm). ``BusError`` when the count is not the arm's (another arm's stream)."""
+    table = arm.urdf_joints
+    if len(joints_deg) != len(table):
+        raise BusError(f"robot.state has {len(joints_deg)} joints, the {arm.name} has {len(table)} "
+                       f"(aioadept ros2 --robot-model)")
+    return [v / 1000.0 if j.prismatic else math.radians(v) for j, v in zip(table, joints_deg, strict=True)]
+
+
 class JointStatePublisher:
     """Puts each :class:`aioadept.bus.messages.RobotState` given to :meth:`publish` as a ROS 2 JointState on
     ``topic`` in ``domain_id``, through this process's Zenoh session (:func:`aioadept.bus.zenoh.session`, or
     ``session``), and holds the two liveliness tokens that make it a node of the ROS 2 graph (``node_name`` in
-    ``namespace``, with one publisher: :attr:`node_token`, :attr:`publisher_token`) until :meth:`close`.
-    Not thread-safe: publish from one thread."""
+    ``namespace``, with one publisher: :attr:`node_token`, :attr:`publisher_token`) until :meth:`close`. ``arm``:
+    the robot model whose joints the states are (default: the Viper s850). Not thread-safe: publish from one
+    thread."""
 
     def __init__(self, topic: str = "joint_states", *, domain_id: int = 0, session: Any = None,
-                 frame_id: str = "", node_name: str = DEFAULT_NODE_NAME, namespace: str = "/") -> None:
+                 frame_id: str = "", node_name: str = DEFAULT_NODE_NAME, namespace: str = "/",
+                 arm: Any = None) -> None:
         import zenoh
 
         from aioadept.bus import zenoh as zb
-        from aioadept.robots.viper_s850_urdf import JOINTS
+        from aioadept.robots import model
 
         # A relative or private name goes into the node's namespace, as a ROS 2 node's would.
         self.topic = topic = expand_topic_name(topic, node_name=node_name, namespace=namespace)
         self.key = topic_key(topic, domain_id=domain_id)
-        self.names = tuple(j.name for j in JOINTS)
+        self.arm = model() if arm is None else arm
+        self.names = tuple(j.name for j in self.arm.urdf_joints)
         self.frame_id = frame_id
         self.gid = os.urandom(16)
         self.seq = 0
@@ -363,8 +377,9 @@ class JointStatePublisher:
             raise BusError(f"cannot declare the ROS 2 node and publisher of {self.key!r} on Zenoh: {exc}") from exc
 
     def publish(self, state: Any) -> None:
-        """Put ``state`` (a RobotState: ``joints_deg``, ``wall_time_s``) as a JointState."""
-        payload = encode_joint_state(state.wall_time_s, self.names, [math.radians(a) for a in state.joints_deg],
+        """Put ``state`` (a RobotState: ``joints_deg``, ``wall_time_s``) as a JointState; ``BusError`` (nothing put)
+        for a state with another number of joints than the arm's."""
+        payload = encode_joint_state(state.wall_time_s, self.names, joint_positions(self.arm, state.joints_deg),
                                      frame_id=self.frame_id)
         self.seq += 1  # rmw_zenoh's publishers count from 1
         self._pub.put(payload, attachment=attachment(self.seq, time.time_ns(), self.gid))

@@ -3,8 +3,9 @@
 
 Follows ``--state-endpoint`` (the sim's or ``aioadept state``'s ZeroMQ stream, or a ``zenoh:KEY`` stream) and puts
 each sample on ``<domain>/<topic>/sensor_msgs::msg::dds_::JointState_/RIHS01_...`` with rmw_zenoh's attachment, so
-``ros2 topic echo /joint_states`` on rmw_zenoh_cpp, connected to the same Zenoh router, prints the arm (joint_1..joint_6
-in radians, the URDF's names). It is node ``--node-name`` in ``--namespace`` of the ROS 2 graph, with one publisher
+``ros2 topic echo /joint_states`` on rmw_zenoh_cpp, connected to the same Zenoh router, prints the arm (the URDF's
+names of ``--robot-model``'s joints: joint_1..joint_6 on a Viper, joint_1..joint_4 on a Cobra; radians, metres for
+a Cobra's quill). It is node ``--node-name`` in ``--namespace`` of the ROS 2 graph, with one publisher
 (rmw_zenoh's liveliness tokens, held while it runs), so ``ros2 node list`` and ``ros2 topic list`` show it.
 Multicast scouting is off: it is the router (``--zenoh-listen``) or connects to one (``--zenoh-connect``). Prints
 ``READY ros2=KEY state=ENDPOINT node=/NAMESPACE/NAME`` once it follows; runs until SIGINT/SIGTERM. What was checked
@@ -20,6 +21,7 @@ import signal
 import sys
 
 from aioadept import defaults
+from aioadept.robots import DEFAULT_MODEL, MODELS
 from aioadept.cli.options import (ArgumentParser, DefaultsHelpFormatter, add_insecure_option,
                                   add_zenoh_session_options, check_listeners, description, zenoh_listener,
                                   zenoh_session_options)
@@ -35,6 +37,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "/joint_states stays, ~/joint_states is /NAMESPACE/NODE/joint_states")
     p.add_argument("--domain", type=int, default=0, help="the ROS 2 domain id (ROS_DOMAIN_ID), 0..232")
     p.add_argument("--frame-id", default="", dest="frame_id", help="the JointState's header.frame_id")
+    p.add_argument("--robot-model", default=DEFAULT_MODEL, choices=sorted(MODELS), dest="robot_model",
+                   metavar="NAME", help="the arm the stream is of (as aioadept sim --robot-model): its joint names "
+                                        "and units; a sample with another number of joints is skipped")
     p.add_argument("--node-name", default="aioadept_ros2", dest="node_name",
                    help="the ROS 2 node this relay is in the graph (ros2 node list)")
     p.add_argument("--namespace", default="/", help="the node's namespace, e.g. /cell1 (a relative --topic goes "
@@ -80,6 +85,7 @@ async def run(args: argparse.Namespace, opts) -> int:
     from aioadept.bus.messages import ROBOT_STATE_TOPIC, RobotState
     from aioadept.bus.pubsub import Subscriber
     from aioadept.bus.ros2 import JointStatePublisher
+    from aioadept.robots import model as robot_model
     from aioadept.errors import BusError
 
     log = logging.getLogger("aioadept.ros2")
@@ -89,7 +95,7 @@ async def run(args: argparse.Namespace, opts) -> int:
         loop.add_signal_handler(sig, stop.set)
     zb.configure(opts)
     pub = JointStatePublisher(args.topic, domain_id=args.domain, frame_id=args.frame_id, node_name=args.node_name,
-                              namespace=args.namespace)
+                              namespace=args.namespace, arm=robot_model(args.robot_model))
     bad = 0
     try:
         async with Subscriber(args.state_endpoint, topics=(ROBOT_STATE_TOPIC,)) as sub:

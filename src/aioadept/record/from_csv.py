@@ -18,6 +18,7 @@ from typing import Any
 
 from aioadept.capture import load_run
 from aioadept.geometry import Pose
+from aioadept.record.model import run_model
 from aioadept.record.rrd import APP_ID, CellLogger, default_blueprint, frame_file
 from aioadept.record.sinks import close_bounded, rrd_incomplete
 
@@ -56,7 +57,7 @@ def rrd_from_run(run_dir: str | os.PathLike[str], out: str | os.PathLike[str] | 
     rec.send_blueprint(default_blueprint())  # not set_sinks(default_blueprint=...): see record.live
     try:
         rec.send_recording_name(Path(run_dir).resolve().name)
-        lg = CellLogger(rec, loop_to_epoch_s=offset)
+        lg = CellLogger(rec, loop_to_epoch_s=offset, arm=run_model(meta))
         frames_dir = Path(run_dir) / "frames"
         plane_done = False
         result = (meta.get("parameters") or {}).get("result") or None

@@ -125,13 +125,15 @@ def open_run_recording(cfg: Any, run_dir: Path, recorder: Any) -> Any:
         return None
     from aioadept.bus.endpoints import is_none
     from aioadept.record.live import RunRecording
+    from aioadept.robots import model as robot_model
 
     try:
         rec = RunRecording(run_dir / "run.rrd" if getattr(cfg.run, "record", True) else None,
                            viewer_url=view_url,
                            state_endpoint=None if is_none(cfg.robot.state_endpoint) else cfg.robot.state_endpoint,
                            frames_dir=frames_dir_of(cfg), clock_ref=recorder,
-                           name=run_dir.name, short_switch_interval=True, world=getattr(cfg, "world", None))
+                           name=run_dir.name, short_switch_interval=True, world=getattr(cfg, "world", None),
+                           arm=robot_model(cfg.robot.model))
     except Exception as exc:  # noqa: BLE001 - see the docstring: never fail a run for its recording
         log.warning("no run.rrd for this run: %s", exc)
         return None

@@ -92,13 +92,14 @@ class RunRecording:
     same mapping from loop time to wall time. ``name`` becomes the recording's name in the viewer.
     ``short_switch_interval``: while it runs, set the interpreter's GIL switch interval to
     :data:`SWITCH_INTERVAL_S` (restored when the last such recording closes). The CLIs turn it on; it is off by
-    default because it is process-wide, a choice for the application, not for a library object.
+    default because it is process-wide, a choice for the application, not for a library object. ``arm``: the
+    robot model the run uses (:class:`~aioadept.record.rrd.CellLogger`; default the Viper s850).
     """
 
     def __init__(self, rrd_path: str | os.PathLike[str] | None, *, viewer_url: str | None = None,
                  state_endpoint: str | None = None, frames_dir: str | os.PathLike[str] | None = None,
                  clock_ref: Any = None, name: str | None = None, short_switch_interval: bool = False,
-                 world: Any = None) -> None:
+                 world: Any = None, arm: Any = None) -> None:
         if rrd_path is None and viewer_url is None:
             raise ValueError("RunRecording: give a file (rrd_path), a viewer (viewer_url), or both")
         import rerun as rr
@@ -131,7 +132,7 @@ class RunRecording:
         self.rec.send_blueprint(default_blueprint())
         if name:
             self.rec.send_recording_name(name)
-        self.logger = CellLogger(self.rec, loop_to_epoch_s=self.loop_to_epoch_s)
+        self.logger = CellLogger(self.rec, loop_to_epoch_s=self.loop_to_epoch_s, arm=arm)
         self.world_logger = None
         """The simulated world's parts (aioadept.record.world), when ``world`` (a WorldConfig) is given: they are
         drawn from the sim's ``world.state`` stream on ``state_endpoint``."""

@@ -19,9 +19,11 @@ loop-clock stamps are shifted by ``start_wall_epoch_s - start_loop_s`` as in ``r
 ``/camera/image``      ``foxglove.CompressedImage``       each frame that answered a request, the PNG as saved
 =====================  =================================  ==================================================
 
-The URDF (:func:`aioadept.robots.viper_s850_urdf.urdf`, whose link names ``/tf`` uses) twice: on
-``/robot_description`` as ROS 2 publishes it (``std_msgs/msg/String`` in CDR: Foxglove's 3D panel and Rerun's MCAP
-reader draw the arm from it), and as the attachment ``viper_s850.urdf``; metadata ``aioadept`` (version, start time, the run's parameters). Like ``run.rrd``, the file is written under a
+The URDF of the run's robot model (:func:`aioadept.robots.urdf.urdf`, whose link names ``/tf`` uses; the model is
+its parameters' ``cell.robot.model``, :func:`aioadept.record.model.run_model`) twice: on ``/robot_description``
+as ROS 2 publishes it (``std_msgs/msg/String`` in CDR: Foxglove's 3D panel and Rerun's MCAP reader draw the arm
+from it), and as the attachment ``<model>.urdf`` (``viper_s850.urdf``, ``cobra_s600.urdf``, ...: :func:`urdf_name`);
+metadata ``aioadept`` (version, start time, the run's parameters, the robot model). Like ``run.rrd``, the file is written under a
 temporary name and renamed into place only when complete: a full disk leaves no ``run.mcap`` at all.
 """
 
@@ -38,11 +40,18 @@ from pathlib import Path
 from typing import Any
 
 __all__ = ["MAX_STATE_SAMPLES", "MCAP_INSTALL_HINT", "TF_RATE_HZ", "URDF_ATTACHMENT", "StateTap", "mcap_available",
-           "ros2_string_cdr", "write_run_mcap"]
+           "ros2_string_cdr", "urdf_name", "write_run_mcap"]
 
 MCAP_INSTALL_HINT = ("run.mcap needs the optional MCAP packages: pip install 'aioadept[mcap]' "
                      "(or: pip install mcap==1.6.0 mcap-protobuf-support==0.6.0 foxglove-schemas-protobuf==0.4.0)")
 URDF_ATTACHMENT = "viper_s850.urdf"
+"""The attachment of a run on the default arm (:func:`urdf_name`)."""
+
+
+def urdf_name(arm: Any) -> str:
+    """The URDF attachment's file name of the robot model ``arm``: ``viper_s850.urdf``, ``cobra_s600.urdf``, ..."""
+    return arm.name.replace("-", "_") + ".urdf"
+
 
 log = logging.getLogger(__name__)
 
@@ -140,12 +149,12 @@ def _event(event_type: str, event_id: str, attributes: Mapping[str, Any]) -> Any
                             for k, v in attrs.items()})
 
 
-def _tf(out: list[tuple[int, str, Any]], t_epoch: float, joints_deg: Any) -> None:
+def _tf(out: list[tuple[int, str, Any]], t_epoch: float, arm: Any, joints_deg: Any) -> None:
     from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
 
-    from aioadept.robots.viper_s850_urdf import link_transforms, quaternion_xyzw
+    from aioadept.robots.urdf import link_transforms, quaternion_xyzw
 
-    for parent, child, trans, rot in link_transforms(joints_deg):
+    for parent, child, trans, rot in link_transforms(arm, joints_deg):
         ft = FrameTransform(parent_frame_id=parent, child_frame_id=child)
         _stamp(ft.timestamp, t_epoch)
         ft.translation.x, ft.translation.y, ft.translation.z = (float(v) for v in trans)
@@ -163,9 +172,10 @@ class _Raw:
         return self.data
 
 
-def _state_messages(payloads: list[bytes], out: list[tuple[int, str, Any]]) -> bool:
+def _state_messages(payloads: list[bytes], out: list[tuple[int, str, Any]], arm: Any) -> bool:
     """``/robot/state`` (every payload, raw) and ``/tf`` at most :data:`TF_RATE_HZ` (plus the last sample and every
-    start and stop of a motion) from the state stream; False when it gave no joints (draw from the acks then)."""
+    start and stop of a motion) from the state stream; False when it gave no joints of ``arm`` (draw from the acks
+    then)."""
     from aioadept.bus import aioadept_pb2
     from aioadept.bus.messages import RobotState
 
@@ -180,11 +190,11 @@ def _state_messages(payloads: list[bytes], out: list[tuple[int, str, Any]]) -> b
     for i, (st, data) in enumerate(states):
         out.append((_ns(st.wall_time_s), "/robot/state", _Raw(aioadept_pb2.RobotState, data)))
         final = i == len(states) - 1
-        if len(st.joints_deg) == 6 and (st.wall_time_s - last_t >= 1.0 / TF_RATE_HZ or st.in_motion != last_motion
-                                        or final):
+        if len(st.joints_deg) == arm.dof and (st.wall_time_s - last_t >= 1.0 / TF_RATE_HZ
+                                              or st.in_motion != last_motion or final):
             last_t, last_motion = st.wall_time_s, st.in_motion
-            _tf(out, st.wall_time_s, st.joints_deg)
-    return any(len(st.joints_deg) == 6 for st, _d in states)
+            _tf(out, st.wall_time_s, arm, st.joints_deg)
+    return any(len(st.joints_deg) == arm.dof for st, _d in states)
 
 
 def _messages(run: Any, frames_dir: Path | None, frame_wait_s: float,
@@ -193,16 +203,16 @@ def _messages(run: Any, frames_dir: Path | None, frame_wait_s: float,
     from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
     from foxglove_schemas_protobuf.Log_pb2 import Log
 
-    from aioadept.record.model import joints_from_pose
+    from aioadept.record.model import joints_from_pose, run_model
     from aioadept.record.rrd import frame_file
-    from aioadept.robots import viper_s850 as kin
 
     md = run.metadata
+    arm = run_model(md)
     shift = float(md.get("start_wall_epoch_s", 0.0)) - float(md.get("start_loop_s", 0.0))
     out: list[tuple[int, str, Any]] = []
     # The arm: from the robot's own state stream when there was one, else from the acked poses.
-    arm_from_acks = not _state_messages(state or [], out)
-    joints: tuple[float, ...] = kin.HOME_JOINTS_DEG
+    arm_from_acks = not _state_messages(state or [], out, arm)
+    joints: tuple[float, ...] = tuple(arm.home_deg)
 
     def log(topic: str, t_epoch: float, level: int, text: str) -> None:
         m = Log(level=level, message=text, name="robot")
@@ -224,11 +234,11 @@ def _messages(run: Any, frames_dir: Path | None, frame_wait_s: float,
             text += f" error {r.error_code}: {r.error_message}"
         log("/robot/ack", t, Log.INFO if r.status == "done" else Log.WARNING, text)
         if arm_from_acks and r.pose is not None and r.status == "done":
-            q = joints_from_pose(r.pose, joints)
+            q = joints_from_pose(r.pose, joints, arm)
             if q is None:
                 continue  # out of reach or a jump: the arm stays where it was last drawn
             joints = q
-            _tf(out, t, joints)
+            _tf(out, t, arm, joints)
 
     wait_s = frame_wait_s
     for v in run.vision:
@@ -276,7 +286,8 @@ def write_run_mcap(run: Any, path: str | os.PathLike[str], *, frames_dir: str | 
     from mcap_protobuf.schema import register_schema
 
     from aioadept import __version__
-    from aioadept.robots.viper_s850_urdf import urdf
+    from aioadept.record.model import run_model
+    from aioadept.robots.urdf import urdf
 
     path = Path(path)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
@@ -284,16 +295,17 @@ def write_run_mcap(run: Any, path: str | os.PathLike[str], *, frames_dir: str | 
     msgs.sort(key=lambda m: m[0])  # readers expect log times in order (stable: a link chain keeps its order)
     md = run.metadata
     start_ns = _ns(float(md.get("start_wall_epoch_s", time.time())))
-    description = urdf()
+    arm = run_model(md)
+    description = urdf(arm)
     try:
         with open(tmp, "wb") as f:
             w = Writer(f)
             w.start(profile="", library=f"aioadept/{__version__}")
-            w.add_attachment(create_time=start_ns, log_time=start_ns, name=URDF_ATTACHMENT,
+            w.add_attachment(create_time=start_ns, log_time=start_ns, name=urdf_name(arm),
                              media_type="application/xml", data=description.encode())
             w.add_metadata("aioadept", {
                 "aioadept_version": __version__, "start_wall_epoch_s": repr(md.get("start_wall_epoch_s")),
-                "parameters": json.dumps(md.get("parameters") or {}, default=repr),
+                "parameters": json.dumps(md.get("parameters") or {}, default=repr), "robot_model": arm.name,
             })
             # The robot description as ROS 2 publishes it (std_msgs/String on robot_description): Foxglove's 3D
             # panel and Rerun's MCAP reader both draw the URDF from it, posed by /tf.

@@ -11,12 +11,13 @@ shifted by the run's ``start_wall_epoch_s - start_loop_s``); the sharpness and t
 
 ===============================  ===========================================================================
 ``world``                        static: right-handed, Z up (robot base frame, mm)
-``world/robot/links``            the arm as a line strip base -> J2 -> shoulder -> elbow -> wrist -> flange
-``world/robot/joints``           the same points, labelled
+``world/robot/links``            the arm as a line strip base -> each joint's axis -> flange (the run's robot model)
+``world/robot/joints``           the same points, labelled with the URDF's joint names
+``robot/urdf``                   static: the model's URDF (the arm the run used, as ``run.mcap`` carries it)
 ``world/robot/tool``             the tool frame (Transform3D + axes), from the acked pose
 ``world/targets``                every commanded target so far (points), ``world/target`` the latest (frame)
 ``world/focus_plane``            the focus plane once found: a thin plate at the sharpest tool pose
-``robot/joints_deg``             the six joint angles (one series per joint)
+``robot/joints_deg``             the joint values (one series per joint, named as the URDF's joints; a Cobra's J3 mm)
 ``messages/robot``               every command (``->``) and ack (``<-``) as a text log entry
 ``messages/vision``              every vision request and response as a text log entry
 ``timeline/robot_in_flight``     commands sent and not yet acked (a step curve: the Gantt chart's robot row)
@@ -44,8 +45,10 @@ from typing import Any
 import numpy as np
 
 from aioadept.geometry import Pose, rel_tool
-from aioadept.record.model import LINK_NAMES, chain_points_mm, joints_from_pose
-from aioadept.robots import viper_s850 as kin
+from aioadept.record.model import chain_labels, chain_points_mm, joints_from_pose
+from aioadept.robots import RobotModel, model
+from aioadept.robots.base import model_joints
+from aioadept.robots.urdf import urdf
 
 __all__ = ["APP_ID", "IMAGE_MAX_WIDTH", "CellLogger", "FrameRef", "default_blueprint", "frame_file"]
 
@@ -126,19 +129,22 @@ class CellLogger:
     """Logs a run's events into a Rerun recording stream ``rec`` (see the module docstring for the entities).
 
     ``loop_to_epoch_s``: added to loop-clock stamps (client and Communicator records, marks) to get epoch seconds.
+    ``arm``: the robot model the run used (default: the Viper s850): the arm drawn, its URDF and joint names.
     """
 
-    def __init__(self, rec: Any, *, loop_to_epoch_s: float = 0.0) -> None:
+    def __init__(self, rec: Any, *, loop_to_epoch_s: float = 0.0, arm: RobotModel | None = None) -> None:
         import rerun as rr
 
         self.rr = rr
         self.rec = rec
         self.offset = loop_to_epoch_s
+        self.arm = model() if arm is None else arm
+        self._labels = chain_labels(self.arm)
         self._robot_in_flight = 0
         self._vision_in_flight = 0
         self._sent: dict[str, tuple[str, float]] = {}  # command id -> (skill, t_send epoch)
         self._requested: dict[str, float] = {}
-        self.joints: tuple[float, ...] = tuple(kin.HOME_JOINTS_DEG)
+        self.joints: tuple[float, ...] = tuple(self.arm.home_deg)
         self.pose: Pose | None = None
         self._have_state = False
         self._targets: list[tuple[float, float, float]] = []
@@ -149,6 +155,8 @@ class CellLogger:
         rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         rec.log("world/base", rr.Boxes3D(centers=[(0.0, 0.0, -10.0)], half_sizes=[(120.0, 120.0, 10.0)],
                                          colors=[(90, 90, 90)]), static=True)
+        rec.log("robot/urdf", rr.TextDocument(urdf(self.arm), media_type=rr.MediaType.TEXT), static=True)
+        rec.log("robot/joints_deg", rr.SeriesLines(names=[j.name for j in self.arm.urdf_joints]), static=True)
 
     # ------------------------------------------------------------------------------------------------ helpers
     def _at(self, t_epoch_s: float | None) -> bool:
@@ -197,9 +205,10 @@ class CellLogger:
             if skill == "move_to":
                 return Pose.from_seq(vals)
             if skill == "move_joints":
-                return kin.forward(vals)
+                return self.arm.forward(model_joints(self.arm.name, self.arm.dof, vals))
             if skill == "move_rel_joints":
-                return kin.forward([a + b for a, b in zip(self.joints, vals, strict=True)])
+                rel = model_joints(self.arm.name, self.arm.dof, vals)
+                return self.arm.forward([a + b for a, b in zip(self.joints, rel, strict=True)])
             if self.pose is None:
                 return None
             if skill == "move_rel_tool":
@@ -255,7 +264,7 @@ class CellLogger:
             self.pose = pose
             self._tool(pose)
             if not self._have_state:  # no state stream: the arm from the acked pose
-                joints = joints_from_pose(pose, self.joints)
+                joints = joints_from_pose(pose, self.joints, self.arm)
                 if joints is not None:
                     self._arm(joints)
 
@@ -268,15 +277,18 @@ class CellLogger:
     def _arm(self, joints: Sequence[float]) -> None:
         rr = self.rr
         self.joints = tuple(float(j) for j in joints)
-        pts = chain_points_mm(self.joints)
+        pts = chain_points_mm(self.joints, self.arm)
         self.rec.log("world/robot/links", rr.LineStrips3D([pts], radii=12.0, colors=[(70, 130, 200)]))
-        self.rec.log("world/robot/joints", rr.Points3D(pts, radii=18.0, labels=list(LINK_NAMES),
+        self.rec.log("world/robot/joints", rr.Points3D(pts, radii=18.0, labels=self._labels,
                                                         colors=[(230, 230, 230)]))
         self.rec.log("robot/joints_deg", rr.Scalars(self.joints))
 
     def state(self, wall_time_s: float, joints_deg: Sequence[float], pose: Pose | None = None) -> None:
         """A sample of the sim's robot-state stream: the arm from its joint angles."""
         if not self._at(wall_time_s):
+            return
+        if len(joints_deg) != self.arm.dof:  # another arm's stream: not drawn as this one
+            self._count("state_other_arm")
             return
         self._count("state")
         self._have_state = True

@@ -132,3 +132,52 @@ def test_a_vision_error_is_a_warning_and_no_sharpness(tmp_path):
     assert "/focus/sharpness" not in rows
     last = rows["/messages/vision"][-1]
     assert last["TextLog:level"] == ["WARN"] and "no object" in last["TextLog:text"][0]
+
+
+def test_a_cobra_run_carries_its_urdf_joint_names_and_arm(tmp_path):
+    from aioadept.robots import model
+    from aioadept.robots.urdf import urdf
+
+    cobra = model("cobra-s600")
+    goal = (10.0, 70.0, 120.0, 0.0)
+
+    def fill(lg):
+        lg.command("c1", "move_joints", (*goal, 0.0, 0.0), 1.0)
+        lg.ack("c1", "move_joints", "done", cobra.forward(goal), 1.5)
+
+    rec = rr.RecordingStream("aioadept-test")
+    rec.set_sinks(rr.FileSink(str(tmp_path / "c.rrd")))
+    lg = CellLogger(rec, loop_to_epoch_s=OFFSET, arm=cobra)
+    fill(lg)
+    rec.flush()
+    rec.disconnect()
+    rows = read_rrd(tmp_path / "c.rrd")
+    assert rows["/robot/urdf"][0]["TextDocument:text"] == [urdf(cobra)]
+    series = rows["/robot/joints_deg"]
+    assert [r["SeriesLines:names"] for r in series if "SeriesLines:names" in r] == [
+        ["joint_1", "joint_2", "joint_3", "joint_4"]]
+    target = rows["/world/targets"][-1]["Points3D:positions"][0]
+    np.testing.assert_allclose(target, cobra.forward(goal).position_mm, atol=1e-3)
+    joints = rows["/world/robot/joints"][-1]
+    assert joints["Points3D:labels"] == ["base", "joint_1", "joint_2", "joint_3", "flange"]
+    np.testing.assert_allclose(joints["Points3D:positions"][-1], cobra.forward(goal).position_mm, atol=1e-3)
+    assert [r["Scalars:scalars"] for r in series if "Scalars:scalars" in r][-1] == pytest.approx(goal, abs=1e-6)
+
+
+def test_a_cells_recording_draws_the_cells_arm(tmp_path):
+    """open_run_recording (what focus and pickplace call) hands the cell file's [robot] model to the recording."""
+    from aioadept.apps.cell import CellConfig
+    from aioadept.capture import Recorder
+    from aioadept.record.hook import open_run_recording
+
+    from pathlib import Path
+
+    cfg = CellConfig.from_toml(Path(__file__).resolve().parents[3] / "examples" / "cobra-pickplace.toml")
+    cfg.robot.state_endpoint = "none"
+    rec = open_run_recording(cfg, tmp_path, Recorder())
+    try:
+        assert rec.logger.arm.name == "cobra-s600"
+    finally:
+        rec.close()
+    rows = read_rrd(tmp_path / "run.rrd")
+    assert "cobra-s600" in rows["/robot/urdf"][0]["TextDocument:text"][0]

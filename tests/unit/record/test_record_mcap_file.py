@@ -60,6 +60,20 @@ def test_without_a_state_stream_the_arm_follows_the_acked_poses(tmp_path):
     assert [t.child_frame_id for t in tf[:6]] == ["link_1", "link_2", "link_3", "link_4", "link_5", "flange"]
 
 
+def _composed(tfs) -> np.ndarray:
+    """The transforms of a chain of FrameTransform messages composed, base to last (metres)."""
+    m = np.eye(4)
+    for t in tfs:
+        x, y, z, w = t.rotation.x, t.rotation.y, t.rotation.z, t.rotation.w
+        step = np.eye(4)
+        step[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
+        step[:3, 3] = (t.translation.x, t.translation.y, t.translation.z)
+        m = m @ step
+    return m
+
+
 def _state(t: float, joints) -> bytes:
     return RobotState(t_s=t, wall_time_s=t, joints_deg=tuple(joints), pose=kin.forward(joints)).to_bytes()
 
@@ -75,16 +89,7 @@ def test_the_state_stream_is_kept_raw_and_drives_the_arm(run, tmp_path):
     # 0.5 s at 25 Hz: ~13 arm poses, and the last sample always
     assert 10 * 6 <= len(tf) <= 16 * 6
     last = tf[-6:]
-    m = np.eye(4)
-    for t in last:
-        x, y, z, w = t.rotation.x, t.rotation.y, t.rotation.z, t.rotation.w
-        step = np.eye(4)
-        step[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
-        step[:3, 3] = (t.translation.x, t.translation.y, t.translation.z)
-        m = m @ step
-    np.testing.assert_allclose(m[:3, 3] * 1000.0, kin.flange_matrix(joints[-1])[:3, 3], atol=1e-6)
+    np.testing.assert_allclose(_composed(last)[:3, 3] * 1000.0, kin.flange_matrix(joints[-1])[:3, 3], atol=1e-6)
 
 
 class _FillsUp:
@@ -128,3 +133,30 @@ def test_the_robot_description_is_a_ros2_string_in_cdr():
     assert data[:4] == b"\x00\x01\x00\x00"  # CDR, little endian
     n = int.from_bytes(data[4:8], "little")
     assert data[8:8 + n] == b"<robot/>\x00" and len(data) == 8 + n
+
+
+def test_a_cobra_run_carries_the_cobras_urdf_and_its_state_drives_its_four_links(tmp_path):
+    from aioadept.robots import model
+    from aioadept.robots.urdf import urdf
+
+    cobra = model("cobra-s600")
+    rec, params = synthetic_recorder(seed=3, n_steps=2)
+    run = rec.snapshot(metadata={**params, "cell": {"robot": {"model": "cobra-s600"}}})
+    t0 = float(run.metadata["start_wall_epoch_s"])
+    goal = (20.0, 60.0, 120.0, 30.0)
+    payloads = [RobotState(t_s=t0 + i, wall_time_s=t0 + i, joints_deg=q, pose=cobra.forward(q)).to_bytes()
+                for i, q in enumerate([cobra.home_deg, goal])]
+    assert write_run_mcap(run, tmp_path / "run.mcap", state=payloads) is None
+    with open(tmp_path / "run.mcap", "rb") as f:
+        reader = make_reader(f)
+        attachments = list(reader.iter_attachments())
+        meta = {m.name: m.metadata for m in reader.iter_metadata()}
+    assert [(a.name, a.data.decode()) for a in attachments] == [("cobra_s600.urdf", urdf(cobra))]
+    assert meta["aioadept"]["robot_model"] == "cobra-s600"
+    with open(tmp_path / "run.mcap", "rb") as f:
+        desc = [m.data for _s, _c, m in make_reader(f).iter_messages(topics=["/robot_description"])]
+    assert desc == [ros2_string_cdr(urdf(cobra))]
+    tf = _decoded(tmp_path / "run.mcap", "/tf")
+    assert [t.child_frame_id for t in tf[-4:]] == ["link_1", "link_2", "link_3", "flange"]
+    assert len(tf) == 8  # both samples (the last is always drawn), four links each
+    np.testing.assert_allclose(_composed(tf[-4:])[:3, 3] * 1000.0, cobra.flange_matrix(goal)[:3, 3], atol=1e-6)

@@ -44,3 +44,28 @@ def test_an_unreachable_pose_gives_none_not_an_error():
 def test_wrong_joint_count_is_a_clear_error():
     with pytest.raises(ValueError, match="6 values"):
         chain_points_mm([0, 0, 0])
+
+
+def test_a_cobras_chain_is_its_own_and_ends_at_its_flange():
+    from aioadept.record.model import chain_labels
+    from aioadept.robots import model
+
+    cobra = model("cobra-s600")
+    q = (20.0, 60.0, 120.0, 30.0)
+    pts = chain_points_mm(q, cobra)
+    assert chain_labels(cobra) == ["base", "joint_1", "joint_2", "joint_3", "flange"]
+    np.testing.assert_allclose(pts[-1], cobra.flange_matrix(q)[:3, 3], atol=1e-9)
+    # the quill hangs straight down by J3 (mm) from the end of the second link, at the height of the first
+    np.testing.assert_allclose(pts[-2] - pts[-1], (0.0, 0.0, q[2]), atol=1e-9)
+    assert pts[-2][2] == pytest.approx(cobra.d1) and np.linalg.norm(pts[2] - pts[1]) == pytest.approx(cobra.a1)
+    back = joints_from_pose(cobra.forward(q), cobra.home_deg, cobra)
+    assert back == pytest.approx(q, abs=1e-6)
+    with pytest.raises(ValueError, match="4 values"):
+        chain_points_mm(kin.HOME_JOINTS_DEG, cobra)
+
+
+def test_a_runs_model_is_its_cell_files():
+    from aioadept.record.model import run_model
+
+    assert run_model({"parameters": {"cell": {"robot": {"model": "cobra-s800"}}}}).name == "cobra-s800"
+    assert run_model({"parameters": {"app": "focus"}}).name == run_model(None).name == "viper-s850"  # older runs
