@@ -14,6 +14,7 @@ Needs the ``lsp`` extra (pygls, lsprotocol).
 
 from __future__ import annotations
 
+import gc
 import re
 import time
 from pathlib import Path
@@ -45,6 +46,12 @@ def _changed(ls: LanguageServer, params) -> None:
     doc = ls.workspace.get_text_document(uri)
     ls.text_document_publish_diagnostics(
         T.PublishDiagnosticsParams(uri=uri, version=doc.version, diagnostics=diagnostics(_path(uri), doc.source)))
+    # What is alive now is mostly the parse caches (nodes of every piece of every document): moved out of the
+    # cycle collector's reach, a full collection no longer scans them all (it did, as 0.3 to 0.4 s pauses of a
+    # request after a change of a 2,500-line document); reference counting still frees what the caches drop.
+    # The young generations are collected first, so that recent cyclic garbage is not frozen with them.
+    gc.collect(1)
+    gc.freeze()
 
 
 def diagnostics(name: str, text: str) -> list[T.Diagnostic]:
