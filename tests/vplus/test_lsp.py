@@ -82,9 +82,9 @@ async def test_diagnostics_on_open_and_on_change_at_the_offending_word(client: L
                                                                                               "GOTO 77"))]))
     await client.wait_for_notification(T.TEXT_DOCUMENT_PUBLISH_DIAGNOSTICS)
     got = sorted(client.diagnostics[client.main_uri], key=lambda d: d.range.start.line)
-    assert [(d.range, d.severity) for d in got] == [
-        (T.Range(_at(1, 9), _at(1, 11)), T.DiagnosticSeverity.Error),     # GOTO [77]
-        (T.Range(_at(4, 4), _at(4, 9)), T.DiagnosticSeverity.Error)]      # [MOVEE] a
+    assert [(d.range, d.severity, d.code) for d in got] == [
+        (T.Range(_at(1, 9), _at(1, 11)), T.DiagnosticSeverity.Error, "E001"),     # GOTO [77]
+        (T.Range(_at(4, 4), _at(4, 9)), T.DiagnosticSeverity.Error, "E001")]      # [MOVEE] a
     assert "undefined label 77" in got[0].message and "MOVEE is not a V+ keyword" in got[1].message
 
 

@@ -54,11 +54,16 @@ def _changed(ls: LanguageServer, params) -> None:
     gc.freeze()
 
 
+_SEVERITY = {"error": T.DiagnosticSeverity.Error, "warning": T.DiagnosticSeverity.Warning}
+
+
 def diagnostics(name: str, text: str) -> list[T.Diagnostic]:
-    """The problems of one document as LSP diagnostics (0-based ranges at the offending word)."""
+    """The problems of one document as LSP diagnostics (0-based ranges at the offending word, the problem's
+    code)."""
     return [T.Diagnostic(range=T.Range(T.Position(p.line - 1, p.column - 1), T.Position(p.line - 1,
                                                                                         p.end_column - 1)),
-                         message=p.message, severity=T.DiagnosticSeverity.Error, source="aioadept vplus")
+                         message=p.message, severity=_SEVERITY.get(p.severity, T.DiagnosticSeverity.Error),
+                         code=p.code, source="aioadept vplus")
             for p in check([(name, text)])]
 
 
