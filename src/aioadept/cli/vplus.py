@@ -38,6 +38,10 @@ def build_parser() -> argparse.ArgumentParser:
                                    "Debugging)", formatter_class=DefaultsHelpFormatter)
     d.add_argument("--listen", metavar="127.0.0.1:PORT", default=None,
                    help="serve one session on this loopback TCP address instead of stdin/stdout")
+    m = sub.add_parser("monitor", help="the V+ monitor (LOAD, EXECUTE, BPT, STATUS, ...) over the emulator with the "
+                                       "simulated arm (docs/vplus.md, Debugging)", formatter_class=DefaultsHelpFormatter)
+    m.add_argument("files", nargs="*", metavar="FILE", help="V+ files to LOAD first")
+    m.add_argument("--time-scale", type=float, default=1.0, dest="time_scale", help="the sim's time scale")
     return p
 
 
@@ -50,6 +54,12 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.command == "dap":
         return dap_main(args.listen)
+    if args.command == "monitor":
+        import asyncio
+
+        from aioadept.vplus.monitor import serve as monitor
+
+        return asyncio.run(monitor(args.files, args.time_scale))
     return check_main(args.paths, args.format, args.strict)
 
 

@@ -37,7 +37,7 @@ from aioadept.vplus.locations import PrecisionPoint, Transform
 from aioadept.vplus.parse import Parser, VSyntaxError, tokenize
 from aioadept.vplus.program import Program
 from aioadept.vplus.runtime import Runtime, Task
-from aioadept.vplus.trace import Frame, is_program_frame, suspended_stack
+from aioadept.vplus.trace import Frame, is_program_frame, stack, suspended_stack
 
 EXCEPTION_MODES = ("all", "untrapped", "none")
 
@@ -157,16 +157,16 @@ class Debugger:
         num = T.num
         if num in self._entry:
             self._entry.discard(num)
-            self._stop(T, Stop("entry"))
+            self._stop(T, Stop("entry"), frame)
         elif num in self._pause:
             self._pause.discard(num)
-            self._stop(T, Stop("pause"))
+            self._stop(T, Stop("pause"), frame)
         else:
             step = self._steps.get(num)
             if step is not None:
                 depth = _depth(frame)
                 if step.kind == "in" or (step.kind == "over" and depth <= step.depth) or depth < step.depth:
-                    self._stop(T, Stop("step"))
+                    self._stop(T, Stop("step"), frame)
 
     def _breakpoint_hit(self, T: Task, bp: Breakpoint, frame: Frame) -> bool:
         """Count a breakpoint reached; True if it stopped the task."""
@@ -183,16 +183,18 @@ class Debugger:
         if bp.log_message is not None:
             self._output(self._interpolate(bp.log_message, frame) + "\n")
             return False
-        self._stop(T, Stop("breakpoint", breakpoints=[bp.id]))
+        self._stop(T, Stop("breakpoint", breakpoints=[bp.id]), frame)
         return True
 
     def error(self, T: Task, err: VPlusError, frames: list[Frame]) -> None:
         mode = self.exceptions
         untrapped = T.reacte is None or T.in_reaction
         if mode == "all" or (mode == "untrapped" and untrapped):
-            self._stop(T, Stop("exception", str(err.message or err)))
+            self._stop(T, Stop("exception", str(err.message or err)), frames)
 
-    def _stop(self, T: Task, why: Stop) -> None:
+    def _stop(self, T: Task, why: Stop, where: Frame | list[Frame]) -> None:
+        """Hold the task where it is (``where``: the frame of its line hook, or the stack of its error)."""
+        T.frames = where if isinstance(where, list) else stack(where.pyframe, where.line)
         T.held = True
         T.trace = False
         self._steps.pop(T.num, None)
