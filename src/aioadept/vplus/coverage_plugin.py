@@ -1,0 +1,180 @@
+"""V+ line coverage with coverage.py: which lines of ``.V2`` files ran in the emulator, reported beside the Python
+files by ``coverage report``/``html``/``xml``/``lcov``/``json`` and ``pytest --cov``.
+
+Configured as a coverage.py plugin (docs/vplus.md, "Line coverage of V+ code")::
+
+    [tool.coverage.run]
+    plugins = ["aioadept.vplus.coverage_plugin"]
+
+How it works: :func:`coverage_init` registers :class:`VPlusPlugin` and attaches a :class:`LineTracer` (the
+emulator's tracer API, :mod:`aioadept.vplus.trace`) to every emulator runtime made after it, in this process and,
+with coverage's ``patch = ["subprocess"]``, in every ``aioadept sim --vplus`` it starts. The tracer asks for the
+line hook at every statement of every program not seen yet (``Runtime.trace_lines``); the first time a line runs
+it drops the line from the set (from then on the hook costs a set look-up) and runs a one-line *beacon*: code
+compiled with the ``.V2`` file's path and that line number. coverage.py's own tracer records the beacon as a line
+of that file, and saves it with the rest of its data (contexts, parallel files, combine), so nothing here writes
+coverage data. The plugin's file tracer claims ``.V2``/``.pg`` files; its file reporter gives their executable
+lines (the statements the compiler puts a line hook before: :func:`executable_lines`) and their source.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+from pathlib import Path
+from typing import Any
+
+import coverage
+
+from aioadept.vplus import nodes as N
+from aioadept.vplus.compiler import compile_program
+from aioadept.vplus.loader import Module, load_text, strip_comment
+
+SUFFIXES = (".v2", ".pg")
+"""The files the plugin claims (case-insensitive)."""
+
+
+def is_vplus(filename: str) -> bool:
+    return filename.lower().endswith(SUFFIXES)
+
+
+# -- the executable lines of a file ------------------------------------------------------------------------------
+
+def executable_lines(text: str, filename: str = "") -> set[int]:
+    """The lines of ``text`` where a statement runs: those the compiler puts a line hook before (every statement,
+    and the heads of IF, WHILE, CASE and FOR), read from the instrumented form it generates. A program that does
+    not compile (it cannot run) counts its statements by the same rule, as never run."""
+    out: set[int] = set()
+    for prog in load_text(text, filename, Module()).programs.values():
+        if prog.executable:
+            src, consts, problems = compile_program(prog, set(), traced=True)
+            if src is not None:
+                out.update(line for line in consts[-1] if line)
+                continue
+        out.update(line for line, st in prog.steps if _hooked(st))
+    return out
+
+
+_NOT_HOOKED = (N.Declare, N.Nop, N.Value, N.Until)
+
+
+def _hooked(st: N.Stmt | None) -> bool:
+    """Whether the compiler hooks a statement (the rule of its ``block``: declarations, a lone label and the
+    block words DO, ELSE, END, VALUE, ANY, UNTIL have no hook of their own)."""
+    if isinstance(st, N.Label):
+        st = st.stmt
+    if st is None or isinstance(st, _NOT_HOOKED):
+        return False
+    return not (isinstance(st, N.Word) and st.word in ("DO", "ELSE", "END", "ANY"))
+
+
+# -- recording: the emulator's tracer ----------------------------------------------------------------------------
+
+class LineTracer:
+    """The emulator's tracer (:mod:`aioadept.vplus.trace`) for one runtime: the first run of each line of a file
+    that exists is reported to coverage.py by a beacon (:func:`beacon`)."""
+
+    seen: set[tuple[str, int]] = set()
+    """(path, line) already reported in this process: a later runtime does not hook them again."""
+
+    def __init__(self, rt: Any) -> None:
+        self.rt = rt
+        # the loader names each program's file by its base name; the module keeps the paths it loaded
+        self.paths = {Path(f).name: os.path.abspath(f) for f in rt.module.files if os.path.isfile(f)}
+        for name, prog in rt.module.programs.items():
+            path = self.paths.get(prog.file)
+            if path is not None:
+                rt.trace_lines(name).update(line for line, _ in prog.steps if (path, line) not in self.seen)
+
+    def line(self, task: Any, frame: Any) -> None:
+        self.rt.trace_lines(frame.program).discard(frame.line)
+        path = self.paths.get(frame.file)
+        if path is not None and (path, frame.line) not in self.seen:
+            self.seen.add((path, frame.line))
+            beacon(path, frame.line)
+
+    def error(self, task: Any, err: Any, frames: Any) -> None:
+        """A V+ error: nothing to record (its line ran, and was recorded then)."""
+
+
+def beacon(path: str, line: int) -> None:
+    """Run one line of code that Python attributes to ``path`` at ``line``: coverage.py's tracer records it."""
+    exec(compile("\n" * (line - 1) + "_ = 0", path, "exec"), {})
+
+
+def attach(rt: Any) -> None:
+    """Trace ``rt`` (a :class:`aioadept.vplus.runtime.Runtime` with no task running) for line coverage; not one
+    whose programs come from no file (``Emulator.from_source``): there is no file to report."""
+    tracer = LineTracer(rt)
+    if tracer.paths:
+        rt.set_tracer(tracer)
+
+
+def install() -> None:
+    """Attach :func:`attach` to every runtime made from now on in this process (once)."""
+    from aioadept.vplus.runtime import Runtime
+
+    init = Runtime.__init__
+    if getattr(init, "vplus_coverage", False):
+        return
+
+    @functools.wraps(init)
+    def traced_init(self: Runtime, *args: Any, **kwargs: Any) -> None:
+        init(self, *args, **kwargs)
+        attach(self)
+
+    traced_init.vplus_coverage = True       # type: ignore[attr-defined]
+    Runtime.__init__ = traced_init          # type: ignore[method-assign]
+
+
+# -- the coverage.py plugin --------------------------------------------------------------------------------------
+
+class VPlusPlugin(coverage.CoveragePlugin):
+    """Claims ``.V2``/``.pg`` files: their lines as the beacons record them, their report by :class:`VPlusReporter`."""
+
+    def file_tracer(self, filename: str) -> coverage.FileTracer | None:
+        return VPlusFileTracer(filename) if is_vplus(filename) else None
+
+    def file_reporter(self, filename: str) -> coverage.FileReporter:
+        return VPlusReporter(filename)
+
+    def find_executable_files(self, src_dir: str):
+        """The V+ files under a measured source folder: reported (as not run) even when nothing ran them."""
+        for root, _, files in os.walk(src_dir):
+            for f in files:
+                if is_vplus(f):
+                    yield os.path.join(root, f)
+
+
+class VPlusFileTracer(coverage.FileTracer):
+    def __init__(self, filename: str) -> None:
+        self.filename = filename
+
+    def source_filename(self) -> str:
+        return self.filename
+
+
+class VPlusReporter(coverage.FileReporter):
+    """A ``.V2`` file's report: its executable lines and its source (read as the loader reads it, Latin-1)."""
+
+    @functools.cached_property
+    def text(self) -> str:
+        return Path(self.filename).read_bytes().decode("latin-1")
+
+    def source(self) -> str:
+        return self.text
+
+    def lines(self) -> set[int]:
+        return executable_lines(self.text, Path(self.filename).name)
+
+    def source_token_lines(self):
+        """The source for HTML: each line plain text (a comment from its ``;``), no V+ highlighting."""
+        for line in self.text.replace("\r\n", "\n").replace("\r", "\n").split("\n"):
+            code = strip_comment(line)
+            yield [("txt", code)] + ([("com", line[len(code):])] if len(code) < len(line) else [])
+
+
+def coverage_init(reg: Any, options: dict) -> None:
+    """coverage.py's entry point (``plugins = ["aioadept.vplus.coverage_plugin"]``)."""
+    reg.add_file_tracer(VPlusPlugin())
+    install()
