@@ -115,7 +115,8 @@ class Adapter:
 
     # -- dispatch ---------------------------------------------------------------------------------------------
     async def handle(self, req: dict) -> None:
-        command = req.get("command", "")
+        command = str(req.get("command", ""))
+        req.setdefault("seq", 0)
         method = getattr(self, "req_" + command, None)
         if method is None:
             self.respond(req, error=f"{command}: not supported by the V+ debugger")
@@ -124,6 +125,10 @@ class Adapter:
             body = method(req.get("arguments") or {}, req)
         except (DebugError, LaunchError) as exc:
             self.respond(req, error=str(exc))
+            return
+        except (KeyError, TypeError, ValueError) as exc:
+            # a request without an argument it needs, or of the wrong type: an error response, the session goes on
+            self.respond(req, error=f"{command}: bad arguments ({type(exc).__name__}: {exc})")
             return
         if body is not _LATER:
             self.respond(req, body)
@@ -416,12 +421,18 @@ async def session(reader: asyncio.StreamReader, send: Callable[[bytes], None]) -
 
 
 async def run(adapter: Adapter, reader: asyncio.StreamReader) -> None:
+    """Serve requests until ``disconnect``, the end of the input or a message that is not DAP (which ends the
+    session as the end of the input does, after an output event saying why)."""
     try:
         while not adapter.done.is_set():
-            msg = await read_message(reader)
+            try:
+                msg = await read_message(reader)
+            except (ValueError, asyncio.IncompleteReadError) as exc:
+                adapter._output(f"not a Debug Adapter Protocol message ({exc}): the session ends\n", "stderr")
+                break
             if msg is None:
                 break
-            if msg.get("type") == "request":
+            if isinstance(msg, dict) and msg.get("type") == "request":
                 await adapter.handle(msg)
     finally:
         adapter.end()
