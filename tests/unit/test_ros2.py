@@ -338,3 +338,13 @@ def test_a_cobras_joint_states_are_its_four_joints_in_ros_units(store) -> None:
         pub.publish(RobotState(t_s=2.0, wall_time_s=2.0, joints_deg=viper_q, pose=cobra.forward(q)))
     assert pub.published == 1
     pub.close()
+
+
+def test_aioadept_ros2_takes_the_robot_model_by_name(capsys) -> None:
+    from aioadept.cli.ros2 import build_parser
+
+    assert build_parser().parse_args(["--robot-model", "cobra-s800"]).robot_model == "cobra-s800"
+    assert build_parser().parse_args([]).robot_model == "viper-s850"
+    with pytest.raises(SystemExit) as info:
+        build_parser().parse_args(["--robot-model", "cobra-s1000"])
+    assert info.value.code == 2 and "cobra-s600" in capsys.readouterr().err.strip().splitlines()[-1]
