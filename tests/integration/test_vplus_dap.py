@@ -5,6 +5,7 @@ stop, evaluate and setVariable; and the safety of a breakpoint in the executor d
 from __future__ import annotations
 
 import asyncio
+import re
 
 import pytest
 from dapclient import MODULES, VPLUS, DapClient, first_statement
@@ -167,4 +168,11 @@ async def test_attached_to_a_running_sim_a_breakpoint_in_the_executor_during_a_m
         await client.close()                  # detach: the breakpoint goes, the server serves on
         writer.write(b"00000006:here\r\n")
         assert (await asyncio.wait_for(reader.readline(), 10)).startswith(b"00000006:done")
+        # the same port serves the V+ monitor (aioadept vplus monitor --connect): lines in, replies out
+        mr, mw = await asyncio.open_connection("127.0.0.1", debug_port)
+        mw.write(b"STATUS\nLISTR rs.port\nLOAD x.V2\nEXIT\n")
+        reply = (await asyncio.wait_for(mr.read(), 10)).decode()
+        assert re.search(r"2\s+running\s+rs\.reader", reply) and "rs.port = 1234" in reply, reply
+        assert "LOAD: not over --connect" in reply
+        mw.close()
         writer.close()

@@ -25,7 +25,7 @@ def test_a_bad_launch_argument_is_named(args, says):
 
 def test_listen_is_loopback_only():
     assert dap.parse_listen("127.0.0.1:4711") == ("127.0.0.1", 4711)
-    for bad, says in (("0.0.0.0:4711", "loopback only"), ("127.0.0.1:x", "not a port"), ("4711", "expected")):
+    for bad, says in (("0.0.0.0:4711", "on loopback only"), ("127.0.0.1:x", "not a port"), ("4711", "expected")):
         with pytest.raises(ValueError, match=says):
             dap.parse_listen(bad)
 

@@ -42,6 +42,8 @@ def build_parser() -> argparse.ArgumentParser:
                                        "simulated arm (docs/vplus.md, Debugging)", formatter_class=DefaultsHelpFormatter)
     m.add_argument("files", nargs="*", metavar="FILE", help="V+ files to LOAD first")
     m.add_argument("--time-scale", type=float, default=1.0, dest="time_scale", help="the sim's time scale")
+    m.add_argument("--connect", metavar="127.0.0.1:PORT", default=None,
+                   help="the monitor of a running aioadept sim --vplus ... --debug-port PORT instead")
     return p
 
 
@@ -57,9 +59,19 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "monitor":
         import asyncio
 
-        from aioadept.vplus.monitor import serve as monitor
+        from aioadept.vplus.monitor import connect, serve
 
-        return asyncio.run(monitor(args.files, args.time_scale))
+        if args.connect is None:
+            return asyncio.run(serve(args.files, args.time_scale))
+        if args.files:
+            print("aioadept vplus monitor: --connect takes no FILE (the sim has loaded its own)", file=sys.stderr)
+            return 2
+        try:
+            return asyncio.run(connect(args.connect))
+        except (ValueError, OSError) as exc:
+            what = exc if isinstance(exc, ValueError) else f"--connect {args.connect}: {exc.strerror or exc}"
+            print(f"aioadept vplus monitor: {what}", file=sys.stderr)
+            return 2
     return check_main(args.paths, args.format, args.strict)
 
 

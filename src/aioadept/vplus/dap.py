@@ -48,11 +48,11 @@ class LaunchError(ValueError):
 
 # -- framing ---------------------------------------------------------------------------------------------------
 
-async def read_message(reader: asyncio.StreamReader) -> dict | None:
-    """One message, or None at the end of the stream."""
+async def read_message(reader: asyncio.StreamReader, first: bytes | None = None) -> dict | None:
+    """One message, or None at the end of the stream (``first``: its first header line, already read)."""
     length = None
     while True:
-        line = await reader.readline()
+        line, first = (first, None) if first is not None else (await reader.readline(), None)
         if not line:
             return None
         line = line.strip()
@@ -420,13 +420,14 @@ async def session(reader: asyncio.StreamReader, send: Callable[[bytes], None]) -
     await run(Adapter(send), reader)
 
 
-async def run(adapter: Adapter, reader: asyncio.StreamReader) -> None:
+async def run(adapter: Adapter, reader: asyncio.StreamReader, first: bytes | None = None) -> None:
     """Serve requests until ``disconnect``, the end of the input or a message that is not DAP (which ends the
     session as the end of the input does, after an output event saying why)."""
     try:
         while not adapter.done.is_set():
             try:
-                msg = await read_message(reader)
+                msg = await read_message(reader, first)
+                first = None
             except (ValueError, asyncio.IncompleteReadError) as exc:
                 adapter._output(f"not a Debug Adapter Protocol message ({exc}): the session ends\n", "stderr")
                 break
@@ -442,7 +443,8 @@ async def run(adapter: Adapter, reader: asyncio.StreamReader) -> None:
 
 async def serve_attach(emu: Any, debugger: Debugger, host: str, port: int) -> asyncio.Server:
     """Serve ``attach`` sessions to a running emulator on ``host:port`` (loopback), one at a time (a second
-    connection is closed at once)."""
+    connection is closed at once). A connection whose first line is no DAP header is a V+ monitor session
+    (``aioadept vplus monitor --connect``: lines in, replies out, :func:`aioadept.vplus.monitor.serve_lines`)."""
     busy = [False]
 
     async def one(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
@@ -450,12 +452,18 @@ async def serve_attach(emu: Any, debugger: Debugger, host: str, port: int) -> as
             writer.close()
             return
         busy[0] = True
-        adapter = Adapter(writer.write, attached=(emu, debugger))
         try:
-            await run(adapter, reader)
+            first = await reader.readline()
+            if not first.lower().startswith(b"content-length"):
+                from aioadept.vplus.monitor import serve_lines
+
+                await serve_lines(emu, debugger, first, reader, writer)
+                return
+            adapter = Adapter(writer.write, attached=(emu, debugger))
+            await run(adapter, reader, first)     # its end (even a client gone) detaches
             await writer.drain()
-        except (ConnectionError, ValueError):
-            adapter.end()                 # a client gone or garbled: the session ends as a disconnect
+        except ConnectionError:
+            pass
         finally:
             busy[0] = False
             writer.close()
@@ -498,15 +506,16 @@ async def serve_tcp(host: str, port: int, ready: Callable[[int], None] | None = 
         await over.wait()
 
 
-def parse_listen(text: str) -> tuple[str, int]:
-    """``127.0.0.1:PORT`` -> (host, port); ``ValueError`` for anything but a loopback address and a port."""
+def parse_listen(text: str, option: str = "--listen") -> tuple[str, int]:
+    """``127.0.0.1:PORT`` -> (host, port); ``ValueError`` naming ``option`` for anything but a loopback address
+    and a port."""
     host, sep, port = text.rpartition(":")
     if not sep or host not in ("127.0.0.1", "localhost", "::1", "[::1]"):
-        raise ValueError(f"--listen {text}: expected 127.0.0.1:PORT (the debugger listens on loopback only)")
+        raise ValueError(f"{option} {text}: expected 127.0.0.1:PORT (the debugger is on loopback only)")
     try:
         n = int(port)
     except ValueError:
-        raise ValueError(f"--listen {text}: {port!r} is not a port number") from None
+        raise ValueError(f"{option} {text}: {port!r} is not a port number") from None
     if not 0 < n < 65536:
-        raise ValueError(f"--listen {text}: port out of range")
+        raise ValueError(f"{option} {text}: port out of range")
     return host.strip("[]"), n

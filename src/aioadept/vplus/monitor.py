@@ -40,6 +40,12 @@ class Monitor:
         self.debugger: Debugger | None = None
         self.bpts: dict[tuple[str, int], int] = {}       # (program, step) -> file line
         self.on_new_emulator: Callable[[Any], None] = lambda emu: None
+        self.remote = False                                # attached to a running sim's emulator
+
+    def attach(self, emu: Any, debugger: Debugger) -> None:
+        """Work on the emulator of a running ``aioadept sim --vplus --debug-port`` (no LOAD)."""
+        self.emu, self.debugger, self.remote = emu, debugger, True
+        debugger.on_event = self._event
 
     # -- commands ------------------------------------------------------------------------------------------------
     def command(self, line: str) -> str:
@@ -63,6 +69,8 @@ class Monitor:
             return str(exc)
 
     def cmd_LOAD(self, rest: str) -> str:
+        if self.remote:
+            raise MonitorError("LOAD: not over --connect (the sim has loaded its files)")
         if not rest:
             raise MonitorError("*Missing argument* LOAD file")
         if self.emu is not None and self.emu.rt.active():
@@ -314,8 +322,14 @@ class Monitor:
         return "*PANIC command*: the arm is braked"
 
     def end(self) -> None:
-        """Leaving the monitor: the arm is braked, every task aborted."""
-        if self.debugger is not None:
+        """Leaving the monitor: the arm is braked; every task is aborted, or (attached to a sim) its breakpoints
+        go and its stopped tasks go on (the server serves on)."""
+        if self.debugger is None:
+            return
+        if self.remote:
+            self.bpts.clear()
+            self.debugger.detach()
+        else:
             self.debugger.end()
 
 
@@ -346,6 +360,69 @@ def _split_args(text: str | None) -> list[str]:
 
 
 # -- serving ---------------------------------------------------------------------------------------------------
+
+async def serve_lines(emu: Any, debugger: Debugger, first: bytes, reader: asyncio.StreamReader,
+                      writer: asyncio.StreamWriter) -> None:
+    """A monitor session on a connection to ``sim --debug-port``: each line a command, its reply and the prompt
+    back; ``Break at`` lines whenever a task stops. ``EXIT`` or the end of the connection ends it."""
+    def out(text: str) -> None:
+        if text and not writer.is_closing():
+            writer.write(text.replace("\n", "\r\n").encode() + b"\r\n")
+
+    mon = Monitor(lambda files: None, out)
+    mon.attach(emu, debugger)
+    line = first
+    try:
+        while line:
+            cmd = line.decode("latin-1").strip()
+            if cmd.upper() in ("EXIT", "QUIT"):
+                break
+            out(mon.command(cmd))
+            writer.write(PROMPT.encode())
+            await writer.drain()
+            line = await reader.readline()
+    except ConnectionError:
+        pass
+    finally:
+        mon.end()
+
+
+async def connect(address: str) -> int:
+    """``aioadept vplus monitor --connect 127.0.0.1:PORT``: this terminal's lines to a sim's monitor session."""
+    import functools
+
+    try:
+        import readline  # noqa: F401 - line editing and history for input()
+    except ImportError:  # pragma: no cover
+        pass
+    from aioadept.vplus.dap import parse_listen
+
+    host, port = parse_listen(address, "--connect")
+    reader, writer = await asyncio.open_connection(host, port)
+    writer.write(b"\n")                      # an empty command: the prompt comes back
+
+    async def pump() -> None:
+        while data := await reader.read(4096):
+            sys.stdout.write(data.decode("latin-1").replace("\r\n", "\n"))
+            sys.stdout.flush()
+
+    shown = asyncio.ensure_future(pump())
+    loop = asyncio.get_running_loop()
+    while not shown.done():
+        try:
+            line = await loop.run_in_executor(None, functools.partial(input, ""))
+        except EOFError:
+            break
+        writer.write(line.encode("latin-1", "replace") + b"\n")
+    if not writer.is_closing():
+        writer.write(b"EXIT\n")              # the replies still on their way are shown, then the sim closes
+        try:
+            await asyncio.wait_for(shown, 10)
+        except asyncio.TimeoutError:
+            shown.cancel()
+        writer.close()
+    return 0
+
 
 async def serve(files: list[str], time_scale: float = 1.0) -> int:
     """The monitor on this terminal until end of input: the emulator runs meanwhile."""
