@@ -4,6 +4,7 @@ or npm is missing, the test is skipped with a warning that names what did not ru
 
 from __future__ import annotations
 
+import fcntl
 import shutil
 import subprocess
 import warnings
@@ -24,6 +25,13 @@ def npm_tree(source: Path, name: str, *, what: str) -> Path:
         pytest.skip(reason)
     dest = ROOT / "build" / name
     dest.mkdir(parents=True, exist_ok=True)
+    # pytest-xdist workers may ask for the same tree at once: one installs, the others wait for it.
+    with open(ROOT / "build" / f"{name}.lock", "w") as guard:
+        fcntl.flock(guard, fcntl.LOCK_EX)
+        return _install(source, dest, npm)
+
+
+def _install(source: Path, dest: Path, npm: str) -> Path:
     lock = dest / "package-lock.json"
     stale = (not (dest / "node_modules").is_dir() or not lock.exists()
              or lock.read_bytes() != (source / "package-lock.json").read_bytes())
