@@ -66,3 +66,24 @@ def test_parse_skill_and_usage_errors(capsys):
     assert "argument 1" in capsys.readouterr().err
     assert main(["Bad-Name"]) == 2
     assert "skill" in capsys.readouterr().err
+
+
+@pytest.mark.timeout(20)
+async def test_send_names_the_server_with_robot_as_every_client_does():
+    async with ScriptedServer() as server:
+        code, out, err = await run_cli("--robot", f"127.0.0.1:{server.port}", "here")
+        both = await run_cli("--robot", f"127.0.0.1:{server.port}", "--port", str(server.port), "here")
+    assert code == 0, err
+    assert out.split()[1:3] == ["here", "done"]
+    assert [parse_command(x).skill for x in server.lines()] == ["hello", "here"]  # the second run sent nothing
+    code, out, err = both
+    assert code == 2 and out == "" and len(err.splitlines()) == 1
+    assert "--robot" in err and "--host/--port" in err
+
+
+def test_send_robot_mistakes_are_one_line(capsys):
+    with pytest.raises(SystemExit) as exited:
+        main(["--robot", "127.0.0.1:99999", "here"])
+    assert exited.value.code == 2
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1 and "--robot '127.0.0.1:99999'" in err

@@ -17,7 +17,7 @@ EXIT_NOT_SAVED = 4
 """Exit code when outputs of the analysis could not be written (named on stderr), as ``demo``/``focus``'s 4."""
 
 
-def _parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="aioadept analyze",
         description="Compute the paper's timing quantities (tau_r, switching durations; eqs. 1-5) over run folders "
@@ -46,7 +46,7 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = _parser().parse_args(sys.argv[1:] if argv is None else argv)
+    args = build_parser().parse_args(sys.argv[1:] if argv is None else argv)
     from rich.console import Console
 
     from aioadept.analysis.report import analyze_runs, fits_table, summary_table

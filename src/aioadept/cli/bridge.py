@@ -32,7 +32,7 @@ def build_parser() -> argparse.ArgumentParser:
                                 formatter_class=DefaultsHelpFormatter)
     p.add_argument("--robot", default=f"{defaults.ROBOT_HOST}:{defaults.ROBOT_PORT}", metavar="HOST[:PORT]",
                    help="the RobotServer to hold the one connection to")
-    p.add_argument("--stop-port", default="auto", dest="stop_port",
+    p.add_argument("--stop-port", default="auto", dest="stop_port", metavar="PORT",
                    help="the server's stop port: 'auto' (PORT+1), a number, or 'none' (the original AdeptServer)")
     p.add_argument("--cell", default="demo", help="the cell's name in the key expressions")
     p.add_argument("--name", default="robot", help="this robot's name in the key expressions")

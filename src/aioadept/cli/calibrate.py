@@ -43,9 +43,9 @@ RANGES = {"views": Range(3, 200, integer=True), "marker": Range(0, 999, integer=
 
 def build_parser() -> argparse.ArgumentParser:
     p = ArgumentParser(prog=PROG, description=description(__doc__))
-    p.add_argument("--config", type=Path, help="cell file: robot address, vision endpoints, [bus] (on Zenoh: the "
-                                                "cell's keys and router), the nominal "
-                                                "[calibration] (intrinsics, table); defaults without it")
+    p.add_argument("--config", type=Path, metavar="FILE",
+                   help="cell file: robot address, vision endpoints, [bus] (on Zenoh: the cell's keys and router), "
+                        "the nominal [calibration] (intrinsics, table); defaults without it")
     add_robot_option(p)
     p.add_argument("--request-endpoint", help=with_default("PUB for locate requests (the node's READY line prints "
                                                            "the form to use)", defaults.REQUEST_ENDPOINT))

@@ -63,11 +63,11 @@ def build_parser() -> argparse.ArgumentParser:
     speeds, steps = range_of(FocusParams, "approach_speed").text, range_of(FocusParams, "delta_z_mm").text
     p.add_argument("--speeds", default="5,25,50,75,100",
                    help=f"approach speeds, each {speeds} (default: the paper's)".replace("%", "%%"))
-    p.add_argument("--delta-z", dest="delta_z", default="1.5,2.0,2.5",
+    p.add_argument("--delta-z", dest="delta_z", default="1.5,2.0,2.5", metavar="MM[,MM...]",
                    help=f"z steps, each {steps} (default: the paper's)")
     p.add_argument("--runs", type=int, default=2, help="runs per grid point, >= 1 (default 2)")
     p.add_argument("--time-scale", type=float, dest="time_scale", default=None, help="sim motion speed-up")
-    p.add_argument("--out", default=None, help="experiment folder (default runs/experiment-<time>)")
+    p.add_argument("--out", default=None, metavar="DIR", help="experiment folder (default runs/experiment-<time>)")
     add_verbose(p)
     from aioadept.record.hook import add_view_options
 

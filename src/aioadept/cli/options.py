@@ -61,7 +61,7 @@ class DefaultsHelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
 
 def add_config(p: argparse.ArgumentParser, help: str, **kw) -> None:  # noqa: A002
     """``--config FILE``: a TOML file read with :func:`aioadept.configfile.load_toml`."""
-    p.add_argument("--config", help=help, **kw)
+    p.add_argument("--config", metavar="FILE", help=help, **kw)
 
 
 def add_verbose(p: argparse.ArgumentParser) -> None:
@@ -102,9 +102,10 @@ def add_cell_options(p: argparse.ArgumentParser) -> None:
     from aioadept.apps.focus import FocusParams
 
     add_config(p, "cell description (TOML); options below override it", type=Path)
-    p.add_argument("--out", help="folder for run folders (default: runs)")
+    p.add_argument("--out", metavar="DIR", help="folder for run folders (default: runs)")
     p.add_argument("--speed", type=int, help=option_help("approach speed", FocusParams, "approach_speed"))
-    p.add_argument("--delta-z", type=float, dest="delta_z", help=option_help("tool z step", FocusParams, "delta_z_mm"))
+    p.add_argument("--delta-z", type=float, dest="delta_z", metavar="MM",
+                   help=option_help("tool z step", FocusParams, "delta_z_mm"))
     p.add_argument("--max-steps", type=int, dest="max_steps",
                    help=option_help("give up after this many steps", FocusParams, "max_steps"))
     p.add_argument("--vision-timeout", type=float, dest="vision_timeout",
@@ -203,7 +204,7 @@ def with_default(text: str, default: object) -> str:
 
 def add_robot_option(p: argparse.ArgumentParser) -> None:
     """``--robot HOST[:PORT]``, read with :func:`parse_robot_address`."""
-    p.add_argument("--robot", help=ROBOT_HELP)
+    p.add_argument("--robot", metavar="HOST[:PORT]", help=ROBOT_HELP)
 
 
 TRANSPORTS = defaults.TRANSPORTS

@@ -25,16 +25,17 @@ PROG = "aioadept pickplace"
 
 def build_parser() -> argparse.ArgumentParser:
     p = ArgumentParser(prog=PROG, description=description(__doc__))
-    p.add_argument("--config", type=Path, help=f"cell file (TOML; default {EXAMPLE_CELL.name} of the examples)")
+    p.add_argument("--config", type=Path, metavar="FILE", help=f"cell file (TOML; default {EXAMPLE_CELL.name} of the examples)")
     p.add_argument("--parts", type=int, help="parts to pick and place ([pickplace] parts)")
     p.add_argument("--speed", type=int, help="program speed of every motion, %% ([pickplace] speed)")
     p.add_argument("--part-timeout", type=float, dest="part_timeout",
                    help="seconds to wait for a part on the feeder ([pickplace] part_timeout_s)")
     p.add_argument("--time-scale", type=float, dest="time_scale", help="sim only: motion speed-up")
     p.add_argument("--fast", action="store_true", help="same as --time-scale 10")
-    p.add_argument("--vplus", action="store_true",
-                   help="run the controller's own V+ server (vplus/) on the V+ emulator instead of the Python sim")
-    p.add_argument("--out", help="folder for run folders (default: runs)")
+    p.add_argument("--vplus", nargs="*", metavar="FILE", default=None,
+                   help="run V+ modules on the V+ emulator instead of the Python sim, task 0 running rs.main: the "
+                        "controller's own V+ server (vplus/) unless these files are named")
+    p.add_argument("--out", metavar="DIR", help="folder for run folders (default: runs)")
     add_verbose(p)
     return p
 
@@ -82,11 +83,11 @@ def pickplace_config(args: argparse.Namespace):  # noqa: ANN201
         slot_targets(w.pallet, p, w.table_z_mm + 1.0)
     except PickPlaceError as exc:
         raise ValueError(f"{path}: {exc}") from None
-    if args.vplus:
+    if args.vplus is not None:
         if not cfg.robot.start_sim:
             raise ValueError("--vplus: the cell file says start_sim = false (no sim is started here)")
-        cfg.robot.sim_args = ["--vplus", str(VPLUS_DIR / "rserver.V2"), str(VPLUS_DIR / "rsskills.V2"),
-                              str(VPLUS_DIR / "rsconfig.V2"), "--run", "rs.main", *cfg.robot.sim_args]
+        modules = args.vplus or [str(VPLUS_DIR / name) for name in ("rserver.V2", "rsskills.V2", "rsconfig.V2")]
+        cfg.robot.sim_args = ["--vplus", *modules, "--run", "rs.main", *cfg.robot.sim_args]
     return cfg
 
 

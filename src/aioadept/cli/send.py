@@ -1,10 +1,11 @@
 """``aioadept send``: send skill calls to a robot server from the shell and print one line per ack.
 
-    aioadept send --host 127.0.0.1 --port 1234 "move_to:300,0,500,0,180,0" break
+    aioadept send --robot 127.0.0.1:1234 "move_to:300,0,500,0,180,0" break
     aioadept send --joined "set_speed:20" "move_rel_tool:0,0,2.5,0,0,0" break
     aioadept send --json here
 
-Each argument is ``SKILL[:ARG,ARG,...]`` (the wire syntax without the ID); integers stay integers (``set_speed:20``).
+``--robot HOST[:PORT]`` names the server as every client subcommand does; ``--host``/``--port`` say the same in two
+options. Each argument is ``SKILL[:ARG,ARG,...]`` (the wire syntax without the ID); integers stay integers (``set_speed:20``).
 By default each skill is its own command, awaited before the next is sent (``cmdexec``); ``--joined`` writes them
 all at once (``cmdexec_joined``). Exit status: 0 all done, 1 an ``error``/``aborted`` ack, 2 bad usage,
 3 connection failure (also: the peer did not answer ``hello`` like a RobotServer within 2 s; ``--no-hello``
@@ -25,7 +26,7 @@ from aioadept.apps.interrupt import Interrupter, run_interruptible
 from aioadept.client import ExecResult, MessageResult, RobotClient
 from aioadept.commands import Skill
 from aioadept.errors import AckTimeout, CommandAborted, CommandError, ConnectError, ConnectionLost
-from aioadept.cli.options import ArgumentParser, description
+from aioadept.cli.options import ArgumentParser, add_robot_option, description, parse_robot_address
 from aioadept.protocol import STOP_SKILL
 
 
@@ -99,6 +100,16 @@ async def _run(args: argparse.Namespace, commands: list[Skill], intr: Interrupte
         return 3
 
 
+def robot_address(args: argparse.Namespace) -> tuple[str, int]:
+    """The server's ``(host, port)``: ``--robot``, or ``--host``/``--port``, never both; the defaults otherwise."""
+    if args.robot is not None:
+        if args.host is not None or args.port is not None:
+            raise ValueError("--robot names the server: give it, or --host/--port, not both")
+        return parse_robot_address(args.robot)
+    return (args.host if args.host is not None else defaults.ROBOT_HOST,
+            args.port if args.port is not None else defaults.ROBOT_PORT)
+
+
 def _stop_port(text: str) -> int | str | None:
     if text.lower() in ("auto", "none"):
         return text.lower() if text.lower() == "auto" else None
@@ -137,23 +148,32 @@ def _syntax_hint(tokens: Sequence[str]) -> str:
             "'aioadept send move_to:300,0,500,0,180,0 break'")
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def build_parser() -> argparse.ArgumentParser:
     ap = ArgumentParser(prog="aioadept send", description=description(__doc__))
     ap.add_argument("skills", nargs="+", metavar="SKILL[:ARGS]", help="skill calls, e.g. move_to:1,2,3,4,5,6")
-    ap.add_argument("--host", default=defaults.ROBOT_HOST, help=f"robot server address (default {defaults.ROBOT_HOST})")
-    ap.add_argument("--port", type=int, default=defaults.ROBOT_PORT,
-                    help=f"robot server port (default {defaults.ROBOT_PORT})")
+    add_robot_option(ap)
+    ap.add_argument("--host", default=None, help=f"robot server address, as --robot HOST (default {defaults.ROBOT_HOST})")
+    ap.add_argument("--port", type=int, default=None, help=f"robot server port, as --robot :PORT (default {defaults.ROBOT_PORT})")
     ap.add_argument("--joined", action="store_true", help="write all messages at once (cmdexec_joined)")
     ap.add_argument("--timeout", type=float, default=60.0, help="ack timeout per wait, seconds (default 60)")
     ap.add_argument("--stop-port", default="auto", dest="stop_port", metavar="PORT",
                     help="the server's stop port, used for 'send stop' when the connection cannot be made "
-                         "('auto': --port + 1; 'none')")
+                         "('auto': the server's port + 1; 'none')")
     ap.add_argument("--connect-timeout", type=float, default=5.0, help="connect timeout, seconds (default 5)")
     ap.add_argument("--json", action="store_true", help="print one JSON object per ack")
     ap.add_argument("--no-hello", action="store_true", dest="no_hello",
                     help="do not check with 'hello' that the peer is a RobotServer (needed for the original V+ "
                          "AdeptServer, which halts on skills it does not know)")
+    return ap
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    ap = build_parser()
     args = ap.parse_args(list(sys.argv[1:] if argv is None else argv))
+    try:
+        args.host, args.port = robot_address(args)
+    except ValueError as exc:
+        ap.error(str(exc))
     try:
         commands = [parse_skill(s) for s in args.skills]
     except ValueError as exc:
