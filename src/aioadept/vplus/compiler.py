@@ -6,8 +6,12 @@ function with one shared scope of labels and locals; a split by statement kind w
 Why generate Python source: a tree-walking interpreter in Python runs a simple V+ statement in several
 microseconds; generated code runs it as a few bytecodes (a dict store, an ``array('f')`` round trip for REAL
 precision). Structured control (IF, WHILE, DO, FOR, CASE) becomes native Python control flow. A program that uses
-GOTO is cut into segments at its labels (labels must be at the top level of the program) and runs in a small
-dispatch loop.
+GOTO is cut into segments at its labels and runs in a small dispatch loop: each body that holds labels (the
+program's, or a block's) is one such loop over its segments, and a GOTO raises the label's ``_GOTO[k]``, which
+the loop of the body holding label ``k`` catches (the labels of a body are numbered consecutively, so it checks a
+range). A GOTO may go to a label of its own body or of any body around it (out of blocks); a GOTO into a block
+it is not in is refused at load (docs/vplus.md, "Step labels"). ``EXIT``/``NEXT`` with such a dispatch loop
+between them and their loop raise ``_Goto(-1)``/``_Goto(-2)``, which that loop catches.
 
 Generated functions are generators, so that a task can block (WAIT, READ, a motion waiting for its slot) and be
 time-sliced: every yield is a wake-up time in runtime seconds, or ``PREEMPT`` (-1.0) when the task has used its
@@ -34,6 +38,7 @@ from typing import Any
 from aioadept.vplus import nodes as N
 from aioadept.vplus import registry
 from aioadept.vplus.program import LoadProblem, Program
+from aioadept.vplus.values import _Goto
 
 BUDGET = 2000
 """Loop iterations a task runs before it yields its time slice (virtual time; the generated code reads the
@@ -43,6 +48,7 @@ _LOC_FUNCS = registry.of_result("loc")
 _PP_FUNCS = registry.of_result("pp")
 _STR_FUNCS = registry.of_result("str")
 _FMT_RE = re.compile(r"([A-Z])(\d+)?(?:\.(\d+))?\Z")       # as builtins._FMT_RE
+_LOOP_JUMP = {"EXIT": _Goto(-1), "NEXT": _Goto(-2)}               # raised across a dispatch loop (module doc)
 
 
 class CompileError(Exception):
@@ -89,10 +95,8 @@ class _Nester:
 
     def step(self, line: int, st: N.Stmt) -> None:
         if isinstance(st, N.Label):
-            if len(self.stack) > 1:
-                self.fail(line, "a label inside a block is not supported by the emulator", str(st.number), st)
-            else:
-                self.stack[-1][1].append((line, N.Label(st.number, None, span=st.span)))
+            # in the body open at its line: on an END, ELSE, VALUE or UNTIL line that is the end of that body
+            self.stack[-1][1].append((line, N.Label(st.number, None, span=st.span)))
             if st.stmt is None:
                 return
             st = st.stmt
@@ -181,7 +185,10 @@ class _Gen:
         self.n = 0
         self.consts: list[Any] = []
         self.loops: list[str] = []          # kinds of enclosing loops, for EXIT/NEXT
-        self.labels: dict[int, int] = {}
+        self.labels: dict[int, int] = {}    # label -> its GOTO index (1, 2, ...; a body's consecutive)
+        self.label_body: dict[int, int] = {}    # label -> id() of the body (list of items) that holds it
+        self.bodies: list[int] = []         # id() of the bodies around the code being emitted
+        self.frames: list[str] = []         # "loop" and "dispatch" around it, innermost last (EXIT/NEXT)
         self.problems: list[CompileError] = []
 
     # -- output ---------------------------------------------------------------------------------------------
@@ -541,39 +548,88 @@ class _Gen:
                           f"else _arg(A, {i}, {name!r})")
         self.emit("_b = _BUDGET")
         if _uses_goto(p.steps):
-            self.goto_program(tree)
+            self.number_labels(tree)
+            self.body(tree)
         else:
             self.block(tree)
         self.emit("return")
         self.emit("yield")
         return "\n".join(self.lines)
 
-    def goto_program(self, tree: list) -> None:
+    def number_labels(self, items: list) -> None:
+        """Number the labels of a body and then of the bodies in it, so that each body's are consecutive."""
+        for line, st in (it for it in items if isinstance(it, tuple) and isinstance(it[1], N.Label)):
+            if st.number in self.labels:
+                self.problems.append(CompileError(line, f"label {st.number} is defined twice", str(st.number), st))
+                continue
+            self.labels[st.number] = len(self.labels) + 1
+            self.label_body[st.number] = id(items)
+        for it in items:
+            if isinstance(it, _Block):
+                for sub in (it.body, it.orelse, *(body for _, body in it.cases)):
+                    self.number_labels(sub)
+
+    def body(self, items: list) -> None:
+        """The statements of the program or of a block: a dispatch loop over its segments if labels are in it."""
+        self.bodies.append(id(items))
+        if any(isinstance(it, tuple) and isinstance(it[1], N.Label) for it in items):
+            self.segments(items)
+        else:
+            self.block(items)
+        self.bodies.pop()
+
+    def segments(self, items: list) -> None:
+        """A body cut at its labels, run by a dispatch loop that catches the GOTOs to them (the module doc)."""
         segs: list[list] = [[]]
-        for it in tree:
-            if isinstance(it, tuple) and isinstance(it[1], N.Label):
-                self.labels[it[1].number] = len(segs)
+        starts: list[int] = []
+        for it in items:
+            if isinstance(it, tuple) and isinstance(it[1], N.Label) and it[1].number in self.labels:
+                starts.append(self.labels[it[1].number])
                 segs.append([])
             else:
                 segs[-1].append(it)
-        self.emit("_pc = 0")
+        top = len(self.bodies) == 1
+        pc = "_pc" if top else self.tmp("_pc")
+        self.emit(f"{pc} = {starts[0] - 1}")
         self.emit("while True:")
         self.ind += 1
         self.emit("try:")
         self.ind += 1
-        for k, seg in enumerate(segs):
-            self.emit(f"if _pc <= {k}:")
+        self.frames.append("dispatch")
+        for k, seg in zip([starts[0] - 1, *starts], segs):
+            self.emit(f"if {pc} <= {k}:")
             self.ind += 1
             self.emit("pass")
             self.block(seg)
             self.ind -= 1
+        self.frames.pop()
         self.emit("break")
         self.ind -= 1
         self.emit("except _Goto as _g:")
         self.ind += 1
-        self.emit("_pc = _g.pc")
+        if not top:                         # a GOTO out of this body (or an EXIT/NEXT) goes on outwards
+            self.emit(f"if not {starts[0]} <= _g.pc <= {starts[-1]}: raise")
+        self.emit(f"{pc} = _g.pc")
         self.budget()
         self.ind -= 2
+
+    def loop_body(self, kind: str, items: list) -> None:
+        """The body of a WHILE, DO or FOR (inside its Python loop): where labels in it may put a dispatch loop
+        between an EXIT/NEXT and this loop, the EXIT/NEXT raised across it is caught here."""
+        self.loops.append(kind)
+        self.frames.append("loop")
+        if not _has_label(items):
+            self.body(items)
+        else:
+            self.emit("try:")
+            self.ind += 1
+            self.body(items)
+            self.ind -= 1
+            self.emit("except _Goto as _j:")
+            self.emit("    if _j.pc == -1: break")
+            self.emit("    if _j.pc != -2: raise")
+        self.frames.pop()
+        self.loops.pop()
 
     def budget(self) -> None:
         self.emit("_b -= 1")
@@ -637,12 +693,12 @@ class _Gen:
         c = self.guarded_cond(b.line, b.head.cond)
         self.emit(f"if {c}:")
         self.ind += 1
-        self.block(b.body)
+        self.body(b.body)
         self.ind -= 1
         if b.orelse:
             self.emit("else:")
             self.ind += 1
-            self.block(b.orelse)
+            self.body(b.orelse)
             self.ind -= 1
 
     def block_WHILE(self, b: _Block) -> None:
@@ -651,9 +707,7 @@ class _Gen:
         self.hook(b.line)
         c = self.guarded_cond(b.line, b.head.cond)
         self.emit(f"if not {c}: break")
-        self.loops.append("WHILE")
-        self.block(b.body)
-        self.loops.pop()
+        self.loop_body("WHILE", b.body)
         self.budget()
         self.ind -= 1
 
@@ -662,9 +716,7 @@ class _Gen:
             raise CompileError(b.line, "NEXT inside DO ... UNTIL is not supported by the emulator", "NEXT", b.head)
         self.emit("while True:")
         self.ind += 1
-        self.loops.append("DO")
-        self.block(b.body)
-        self.loops.pop()
+        self.loop_body("DO", b.body)
         self.budget()
         c = self.guarded_cond(b.line, b.until)
         self.emit(f"if {c}: break")
@@ -688,7 +740,7 @@ class _Gen:
                 self.emit(("if " if first else "elif ") + test + ":")
             first = False
             self.ind += 1
-            self.block(body)
+            self.body(body)
             self.ind -= 1
 
     def block_FOR(self, b: _Block) -> None:
@@ -711,7 +763,6 @@ class _Gen:
             inc = f"{v} = {v} + {s}"
         else:
             inc = f"_F[0] = {v} + {s}; {v} = _F[0]"
-        self.loops.append("FOR")
         if _direct_next(b.body):
             f = self.tmp("_first")
             self.emit(f"{f} = True")
@@ -720,17 +771,16 @@ class _Gen:
             self.emit(f"if not {f}: {inc}")
             self.emit(f"{f} = False")
             self.emit(f"if not ({test}): break")
-            self.block(b.body)
+            self.loop_body("FOR", b.body)
             self.budget()
             self.ind -= 1
         else:
             self.emit(f"while {test}:")
             self.ind += 1
-            self.block(b.body)
+            self.loop_body("FOR", b.body)
             self.budget()
             self.emit(inc)
             self.ind -= 1
-        self.loops.pop()
 
     # -- simple statements: one visit method per node class ---------------------------------------------------
     def visit_Assign(self, line: int, st: N.Assign) -> None:
@@ -747,6 +797,10 @@ class _Gen:
     def goto_index(self, line: int, label: int, st: N.Stmt) -> int:
         if label not in self.labels:
             raise CompileError(line, f"GOTO to an undefined label {label}", str(label), st)
+        if self.label_body[label] not in self.bodies:
+            # V+'s rule for a jump into a block is not in the manuals we have: refused, the safe side
+            raise CompileError(line, f"GOTO {label} into a block (IF, CASE, WHILE, DO or FOR) the GOTO is not in is "
+                                     "not supported by the emulator", str(label), st)
         return self.labels[label]
 
     def visit_Goto(self, line: int, st: N.Goto) -> None:
@@ -777,7 +831,10 @@ class _Gen:
             raise CompileError(line, f"{k} outside a loop", k, st)
         if st.count != 1:
             raise CompileError(line, f"{k} with a count is not supported by the emulator", k, st)
-        self.emit("break" if k == "EXIT" else "continue")
+        if self.frames[-1] == "dispatch":
+            self.emit(f"raise {self.const(_LOOP_JUMP[k])}")
+        else:
+            self.emit("break" if k == "EXIT" else "continue")
 
     def visit_CallStmt(self, line: int, st: N.CallStmt) -> None:
         args = self.call_args(st.args)
@@ -964,6 +1021,12 @@ def _word(e: N.Expr) -> str:
 
 def _uses_goto(steps) -> bool:
     return any(isinstance(st, (N.Label, N.Goto, N.IfGoto)) for _, st in steps)
+
+
+def _has_label(body: list) -> bool:
+    """Whether a label is in a body or in a block inside it."""
+    return any(_has_label(it.body) or _has_label(it.orelse) or any(_has_label(b) for _, b in it.cases)
+               if isinstance(it, _Block) else isinstance(it[1], N.Label) for it in body)
 
 
 def _direct_next(body: list) -> bool:
