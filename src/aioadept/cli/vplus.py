@@ -67,7 +67,9 @@ def main(argv: list[str] | None = None) -> int:
             print("aioadept vplus monitor: --connect takes no FILE (the sim has loaded its own)", file=sys.stderr)
             return 2
         try:
-            return asyncio.run(connect(args.connect))
+            from aioadept.vplus.dap import parse_listen
+
+            return asyncio.run(connect(*parse_listen(args.connect, "--connect")))
         except (ValueError, OSError) as exc:
             what = exc if isinstance(exc, ValueError) else f"--connect {args.connect}: {exc.strerror or exc}"
             print(f"aioadept vplus monitor: {what}", file=sys.stderr)

@@ -387,7 +387,7 @@ async def serve_lines(emu: Any, debugger: Debugger, first: bytes, reader: asynci
         mon.end()
 
 
-async def connect(address: str) -> int:
+async def connect(host: str, port: int) -> int:
     """``aioadept vplus monitor --connect 127.0.0.1:PORT``: this terminal's lines to a sim's monitor session."""
     import functools
 
@@ -395,9 +395,6 @@ async def connect(address: str) -> int:
         import readline  # noqa: F401 - line editing and history for input()
     except ImportError:  # pragma: no cover
         pass
-    from aioadept.vplus.dap import parse_listen
-
-    host, port = parse_listen(address, "--connect")
     reader, writer = await asyncio.open_connection(host, port)
     writer.write(b"\n")                      # an empty command: the prompt comes back
 
