@@ -8,6 +8,7 @@ import json
 import pytest
 
 from aioadept.vplus import dap
+from aioadept.vplus.daplaunch import LaunchError, launch_args
 
 
 @pytest.mark.parametrize(("args", "says"), [
@@ -19,8 +20,8 @@ from aioadept.vplus import dap
     ({"modules": ["a.V2"], "program": "p", "progam": "q"}, "unknown argument 'progam'"),
 ])
 def test_a_bad_launch_argument_is_named(args, says):
-    with pytest.raises(dap.LaunchError, match=says):
-        dap.launch_args(args)
+    with pytest.raises(LaunchError, match=says):
+        launch_args(args)
 
 
 def test_listen_is_loopback_only():
