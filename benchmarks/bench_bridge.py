@@ -1,4 +1,4 @@
-"""The robot bridge (issue 23, item 2): what the extra hop costs, and how fast a stop goes through it under load.
+"""The robot bridge: what the extra hop costs, and how fast a stop goes through it under load.
 
 Starts ``aioadept sim`` and ``aioadept bridge`` as child processes on 127.0.0.1; this process is the Zenoh router
 (multicast scouting off). Measured in the same run:
@@ -9,7 +9,7 @@ Starts ``aioadept sim`` and ``aioadept bridge`` as child processes on 127.0.0.1;
 - **stop under flood**: a second application (a child process) keeps ``--flood`` ``here`` queries outstanding
   all the time, queued in the bridge; this process sends ``stop`` (robot at rest, so the ack is immediate) and
   times it to its ``done`` ack. Goal: p95 <= 100 ms. Baseline: the same stop straight to the sim, no flood.
-- **stop under a flood of names** (issue 30, item 3): while another application's slow motion holds the writer, a
+- **stop under a flood of names**: while another application's slow motion holds the writer, a
   child process sends ``--names`` ``here`` queries, each from an application name of its own (raw Zenoh queries,
   as an attacker or a buggy fleet would), then this process sends ``stop`` at once and times it to its ``done``
   ack; ``--name-rounds`` rounds. Baseline, alternating with them: the same stop with the writer held, no flood.

@@ -6,7 +6,7 @@ endpoints through a pipe (a handshake, no sleep); the client side connects a PUB
 The raw ping-pong sends a pre-encoded request Event of the same size and awaits the echoed bytes, so the ratio is
 what the Communicator/Responder machinery costs: Protobuf encode/decode, ids, futures, the reader task, caching.
 
-The same Communicator + Responder also run over Eclipse Zenoh (the ``[zenoh]`` extra; issue 23): the child
+The same Communicator + Responder also run over Eclipse Zenoh (the ``[zenoh]`` extra): the child
 process is the Zenoh router, listening on a free 127.0.0.1 port, and this process connects to it as a client
 (multicast scouting and gossip off), with the same no-op handler and payloads. Beside it, the floor of any asyncio
 code on Zenoh: a raw Zenoh ping-pong between the same two processes with the same session options, each side handing
@@ -26,7 +26,7 @@ the cores, and each wake-up that crosses cores costs tens of microseconds, so un
 judged there; the unpinned ratio is printed beside it, without a goal (docs/bus.md, Cost).
 
 Prints one JSON object. Usage: ``python benchmarks/bench_bus.py [--n 2000] [--warmup 300] [--rounds 5]``.
-Targets: ours p50 <= 1.3 x raw p50 (unpinned); ours over Zenoh p50 <= 1.3 x ours over ZeroMQ p50 (issue 23; pinned
+Targets: ours p50 <= 1.3 x raw p50 (unpinned); ours over Zenoh p50 <= 1.3 x ours over ZeroMQ p50 (pinned
 where the machine has two CPUs to pin to, else unpinned). Each Zenoh verdict's ratio is the median of the rounds'
 ratios (each round's Zenoh p50 over the same round's ZeroMQ p50, measured one after the other), as bench_client and
 bench_multi_cell judge theirs: on this VM a whole process now and then runs about twice as slow for a run (docs/bus.md,

@@ -197,7 +197,7 @@ async def measure(port_ack: int, port_echo: int, quick: bool) -> dict:
             await robot.cmdexec_joined(*commands)
         # Interleaved batch by batch (bare, client, client, bare, ...), so each pair of batches runs under the same
         # load, and the verdict is the median over the pairs of the ratio within each pair: a load spike spoils a
-        # few pairs, not the figure (issue 24: measured block by block, the ratio swung across its goal from run
+        # few pairs, not the figure (measured block by block, the ratio swung across its goal from run
         # to run, 0.89 then 0.95 on a quiet machine).
         pairs: dict[str, list[float]] = {"throughput": [], "cpu_per_msg": []}
         for i in range(batches):

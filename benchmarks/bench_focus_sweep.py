@@ -1,4 +1,4 @@
-"""Focus calibration by one sweep against the paper's stepwise loop (issue 22), in the same run.
+"""Focus calibration by one sweep against the paper's stepwise loop, in the same run.
 
 Each round runs the whole simulated cell twice, in real time with the default cell (``aioadept demo``'s: the
 Python sim, the vision node with its virtual camera, focal plane ``focus_offset_mm`` ahead of the approach pose):

@@ -1,4 +1,4 @@
-"""What a straight line costs the pure controller (issue 19), against a joint move between the same ends.
+"""What a straight line costs the pure controller, against a joint move between the same ends.
 
 - **plan**: the time ``move_to_s`` spends before its ack (the line sampled every 1 mm / 0.5 deg, each sample
   solved with the inverse kinematics) vs ``move_to`` (one inverse kinematics), both for a 300 mm move turning

@@ -1,4 +1,4 @@
-"""Load benchmark (issue E part 5): many clients against the sim, and a vision node asked faster than it grabs.
+"""Load benchmark: many clients against the sim, and a vision node asked faster than it grabs.
 
 Each part has a baseline measured in the same run, and the ratios against it. Prints one JSON object.
 

@@ -6,7 +6,7 @@ on synthetic views with known truth. Prints one JSON object.
    noise), median and p99. Baseline: the same five step functions called directly in a row, so the ratio is what
    the CompGraph costs. Informative target: median <= 20 ms (a locate answer well inside one pick cycle).
 2. ``accuracy``: over the same frames (parts placed apart, as on a table), the worst and median position (mm) and
-   yaw (deg) error of every part found, and how many were missed or found in excess. Goal from issue 21: <= 1 mm and <= 1 deg.
+   yaw (deg) error of every part found, and how many were missed or found in excess. Goal: <= 1 mm and <= 1 deg.
 
 Usage: ``python benchmarks/bench_locate.py [--frames 60] [--seed 1]``.
 """

@@ -1,4 +1,4 @@
-"""Many robots in one cell (issue 23, item 3): four cells calibrating at once against one cell alone, in the same
+"""Many robots in one cell: four cells calibrating at once against one cell alone, in the same
 run; and how soon a restarted camera among several is seen again.
 
 Focus: each round runs the multi-robot cell of ``aioadept demo --config`` (:func:`aioadept.apps.multicell.run_multi`:

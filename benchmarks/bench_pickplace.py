@@ -1,4 +1,4 @@
-"""Pick and place, measured the paper's way (issue 21): per part, the cycle time against its floor in the same run,
+"""Pick and place, measured the paper's way: per part, the cycle time against its floor in the same run,
 and 100 consecutive picks without a drop.
 
 Runs ``aioadept pickplace``'s own run (``aioadept.cli.pickplace.run``: the sim as a process, real TCP and ZeroMQ)

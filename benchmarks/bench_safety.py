@@ -1,6 +1,6 @@
 """Stop latency of ``aioadept sim`` under a flood, and ``here`` latency while another client's arm moves.
 
-Issue 10 items 2 and 9, measured against their baselines in the same run (docs/security.md, "Safety promises"):
+Two safety promises, measured against their baselines in the same run (docs/security.md, "Safety promises"):
 
 - **stop**: a mover client starts a long J1 move and a ``break``; a stopper client (its own connection) writes
   ``stop``. Latency = stopper's write -> the mover receives its break's ``aborted`` ack, which the server writes the
@@ -9,12 +9,12 @@ Issue 10 items 2 and 9, measured against their baselines in the same run (docs/s
   their acks). The promise is p95 <= 100 ms under the flood.
 - **here**: 50 clients each send ``here`` once, at rest (baseline) and while another client's arm moves with a
   ``break`` pending; p50/p95 round trip.
-- **stuck peers** (issue 18), on both servers (the Python sim and the shipped V+ server on the emulator): the stop
+- **stuck peers**, on both servers (the Python sim and the shipped V+ server on the emulator): the stop
   latency above with one client that pipelines ``here`` lines and never reads its acks (it reconnects whenever the
   server drops it, so the attack lasts the whole run), and with every client slot held by idle peers while the
   stop comes through the stop port (a fresh connection per stop). Baseline: the same server, a stop from an
   admitted client with nobody misbehaving. The promise is p95 <= 100 ms.
-- **stop-port crowds** (issue 30), on both servers, every main-port slot held: a newcomer's stop through the stop
+- **stop-port crowds**, on both servers, every main-port slot held: a newcomer's stop through the stop
   port (connecting again whenever it is turned away; ``aioadept.testing.crowds.stop_through``, from its first try
   to its ``done``, the arm moving at 10 %) while a crowd process holds the stop port: 4 monitors polling ``here``
   every 0.5 s, a storm of 8 loops of short connections (connect, ``here``, 0.5 s, close), 6 slowloris peers

@@ -1,4 +1,4 @@
-"""Benchmark: Ctrl-C -> stop latency of the command-line apps (issue 10, item 4), with a plain stop as baseline.
+"""Benchmark: Ctrl-C -> stop latency of the command-line apps, with a plain stop as baseline.
 
     .venv/bin/python benchmarks/bench_sigint.py [--rounds N] [--signal INT|TERM|HUP]
 
@@ -20,7 +20,7 @@ Baselines measured in the same run, same servers:
 
 Prints one JSON object: p50/p95/max per quantity and the ratios of the medians (signal path / direct stop). The
 difference is the cost of the signal path: signal delivery, the loop's wake-up, and a second process.
-``--signal HUP`` (or TERM) sends that signal instead (a closed terminal; issue 18, item 6): the apps treat every
+``--signal HUP`` (or TERM) sends that signal instead (a closed terminal): the apps treat every
 stop signal alike, so the same keys hold its figures; ``signal`` in the JSON says which one was sent.
 """
 

@@ -1,4 +1,4 @@
-"""Focus-loop cycle time: software-triggered camera vs the free-running 15 fps camera (issue 12), real time.
+"""Focus-loop cycle time: software-triggered camera vs the free-running 15 fps camera, real time.
 
 Starts ``aioadept sim`` (time scale 1) and, for each configuration, an ``aioadept vision`` process, then runs the
 paper's focus loop (MoveToolZ(delta_z) at the demo's approach speed, then one VisionRequest) for ``--steps``

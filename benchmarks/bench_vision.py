@@ -16,7 +16,7 @@
 4. ``latency_interleaved`` (the verdict): the raw asyncio echo and the default node run at once and one raw client
    alternates its requests between them (raw, node, node, raw, ...), fresh processes each of ``--verdict-rounds``
    rounds; the verdict is the median of the per-round p50 ratios. Measured kind after kind (3.), each kind's
-   round trips fell under different load and the verdict swung across its goal from run to run (issue 24).
+   round trips fell under different load and the verdict swung across its goal from run to run.
 
 Usage: ``python benchmarks/bench_vision.py [--frames 300] [--n 1000] [--warmup 200] [--rounds 5]
 [--verdict-rounds 7]``.
@@ -356,7 +356,7 @@ def bench_interleaved(n: int, warmup: int, rounds: int) -> dict:
     """The verdict's figure: node (``--graph-thread auto``) vs raw asyncio echo, both servers running at once and
     their samples interleaved, fresh processes each round; the ratio of the p50s per round, and their median.
 
-    Why (issue 24): measured one after the other, a kind's 1000 round trips and the next kind's fell under
+    Why: measured one after the other, a kind's 1000 round trips and the next kind's fell under
     different load, and the verdict swung across its goal from run to run (1.41 in the issue's run)."""
     ratios: list[float] = []
     pair_ratios: list[float] = []

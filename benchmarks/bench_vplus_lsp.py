@@ -7,7 +7,7 @@ full sync) and the time until the server publishes that version's diagnostics is
 of a ``CALL`` target, its references, hover on an instruction, completion and document symbols (each right after
 a change, so the server works on the new text). The baseline, alternately in the same run: the same work in this
 process without the protocol (:func:`aioadept.vplus.lsp.diagnostics`, and the language core's workspace and
-definition for the requests). Goal (issue 32): diagnostics within 100 ms of a change for a 2,000-line module, p95.
+definition for the requests). Goal: diagnostics within 100 ms of a change for a 2,000-line module, p95.
 
 Usage: ``python benchmarks/bench_vplus_lsp.py [--rounds 20]``; prints one JSON object.
 """

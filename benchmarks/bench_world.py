@@ -1,4 +1,4 @@
-"""What the simulated world costs (issue 21 items 1-2), each against its neighbour measured in the same run.
+"""What the simulated world costs, each against its neighbour measured in the same run.
 
 - **render**: one frame of the world's fixed camera (``WorldView.render``: the example cell's three parts with
   their ArUco labels, lens blur, sensor noise; 1024 x 768 mono8) vs one frame of the focus app's virtual camera

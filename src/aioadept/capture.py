@@ -65,7 +65,7 @@ VISION_COLUMNS: tuple[str, ...] = (
     "proc_time_ms", "error", "request_attributes", "response_extra",
     "t_trigger_epoch_s", "t_exposure_start_epoch_s", "exposure_ms", "readout_ms", "frame_seq",
 )
-# Columns added after FORMAT_VERSION 1 was first written (issue 12): a run folder without them still loads (None).
+# Columns added after FORMAT_VERSION 1 was first written: a run folder without them still loads (None).
 _VISION_OPTIONAL = ("t_trigger_epoch_s", "t_exposure_start_epoch_s", "exposure_ms", "readout_ms", "frame_seq")
 MARK_COLUMNS: tuple[str, ...] = ("seq", "t_s", "name", "value")
 

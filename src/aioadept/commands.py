@@ -413,7 +413,7 @@ class Joined(Command):
 _MOTION_UNITS = {cls.skill: cls.units for cls in (MoveTo, MoveJoints, MoveRelWorld, MoveRelTool, MoveRelJoints)}
 
 
-# -- straight-line and approach motions (issue 19; V+ MOVES, APPRO, APPROS, DEPART, DEPARTS) ----------------------
+# -- straight-line and approach motions (V+ MOVES, APPRO, APPROS, DEPART, DEPARTS) ----------------------
 
 class MoveToS(_Motion):
     """Move the tool to a pose on a straight line (V+ ``MOVES``): the straight-line form of :class:`MoveTo`.

@@ -48,7 +48,7 @@ def vplus_cli_available() -> bool:
 
 
 NO_VPLUS = ("LOUD SKIP: `aioadept sim --vplus` does not exist yet, so the V+ backend of the conformance suite "
-            "cannot run. It runs for real as soon as the emulator's CLI lands (issue 11).")
+            "cannot run. It runs for real as soon as the emulator's CLI lands.")
 
 
 @dataclass

@@ -1,4 +1,4 @@
-"""RobotServer behaviour that every backend must show (docs/protocol.md, FACTS.md), over real TCP.
+"""RobotServer behaviour that every backend must show (docs/protocol.md), over real TCP.
 
 Each test runs against the Python sim and against the shipped V+ server on the emulator (conftest.py); the
 tests marked for ``any_server`` also run against the AdeptServer-style V+ example. Timing bounds are generous

@@ -1,4 +1,4 @@
-"""A dead client's wait ends with it, on both backends (issue 30 item 5).
+"""A dead client's wait ends with it, on both backends.
 
 A client sends ``wait_sig:1002,15`` (input 1002 stays off) and disconnects, with a FIN or a reset, while the wait
 runs. Its wait ends then and nothing of it is acked; another client's next command, which goes through the executor,

@@ -1,4 +1,4 @@
-"""Both backends agree on limits, to the last digit of the text (issue 30 item 8; docs/protocol.md 3.2).
+"""Both backends agree on limits, to the last digit of the text (docs/protocol.md 3.2).
 
 A number past a limit by less than a V+ REAL's precision (single: VAL("512.00001") is 512 exactly) is refused
 like any number past the limit (-410, or -1003 for a joint), as the sim (which reads doubles) always did; one just inside is accepted by both.

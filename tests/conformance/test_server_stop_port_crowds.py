@@ -1,4 +1,4 @@
-"""A newcomer's stop gets in past a crowd on the stop port, on both backends (issue 30 item 1; docs/protocol.md 4.2.1).
+"""A newcomer's stop gets in past a crowd on the stop port, on both backends (docs/protocol.md 4.2.1).
 
 Every main-port slot is held by idle connections (one of them moving the arm slowly), and the stop port is crowded by
 a real process (aioadept.testing.crowds): well-behaved monitors polling ``here`` every 0.5 s on every one of its

@@ -1,4 +1,4 @@
-"""Straight-line and approach skills on every backend (issue 19): ``move_to_s``, ``move_rel_tool_s``, ``appro``,
+"""Straight-line and approach skills on every backend: ``move_to_s``, ``move_rel_tool_s``, ``appro``,
 ``appros``, ``depart``, ``departs``, over real TCP, with the same assertions for the Python sim and the V+ server on
 the emulator (conftest.py).
 

@@ -1,4 +1,4 @@
-"""No client can lock out another client's stop, whatever it does with its socket, on every backend (issue 18).
+"""No client can lock out another client's stop, whatever it does with its socket, on every backend.
 
 - A client that pipelines commands and never reads its acks: the others' stops are still executed and acked at
   once, and after that client is reset the server goes on serving (the V+ server's reader once wrote every ack

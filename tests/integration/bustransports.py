@@ -1,4 +1,4 @@
-"""The bus tests' transports: the same test runs over ZeroMQ and over Zenoh (issue 23, item 1).
+"""The bus tests' transports: the same test runs over ZeroMQ and over Zenoh.
 
 A test that takes the ``bus`` fixture (``tests/integration/conftest.py``) runs once per transport (and once more on
 Zenoh with requests sent as queries) and asks it for

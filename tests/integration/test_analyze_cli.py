@@ -1,4 +1,4 @@
-"""``aioadept analyze runs/*`` beside the logs-only folder a failed demo leaves (issue 14)."""
+"""``aioadept analyze runs/*`` beside the logs-only folder a failed demo leaves."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The robot bridge (issue 23, item 2): several applications share one robot through ``aioadept bridge``.
+"""The robot bridge: several applications share one robot through ``aioadept bridge``.
 
 Real processes on 127.0.0.1: ``aioadept sim`` (the controller), ``aioadept bridge`` (the one TCP writer, a Zenoh
 client of this test process, which is the router; multicast scouting off), applications as

@@ -1,4 +1,4 @@
-"""A command through the bridge runs once (issue 30, item 2): one bridge per robot name, one bridge per query.
+"""A command through the bridge runs once: one bridge per robot name, one bridge per query.
 
 Real processes on 127.0.0.1: ``aioadept sim``, ``aioadept bridge`` (Zenoh clients of this test process, the
 router), and bridges in child processes. The figure checked is the arm's: an application's ``move_rel_joints`` of

@@ -1,4 +1,4 @@
-"""Responder limits over real ZeroMQ on 127.0.0.1 (issue 10, item 8): the bounded request queue and its drop rule,
+"""Responder limits over real ZeroMQ on 127.0.0.1: the bounded request queue and its drop rule,
 ``t_deadline`` that is not a finite number, and the request size limit (``ZMQ_MAXMSGSIZE``).
 
 Raw pyzmq sockets stand in for the requester where the Communicator's own behaviour (re-publishing, setting

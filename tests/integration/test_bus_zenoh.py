@@ -1,4 +1,4 @@
-"""What only the Zenoh transport has (issue 23, item 1): node presence through liveliness, seen within 1 s when a
+"""What only the Zenoh transport has: node presence through liveliness, seen within 1 s when a
 real node process is killed and restarted; the session's isolation (no multicast scouting, no gossip, loopback
 only); the cell file's ``[bus]`` table; and what the transport refuses. The bus behaviour both transports share is
 tested by the ``bus``-parametrised modules (test_bus_communicator.py, test_bus_pubsub.py, ...)."""

@@ -1,4 +1,4 @@
-"""Vision requests as Zenoh queries (issue 23, item 1): a Responder on Zenoh is a queryable, so any Zenoh querier
+"""Vision requests as Zenoh queries: a Responder on Zenoh is a queryable, so any Zenoh querier
 (another language, ``z_get``) can ask it with the Protobuf event and get the answer as the reply; a
 ``Communicator(queries=True)`` sends its requests as queries, to a Responder or to a queryable written without
 aioadept. The pairing contract is the one both transports share (test_bus_communicator.py, ...): what is tested here

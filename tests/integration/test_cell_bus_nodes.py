@@ -1,4 +1,4 @@
-"""Nodes started from the cell file itself (issue Q): ``aioadept sim|vision|state --config CELL.toml`` take the
+"""Nodes started from the cell file itself: ``aioadept sim|vision|state --config CELL.toml`` take the
 file's ``[bus]`` table (transport, cell, router) and put their streams on the keys the demo's application uses, the
 command line winning over the file; ``aioadept state`` relays onto Zenoh with ``--transport zenoh``.
 

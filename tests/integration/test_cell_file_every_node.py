@@ -1,4 +1,4 @@
-"""One cell file for every node (issue 24, item 5): ``aioadept sim --config`` reads the ``[robot]`` table,
+"""One cell file for every node: ``aioadept sim --config`` reads the ``[robot]`` table,
 ``aioadept vision --state-endpoint none`` is accepted as in ``sim``, and the vision node's READY line prints each
 link both as the node uses it and in the form the MCN must use.
 

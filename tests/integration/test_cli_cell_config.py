@@ -1,4 +1,4 @@
-"""One cell schema (issue 13 I.4): ``examples/cell.toml`` loads in every subcommand that takes ``--config``.
+"""One cell schema: ``examples/cell.toml`` loads in every subcommand that takes ``--config``.
 
 Before, ``aioadept vision --config examples/cell.toml`` failed with "unknown options ['start']": the node and the
 cell described the vision options in two schemas. Each test runs the real console entry in a subprocess, on a path

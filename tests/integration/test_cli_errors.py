@@ -1,4 +1,4 @@
-"""A newcomer's mistakes at the command line get one clear line and a documented exit code (issue 14).
+"""A newcomer's mistakes at the command line get one clear line and a documented exit code.
 
 Each test runs the real ``aioadept`` console entry (``python -m aioadept``) in a subprocess, as a user would.
 """
@@ -96,9 +96,9 @@ def test_demo_with_start_sim_false_connects_to_the_configured_address_and_fails_
     proc = run("demo", "--config", str(cfg), cwd=tmp_path)
     assert proc.returncode == 1, proc.stdout + proc.stderr
     assert "inspection-start pose" not in proc.stdout
-    line = one_error_line(proc)  # issue 24: one line on stderr, naming the address
+    line = one_error_line(proc)  # one line on stderr, naming the address
     assert line.startswith(f"aioadept demo failed: connect to 127.0.0.1:{port}: "), line
-    # No sim of its own was started, and a connection that never succeeded leaves no run folder (issue 24).
+    # No sim of its own was started, and a connection that never succeeded leaves no run folder.
     assert list((tmp_path / "runs").iterdir()) == []
 
 
@@ -184,7 +184,7 @@ def test_send_to_something_that_is_not_a_robot_server_says_so_in_one_line(server
     with server() as port:
         proc = run("send", "--port", str(port), "here", timeout=30)  # today: silent for the 60 s ack timeout
     assert proc.returncode == 3, proc.stdout + proc.stderr
-    line = one_error_line(proc)  # issue 24: the HTTP server's page was thirteen warnings before this line
+    line = one_error_line(proc)  # the HTTP server's page is not echoed: one line
     assert line.startswith(f"aioadept send: 127.0.0.1:{port} answered nothing like a RobotServer within 2 s "
                            f"{WHAT_ANSWERED[server]}"), line
     assert line.endswith("is this the robot's port?")
@@ -196,7 +196,7 @@ def test_focus_against_a_zeromq_port_says_so(tmp_path):
     with zmq_port() as port:
         proc = run("focus", "--robot", f"127.0.0.1:{port}", "--out", str(tmp_path), timeout=30, cwd=tmp_path)
     assert proc.returncode == 1, proc.stdout + proc.stderr
-    line = one_error_line(proc)  # issue 24: one line (it was fifteen), naming the address and what answered
+    line = one_error_line(proc)  # one line, naming the address and what answered
     assert line.startswith(f"aioadept focus failed: 127.0.0.1:{port} answered nothing like a RobotServer within "
                            r"2 s (it sent b'\xff\x00\x00\x00\x00\x00\x00\x00\x01\x7f': a ZeroMQ greeting"), line
     assert line.endswith("): is this the robot's port?"), line  # "; then it closed the connection" if it did

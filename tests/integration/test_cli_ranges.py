@@ -1,4 +1,4 @@
-"""A value out of range never starts a run (issue 24, item 1): every option and cell-file value is checked before
+"""A value out of range never starts a run: every option and cell-file value is checked before
 anything starts (exit 2, one line on stderr, no run folder), and ``--help`` quotes the range the check enforces.
 
 The commands run as a user runs them (``python -m aioadept`` in a subprocess).

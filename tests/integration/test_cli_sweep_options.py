@@ -1,4 +1,4 @@
-"""``--mode sweep`` and the sweep's cell values (issue 22) are checked before anything starts: exit 2, one line on
+"""``--mode sweep`` and the sweep's cell values are checked before anything starts: exit 2, one line on
 stderr naming the file, table and key (or the option), no run folder. The commands run as a user runs them."""
 
 from __future__ import annotations

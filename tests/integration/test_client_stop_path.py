@@ -1,4 +1,4 @@
-"""The client's stop path over real TCP (issue 10, item 3): every way ``RobotClient.stop()`` can go, and ``here()``.
+"""The client's stop path over real TCP: every way ``RobotClient.stop()`` can go, and ``here()``.
 
 A stop must reach a server that is back (auto-reconnect), fail with a typed error at once when there is no server,
 never succeed silently, never hang, never report a cached pose; it must still be written when its caller is

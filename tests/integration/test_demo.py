@@ -74,7 +74,7 @@ def test_focus_against_an_absent_robot_server_fails_with_a_clear_connection_erro
         [*AIOADEPT, "focus", "--robot", f"127.0.0.1:{port}", "--out", str(tmp_path), "--no-analyze"],
         capture_output=True, text=True, timeout=25)
     assert proc.returncode == 1
-    # One line on stderr naming the address, and no run folder: the connection never succeeded (issue 24).
+    # One line on stderr naming the address, and no run folder: the connection never succeeded.
     (line,) = proc.stderr.splitlines()
     assert line.startswith(f"aioadept focus failed: connect to 127.0.0.1:{port}: "), line
     assert list(tmp_path.iterdir()) == []

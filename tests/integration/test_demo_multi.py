@@ -1,4 +1,4 @@
-"""Many robots in one cell (issue 23, item 3), as a user runs it: ``aioadept demo --config FILE`` with two robots
+"""Many robots in one cell, as a user runs it: ``aioadept demo --config FILE`` with two robots
 and two cameras, real processes on loopback, over one Zenoh router (and over ZeroMQ); the presence of one camera
 among several, killed and restarted; and the cell file's mistakes on the command line."""
 

@@ -1,5 +1,5 @@
-"""What ``aioadept demo`` leaves in its run folder when the disk is full (issue 18, item 8) or when Ctrl-C comes
-during the analysis (issue 24, item 3), with the demo and its nodes as real processes.
+"""What ``aioadept demo`` leaves in its run folder when the disk is full or when Ctrl-C comes
+during the analysis, with the demo and its nodes as real processes.
 
 The full disk is a real 200 KiB tmpfs, mounted in a mount namespace of its own (``unshare``), so nothing is left
 mounted whatever happens to the test; where namespaces are not allowed the test is skipped.

@@ -1,4 +1,4 @@
-"""The fault matrix (issue 6, part 2): each case breaks the link between the real RobotClient / Communicator and the
+"""The fault matrix: each case breaks the link between the real RobotClient / Communicator and the
 real sim / vision node in one way, and checks the three promises of docs/faults.md:
 
 1. every message sent resolves: an ack, an error ack, ``ConnectionLost`` with the right ``acked`` / ``unresolved``

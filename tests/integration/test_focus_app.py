@@ -187,7 +187,7 @@ async def refusing_stop_server():
 
 
 async def test_a_stop_event_whose_stop_fails_raises_stop_failed_not_focus_stopped():
-    # Issue 10, item 3 (focus part): a failed stop is an error; the run must not report "stopped".
+    # A failed stop is an error; the run must not report "stopped".
     vision = ScriptedVision(range(1, 100))
     async with refusing_stop_server() as (host, port, lines), RobotClient(host, port) as rc, \
             Responder(ANY, ANY, vision) as responder, \

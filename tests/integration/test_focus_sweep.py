@@ -1,4 +1,4 @@
-"""The focus sweep (issue 22) on the whole cell: real sim (Python and V+ emulator) and vision node processes, real
+"""The focus sweep on the whole cell: real sim (Python and V+ emulator) and vision node processes, real
 TCP and ZeroMQ on loopback, the virtual camera rendering the motion blur.
 
 Focal planes between the steps (17.7 and 23.45 mm with 2 mm steps) are found within 0.1 mm; the frames are placed

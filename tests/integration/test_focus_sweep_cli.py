@@ -1,4 +1,4 @@
-"""``aioadept focus --mode sweep`` as a user runs it (issue 22): a real process against a real sim and vision node.
+"""``aioadept focus --mode sweep`` as a user runs it: a real process against a real sim and vision node.
 
 It finds the plane between the steps and writes the sweep's focus.json; a SIGINT during the sweep's line stops the
 arm (read from the sim's own state stream, never from the app) and nothing moves afterwards: no retract, no next

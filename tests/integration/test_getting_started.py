@@ -1,4 +1,4 @@
-"""docs/getting-started.md as a newcomer types it (issue AA item 6): every command of its shell blocks, in page
+"""docs/getting-started.md as a newcomer types it: every command of its shell blocks, in page
 order, in ONE bash shell, as written, so a ``cd`` carries over, a ``&`` job keeps running until ``kill %1`` and
 nothing waits for a server's READY line unless the page does.
 

@@ -171,7 +171,7 @@ def test_a_bad_gige_source_is_one_line_and_exit_2(tmp_path):
     assert "never by discovery" in proc.stderr and "Traceback" not in proc.stderr
 
 
-# --------------------------------------------------------------- a camera gone away does not hold up a stop (issue 24)
+# --------------------------------------------------------------- a camera gone away does not hold up a stop
 @needs_gige
 @pytest.mark.timeout(30)
 def test_closing_a_camera_that_has_gone_away_returns_at_once_and_says_it_was_lost(fake_camera, caplog):

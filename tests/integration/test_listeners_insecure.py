@@ -1,4 +1,4 @@
-"""Who may command the robot over the network is said loudly (issue 30, item 4).
+"""Who may command the robot over the network is said loudly.
 
 Every command that listens refuses, before it binds, an address beyond loopback that authenticates nobody, in one
 line naming the option and the address and saying ``--insecure``; the bridge says at every start who may command

@@ -1,4 +1,4 @@
-"""``aioadept opcua --config CELL`` (issue 35 items 1 and 2, issue 36 item 4): many robots of one cell file, one
+"""``aioadept opcua --config CELL``: many robots of one cell file, one
 MotionDevice each, their axes and MotionDeviceCategory from each robot's model; the server offering SecurityPolicy
 None and Basic256Sha256 SignAndEncrypt, and an authenticated Stop over an encrypted session. Real processes on
 127.0.0.1: a Viper s850 sim and a Cobra s600 sim, each publishing its state, one ``aioadept opcua`` following both,

@@ -1,4 +1,4 @@
-"""``aioadept opcua --allow-commands`` (issue 35, item 2): Stop and RunSkill from OPC UA, for authenticated users
+"""``aioadept opcua --allow-commands``: Stop and RunSkill from OPC UA, for authenticated users
 only, through the server's own RobotClient. Real processes (``aioadept sim``, ``aioadept opcua``) on 127.0.0.1 and
 asyncua's client: an anonymous call is refused (BadUserAccessDenied), a wrong password is not a session, an
 authenticated Stop during a motion is acked ``done`` and the arm rests (the motion's own client sees it aborted),

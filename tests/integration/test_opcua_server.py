@@ -1,4 +1,4 @@
-"""``aioadept opcua`` (issue 35): what a plant's OPC UA client sees of a robot, checked with asyncua's client
+"""``aioadept opcua``: what a plant's OPC UA client sees of a robot, checked with asyncua's client
 against real processes (``aioadept sim`` publishing its state, ``aioadept opcua`` following it, 127.0.0.1).
 
 The client finds the MotionDeviceSystem by its type definition in the Robotics namespace (no node id known before),

@@ -1,6 +1,6 @@
 """``aioadept pickplace`` end to end: parts placed on both backends (real sim and vision node processes, the part
-locator on the world camera's images, real TCP and ZeroMQ), and each fault of issue 21 item 5 giving its clear
-error with no motion.
+locator on the world camera's images, real TCP and ZeroMQ), and each fault (no part, a failed locate, a target outside
+the workspace) giving its clear error with no motion.
 
 The fault tests of the motion sequence use the world's truth on the sim's ``world.state`` stream as their locator
 (aioadept.testing.world_truth), so that a fault is made exactly where wanted (a part 12 mm off, a failing request).

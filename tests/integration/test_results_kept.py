@@ -1,4 +1,4 @@
-"""Results are never lost (issue 10, item 10): ``aioadept focus`` as a process, with a run folder it cannot write.
+"""Results are never lost: ``aioadept focus`` as a process, with a run folder it cannot write.
 
 Tests may run as root, where a read-only folder (chmod) does not stop writes. So the full disk is made real with
 the file-size limit (``RLIMIT_FSIZE``, which binds root too; Python ignores SIGXFSZ, so a write past it fails with

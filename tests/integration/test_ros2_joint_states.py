@@ -1,4 +1,4 @@
-"""``aioadept ros2`` (issue 23, item 5): the robot state on ROS 2's wire, checked by what a ROS 2 subscriber on
+"""``aioadept ros2``: the robot state on ROS 2's wire, checked by what a ROS 2 subscriber on
 rmw_zenoh does with it: a Zenoh subscriber on the key rmw_zenoh_cpp declares for ``/<topic>`` of type
 ``sensor_msgs/msg/JointState`` (written out here from ROS 2's naming rule and rosbags' type hash, not from our module),
 the payload decoded by rosbags (an independent ROS 2 message library), the attachment read as rmw_zenoh reads it;

@@ -1,4 +1,4 @@
-"""A node that dies mid-run is named in the run folder, not taken for Ctrl-C (issue 30 item 9).
+"""A node that dies mid-run is named in the run folder, not taken for Ctrl-C.
 
 ``aioadept pickplace`` and ``aioadept demo`` run as a user runs them (real processes, real sockets); once the
 vision node they started has answered a request it is SIGKILLed. The app ends with exit code 1, stops the other

@@ -1,4 +1,4 @@
-"""Safety promises of the simulated controller over real TCP on 127.0.0.1 (issue 10; docs/security.md).
+"""Safety promises of the simulated controller over real TCP on 127.0.0.1 (docs/security.md).
 
 Raw sockets, so what is checked is the server, not a client's politeness:
 
@@ -9,7 +9,7 @@ Raw sockets, so what is checked is the server, not a client's politeness:
 - three stops in a row all get ``done`` (item 2);
 - bad values answer error acks and the connection stays usable (item 6);
 - ``here`` from idle connections is answered while another client's arm moves (item 9);
-- forward processing is one motion deep (issue 11 item 6).
+- forward processing is one motion deep.
 """
 
 from __future__ import annotations
@@ -266,7 +266,7 @@ async def test_here_from_50_idle_clients_is_answered_while_another_arm_moves():
             await c.close()
 
 
-# -- issue 11 item 6 ----------------------------------------------------------------------------------------------
+# -- forward processing is one motion deep ----------------------------------------------------------------------------------------------
 
 @pytest.mark.timeout(30)
 async def test_forward_processing_is_one_motion_deep_over_tcp():

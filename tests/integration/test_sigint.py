@@ -1,4 +1,4 @@
-"""Ctrl-C anywhere (issue 10, item 4): a real SIGINT to a real ``aioadept focus`` / ``demo`` / ``send`` process.
+"""Ctrl-C anywhere: a real SIGINT to a real ``aioadept focus`` / ``demo`` / ``send`` process.
 
 The robot is a separate ``aioadept sim`` process (for ``demo``, the one the demo starts, at an address the test
 chose); what the arm does is read from the sim's ZeroMQ state stream ``robot.state``, never from the app under
@@ -401,7 +401,7 @@ async def test_experiment_first_sigint_stops_the_arm_and_ends_the_whole_grid(tmp
     await _gone(state)
 
 
-# --------------------------------------------------------------------------------------------- SIGHUP (issue 18, item 6)
+# --------------------------------------------------------------------------------------------- SIGHUP
 def _controlling_tty() -> None:
     """For the child, after setsid (start_new_session): make its stdin, a pty slave, the controlling terminal, so that
     closing the master is a real hangup (the kernel sends SIGHUP to the session's controlling process)."""

@@ -1,4 +1,4 @@
-"""No wrist flips from tiny commands, through the real sim over TCP (issue 10, item 5).
+"""No wrist flips from tiny commands, through the real sim over TCP.
 
 A :class:`SimServer` on 127.0.0.1:0 (instant motion, no state stream) driven by :class:`RobotClient`; the joints
 are read from the ``here`` ack's trailing joint field (docs/protocol.md) after each command.

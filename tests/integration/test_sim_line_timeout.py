@@ -2,7 +2,7 @@
 
 The line timeout runs from the last byte received while a line is incomplete (so a line sent in slow fragments is
 served), a line's whole life is capped at LINE_MAX_FACTOR timeouts (so a trickle cannot hold a slot for ever), and a
-client between lines is never timed (issue 10 item 7; docs/security.md).
+client between lines is never timed (docs/security.md).
 """
 
 from __future__ import annotations

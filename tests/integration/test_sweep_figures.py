@@ -1,4 +1,4 @@
-"""The figures of a sweep run draw the sweep's positions (issue AA item 2): a real ``aioadept focus --mode sweep``
+"""The figures of a sweep run draw the sweep's positions: a real ``aioadept focus --mode sweep``
 against a real sim and vision node, then the analysis of its run folder, each figure caught as the analysis saves it.
 
 Fig. 9 of the stepwise loop is sharpness per step; a sweep has no steps, and drawing its frames at 0, 1, 2 ... with

@@ -1,5 +1,4 @@
-"""The sweep moves the tool at the speed its log says, against a sim started on its own at ``--time-scale 5``
-(issue AA item 3): a real ``aioadept sim`` process, a vision node and ``aioadept focus --mode sweep`` whose cell file
+"""The sweep moves the tool at the speed its log says, against a sim started on its own at ``--time-scale 5``: a real ``aioadept sim`` process, a vision node and ``aioadept focus --mode sweep`` whose cell file
 says nothing of the time scale; the tool's speed is read from the sim's own state stream, never from the app.
 
 Before, the sweep divided its speed by the time scale only when it started the sim itself: the log said 200 mm/s

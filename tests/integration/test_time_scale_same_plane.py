@@ -1,4 +1,4 @@
-"""``--time-scale 10`` finds the focus plane where real time does, under every default (issue 12, acceptance):
+"""``--time-scale 10`` finds the focus plane where real time does, under every default:
 ``aioadept sim``, ``aioadept vision`` and ``aioadept focus`` as a user starts them, only addresses configured.
 
 Fast motion must not change the answer: the software-triggered camera exposes after each request, and the virtual

@@ -1,4 +1,4 @@
-"""The paper's two-network cell (Fig. 5) redone over Zenoh (issue 23, item 3): a Zenoh router on the MCN, listening
+"""The paper's two-network cell (Fig. 5) redone over Zenoh: a Zenoh router on the MCN, listening
 on its address on each net, stands between the robot net and the vision net instead of the ZeroMQ state relay.
 The focus application in MCN must complete, with the virtual camera following the robot through the router, while
 ROB and VIS still cannot reach each other at the IP level.

@@ -61,7 +61,7 @@ def test_follower_without_samples_answers_none_at_once():
 
 @pytest.mark.timeout(20)
 def test_a_sample_delayed_on_its_way_is_placed_at_its_own_time():
-    """Issue 22: a sample that arrives late (a busy process) keeps its own time (one machine, one clock: its wall
+    """A sample that arrives late (a busy process) keeps its own time (one machine, one clock: its wall
     time), so the pose the camera shows does not lag the robot by that sample's delay (0.2 mm at 200 mm/s per
     ms); a sender whose clock runs ahead (a sample received before it was taken) is shifted back by that lead."""
     a = Pose(x=0.0, z=100.0)

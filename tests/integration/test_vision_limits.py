@@ -1,4 +1,4 @@
-"""``aioadept vision`` limits (issue 10, item 8), with the node and the sim as real processes over real ZeroMQ.
+"""``aioadept vision`` limits, with the node and the sim as real processes over real ZeroMQ.
 
 - No answer from a frozen pose: once the sim's ``robot.state`` stream has been silent for longer than
   ``--max-state-age`` (default 0.5 s) the node answers with an ``error``, and sharpness answers come back when the

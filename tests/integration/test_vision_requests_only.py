@@ -1,4 +1,4 @@
-"""The vision node serves only requests (issue 18, item 7), over real ZeroMQ on 127.0.0.1.
+"""The vision node serves only requests, over real ZeroMQ on 127.0.0.1.
 
 Events of another type on its request port (a ``Shutdown``, a ``VisionResponse`` sent back to it) used to be served
 as requests: a frame taken, a graph run, a queue slot, an answer published. Now each is ignored and counted.

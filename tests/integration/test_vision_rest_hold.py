@@ -1,5 +1,4 @@
-"""The virtual camera's pose at a frame time without waiting for the next state sample when the robot is at rest
-(issue 12 H.5): the sim publishes a sample the moment a motion ends, and the follower holds an at-rest pose that is
+"""The virtual camera's pose at a frame time without waiting for the next state sample when the robot is at rest: the sim publishes a sample the moment a motion ends, and the follower holds an at-rest pose that is
 at most ``rest_hold_s`` old. A sample in motion, or an old one, still waits (real ZeroMQ, real sim)."""
 
 from __future__ import annotations

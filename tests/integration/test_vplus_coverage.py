@@ -1,4 +1,4 @@
-"""V+ line coverage (issue 32 item 4): the coverage.py plugin ``aioadept.vplus.coverage_plugin``, run for real.
+"""V+ line coverage: the coverage.py plugin ``aioadept.vplus.coverage_plugin``, run for real.
 
 One ``coverage run`` process (the plugin configured as a user would, subprocesses measured) calls a V+ program in
 an in-process emulator and starts the shipped V+ server as an ``aioadept sim --vplus`` subprocess, sends it one

@@ -1,4 +1,4 @@
-"""The shipped V+ server's reader keeps reading while one client's acks back up (issue 18 item 1), on the emulator.
+"""The shipped V+ server's reader keeps reading while one client's acks back up, on the emulator.
 
 A client that pipelines ``here`` lines and never reads fills the reader's own answer ring (``rs.rcap``) once its
 acks stop going out. The reader used to wait then, in ``rs.rdack``, until ``rs.wrtmo`` dropped that client: all

@@ -1,4 +1,4 @@
-"""The V+ emulator's WRITE on a TCP connection, against real peers (issue 18 item 2).
+"""The V+ emulator's WRITE on a TCP connection, against real peers.
 
 V+ output waits until the record is out (V+ Language User's Guide, "Output Wait Modes"); over TCP that is while the
 peer does not read. The emulator must never wait for ever: when the peer resets the connection, the waiting WRITE

@@ -54,7 +54,7 @@ def test_one_table_with_pass_fail_and_no_goal_rows_and_the_json_kept(fakes: Path
     for text in ("bench_a_good", "fast path p50", "110 us", "100 us", "1.1", "ratio <= 1.3", "pass",
                  "slow path p50", "missed", "informative", "bench_b_plain", "no goal stated"):
         assert text in out, text
-    assert "FAIL" not in out and "CRASHED" not in out  # a goal missed is not a crash (issue 24)
+    assert "FAIL" not in out and "CRASHED" not in out  # a goal missed is not a crash
     assert "1 goals met, 1 missed, 2 without a stated goal, 0 benchmarks crashed" in out
     # The JSON is kept, not printed.
     assert json.loads((tmp_path / "out" / "bench_b_plain.json").read_text()) == {"p50_us": 12.0}
@@ -70,7 +70,7 @@ def test_a_crashing_benchmark_or_one_without_json_is_a_failed_row_and_exit_1(fak
     res = _run("--dir", str(fakes), "--out", str(tmp_path / "out"), cwd=tmp_path)
     assert res.returncode == 1
     assert "crashed: exit status 1" in res.stdout and "crashed: printed no JSON object" in res.stdout
-    assert res.stdout.count("CRASHED") == 2 and "missed" in res.stdout  # the two kinds kept apart (issue 24)
+    assert res.stdout.count("CRASHED") == 2 and "missed" in res.stdout  # the two kinds kept apart
     assert "2 benchmarks crashed" in res.stdout
     assert "fast path p50" in res.stdout          # the others are still in the table
 
@@ -125,8 +125,8 @@ def test_each_benchmark_puts_the_standard_verdicts_in_its_json(name: str) -> Non
 
 @pytest.mark.timeout(240)
 def test_the_node_and_pipelined_verdicts_come_from_interleaved_samples(tmp_path: Path) -> None:
-    """Issue 24: bench_vision's node-vs-raw and bench_client's pipelined ratios swung across their goals from run to
-    run (measured kind after kind). Each verdict is now the median of ratios taken pair by pair with its baseline."""
+    """bench_vision's node-vs-raw and bench_client's pipelined verdicts are each the median of ratios taken pair by
+    pair with the baseline, interleaved: measured kind after kind, a drifting machine swings a ratio across its goal."""
     import statistics
 
     res = _run("--quick", "--only", "bench_vision", "--only", "bench_client", "--out", str(tmp_path / "out"),

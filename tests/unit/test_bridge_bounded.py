@@ -1,4 +1,4 @@
-"""The bridge's memory is bounded (issue 30, item 3): a flood of queries from thousands of application names while
+"""The bridge's memory is bounded: a flood of queries from thousands of application names while
 the writer is busy leaves at most MAX_QUEUED_TOTAL batches (and as many per-application counters) in the bridge,
 refuses the rest ``full`` (which BridgeClient raises as TooManyPending), and a stop still goes through at once.
 

@@ -1,4 +1,4 @@
-"""run.json says what the run folder lacks (issue 18, item 8), also when the disk is too full for a temporary file."""
+"""run.json says what the run folder lacks, also when the disk is too full for a temporary file."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """RobotClient refuses bad values at its API with ValueError before anything is sent, and never issues the reserved
-ID 00000000 nor an ID still pending or given up on its connection (issue 10, item 6, client side). No sockets: the
+ID 00000000 nor an ID still pending or given up on its connection (client side). No sockets: the
 scripted server runs over the in-memory stream pair.
 """
 

@@ -1,5 +1,5 @@
 """Command values are refused at construction (ValueError naming the field) before anything can reach the wire:
-non-finite or absurd numbers, speed 0, and every accepted motion fits the 128-character V+ line (issue 10, item 6).
+non-finite or absurd numbers, speed 0, and every accepted motion fits the 128-character V+ line.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The straight-line and approach commands (issue 19): what they send and what they refuse before sending."""
+"""The straight-line and approach commands: what they send and what they refuse before sending."""
 
 from __future__ import annotations
 

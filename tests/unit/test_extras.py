@@ -1,4 +1,4 @@
-"""Packaging (issue 13 I.6): a user who only drives a robot needs none of the [vision] and [analysis] extras.
+"""Packaging: a user who only drives a robot needs none of the [vision] and [analysis] extras.
 
 Each test runs a fresh interpreter with a meta-path hook that makes OpenCV, SciPy and Matplotlib uninstallable, as
 in a ``pip install aioadept`` without extras; nothing of the real environment is changed.

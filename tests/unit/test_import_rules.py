@@ -17,7 +17,7 @@ PKG = SRC / "aioadept"
 
 # Cycles known today, each to be removed by the issue item named. Nothing else may be added here.
 KNOWN_CYCLES: list[frozenset[str]] = [
-    # to be removed by issue 13 item 2/5
+    # the recording package and its viewer, to be split
     frozenset({"aioadept.record", "aioadept.record.viewer"}),
 ]
 
@@ -179,7 +179,7 @@ def test_files_over_500_lines_say_why():
     assert unexplained == [], f"over 500 lines without a why ('{LONG_FILE_MARKER} because ...') at the top: {unexplained}"
 
 
-# Issue 24: the command line is the outermost layer. Only it imports ``aioadept.cli``, besides the ``python -m``
+# The command line is the outermost layer. Only it imports ``aioadept.cli``, besides the ``python -m``
 # entry points (``__main__`` modules), which are command lines themselves; no library leans on it.
 CLI_IMPORTERS_ALLOWED = {"aioadept.__main__", "aioadept.sim.__main__", "aioadept.vision.__main__"}
 

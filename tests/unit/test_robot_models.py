@@ -83,7 +83,7 @@ def test_the_registry_hands_out_each_model_by_name_and_refuses_others():
 
 
 def test_the_viper_s850_keeps_its_numbers():
-    """The paper's arm is unchanged by becoming one model among others (FACTS.md's home pose, ViSP's lengths)."""
+    """The paper's arm is unchanged by becoming one model among others (the real controller's home pose, docs/protocol.md; ViSP's lengths)."""
     v = model("viper-s850")
     assert (v.a1, v.d1, v.a2, v.a3, v.d4, v.d6) == (75.0, 335.0, 365.0, 90.0, 405.0, 80.0)
     assert v.forward(v.home_deg) == Pose(480.0, 0.0, 710.0, 0.0, 180.0, 0.0)

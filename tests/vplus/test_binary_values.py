@@ -1,4 +1,4 @@
-"""Binary values in strings and byte input (issue 34 item 1): $INTB/INTB, $LNGB/LNGB, $FLTB/FLTB, $DBLB/DBLB as the V+
+"""Binary values in strings and byte input: $INTB/INTB, $LNGB/LNGB, $FLTB/FLTB, $DBLB/DBLB as the V+
 Language Reference Guide defines them (big-endian, its own examples), GETC on a TCP connection and on a disk file,
 and a binary message exchanged with a Python peer over real TCP."""
 

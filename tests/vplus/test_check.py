@@ -124,7 +124,7 @@ def test_after_each_edit_check_gives_exactly_what_the_emulator_refuses_at_load_t
     assert counts[0] == counts[-1] == 0 and all(counts[1:-1]), counts
 
 
-# -- warnings (issue 32 item 1) ---------------------------------------------------------------------------------
+# -- warnings ---------------------------------------------------------------------------------
 
 # Two modules: each warning once, at a known line and column, and around them every way a variable gets a value
 # that must not be taken for a read of nothing (parameters, AUTO, LOCAL, a global assigned in the other module,
@@ -225,7 +225,7 @@ def test_check_document_gives_one_documents_problems_with_the_workspace_as_conte
     assert [p.code for p in check_document("main.V2", MAIN)].count("W101") == 3
 
 
-# -- issue 32's done-when: mistakes planted in a copy of the shipped server, all reported in one run --------------
+# -- mistakes planted in a copy of the shipped server, all reported in one run --------------
 
 PLANTED = [  # (program, a line of it to plant after, the planted line, its code, the column of its word)
     ("rs.halt", "rs.run = FALSE", "\tMOVEE rs.x", "E001", 2),                       # a syntax error

@@ -1,4 +1,4 @@
-"""``aioadept sim --vplus ... --run P`` never hangs silently (issue 20, item 6): a program that stops or fails before
+"""``aioadept sim --vplus ... --run P`` never hangs silently: a program that stops or fails before
 it opens its socket is reported in one line and the process exits non-zero; a program that calls one no loaded
 file defines is named. Real child processes, each with a hard timeout."""
 

@@ -1,4 +1,4 @@
-"""Configuration instructions (issue 20, item 2): LEFTY/RIGHTY, ABOVE/BELOW, FLIP/NOFLIP, SINGLE/MULTIPLE choose the
+"""Configuration instructions: LEFTY/RIGHTY, ABOVE/BELOW, FLIP/NOFLIP, SINGLE/MULTIPLE choose the
 joint solution of the next motion to a transformation, in the one robot model both backends share
 (``Controller.request_config``, ``viper_s850.inverse(config=...)``)."""
 

@@ -1,4 +1,4 @@
-"""Disk files (issue 20, item 2): FOPENR/FOPENW/FOPENA/FOPEND, READ/WRITE/FCLOSE on disk LUNs, FDELETE, IOSTAT,
+"""Disk files: FOPENR/FOPENW/FOPENA/FOPEND, READ/WRITE/FCLOSE on disk LUNs, FDELETE, IOSTAT,
 on real files in a folder the user names, and nothing outside it."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The modules of aioadept.vplus import one another as a DAG (issue 24 item 8: the builtins <-> iodev <-> runtime
+"""The modules of aioadept.vplus import one another as a DAG (the builtins <-> iodev <-> runtime
 circle is gone), and each can be imported first, alone, in a fresh interpreter."""
 
 from __future__ import annotations

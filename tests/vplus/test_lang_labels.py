@@ -1,4 +1,4 @@
-"""Step labels anywhere V+ allows them (issue 34 item 4): inside WHILE, FOR, DO, IF and CASE bodies, a GOTO to
+"""Step labels anywhere V+ allows them: inside WHILE, FOR, DO, IF and CASE bodies, a GOTO to
 the end of a loop body as "continue", GOTO out of blocks, EXIT/NEXT next to labels; a GOTO into a block is
 refused at load (V+'s rule is not in the manuals we have: the safe side). UG p. 35: "program steps can contain a
 step label", any step."""

@@ -1,4 +1,4 @@
-"""The ``.LOCATIONS`` section as a controller's STORE writes it (issue 20 item 1).
+"""The ``.LOCATIONS`` section as a controller's STORE writes it.
 
 A transformation is stored as the 12 components of its 3x4 matrix by column (V+ Language Reference Guide,
 ``TRANSB``/``$TRANSB``: "a 3-by-4 transformation matrix, stored by column"), written over two lines, the second

@@ -1,4 +1,4 @@
-"""Messages that tell a typo from a gap (issue 20 item 5).
+"""Messages that tell a typo from a gap.
 
 A word that is no V+ keyword is a syntax error naming file and line; a V+ keyword the emulator does not implement
 says so and names the manual's page (aioadept.vplus.keywords); a run-time error names the file as well as the

@@ -1,4 +1,4 @@
-"""Numbers and arguments as V+ does them (issue 20 item 3).
+"""Numbers and arguments as V+ does them.
 
 - V+ Language User's Guide v17, p. 102 (Real and Integer Data Types): "If an integer is required and you supply a
   real, V+ promotes the real to an integer by rounding (not truncation)".

@@ -1,4 +1,4 @@
-"""Refuse what V+ refuses (issue 20 item 4), at load or at run as V+ does.
+"""Refuse what V+ refuses, at load or at run as V+ does.
 
 - V+ Language User's Guide v17, p. 111 (Assignment Operator): "Location variables require the use of the SET
   instruction for a valid assignment statement. The instruction: loc_var1 = loc_var2 is unacceptable for location

@@ -1,4 +1,4 @@
-"""``aioadept sim --vplus`` with the server's port already taken (issue 38 item 1): the program gets FOPEN's error
+"""``aioadept sim --vplus`` with the server's port already taken: the program gets FOPEN's error
 as on a controller, and the host, which serves the ports of its command line, says which port in one line and exits
 1, instead of running on with no socket (the reader gone, the executor and the state stream looking alive)."""
 

@@ -1,4 +1,4 @@
-"""The folder of V+ programs in the style of public teaching and pick-and-place code (examples/vplus/cell/, issue 20,
+"""The folder of V+ programs in the style of public teaching and pick-and-place code (examples/vplus/cell/,
 "Done when"): each loads with no problem (no unsupported word) and runs on the shared robot model, and does what
 it is for. The entry program of each file is named after the file."""
 

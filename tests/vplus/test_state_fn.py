@@ -1,4 +1,4 @@
-"""STATE() as the V+ Reference Guide defines it (issue 34 item 3): select 2 is 5 while the arm decelerates after a
+"""STATE() as the V+ Reference Guide defines it: select 2 is 5 while the arm decelerates after a
 BRAKE and 6 once it has stopped that way (not 1 and 2, which a finished motion gives), until the next motion;
 select 3 is computer control; a select whose table we could not read is refused, not guessed."""
 

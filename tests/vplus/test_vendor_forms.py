@@ -1,4 +1,4 @@
-"""Instruction forms vendor V+ code uses (issue 34 items 2 and 5): ACCEL with a profile, SELECT ROBOT, the PARAMETER
+"""Instruction forms vendor V+ code uses: ACCEL with a profile, SELECT ROBOT, the PARAMETER
 and SELECT functions, CALIBRATE, a radix constant after a word operator, a CALL of a program not loaded. A form the
 emulator lacks says "not implemented", never "unexpected"."""
 

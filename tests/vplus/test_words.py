@@ -1,4 +1,4 @@
-"""Words real V+ programs use (issue 20, item 2): NULL, BMASK, DURATION, MOVET, radix constants, a comment after
+"""Words real V+ programs use: NULL, BMASK, DURATION, MOVET, radix constants, a comment after
 the .PROGRAM line, SHIFT with omitted components, BITS and $TRUNCATE as the V+ manuals define them."""
 
 from __future__ import annotations

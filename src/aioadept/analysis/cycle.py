@@ -1,4 +1,4 @@
-"""The focus loop's cycle time split (issue 12): ``summary.json``'s ``cycle`` (:func:`cycle_split`, medians over
+"""The focus loop's cycle time split: ``summary.json``'s ``cycle`` (:func:`cycle_split`, medians over
 consecutive complete iterations: motion, vision, the MasterControlNode's rest, and the vision part's floor) and the
 one line the demo prints from it (:func:`cycle_line`).
 """
@@ -27,7 +27,7 @@ def cycle_split(runs: Sequence[Run], iterations: Sequence[Iteration]) -> dict[st
     own time between them), each cycle's own rest and then their median (the median cycle minus the median motion
     and the median vision can be negative: medians do not add). ``vision_floor_ms`` = exposure + readout + graph time of the answered frames
     (``exposure_ms``, ``readout_ms``, ``proc_time_ms`` of vision.csv), each also given; ``vision_ratio`` = vision /
-    its floor, ``cycle_ratio`` = cycle / (motion + vision floor) (issue 12's goal: <= 1.10). Values are None where
+    its floor, ``cycle_ratio`` = cycle / (motion + vision floor) ('s goal: <= 1.10). Values are None where
     the runs hold no such data (free-running nodes do not report exposure; then the floor is the graph time alone).
     """
     cycles: list[float] = []

@@ -2,7 +2,7 @@
 
 :func:`aioadept.analysis.report.analyze_runs` writes every output into a :func:`staging` folder beside the
 destination, then :func:`publish` replaces the previous analysis as a whole; outputs that could not be written are
-reported with :class:`AnalysisSaveError` (issue 24 item 4, issue 18 item 8; docs/analysis.md).
+reported with :class:`AnalysisSaveError` (docs/analysis.md).
 """
 
 from __future__ import annotations

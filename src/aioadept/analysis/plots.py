@@ -85,7 +85,7 @@ def plot_sharpness(sharpness: Sequence[float], path: str | os.PathLike[str], *, 
 
 
 def plot_sweep(result: Mapping[str, Any], path: str | os.PathLike[str], *, title: str | None = None) -> Path:
-    """The focus sweep (issue 22): each frame's sharpness against its position along tool z (one colour per
+    """The focus sweep: each frame's sharpness against its position along tool z (one colour per
     sweep), the fitted curve over its window, and the fitted plane with its +-1 sigma band."""
     from aioadept.apps.sweep_model import blur_model
 

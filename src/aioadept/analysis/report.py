@@ -374,7 +374,7 @@ def analyze_runs(run_dirs: Iterable[str | os.PathLike[str]], out_dir: str | os.P
         values = quantity_values(iterations, q.name)
         stats[q.name] = describe(values)
         fits[q.name] = fit_for(q.family, values)
-    # One consistent analysis (issue 24, item 4): every output is written into a staging folder first, then the
+    # One consistent analysis: every output is written into a staging folder first, then the
     # previous analysis's outputs are removed (summary.json first: no summary ever describes figures it did not
     # make) and the new ones renamed into place, summary.json last. An interruption before that leaves the previous
     # analysis as it was; a figure the data (or --no-plots) no longer gives is not left behind from an earlier run.

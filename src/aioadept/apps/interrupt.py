@@ -10,7 +10,7 @@ well start a motion) with:
   app's main task. The app's cleanup starts no motion (see :func:`aioadept.apps.focus.ufloop`); a robot connection
   that is closing first waits for the stop's ack (:meth:`Interrupter.guard`), so the stop is confirmed, not hoped.
   SIGHUP is the terminal or SSH session that ran the app going away: by default it kills the process mid-motion,
-  with no stop sent and the arm running to the end of its move (issue 18, item 6), so it gets the same policy.
+  with no stop sent and the arm running to the end of its move, so it gets the same policy.
   Messages to a terminal that is gone are dropped (:func:`_say`); the exit code still tells.
 - **second signal:** exit at once: ``stop`` is written again where a connection is open, every child node process
   (:mod:`aioadept.apps.processes`) is killed, and the process ends with code 130 and one line on stderr.

@@ -1,4 +1,4 @@
-"""Many robots and cameras in one cell (issue 23, item 3): the cell file's ``[[robots]]`` and ``[[cameras]]`` arrays,
+"""Many robots and cameras in one cell: the cell file's ``[[robots]]`` and ``[[cameras]]`` arrays,
 and one application that runs focus calibration on every robot at the same time over one bus.
 
 Where it sits: :func:`multi_from_dict` turns a cell file with ``[[robots]]``/``[[cameras]]`` into one

@@ -151,7 +151,7 @@ async def ufloop(rc: Robot, comm: Vision, delta_z: float, appr_speed: int, *, ma
     sharpness: list[float] = []
     frame_times: list[float] = []
     pose: Pose | None = approach
-    t_search0: float | None = None  # the first search motion's start (issue 22: search_s)
+    t_search0: float | None = None  # the first search motion's start (search_s)
     t_known: float | None = None
     try:
         while True:

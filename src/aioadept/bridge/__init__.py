@@ -1,4 +1,4 @@
-"""The robot bridge (issue 23, item 2): one controller connection shared by several applications over Zenoh.
+"""The robot bridge: one controller connection shared by several applications over Zenoh.
 
 - :mod:`aioadept.bridge.wire`: the query and reply payloads (sans-IO).
 - :mod:`aioadept.bridge.node`: :class:`Bridge`, the node ``aioadept bridge`` runs (the one writer).

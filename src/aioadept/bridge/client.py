@@ -1,4 +1,4 @@
-"""BridgeClient: an application's side of the robot bridge, with RobotClient's call API (issue 23, item 2).
+"""BridgeClient: an application's side of the robot bridge, with RobotClient's call API.
 
 Where it sits: an application (the focus app, a script) uses it instead of :class:`~aioadept.client.RobotClient`
 when the robot is shared through ``aioadept bridge`` (:mod:`aioadept.bridge.node`)::

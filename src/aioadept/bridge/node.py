@@ -1,4 +1,4 @@
-"""The robot bridge node: ONE connection to a controller, shared by several applications over Zenoh (issue 23).
+"""The robot bridge node: ONE connection to a controller, shared by several applications over Zenoh.
 
 Where it sits: ``aioadept bridge`` (:mod:`aioadept.cli.bridge`) runs it between a RobotServer (the V+ AdeptServer,
 ``aioadept sim`` or the V+ emulator) and any number of :class:`~aioadept.bridge.client.BridgeClient` s::

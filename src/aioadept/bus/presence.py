@@ -1,4 +1,4 @@
-"""Node presence on the Zenoh transport: who is in the cell, learnt at once (issue 23, item 1).
+"""Node presence on the Zenoh transport: who is in the cell, learnt at once.
 
 Each node process declares a liveliness token ``aioadept/<cell>/<node>`` (:func:`aioadept.bus.zenoh.declare_node`,
 as it prints READY). :class:`NodeWatcher` subscribes to the tokens of a cell and reports each node appearing and

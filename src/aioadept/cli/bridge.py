@@ -1,4 +1,4 @@
-"""``aioadept bridge``: share one robot between several applications over Zenoh (issue 23, item 2; docs/bridge.md).
+"""``aioadept bridge``: share one robot between several applications over Zenoh (docs/bridge.md).
 
 Holds the one TCP connection to a RobotServer (the V+ AdeptServer, ``aioadept sim`` or the V+ emulator; its stop
 port too) and serves the robot's commands as Zenoh queries on ``aioadept/<cell>/<name>/cmd`` to any number of

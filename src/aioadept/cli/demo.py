@@ -125,7 +125,7 @@ def _run(cfg: CellConfig, run_dir: Path) -> int:
 
 
 def _print_cycle(run_dir: Path) -> None:
-    """The cycle split motion / vision and the vision floor, as summary.json's ``cycle`` holds them (issue 12)."""
+    """The cycle split motion / vision and the vision floor, as summary.json's ``cycle`` holds them."""
     import json
 
     from aioadept.analysis.cycle import cycle_line

@@ -140,7 +140,7 @@ def _run(cfg: CellConfig, grid: list[tuple[int, float]], runs: int, out: Path) -
     try:
         with stop_signals_interrupt():
             analyze_runs(run_dirs, out / "analysis")
-    except KeyboardInterrupt:  # the runs are saved; the analysis writes nothing half (issue 24, item 3)
+    except KeyboardInterrupt:  # the runs are saved; the analysis writes nothing half
         interrupt_handled()
         if (out / "analysis" / "summary.json").is_file():  # the interrupt came as it was ending: it is whole
             done = "its analysis was written"

@@ -76,7 +76,7 @@ def report_saving(outcome: Any, *, analyze: bool, prog: str) -> int:
     """After a successful run whose result is printed: analyse the run, then say on stderr what was not written.
 
     The analysis runs when the run folder is complete (``run.json`` written), whatever else failed. Every output
-    not written (the run's files, the vision node's ``frames/frames.csv``, the analysis's figures: issue 18, item 8)
+    not written (the run's files, the vision node's ``frames/frames.csv``, the analysis's figures:)
     is named, with its reason, in one line on stderr and in ``run.json``'s ``not_written``. Returns 0, or
     :data:`EXIT_NOT_SAVED`.
     """

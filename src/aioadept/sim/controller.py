@@ -15,7 +15,7 @@ same with a fake clock. Each call returns the acks to write, each addressed to t
     out = ctl.handle(b"0000abce:break", "a", now=0.0)                           # [] - waits for the motion
     out = ctl.step(ctl.next_wake_s())                                          # [Outgoing("a", break done)]
 
-Semantics, following the original V+ AdeptServer (FACTS.md):
+Semantics, following the original V+ AdeptServer (docs/protocol.md):
 
 - One executor runs skills one after another in arrival order, across all connections, like the single V+ task
   running ``CALLS $skill``. While a skill waits (``break`` for the robot to stop, a move for a free slot), later
@@ -612,7 +612,7 @@ class Controller:
             raise
         return (yield from self.move_joints(target))
 
-    # -- straight-line motion (V+ MOVES, APPROS, DEPARTS; issue 19) ---------------------------------------------
+    # -- straight-line motion (V+ MOVES, APPROS, DEPARTS) ---------------------------------------------
     def planned_end_pose(self) -> Pose:
         """The tool pose where the planned motions end: where the next motion starts (V+ APPRO/DEPART use it)."""
         return self._forward(self.trajectory.end_deg)

@@ -150,7 +150,7 @@ def _hello(ctl: Any, args: tuple[float, ...]) -> SkillResult:
     return SkillResult((str(PROTOCOL_VERSION), f"{SERVER_NAME} {ctl.version}"))
 
 
-# -- straight-line and approach skills (issue 19: V+ MOVES, APPRO, APPROS, DEPART, DEPARTS) ---------------------
+# -- straight-line and approach skills (V+ MOVES, APPRO, APPROS, DEPART, DEPARTS) ---------------------
 
 def _check_distance(d: float, what: str) -> None:
     _finite((d,))

@@ -305,7 +305,7 @@ class VisionNode:
     def _save_loop(self, frames: queue.Queue[Frame | None]) -> None:
         assert self.recorder is not None
         # Saving is background work: on a small machine it shares the cores with the camera, the node's loop and
-        # the other nodes of the cell, whose latency counts (issue 12 H.5). PNG encoding runs without the GIL, so a
+        # the other nodes of the cell, whose latency counts. PNG encoding runs without the GIL, so a
         # low priority here cannot hold the loop off.
         with contextlib.suppress(OSError, AttributeError):
             os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), SAVE_NICE)
@@ -374,7 +374,7 @@ class NodeResponder(Responder):
 
     It serves ``VisionRequest`` events only (``request_types`` by default): any other event on the request port (a
     ``Shutdown``, a ``VisionResponse`` sent back) takes no frame and no queue slot; it is ignored and counted
-    (``ignored``, a debug log line each). Issue 18, item 7: each used to be served as a request.
+    (``ignored``, a debug log line each), so a stray event cannot take a request's place.
     """
 
     def __init__(self, request_endpoint: str, response_endpoint: str, node: VisionNode, **options: Any) -> None:

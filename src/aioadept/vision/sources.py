@@ -197,7 +197,7 @@ class FrameRecorder:
     :class:`ImageFolderSource` with ``timestamps_csv`` replays them with their original times.
 
     Thread-safe enough for one writer per camera; files are named ``<camera_id>_<seq:06d>.png``. Nothing is left
-    half written under its final name (issue 18, item 8: a full disk left an empty ``frames.csv``): each PNG is
+    half written under its final name (a full disk left an empty ``frames.csv``): each PNG is
     renamed into place once whole, and ``frames.csv`` is written under a temporary name and renamed by
     :meth:`close` only if every row reached the disk (else it is removed, ``csv_error`` says why, and a
     ``frames.csv`` from before keeps its content). Its rows list the PNGs that were written.

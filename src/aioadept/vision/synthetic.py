@@ -8,7 +8,7 @@ around the marker, as printed labels have and as the world camera draws them), f
 polygons; then a Gaussian blur (the in-focus lens blur) and Gaussian sensor noise, mono8. Nothing here is a
 detector: the locator must find everything again with OpenCV.
 
-The world camera of the simulated cell (``aioadept.vision.world_camera``, issue 21 items 1-2, on its own branch as this is written) renders the
+The world camera of the simulated cell (``aioadept.vision.world_camera``, on its own branch as this is written) renders the
 world's parts the same way; this module stays small so that camera can reuse :func:`draw_marker` for a marker on
 the tool.
 """

@@ -1,5 +1,4 @@
-"""The two-network cell over Zenoh: a Zenoh router on the MasterControlNode between the namespaces (issue 23,
-item 3; docs/topology.md, "Over Zenoh").
+"""The two-network cell over Zenoh: a Zenoh router on the MasterControlNode between the namespaces (item 3; docs/topology.md, "Over Zenoh").
 
 - ROB: ``aioadept sim --transport zenoh`` bound to the robot-net address for its TCP server (``--allow`` MCN only),
   a Zenoh client of MCN's robot-net address: its state goes to the router, not to any port of its own.

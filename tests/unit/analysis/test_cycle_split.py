@@ -1,5 +1,5 @@
 """summary.json's ``cycle``: the focus loop's cycle time split motion / vision / MCN and the vision part's floor
-(exposure + readout + graph), and the line the demo prints from it (issue 12)."""
+(exposure + readout + graph), and the line the demo prints from it."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The fits table names each distribution family once, in one spelling (issue 24, item 6): a quantity without a
+"""The fits table names each distribution family once, in one spelling: a quantity without a
 fit said ``lognormal`` beside rows that said ``log-normal``."""
 
 from __future__ import annotations

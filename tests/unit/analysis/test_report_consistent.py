@@ -1,5 +1,4 @@
-"""One consistent analysis per folder (issue 24, item 4) and a full disk that names what it could not write
-(issue 18, item 8): a second analysis leaves no figure of the first; a figure that cannot be written is named, never
+"""One consistent analysis per folder and a full disk that names what it could not write: a second analysis leaves no figure of the first; a figure that cannot be written is named, never
 left empty; an interrupted analysis leaves the previous one as it was."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """Trigger, exposure, readout and processing of each vision request: dedicated vision.csv columns (capture) and
-sub-spans of the vision bars in the Gantt chart (Fig. 10), through the public functions (issue 12)."""
+sub-spans of the vision bars in the Gantt chart (Fig. 10), through the public functions."""
 
 from __future__ import annotations
 

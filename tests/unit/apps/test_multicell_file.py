@@ -1,4 +1,4 @@
-"""The cell file of several robots (issue 23, item 3): ``[[robots]]``/``[[cameras]]`` become one single-robot cell
+"""The cell file of several robots: ``[[robots]]``/``[[cameras]]`` become one single-robot cell
 per robot, the shared tables are every entry's defaults, each mistake is one line naming the file, the entry and the
 key; and the Zenoh keys and node names each robot gets."""
 

@@ -1,4 +1,4 @@
-"""The focus sweep's pure parts (issue 22): the speed from the blur budget, the peak fit and its uncertainty, the
+"""The focus sweep's pure parts: the speed from the blur budget, the peak fit and its uncertainty, the
 clock offsets, the state interpolation and the planned profile. No sockets."""
 
 from __future__ import annotations

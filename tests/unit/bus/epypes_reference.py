@@ -1,6 +1,6 @@
 """EPypes' own message definitions, built independently of our .proto and generated code.
 
-This mirrors the schema of FACTS.md / EPypes' attributes.proto, event.proto and image.proto field by field: no
+This mirrors the schema of EPypes' attributes.proto, event.proto and image.proto field by field: no
 package (EPypes declares none), three files with imports as in EPypes. It lives in its own DescriptorPool so it never
 collides with our generated ``epypes.*`` messages. No protoc is needed at test time.
 """

@@ -1,5 +1,5 @@
 """A running RunRecording asked to (as the CLIs do) shortens the GIL switch interval (its worker must not hold the MCN's event loop off for
-Python's default 5 ms per burst, issue 12 H.5) and gives the old value back when the last one closes."""
+Python's default 5 ms per burst) and gives the old value back when the last one closes."""
 
 from __future__ import annotations
 

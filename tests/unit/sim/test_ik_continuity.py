@@ -1,4 +1,4 @@
-"""IK continuity (issue 10, item 5): a small Cartesian command never flips the wrist or swings a joint round.
+"""IK continuity: a small Cartesian command never flips the wrist or swings a joint round.
 
 ``kinematics.inverse`` keeps the seed's configuration, takes the nearest solution, keeps J4 on the wrist
 singularity, and refuses with ``JOINT_JUMP`` a target whose joint motion is out of proportion to its Cartesian size.

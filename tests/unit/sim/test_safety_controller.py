@@ -1,4 +1,4 @@
-"""Safety promises of the pure controller (issue 10 items 1, 2, 6, 9; issue 11 item 6), with a fake clock.
+"""Safety promises of the pure controller, with a fake clock.
 
 Each test here failed on the controller before the fix it checks: see docs/security.md, "Safety promises".
 """

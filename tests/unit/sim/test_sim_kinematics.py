@@ -24,7 +24,7 @@ def joint_vectors(margin: float = 1.0):
 
 def test_home_is_tool_down_at_the_real_acks_pose():
     p = forward(HOME_JOINTS_DEG)
-    # The real controller answered 480.014,-0.038,709.975,0.000,179.995,0.004 at home (FACTS.md).
+    # The real controller answered 480.014,-0.038,709.975,0.000,179.995,0.004 at home (docs/protocol.md, its examples).
     assert (p.x, p.y, p.z) == pytest.approx((480.0, 0.0, 710.0), abs=1e-9)
     assert poses_close(p, Pose(480, 0, 710, 0, 180, 0), tol_mm=1e-9, tol_deg=1e-9)
     np.testing.assert_allclose(p.to_matrix()[:3, 2], [0, 0, -1], atol=1e-12)  # tool z points down

@@ -1,4 +1,4 @@
-"""The feeder's queue (issue 21, pick and place item 1): parts fed one after another, pure and time-driven, from
+"""The feeder's queue: parts fed one after another, pure and time-driven, from
 the cell file's [world.feeder] table; in the controller, both backends' I/O sees the arrival on the sensor input."""
 
 from __future__ import annotations

@@ -43,7 +43,7 @@ def test_a_reader_polling_the_folder_never_sees_a_partial_png(tmp_path):
 
 
 def test_a_frames_csv_the_disk_cannot_take_is_not_left_under_its_name(tmp_path):
-    # Issue 18, item 8: a full disk used to leave an empty frames.csv. A real write error: a child process with a
+    # A full disk must not leave an empty frames.csv under its name. A real write error: a child process with a
     # file-size limit (RLIMIT_FSIZE binds root too; Python ignores SIGXFSZ, so the write fails with EFBIG). The
     # 200 rows need ~8 KiB, over the 2 KiB limit; each tiny PNG fits.
     import subprocess

@@ -142,7 +142,7 @@ def test_pose_history_forgets_old_samples():
 
 
 def test_a_tool_moving_along_the_axis_during_the_exposure_is_blurred_by_its_travel():
-    """Motion blur (issue 22): the frame of a tool crossing the focal plane during the exposure integrates the
+    """Motion blur: the frame of a tool crossing the focal plane during the exposure integrates the
     defocus of every instant, so it is less sharp than a still frame at its mid-exposure pose; the faster, the
     less sharp; a still tool renders exactly as before."""
     cam = paper_camera(None, focus_offset_mm=20.0, noise_sigma=0.0, sleep=None)

@@ -1,4 +1,4 @@
-"""The virtual camera's guessed pose (issue 12 H.5): a frame rendered ahead from the at-rest sample is kept only
+"""The virtual camera's guessed pose: a frame rendered ahead from the at-rest sample is kept only
 when the sample covering the exposure gives the same pose; otherwise it is rendered again from that pose."""
 
 from __future__ import annotations

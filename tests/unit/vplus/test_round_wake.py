@@ -1,4 +1,4 @@
-"""A task woken by an earlier task in the same scheduler round runs in its turn of that round (issue 11 F).
+"""A task woken by an earlier task in the same scheduler round runs in its turn of that round.
 
 The emulated rserver's reader sleeps in WAIT.EVENT until the executor (task 1) queues an ack and sets its event;
 running the reader in the same round, not one round later, is one round less between a command and its ack.

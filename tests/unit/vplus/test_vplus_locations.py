@@ -54,7 +54,7 @@ def test_trans_defaults_and_null():
 
 
 def test_decompose_of_home_pose_matches_the_real_ack():
-    # FACTS.md: the arm at home acks 480,0,710,0,180,0 (tool down: pitch 180, yaw 0 by convention)
+    # The arm at home acks 480,0,710,0,180,0 (docs/protocol.md; tool down: pitch 180, yaw 0 by convention)
     home = Transform.from_pose(kin.forward(kin.HOME_JOINTS_DEG))
     x, y, z, yaw, p, r = decompose(home)
     assert close6((x, y, z, yaw, p), (480, 0, 710, 0, 180), tol=1e-6)

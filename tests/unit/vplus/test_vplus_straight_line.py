@@ -1,4 +1,4 @@
-"""The emulator's MOVES, APPROS, DEPARTS on the controller's one straight-line model (issue 19): the tool stays on
+"""The emulator's MOVES, APPROS, DEPARTS on the controller's one straight-line model: the tool stays on
 the line, a line through a singularity is a V+ error before anything moves, BRAKE stops on the line, DRY.RUN
 checks the line. Fake time loop, as tests/unit/vplus/test_vplus_robot.py."""
 
