@@ -1,6 +1,6 @@
 """What the Rerun recording (docs/record.md) costs the focus loop, with its baseline measured in the same run.
 
-The focus loop (:func:`aioadept.apps.focus.ufloop`, no init move) runs against the in-process simulated controller
+The focus loop (:func:`aioadept.apps.paper.ufloop`, no init move) runs against the in-process simulated controller
 (real TCP on 127.0.0.1, real time, its 100 Hz state stream on) and a vision Responder over real ZeroMQ that answers
 with a sharpness series and the ``camera``/``frame_seq`` of a 1024 x 768 frame saved as PNG, as the vision node
 does with ``--save-frames``. Runs alternate between ``off`` (the timing Recorder only, as before) and ``on`` (plus

@@ -150,7 +150,7 @@ def find_iterations(robot: Sequence[Any], vision: Sequence[Any], *, marks: Seque
     Pairing: each vision request (in send order) owns the first ``skills`` batch sent after it and before the next
     vision request (``skills`` split over consecutive batches, as ``cmdexec`` sends them, count as one). The final
     retract (the same three skills, the other z direction) is not an iteration: it is recognised as a batch sent
-    after a mark named ``"retract"`` when the run has one (``apps.focus.ufloop`` writes it), otherwise as a batch
+    after a mark named ``"retract"`` when the run has one (``apps.paper.ufloop`` writes it), otherwise as a batch
     whose ``move_rel_tool`` z step has the sign opposite to the run's first approach batch. Vision requests with no
     approach batch after them (the last one, or one that failed) are dropped.
     """

@@ -7,7 +7,7 @@ well start a motion) with:
 
 - **first SIGINT (or SIGTERM, or SIGHUP):** in the signal callback itself, write ``stop`` on every attached robot connection
   (``RobotClient.stop_nowait``: written in that call, before any other task of this process runs again), then cancel the
-  app's main task. The app's cleanup starts no motion (see :func:`aioadept.apps.focus.ufloop`); a robot connection
+  app's main task. The app's cleanup starts no motion (see :func:`aioadept.apps.paper.ufloop`); a robot connection
   that is closing first waits for the stop's ack (:meth:`Interrupter.guard`), so the stop is confirmed, not hoped.
   SIGHUP is the terminal or SSH session that ran the app going away: by default it kills the process mid-motion,
   with no stop sent and the arm running to the end of its move, so it gets the same policy.
