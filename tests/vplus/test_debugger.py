@@ -200,3 +200,21 @@ def test_a_task_that_stops_during_a_motion_brakes_the_arm_and_ending_the_session
     d.end()
     emu.run(2.0)
     assert not emu.controller.trajectory.in_motion(emu.time_s) and emu.task(0).state == "aborted"
+
+
+def test_stop_on_entry_precision_points_and_setting_a_location(dbg):
+    dbg.emu.execute(0, "main")
+    dbg.stop_on_entry(0)
+    assert stopped_at(dbg) == ("entry", "main", 4)                 # before the first statement (a = 1)
+    f = dbg.frames(0)[0]
+    pp = dbg.evaluate("#PPOINT(1, 2, 3, 4, 5, 6)", f)
+    assert render(pp) == "#PPOINT(1.000, 2.000, 3.000, 4.000, 5.000, 6.000)"
+    assert children(pp) == [("j1", 1.0), ("j2", 2.0), ("j3", 3.0), ("j4", 4.0), ("j5", 5.0), ("j6", 6.0)]
+    loc = dbg.set_variable(f, "place", "TRANS(1, 2, 3, 0, 90, 0)")     # stored as SET would
+    assert [round(v, 3) for v in loc.decompose()] == [1.0, 2.0, 3.0, 0.0, 90.0, 0.0]
+    assert dbg.emu.globals["place"] is loc
+    with pytest.raises(DebugError, match="not a variable"):
+        dbg.set_variable(f, "1 + 2", "3")
+    dbg.resume(0)
+    dbg.emu.run(5.0)
+    assert dbg.emu.console[-1] == "[0] a=16"
