@@ -80,7 +80,7 @@ def test_the_monitor_loads_runs_breaks_proceeds_and_aborts_on_a_terminal(tmp_pat
         term.expect(r"1\s+aborted\s+counter")
         term.send("LISTR")
         term.send("FROB 1")
-        term.expect(r"\*Unknown command\*")
+        term.expect(r"\*Unknown command\*\r?\n\. ")                # its reply, then the prompt
         os.write(term.master, b"\x04")                          # end of input: the monitor ends
         assert term.proc.wait(timeout=15) == 0
     finally:
