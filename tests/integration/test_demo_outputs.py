@@ -77,8 +77,8 @@ def test_a_full_disk_leaves_no_empty_file_and_names_every_output_not_written(tmp
     run = f"runs/{data['run']}/"
     files = {name[len(run):]: size for name, size in data["files"].items() if name.startswith(run)}
     not_written = data["not_written"]
-    # Nothing empty or half written under its final name (before: an empty fig09_sharpness.png and frames.csv, a
-    # truncated run.rrd).
+    # Nothing empty or half written under its final name (an empty fig09_sharpness.png or frames.csv, a truncated
+    # run.rrd).
     assert not [n for n, size in files.items() if size == 0], files
     assert not [n for n in files if os.path.basename(n).startswith(".")], files
     # Every output is there or named in the one stderr line, and in run.json when the run's tables made it.

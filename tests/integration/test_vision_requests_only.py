@@ -1,7 +1,7 @@
 """The vision node serves only requests, over real ZeroMQ on 127.0.0.1.
 
-Events of another type on its request port (a ``Shutdown``, a ``VisionResponse`` sent back to it) used to be served
-as requests: a frame taken, a graph run, a queue slot, an answer published. Now each is ignored and counted.
+Events of another type on its request port (a ``Shutdown``, a ``VisionResponse`` sent back to it) are ignored and
+counted: none takes a frame, runs a graph, holds a queue slot or gets an answer published.
 """
 
 from __future__ import annotations

@@ -1,9 +1,9 @@
 """The shipped V+ server's reader keeps reading while one client's acks back up, on the emulator.
 
 A client that pipelines ``here`` lines and never reads fills the reader's own answer ring (``rs.rcap``) once its
-acks stop going out. The reader used to wait then, in ``rs.rdack``, until ``rs.wrtmo`` dropped that client: all
-that time it read nothing, other clients' stops included. Now the client whose own acks block the ring is dropped
-the moment its lines fill it. The test sets ``rs.wrtmo`` to 30 s, so that only that rule can let the stop in.
+acks stop going out. Were the reader to wait then, in ``rs.rdack``, until ``rs.wrtmo`` dropped that client, it
+would read nothing all that time, other clients' stops included; so the client whose own acks block the ring is
+dropped the moment its lines fill it. The test sets ``rs.wrtmo`` to 30 s, so that only that rule can let the stop in.
 """
 
 from __future__ import annotations

@@ -47,7 +47,7 @@ def _save(fig: Any, path: str | os.PathLike[str]) -> Path:
 
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    # Whole or not at all (a full disk used to leave an empty fig09_sharpness.png): a temporary file, then rename.
+    # Whole or not at all (a full disk must not leave an empty fig09_sharpness.png): a temporary file, then rename.
     return write_atomic(out, lambda f: fig.savefig(f, dpi=DPI, format=out.suffix.lstrip(".") or "png"), binary=True)
 
 

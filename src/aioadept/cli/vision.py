@@ -365,7 +365,7 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, OSError, AdeptError) as exc:
         # One line, as every node's failure, without the log's timestamp and level. A bus it cannot open or reach
         # (a Zenoh router that does not answer or refuses it, an address in use) exits 1 as sim and state do; the
-        # rest 2 as before: the node cannot tell a source it was given wrong from one that does not answer (both
+        # rest 2, a usage error: the node cannot tell a source it was given wrong from one that does not answer (both
         # are VisionError).
         print(f"aioadept vision: {exc}", file=sys.stderr)
         return 1 if isinstance(exc, BusError) else 2

@@ -1,4 +1,4 @@
-"""run.rrd is there whole or not at all: a full disk used to leave it cut short under its name.
+"""run.rrd is there whole or not at all: a full disk must not leave it cut short under its name.
 Rerun's file sink reports a failed write only in its own log, so completeness is read from the file's footer."""
 
 from __future__ import annotations
