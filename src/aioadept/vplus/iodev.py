@@ -46,6 +46,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from aioadept.vplus import errors as E
+from aioadept.vplus.disk import DiskLun
 from aioadept.vplus.errors import VPlusError
 from aioadept.vplus.render import _render
 
@@ -424,15 +425,14 @@ def _lun_of(T: Any, lun: Any) -> TcpLun | None:
 
 
 def _is_disk(dev: Any) -> bool:
-    from aioadept.vplus.disk import DiskLun
-
-    return isinstance(dev, DiskLun)
+    return type(dev) is DiskLun
 
 
 def _disk_of(T: Any, lun: Any) -> Any:
     """The disk LUN ``lun`` of task ``T`` (aioadept.vplus.disk), or None."""
+    # the READ/WRITE of every TCP line asks first: one dict look-up and a type test, no import
     dev = T.luns.get(int(lun)) if lun is not None else None
-    return dev if dev is not None and _is_disk(dev) else None
+    return dev if type(dev) is DiskLun else None
 
 
 def attach(rt: Any):
@@ -455,8 +455,6 @@ def attach(rt: Any):
         else:
             lun = int(c[k] if c is not None else k)
         if name == "DISK":
-            from aioadept.vplus.disk import DiskLun
-
             T.luns[lun] = DiskLun(rt, T, lun)     # files in the emulator's disk folder (aioadept.vplus.disk)
             T.iostat[lun] = 1
             return

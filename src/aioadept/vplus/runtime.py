@@ -161,6 +161,8 @@ class Runtime:
         self.on_task_pause: Callable[[Task], None] | None = None
         """Called when a task executes PAUSE (only PROCEED resumes it: ``Emulator.proceed``, no one in the CLI)."""
         self.realtime = not self.clock.virtual
+        # a RealClock's start: ``now`` reads the monotonic clock itself (it is read ~20 times per here round trip)
+        self._mono_t0: float | None = self.clock._t0 if type(self.clock) is RealClock else None
         self.slice_end = math.inf          # real time: when the running task's slice ends (time.monotonic)
         self.storage_limit = storage_limit
         self._storage_at = 0.0             # when storage is next counted (once per cycle: it costs ~20 us)
@@ -282,7 +284,8 @@ class Runtime:
 
     @property
     def now(self) -> float:
-        return self.clock.now
+        t0 = self._mono_t0
+        return _mono() - t0 if t0 is not None else self.clock.now
 
     # -- tasks --------------------------------------------------------------------------------------------
     def start_task(self, num: int, program: str, args: tuple = (), *, cycles: int = 1) -> Task:
