@@ -4,7 +4,6 @@ The data path, as the package tree reads: ``protocol`` (sans-IO line protocol) �
 → ``sim`` (simulated controller) → ``bus`` (ZeroMQ + Protobuf) → ``vision`` → ``apps`` → ``analysis``.
 """
 
-from aioadept.client import RobotClient
 from aioadept.commands import (
     Appro,
     Appros,
@@ -37,6 +36,17 @@ from aioadept.commands import (
 from aioadept.geometry import Pose
 
 __version__ = "0.1.0"
+
+
+def __getattr__(name: str):
+    # RobotClient is imported on first use, so that importing aioadept (every subcommand does) stays as light as
+    # the commands and the pose: the client brings asyncio and the transport.
+    if name == "RobotClient":
+        from aioadept.client import RobotClient
+
+        return RobotClient
+    raise AttributeError(f"module 'aioadept' has no attribute {name!r}")
+
 
 __all__ = [
     "Appro", "Appros", "Break", "CloseHand", "Command", "Depart", "Departs", "DisableAir", "EnableAir",
