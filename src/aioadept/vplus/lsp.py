@@ -17,6 +17,7 @@ from __future__ import annotations
 import gc
 import re
 import time
+from collections.abc import Iterable
 from pathlib import Path
 
 from lsprotocol import types as T
@@ -25,7 +26,7 @@ from pygls.uris import from_fs_path, to_fs_path
 
 from aioadept import __version__
 from aioadept.vplus import registry
-from aioadept.vplus.check import check
+from aioadept.vplus.check import check_document
 from aioadept.vplus.symbols import DEFINITION, LABEL, PROGRAM, Occurrence, Workspace, file_symbols
 
 SUFFIXES = (".v2", ".pg")
@@ -45,7 +46,8 @@ def _changed(ls: LanguageServer, params) -> None:
     uri = params.text_document.uri
     doc = ls.workspace.get_text_document(uri)
     ls.text_document_publish_diagnostics(
-        T.PublishDiagnosticsParams(uri=uri, version=doc.version, diagnostics=diagnostics(_path(uri), doc.source)))
+        T.PublishDiagnosticsParams(uri=uri, version=doc.version, diagnostics=diagnostics(_path(uri), doc.source,
+                                                                       workspace_texts(ls).items())))
     # What is alive now is mostly the parse caches (nodes of every piece of every document): moved out of the
     # cycle collector's reach, a full collection no longer scans them all (it did, as 0.3 to 0.4 s pauses of a
     # request after a change of a 2,500-line document); reference counting still frees what the caches drop.
@@ -57,14 +59,14 @@ def _changed(ls: LanguageServer, params) -> None:
 _SEVERITY = {"error": T.DiagnosticSeverity.Error, "warning": T.DiagnosticSeverity.Warning}
 
 
-def diagnostics(name: str, text: str) -> list[T.Diagnostic]:
-    """The problems of one document as LSP diagnostics (0-based ranges at the offending word, the problem's
-    code)."""
+def diagnostics(name: str, text: str, others: Iterable[tuple[str, str]] = ()) -> list[T.Diagnostic]:
+    """The errors and warnings of one document as LSP diagnostics (0-based ranges at the offending word, the
+    problem's code), the workspace's ``others`` loaded with it (their programs and assignments count)."""
     return [T.Diagnostic(range=T.Range(T.Position(p.line - 1, p.column - 1), T.Position(p.line - 1,
                                                                                         p.end_column - 1)),
                          message=p.message, severity=_SEVERITY.get(p.severity, T.DiagnosticSeverity.Error),
                          code=p.code, source="aioadept vplus")
-            for p in check([(name, text)])]
+            for p in check_document(name, text, others)]
 
 
 def word_at(line: str, character: int) -> tuple[str, int] | None:
@@ -223,6 +225,11 @@ def _listing(root: Path) -> list[Path]:
 def workspace(ls: LanguageServer) -> Workspace:
     """The workspace folders' V+ files, with the open documents' current text in place of their files' (the
     file names are full paths, so that a definition can point at its file)."""
+    return Workspace(workspace_texts(ls).items())
+
+
+def workspace_texts(ls: LanguageServer) -> dict[str, str]:
+    """The texts of :func:`workspace`, by full path."""
     texts: dict[str, str] = {}
     for folder in ls.workspace.folders.values():
         for f in _listing(Path(_path(folder.uri))):
@@ -232,7 +239,7 @@ def workspace(ls: LanguageServer) -> Workspace:
                 continue
     for uri, doc in ls.workspace.text_documents.items():
         texts[_path(uri)] = doc.source
-    return Workspace(texts.items())
+    return texts
 
 
 def serve() -> None:
