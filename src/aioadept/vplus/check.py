@@ -88,14 +88,14 @@ class _Checked:
 _Piece = tuple[int, _Checked]
 
 _CHECKED: dict[tuple[str, str], _Checked] = {}
-"""Each piece of a file (:func:`_pieces`) checked, by (file name, text): after an edit only the pieces it changed
+"""Each piece of a file (:func:`split_pieces`) checked, by (file name, text): after an edit only the pieces it changed
 are parsed, compiled and analysed again (a language server checks on every keystroke), and a piece that only
 moved (lines inserted above it) is not. Bounded: cleared when it grows past 4096."""
 
 
 def _file_pieces(name: str, text: str) -> list[_Piece]:
     out: list[_Piece] = []
-    for first, piece in _pieces(text):
+    for first, piece in split_pieces(text):
         checked = _CHECKED.get((name, piece))
         if checked is None:
             if len(_CHECKED) >= 4096:
@@ -166,7 +166,7 @@ def sarif(problems: Iterable[Problem]) -> dict:
                       "columnKind": "unicodeCodePoints", "results": results}]}
 
 
-def _pieces(text: str) -> list[tuple[int, str]]:
+def split_pieces(text: str) -> list[tuple[int, str]]:
     """``text`` cut after each ``.END`` line, as ``(first line, text)``. The loader reads a file line by line
     and every ``.END`` line (of a program, of a data section, or stray) leaves it as at the start of a file, so
     each piece loads as it does within the whole file."""

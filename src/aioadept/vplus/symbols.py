@@ -20,7 +20,7 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 
 from aioadept.vplus import nodes as N
-from aioadept.vplus.check import _pieces
+from aioadept.vplus.check import split_pieces
 from aioadept.vplus.loader import Module, load_text
 from aioadept.vplus.parse import VSyntaxError, norm, tokenize
 from aioadept.vplus.program import Program
@@ -78,7 +78,7 @@ class FileSymbols:
 
 
 _CACHE: dict[tuple[str, str, int], FileSymbols] = {}
-"""The pieces of files (:func:`aioadept.vplus.check._pieces`, cut after each ``.END``) by (file name, text, the
+"""The pieces of files (:func:`aioadept.vplus.check.split_pieces`, cut after each ``.END``) by (file name, text, the
 line where the piece starts): after an edit only the changed program is read again (and, when lines were
 inserted or deleted, the programs below it are moved). Bounded: cleared when it grows past 4096."""
 _LATEST: dict[str, tuple[str, FileSymbols]] = {}
@@ -91,7 +91,7 @@ def file_symbols(file: str, text: str) -> FileSymbols:
     if last is not None and last[0] == text:
         return last[1]
     got = FileSymbols(file)
-    for first, piece in _pieces(text):
+    for first, piece in split_pieces(text):
         part = _piece(file, piece, first)
         got.programs.extend(part.programs)
         got.locals.update(part.locals)
