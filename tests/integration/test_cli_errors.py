@@ -1,6 +1,8 @@
 """A newcomer's mistakes at the command line get one clear line and a documented exit code.
 
-Each test runs the real ``aioadept`` console entry (``python -m aioadept``) in a subprocess, as a user would.
+The tests run the real ``aioadept`` console entry (``python -m aioadept``) in a subprocess, as a user would; a table
+of mistakes caught before anything starts runs one row so and the others in this process (tests/integration/
+cliinproc.py), the same assertions on the exit status and stderr.
 """
 
 from __future__ import annotations
@@ -8,19 +10,14 @@ from __future__ import annotations
 import contextlib
 import socket
 import subprocess
-import sys
 import threading
-from pathlib import Path
 
 import pytest
 
 from aioadept.ports import free_port
 
-AIOADEPT = [sys.executable, "-m", "aioadept"]
-
-
-def run(*args: str, timeout: float = 60, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([*AIOADEPT, *args], capture_output=True, text=True, timeout=timeout, cwd=cwd)
+from cliinproc import AIOADEPT, run_inproc
+from cliinproc import run_real as run
 
 
 def one_error_line(proc: subprocess.CompletedProcess[str]) -> str:
@@ -49,7 +46,8 @@ def test_a_config_mistake_is_one_line_naming_file_and_key_with_exit_2(tmp_path, 
     cfg = tmp_path / "cell.toml"
     cfg.write_text(text)
     out = [] if command == "vision" else ["--out", str(tmp_path / "runs")]  # the node has no run folder
-    proc = run(command, "--config", str(cfg), *out, cwd=tmp_path)
+    runner = run if (command, case) == ("demo", "unknown_key") else run_inproc
+    proc = runner(command, "--config", str(cfg), *out, cwd=tmp_path)
     assert proc.returncode == 2, proc.stdout + proc.stderr
     line = one_error_line(proc)
     assert line.startswith(f"aioadept {command}: {cfg}"), line
@@ -61,7 +59,8 @@ def test_a_config_mistake_is_one_line_naming_file_and_key_with_exit_2(tmp_path, 
 @pytest.mark.timeout(60)
 @pytest.mark.parametrize("command", ["demo", "focus", "experiment", "vision"])
 def test_a_missing_config_file_is_one_line(tmp_path, command):
-    proc = run(command, "--config", str(tmp_path / "nope.toml"), cwd=tmp_path)
+    runner = run if command == "focus" else run_inproc
+    proc = runner(command, "--config", str(tmp_path / "nope.toml"), cwd=tmp_path)
     assert proc.returncode == 2
     assert one_error_line(proc) == f"aioadept {command}: {tmp_path / 'nope.toml'}: no such file"
 
@@ -70,7 +69,7 @@ def test_a_missing_config_file_is_one_line(tmp_path, command):
 def test_verbose_shows_the_traceback_of_a_config_mistake(tmp_path):
     cfg = tmp_path / "cell.toml"
     cfg.write_text('[focus]\ndelta_z_mm = "2.0"\n')
-    proc = run("focus", "--config", str(cfg), "-v", cwd=tmp_path)
+    proc = run_inproc("focus", "--config", str(cfg), "-v", cwd=tmp_path)
     assert proc.returncode == 2
     assert "Traceback" in proc.stderr and "ConfigError" in proc.stderr
     assert proc.stderr.rstrip().splitlines()[-1].startswith(f"aioadept focus: {cfg}")
@@ -80,7 +79,7 @@ def test_verbose_shows_the_traceback_of_a_config_mistake(tmp_path):
 def test_vision_config_mistakes_use_the_same_reader(tmp_path):
     cfg = tmp_path / "vision.toml"
     cfg.write_text("fps = \n")
-    proc = run("vision", "--config", str(cfg), cwd=tmp_path)
+    proc = run_inproc("vision", "--config", str(cfg), cwd=tmp_path)
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
     assert f"{cfg}: not valid TOML" in proc.stderr and "line 1" in proc.stderr
@@ -227,7 +226,8 @@ def test_send_goes_on_with_a_server_that_answers_hello_with_unknown_skill():
 @pytest.mark.timeout(30)
 @pytest.mark.parametrize("address", ["127.0.0.1:abc", "127.0.0.1:99999", "127.0.0.1:"])
 def test_focus_robot_address_mistake_is_one_line(tmp_path, address):
-    proc = run("focus", "--robot", address, "--out", str(tmp_path / "runs"), cwd=tmp_path)
+    runner = run if address == "127.0.0.1:abc" else run_inproc
+    proc = runner("focus", "--robot", address, "--out", str(tmp_path / "runs"), cwd=tmp_path)
     assert proc.returncode == 2
     line = one_error_line(proc)
     assert "HOST[:PORT]" in line and address in line
@@ -254,7 +254,7 @@ def test_send_with_arguments_as_separate_words_shows_the_right_form():
 
 @pytest.mark.timeout(30)
 def test_send_with_a_bad_skill_name_shows_an_example():
-    proc = run("send", "Move_To:1,2")
+    proc = run_inproc("send", "Move_To:1,2")
     assert proc.returncode == 2
     line = one_error_line(proc)
     assert "e.g. 'aioadept send move_to:300,0,500,0,180,0 break'" in line
