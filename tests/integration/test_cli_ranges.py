@@ -1,7 +1,8 @@
 """A value out of range never starts a run: every option and cell-file value is checked before
 anything starts (exit 2, one line on stderr, no run folder), and ``--help`` quotes the range the check enforces.
 
-The commands run as a user runs them (``python -m aioadept`` in a subprocess).
+The commands run as a user runs them (``python -m aioadept`` in a subprocess): one row of each table so, the other
+rows in this process (tests/integration/cliinproc.py), the same assertions on the exit status and stderr.
 """
 
 from __future__ import annotations
@@ -9,7 +10,6 @@ from __future__ import annotations
 import argparse
 import asyncio
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -20,11 +20,8 @@ from aioadept.configfile import Range, range_of
 from aioadept.errors import ConfigError
 from aioadept.vision.options import VisionOptions
 
-AIOADEPT = [sys.executable, "-m", "aioadept"]
-
-
-def run(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([*AIOADEPT, *args], capture_output=True, text=True, timeout=60, cwd=cwd)
+from cliinproc import run_inproc
+from cliinproc import run_real as run
 
 
 def one_line(proc: subprocess.CompletedProcess[str]) -> str:
@@ -49,7 +46,8 @@ BAD_OPTIONS = [
 @pytest.mark.parametrize("command", ["demo", "focus"])
 @pytest.mark.parametrize(("option", "message"), BAD_OPTIONS, ids=lambda v: " ".join(v) if isinstance(v, list) else "")
 def test_a_value_out_of_range_is_one_line_exit_2_and_no_run_folder(tmp_path, command, option, message):
-    proc = run(command, *option, "--out", str(tmp_path / "runs"), cwd=tmp_path)
+    runner = run if (command, option) == ("demo", ["--delta-z", "0"]) else run_inproc
+    proc = runner(command, *option, "--out", str(tmp_path / "runs"), cwd=tmp_path)
     assert proc.returncode == 2, proc.stdout + proc.stderr
     assert one_line(proc) == f"aioadept {command}: {message}"
     assert proc.stdout == ""
@@ -63,7 +61,8 @@ def test_a_value_out_of_range_is_one_line_exit_2_and_no_run_folder(tmp_path, com
     (["--speed", "abc"], "error: argument --speed: invalid int value: 'abc' (--speed SPEED; see aioadept demo --help)"),
 ])
 def test_demo_only_options_are_checked_too(tmp_path, option, message):
-    proc = run("demo", *option, "--out", str(tmp_path / "runs"), cwd=tmp_path)
+    runner = run if option == ["--speed", "abc"] else run_inproc  # argparse's own error, in a real process
+    proc = runner("demo", *option, "--out", str(tmp_path / "runs"), cwd=tmp_path)
     assert proc.returncode == 2
     assert one_line(proc) == f"aioadept demo: {message}"
     assert not (tmp_path / "runs").exists()
@@ -88,7 +87,8 @@ BAD_CELL_VALUES = [
 def test_a_cell_file_value_out_of_range_names_file_table_and_key(tmp_path, command, table, line, message):
     cfg = tmp_path / "cell.toml"
     cfg.write_text(f"[{table}]\n{line}\n[run]\nout_dir = \"{tmp_path / 'runs'}\"\n")
-    proc = run(command, "--config", str(cfg), "--out", str(tmp_path / "runs"), cwd=tmp_path)
+    runner = run if (command, line) == ("demo", "approach_speed = 0") else run_inproc
+    proc = runner(command, "--config", str(cfg), "--out", str(tmp_path / "runs"), cwd=tmp_path)
     assert proc.returncode == 2, proc.stdout + proc.stderr
     assert one_line(proc) == f"aioadept {command}: {cfg} [{table}]: {message}"
     assert not (tmp_path / "runs").exists()
@@ -102,7 +102,8 @@ def test_a_cell_file_value_out_of_range_names_file_table_and_key(tmp_path, comma
     (["--runs", "0"], "--runs 0: expected an integer >= 1"),
 ])
 def test_experiment_checks_every_grid_value_before_starting(tmp_path, option, message):
-    proc = run("experiment", *option, "--out", str(tmp_path / "exp"), cwd=tmp_path)
+    runner = run if option == ["--runs", "0"] else run_inproc
+    proc = runner("experiment", *option, "--out", str(tmp_path / "exp"), cwd=tmp_path)
     assert proc.returncode == 2
     assert one_line(proc) == f"aioadept experiment: {message}"
     assert not (tmp_path / "exp").exists()
@@ -110,7 +111,7 @@ def test_experiment_checks_every_grid_value_before_starting(tmp_path, option, me
 
 # ------------------------------------------------------------------------------- the help says the same range
 def _help(command: str, tmp_path: Path) -> str:
-    proc = run(command, "--help", cwd=tmp_path)
+    proc = (run if command == "demo" else run_inproc)(command, "--help", cwd=tmp_path)
     assert proc.returncode == 0
     return " ".join(proc.stdout.split())
 
