@@ -128,3 +128,13 @@ def test_a_breakpoint_in_a_loop_with_a_label_stops_there(tmp_path):
         d.resume(0)
     emu.run(5.0, until=lambda: "m" in emu.globals and emu.globals["m"] == 3.0 and 0 not in d.stopped)
     assert seen == [(6, 1.0), (6, 3.0)]                          # n = 2 jumped over it
+
+
+def test_blocks_nested_too_deep_for_the_emulator_are_a_problem_not_a_crash():
+    depth = 6                                   # six labelled loops: four Python blocks each, over Python's 20
+    body = "".join(f"\tx{i} = 0\n" for i in range(depth))
+    for i in range(depth):
+        body += f"\tWHILE x{i} < 1 DO\n\t\tx{i} = x{i}+1\n\t\tIF x{i} < 0 GOTO {10 + i}\n{10 + i}\n"
+    body += "\tEND\n" * depth
+    assert problems(body) == [(1, "blocks nested too deep for the emulator (Python: too many statically nested "
+                                  "blocks)")]

@@ -217,7 +217,14 @@ class Runtime:
             hit = _COMPILED.get(key)
             if hit is None:
                 src, consts, problems = compile_program(prog, doubles, traced=traced)
-                code = None if problems else compile(src, f"<V+ {prog.name} ({prog.file})>", "exec")
+                try:
+                    code = None if problems else compile(src, f"<V+ {prog.name} ({prog.file})>", "exec")
+                except SyntaxError as exc:
+                    # Python's limit of 20 nested blocks: each V+ loop is one or two, a loop whose body holds
+                    # labels four (compiler module doc); a program nested deeper does not run, and says why
+                    code, problems = None, [LoadProblem(
+                        prog.file, prog.line, f"blocks nested too deep for the emulator (Python: {exc.msg})",
+                        prog.name, prog.name)]
                 if len(_COMPILED) >= 4096:
                     _COMPILED.clear()
                 hit = _COMPILED[key] = (code, consts, problems)
