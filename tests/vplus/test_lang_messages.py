@@ -46,7 +46,7 @@ def test_a_monitor_command_in_a_program_is_named_as_such():
 
 
 @pytest.mark.parametrize("expr, what", [("FOOBAR(1)", "not a V+ function"),
-                                        ("TRANSB($s, 1)", "not implemented by the emulator")])
+                                        ("LATCHED(1)", "not implemented by the emulator")])
 def test_functions_tell_a_typo_from_a_gap(expr, what):
     [p] = problems_of(f"y = {expr}")
     assert what in p.message and p.line == 3
