@@ -1,21 +1,17 @@
 """``--mode sweep`` and the sweep's cell values are checked before anything starts: exit 2, one line on
-stderr naming the file, table and key (or the option), no run folder. The commands run as a user runs them."""
+stderr naming the file, table and key (or the option), no run folder. The commands run as a user runs them (``python -m aioadept``), one row of each table so and the
+others in this process (tests/integration/cliinproc.py), the same assertions on the exit status and stderr."""
 
 from __future__ import annotations
 
 import subprocess
-import sys
-from pathlib import Path
 
 import pytest
 
-AIOADEPT = [sys.executable, "-m", "aioadept"]
+from cliinproc import run_inproc
+from cliinproc import run_real as run
 
 pytestmark = pytest.mark.timeout(60)
-
-
-def run(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([*AIOADEPT, *args], capture_output=True, text=True, timeout=60, cwd=cwd)
 
 
 def one_line(proc: subprocess.CompletedProcess[str]) -> str:
@@ -40,7 +36,8 @@ BAD_SWEEP_VALUES = [
 def test_a_sweep_value_out_of_range_names_file_table_and_key(tmp_path, command, line, message):
     cfg = tmp_path / "cell.toml"
     cfg.write_text(f"[focus]\n{line}\n")
-    proc = run(command, "--config", str(cfg), "--out", str(tmp_path / "runs"), cwd=tmp_path)
+    runner = run if (command, line) == ("demo", 'mode = "fast"') else run_inproc
+    proc = runner(command, "--config", str(cfg), "--out", str(tmp_path / "runs"), cwd=tmp_path)
     assert proc.returncode == 2, proc.stdout + proc.stderr
     assert one_line(proc) == f"aioadept {command}: {cfg} [focus]: {message}"
     assert not (tmp_path / "runs").exists()
@@ -50,7 +47,8 @@ def test_a_sweep_value_out_of_range_names_file_table_and_key(tmp_path, command, 
 def test_an_exposure_too_long_for_a_sweep_is_refused_from_the_file_and_from_the_option(tmp_path, command):
     cfg = tmp_path / "cell.toml"
     cfg.write_text("[vision]\nexposure_ms = 200.0\n")
-    proc = run(command, "--config", str(cfg), "--mode", "sweep", "--out", str(tmp_path / "runs"), cwd=tmp_path)
+    runner = run if command == "demo" else run_inproc
+    proc = runner(command, "--config", str(cfg), "--mode", "sweep", "--out", str(tmp_path / "runs"), cwd=tmp_path)
     assert proc.returncode == 2, proc.stdout + proc.stderr
     line = one_line(proc)
     assert line.startswith(f"aioadept {command}: max_blur_fraction = 0.34 of depth_of_field_mm = 3 with "
@@ -58,10 +56,10 @@ def test_an_exposure_too_long_for_a_sweep_is_refused_from_the_file_and_from_the_
     assert line.endswith('use mode = "stepwise"')
     assert not (tmp_path / "runs").exists()
     cfg.write_text("[vision]\nexposure_ms = 200.0\n[focus]\nmode = \"sweep\"\n")
-    proc = run(command, "--config", str(cfg), "--out", str(tmp_path / "runs"), cwd=tmp_path)
+    proc = runner(command, "--config", str(cfg), "--out", str(tmp_path / "runs"), cwd=tmp_path)
     assert proc.returncode == 2 and one_line(proc).startswith(f"aioadept {command}: max_blur_fraction = 0.34")
     # The stepwise loop has no blur budget: the same file with --mode stepwise gets past the checks (and then
-    # fails to connect, exit 1, in focus: nothing runs there).
+    # fails to connect, exit 1, in focus: nothing runs there; a real process, as it gets as far as connecting).
     if command == "focus":
         proc = run(command, "--config", str(cfg), "--mode", "stepwise", "--robot", "127.0.0.1:9",
                    "--out", str(tmp_path / "runs"), cwd=tmp_path)
@@ -69,7 +67,7 @@ def test_an_exposure_too_long_for_a_sweep_is_refused_from_the_file_and_from_the_
 
 
 def test_a_sim_too_fast_for_the_sweep_says_so(tmp_path):
-    proc = run("demo", "--mode", "sweep", "--time-scale", "50", "--out", str(tmp_path / "runs"), cwd=tmp_path)
+    proc = run_inproc("demo", "--mode", "sweep", "--time-scale", "50", "--out", str(tmp_path / "runs"), cwd=tmp_path)
     assert proc.returncode == 2
     assert "at time_scale 50" in one_line(proc)
     assert not (tmp_path / "runs").exists()
@@ -77,8 +75,9 @@ def test_a_sim_too_fast_for_the_sweep_says_so(tmp_path):
 
 @pytest.mark.parametrize("command", ["demo", "focus"])
 def test_an_unknown_mode_is_one_line(tmp_path, command):
-    proc = run(command, "--mode", "fast", cwd=tmp_path)
+    runner = run if command == "demo" else run_inproc
+    proc = runner(command, "--mode", "fast", cwd=tmp_path)
     assert proc.returncode == 2
     assert "--mode" in one_line(proc) and "'fast'" in proc.stderr
-    help_text = " ".join(run(command, "--help", cwd=tmp_path).stdout.split())
+    help_text = " ".join(runner(command, "--help", cwd=tmp_path).stdout.split())
     assert "--mode {stepwise,sweep}" in help_text
