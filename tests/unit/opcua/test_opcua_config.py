@@ -81,3 +81,20 @@ def test_with_robots_entries_a_robot_option_on_the_command_line_is_refused_in_on
     cell.write_text('[opcua]\nendpoint = "opc.tcp://0.0.0.0:4840"\n[robot]\nport = 1301\n')
     assert main(["--config", str(cell)]) == 2
     assert "0.0.0.0 is not loopback" in capsys.readouterr().err
+
+
+def test_the_command_line_names_the_arm_and_overrides_the_file_s_robot(tmp_path) -> None:
+    from aioadept.cli.opcua import build_parser, robot_plans
+
+    parser = build_parser()
+    (r,) = robot_plans(parser, parser.parse_args(["--robot-model", "cobra-s600", "--serial-number", "C1"]))
+    assert (r.identity.axes, r.identity.model, r.identity.category, r.identity.serial_number) == \
+        (4, "Cobra s600", MotionDeviceCategory.SCARA_ROBOT, "C1")
+    (r,) = robot_plans(parser, parser.parse_args([]))   # no arm named: six axes, Model and category not known
+    assert (r.identity.axes, r.identity.model, r.identity.category) == (6, "", None)
+    cell = tmp_path / "cell.toml"
+    cell.write_text('[robot]\nmodel = "cobra-s800"\nport = 1301\n[opcua]\nname = "c8"\nsecurity = ["sign"]\n')
+    args = parser.parse_args(["--config", str(cell), "--robot-model", "viper-s650", "--robot", "10.1.1.1:1400"])
+    (r,) = robot_plans(parser, args)
+    assert (r.name, r.host, r.port, r.identity.axes, r.identity.model) == ("c8", "10.1.1.1", 1400, 6, "Viper s650")
+    assert args.security == "sign"
