@@ -1,19 +1,21 @@
-"""Every subcommand's ``--help`` reads as plain text: no reST markup, and each option's default said once."""
+"""Every subcommand's ``--help`` reads as plain text: no reST markup, and each option's default said once.
+
+``aioadept sim --help`` runs as a real ``python -m aioadept`` process, the others in this process
+(tests/integration/cliinproc.py): the same exit status and text."""
 
 from __future__ import annotations
 
 import re
-import subprocess
-import sys
 
 import pytest
 
 from aioadept.cli import SUBCOMMANDS
 
+from cliinproc import run_inproc, run_real
+
 
 def _help(name: str) -> str:
-    proc = subprocess.run([sys.executable, "-m", "aioadept", name, "--help"], capture_output=True, text=True,
-                          timeout=60)
+    proc = (run_real if name == "sim" else run_inproc)(name, "--help")
     assert proc.returncode == 0, proc.stderr
     return proc.stdout
 
