@@ -3,6 +3,7 @@ processes on 127.0.0.1, the OPC UA server on a free port."""
 
 from __future__ import annotations
 
+import asyncio
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from dataclasses import dataclass
@@ -57,11 +58,10 @@ async def opcua_cell_file(tmp_path: Path, models: dict[str, str], opcua_table: s
 
     url = f"opc.tcp://127.0.0.1:{free_port()}"
     async with AsyncExitStack() as stack:
-        sims = {}
-        for name, model in models.items():
-            sims[name] = await stack.enter_async_context(running_node(
-                "sim", "--port", "0", "--state-rate", "50", "--state-endpoint", "tcp://127.0.0.1:0", "--robot-model",
-                model, log_path=tmp_path / f"sim-{name}.log"))
+        started = await asyncio.gather(*(stack.enter_async_context(running_node(
+            "sim", "--port", "0", "--state-rate", "50", "--state-endpoint", "tcp://127.0.0.1:0", "--robot-model",
+            model, log_path=tmp_path / f"sim-{name}.log")) for name, model in models.items()))  # at once
+        sims = dict(zip(models, started))
         entries = "".join(f'\n[[robots]]\nname = "{name}"\nmodel = "{models[name]}"\nport = {sim.ready["port"]}\n'
                           f'state_endpoint = "{sim.ready["state"]}"\n' for name, sim in sims.items())
         config = tmp_path / "cell.toml"
