@@ -9,7 +9,7 @@ import json
 import re
 from pathlib import Path
 
-from aioadept.vplus import dap, keywords, lsp
+from aioadept.vplus import daplaunch, keywords, lsp
 
 ROOT = Path(__file__).resolve().parents[2]
 VSCODE = ROOT / "editors" / "vscode"
@@ -45,9 +45,9 @@ def test_the_extension_launches_what_the_debug_adapter_reads_and_opens_what_the_
     contributes = pkg["contributes"]
     debugger, = contributes["debuggers"]
     assert debugger["type"] == "vplus"
-    assert set(debugger["configurationAttributes"]["launch"]["properties"]) == dap.LAUNCH_KEYS
+    assert set(debugger["configurationAttributes"]["launch"]["properties"]) == daplaunch.LAUNCH_KEYS
     for config in debugger["initialConfigurations"]:
-        assert set(config) - {"type", "request", "name"} <= dap.LAUNCH_KEYS
+        assert set(config) - {"type", "request", "name"} <= daplaunch.LAUNCH_KEYS
     language, = contributes["languages"]
     assert {e.lower() for e in language["extensions"]} == set(lsp.SUFFIXES)
     assert contributes["grammars"][0]["path"] == "./syntaxes/vplus.tmLanguage.json"
