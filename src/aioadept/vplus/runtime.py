@@ -128,6 +128,10 @@ class Task:
 class Runtime:
     """Global data, compiled programs and tasks. Built by :class:`aioadept.vplus.Emulator`."""
 
+    on_new: list[Callable[[Runtime], None]] = []
+    """Called with every runtime made from now on in this process, its programs compiled and no task started: where
+    a tool attaches a tracer (``set_tracer``) to each (V+ line coverage, aioadept.vplus.coverage_plugin)."""
+
     def __init__(self, module: Module, *, clock: Any = None, cycle_s: float = 0.016, slice_s: float = 0.001,
                  console: Callable[[int, str], None] | None = None, robot: Any = None,
                  storage_limit: int = STORAGE_LIMIT) -> None:
@@ -170,6 +174,8 @@ class Runtime:
         self._trace_lines: dict[str, Any] = {}
         self._load_data()
         self.compile_all()
+        for hook in Runtime.on_new:
+            hook(self)
 
     # -- loading ------------------------------------------------------------------------------------------
     def _load_data(self) -> None:

@@ -10,6 +10,9 @@ FOR head) it runs::
 so the hook costs two tests per statement until it fires, and every AUTO variable lives in the call's ``L`` dict
 (not a Python local), where a debugger reads and sets it.
 
+To trace every runtime a process makes (a line-coverage tool), append a function to ``Runtime.on_new``: it is
+called with each new runtime, its programs compiled and no task started, and may call ``set_tracer`` there.
+
 **The tracer API** (any object with these two methods)::
 
     tracer.line(task: Task, frame: Frame) -> None
