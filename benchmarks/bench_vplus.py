@@ -6,8 +6,7 @@ Three figures, each against a baseline measured in the same run (prints one JSON
   FOR step and three assignments) in the emulator vs the same loop in plain Python. Goal: >= 1 M statements/s.
 - **here round trip**: ``aioadept sim --vplus vplus/rserver.V2 vplus/rsskills.V2 vplus/rsconfig.V2 --run rs.main``
   vs ``aioadept sim`` (the Python skill table), both child processes, this process the client: write ``ID:here``,
-  read its ack, one after another. Goal: p50 of the emulated server <= 1.5x the Python sim's (issue 34 item 7;
-  it was <= 2).
+  read its ack, one after another. Goal: p50 of the emulated server <= 1.5x the Python sim's.
 - **stop**: the shipped server in the emulator in this process, a J1 move at speed and a ``stop`` from another
   client: ms from the stop written to ``BRAKE`` acting on the arm, and where the rest of the way to the
   ``break``'s ``aborted`` ack goes (the deceleration, the BREAK's wake-up); baseline: the Python sim's stop ->

@@ -50,7 +50,7 @@ SWITCH_INTERVAL_S = 0.0005
 """The interpreter's GIL switch interval while a recording runs (Python's default is 5 ms). The worker thread holds
 the GIL in bursts (conversion, kinematics, Rerun's logging calls); with 5 ms, a response arriving during a burst
 waits up to 5 ms before the event loop may even read it, more when the worker is niced and preempted. Measured
-with ``aioadept demo --fast`` (issue 12 H.5): the response's way back (sent by the node -> received by the MCN)
+with ``aioadept demo --fast``: the response's way back (sent by the node -> received by the MCN)
 reached 7-15 ms per run with the default, 0.8-3 ms with 0.5 ms."""
 
 _switch_lock = threading.Lock()
@@ -117,7 +117,7 @@ class RunRecording:
         self.rec = rr.RecordingStream(APP_ID, recording_id=str(uuid.uuid4()))
         sinks: list[Any] = []
         # The file is written under a temporary name and renamed to ``rrd_path`` by close() once complete: a full
-        # disk used to leave a truncated run.rrd under its final name (issue 18, item 8).
+        # disk then leaves no truncated run.rrd under its final name.
         self._rrd_tmp = None if self.rrd_path is None else self.rrd_path.with_name(
             f".{self.rrd_path.name}.{os.getpid()}.tmp")
         if self.rrd_path is not None:
@@ -304,7 +304,7 @@ class RunRecording:
                 lg.response(obj.id, obj.event_type, attrs, obj.t_recv_s, t_send_loop_s=obj.t_send_s)
                 if self.viewer_url is None:
                     # Only a file: the frame (PNG decode, downsampling, encoding: ~10 ms of CPU) can wait for
-                    # close(), so it does not compete with the focus loop for the cores (issue 12 H.5).
+                    # close(), so it does not compete with the focus loop for the cores.
                     self._deferred_frames.append((attrs, step))
                 else:
                     self._frame(attrs, step)

@@ -220,7 +220,7 @@ class CellLogger:
             return None
 
     def _line_target(self, skill: str, args: Sequence[Any]) -> Pose | None:
-        """The target of a straight-line or approach skill (issue 19; docs/protocol.md 4.3.1), else None. An
+        """The target of a straight-line or approach skill (docs/protocol.md 4.3.1), else None. An
         approach or depart distance d is along -Z of the tool (V+ ``APPRO``/``DEPART``): ``pose:TRANS(0,0,-d)``."""
         try:
             vals = [float(a) for a in args]

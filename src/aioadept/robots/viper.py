@@ -15,8 +15,8 @@ In the V+ convention the chain factors as
     flange = wrist + d6 · R[:, 2]
 
 which is ViSP's closed-form ``get_fMe`` written compactly. Home ``[0, -90, 180, 0, 90, 0]`` gives, on the s850,
-``(480, 0, 710, 0, 180, 0)``: upper arm vertical, forearm horizontal, tool pointing down - the pose in the real ack
-quoted in FACTS.md. The wrist is spherical, so the inverse is closed form: position of the wrist centre gives
+``(480, 0, 710, 0, 180, 0)``: upper arm vertical, forearm horizontal, tool pointing down - the pose of
+the acks in docs/protocol.md. The wrist is spherical, so the inverse is closed form: position of the wrist centre gives
 j1..j3 (two shoulder and two elbow solutions), the remaining rotation gives j4..j6 as Z-Y-Z angles (two wrist
 solutions), and J4/J6 may add multiples of 360 deg within their limits.
 

@@ -1,7 +1,7 @@
 """V+ errors raised by emulated programs, and the one table of their codes and texts.
 
 The V+ manuals list error codes in the range -300..-1300 with texts such as ``*Undefined value*``. Several exact
-numbers could not be confirmed (FACTS.md); they are kept here only, so that a correction is one line. Robot
+numbers could not be confirmed (docs/vplus.md lists them); they are kept here only, so that a correction is one line. Robot
 errors carry the codes of :class:`aioadept.protocol.ErrorCode` (the sim's table), so that an error ack built from a
 V+ error reads the same as the Python sim's.
 """

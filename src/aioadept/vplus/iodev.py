@@ -6,7 +6,7 @@ A disk LUN (``ATTACH (lun, 4) "DISK"``) is :mod:`aioadept.vplus.disk`'s: READ, W
 buffers, no-wait writes and closing one client all share its connection table. Seam for a split: ``Network``'s
 fault injection.)
 
-TCP follows the V+ TCP/IP usage of the original AdeptServer (FACTS.md):
+TCP follows the V+ TCP/IP usage of the original AdeptServer (docs/vplus.md, Sources):
 
 - ``ATTACH (lun, 4) "TCP"`` attaches the TCP device; mode 4 picks a free logical unit and returns it in ``lun``.
 - ``FOPEN (lun, 16) "/LOCAL_PORT n /CLIENTS k /BUFFER_SIZE b"`` opens a server socket; ``"/REMOTE_IP a.b.c.d

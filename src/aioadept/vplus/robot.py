@@ -80,7 +80,7 @@ VPLUS_ERRORS: dict[str, RobotErrorSpec] = {
     # The robot's errors, keyed by what went wrong. Numbers come from the emulator's one code table
     # (aioadept.vplus.errors), which reuses aioadept.protocol.ErrorCode where the meaning is the same, so that the
     # emulated server and the Python sim answer the same code. None could be confirmed against a controller or
-    # the manuals' error list (FACTS.md); "attached" and "config" have no entry there yet and are ours.
+    # the manuals' error list (docs/vplus.md); "attached" and "config" have no entry there yet and are ours.
     "out_of_range": RobotErrorSpec(int(ErrorCode.OUT_OF_REACH), "*Location out of range*"),
     "joint_limit": RobotErrorSpec(int(ErrorCode.JOINT_LIMIT), "*Joint limit*"),
     "config": RobotErrorSpec(int(ErrorCode.OUT_OF_REACH), "*Cannot reach configuration*"),
