@@ -14,7 +14,7 @@ import pytest
 from aioadept.protocol import ErrorCode, Status, parse_ack
 from aioadept.vplus import Emulator, VPlusError
 
-ROOT = Path(__file__).resolve().parents[3]
+ROOT = Path(__file__).resolve().parents[2]
 FILES = [ROOT / "vplus" / f for f in ("rserver.V2", "rsskills.V2", "rsconfig.V2")]
 
 

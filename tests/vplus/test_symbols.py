@@ -6,7 +6,7 @@ from pathlib import Path
 
 from aioadept.vplus.symbols import LABEL, PROGRAM, USE, VARIABLE, Workspace
 
-ROOT = Path(__file__).resolve().parents[3]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _workspace(*globs: str) -> Workspace:

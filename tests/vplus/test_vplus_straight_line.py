@@ -1,6 +1,6 @@
 """The emulator's MOVES, APPROS, DEPARTS on the controller's one straight-line model: the tool stays on
 the line, a line through a singularity is a V+ error before anything moves, BRAKE stops on the line, DRY.RUN
-checks the line. Fake time loop, as tests/unit/vplus/test_vplus_robot.py."""
+checks the line. Fake time loop, as tests/vplus/test_vplus_robot.py."""
 
 from __future__ import annotations
 
