@@ -6,13 +6,9 @@ from __future__ import annotations
 
 import pytest
 
-from aioadept.vplus import Emulator, VPlusError
+from aioadept.vplus import VPlusError
 from aioadept.vplus.compiler import _local, compile_program, vplus_name
 from aioadept.vplus.loader import Module, load_text
-
-
-def emu_of(src: str) -> Emulator:
-    return Emulator.from_source(src, filename="t.V2", robot=False)
 
 
 def source_of(src: str, name: str) -> str:
@@ -22,7 +18,7 @@ def source_of(src: str, name: str) -> str:
     return code
 
 
-def test_an_auto_passed_by_reference_is_written_by_the_callee():
+def test_an_auto_passed_by_reference_is_written_by_the_callee(emu_of):
     src = """.PROGRAM p()
 	AUTO a, b, $s
 	a = 1
@@ -48,7 +44,7 @@ def test_an_auto_passed_by_reference_is_written_by_the_callee():
     assert "(L, 'a')" in code and "(L, 'b')" in code     # passed on by reference: kept in L
 
 
-def test_an_auto_passed_twice_is_one_variable_in_the_callee():
+def test_an_auto_passed_twice_is_one_variable_in_the_callee(emu_of):
     emu = emu_of(""".PROGRAM p()
 	AUTO a
 	a = 1
@@ -69,7 +65,7 @@ def test_autos_not_passed_on_are_python_locals():
     assert "L['i']" not in code and "L['c']" not in code and _local("c") in code
 
 
-def test_locals_survive_goto_segments():
+def test_locals_survive_goto_segments(emu_of):
     emu = emu_of(""".PROGRAM p()
 	AUTO i, s
 	i = 0
@@ -86,7 +82,7 @@ def test_locals_survive_goto_segments():
     assert emu.globals["r"] == 15.0
 
 
-def test_reacte_handler_returns_and_the_program_reads_its_locals():
+def test_reacte_handler_returns_and_the_program_reads_its_locals(emu_of):
     emu = emu_of(""".PROGRAM p()
 	AUTO a, $t
 	a = 4
@@ -107,21 +103,21 @@ def test_reacte_handler_returns_and_the_program_reads_its_locals():
     assert (emu.globals["r"], emu.globals["$r"], emu.globals["seen"]) == (8.0, "kept", 1.0)
 
 
-def test_an_undefined_auto_is_an_undefined_value_with_its_name():
+def test_an_undefined_auto_is_an_undefined_value_with_its_name(emu_of):
     emu = emu_of(".PROGRAM p()\n\tAUTO $id.x, n\n\tn = 1\n\tr = LEN($id.x)\n.END\n")
     with pytest.raises(VPlusError) as info:
         emu.call("p")
     assert "*Undefined value* $id.x" in str(info.value) and info.value.line == 4
 
 
-def test_an_undefined_auto_caught_by_reacte_resumes():
+def test_an_undefined_auto_caught_by_reacte_resumes(emu_of):
     emu = emu_of(".PROGRAM p()\n\tAUTO u\n\tREACTE h\n\tr = u+1\n\tr = 2\n.END\n"
                  ".PROGRAM h()\n\tc = ERROR(-1, 0)\n\tRETURNE\n.END\n")
     emu.call("p")
     assert emu.globals["r"] == 2.0 and emu.globals["c"] < 0
 
 
-def test_defined_and_decode_of_autos():
+def test_defined_and_decode_of_autos(emu_of):
     emu = emu_of(""".PROGRAM p()
 	AUTO a, $l, $w
 	d1 = DEFINED(a)
@@ -144,7 +140,7 @@ def test_local_names_map_back_one_to_one():
     assert _local("x_d") != _local("x.d")
 
 
-def test_compiled_encode_matches_the_general_formatter():
+def test_compiled_encode_matches_the_general_formatter(emu_of):
     emu = emu_of(""".PROGRAM p()
 	AUTO v
 	v = -0.0375
@@ -157,14 +153,14 @@ def test_compiled_encode_matches_the_general_formatter():
     assert emu.globals["$b"] == "str-0.038"
 
 
-def test_encode_with_an_unknown_format_fails_when_it_runs():
+def test_encode_with_an_unknown_format_fails_when_it_runs(emu_of):
     emu = emu_of(".PROGRAM p()\n\t$a = $ENCODE(/Q3, 1)\n.END\n")
     with pytest.raises(VPlusError) as info:
         emu.call("p")
     assert "format" in str(info.value)
 
 
-def test_array_indices_fractional_and_negative():
+def test_array_indices_fractional_and_negative(emu_of):
     # a fractional index is rounded (V+ Language User's Guide v17, p. 102): a[2.4] is a[2] (a[2.7] would be a[3])
     emu = emu_of(".PROGRAM p()\n\ta[2] = 5\n\tr = a[2.4]\n\ti = 5000\n\tb[i] = 1\n\tr2 = b[5000]\n\tq = a[-1]\n.END\n")
     with pytest.raises(VPlusError) as info:

@@ -12,14 +12,10 @@ from __future__ import annotations
 
 import pytest
 
-from aioadept.vplus import Emulator, VPlusError
+from aioadept.vplus import VPlusError
 
 
-def emu_of(src: str) -> Emulator:
-    return Emulator.from_source(src, filename="args.V2", robot=False, strict=True)
-
-
-def test_an_array_index_is_rounded_not_truncated():
+def test_an_array_index_is_rounded_not_truncated(emu_of):
     emu = emu_of(".PROGRAM p()\n\ta[1.6] = 5\n\ti = 2.4\n\tb[i] = 7\n\tj = 0.5\n\tc[j] = 1\n"
                  "\tx = a[i-0.2]\n\tDECOMPOSE d[0.7] = TRANS(1,2,3,0,0,0)\n.END\n")
     emu.call("p")
@@ -32,19 +28,19 @@ def test_an_array_index_is_rounded_not_truncated():
     ('$CHR(65.6)', "B"), ('$CHR(65.4)', "A"), ('$MID("abcdef", 1.6, 2.5)', "bcd"),
     ('$CHR(ASC("abc", 1.5)+0.5)', "c"), ('$LEFT("abcdef", 2.5)', "abc"), ('$RIGHT("abcdef", 1.7)', "ef"),
 ])
-def test_string_functions_round_their_integer_arguments(expr, want):
+def test_string_functions_round_their_integer_arguments(emu_of, expr, want):
     emu = emu_of(f".PROGRAM p()\n\t$s = {expr}\n.END\n")
     emu.call("p")
     assert emu.globals["$s"] == want
 
 
-def test_pos_rounds_its_start():
+def test_pos_rounds_its_start(emu_of):
     emu = emu_of('.PROGRAM p()\n\tn = POS("abcabc", "a", 1.6)\n.END\n')
     emu.call("p")
     assert emu.globals["n"] == 4.0
 
 
-def test_a_negative_index_after_rounding_is_an_error():
+def test_a_negative_index_after_rounding_is_an_error(emu_of):
     emu = emu_of(".PROGRAM p()\n\ti = -0.6\n\ta[i] = 1\n.END\n")
     with pytest.raises(VPlusError) as info:
         emu.call("p")
@@ -63,7 +59,7 @@ SUB = """.PROGRAM sub(a, b, c, q[])
 """
 
 
-def test_blank_and_omitted_arguments_are_undefined_in_the_callee_every_call():
+def test_blank_and_omitted_arguments_are_undefined_in_the_callee_every_call(emu_of):
     emu = emu_of(".PROGRAM p()\n\tx = 1\n\tCALL sub(x, , x)\n\tr1 = da*1000+db*100+dc*10+dq\n"
                  "\tCALL sub(x)\n\tr2 = da*1000+db*100+dc*10+dq\n\tCALL sub(, x)\n\tr3 = da*1000+db*100+dc*10+dq\n"
                  ".END\n" + SUB)
@@ -74,14 +70,14 @@ def test_blank_and_omitted_arguments_are_undefined_in_the_callee_every_call():
     assert g["x"] == 1.0      # the callee's write to its undefined b went nowhere
 
 
-def test_reading_an_omitted_argument_is_undefined_value_naming_it():
+def test_reading_an_omitted_argument_is_undefined_value_naming_it(emu_of):
     emu = emu_of(".PROGRAM p()\n\tCALL s2()\n.END\n.PROGRAM s2(v)\n\ty = v\n.END\n")
     with pytest.raises(VPlusError) as info:
         emu.call("p")
     assert "Undefined value" in str(info.value) and " v" in str(info.value)
 
 
-def test_a_variable_in_parentheses_is_passed_by_value():
+def test_a_variable_in_parentheses_is_passed_by_value(emu_of):
     emu = emu_of('.PROGRAM p()\n\tx = 1\n\ty = 1\n\tz = 1\n\t$s = "a"\n\tCALL inc((x), y, (z)+0, $s+"")\n.END\n'
                  '.PROGRAM inc(a, b, c, $t)\n\ta = a+1\n\tb = b+1\n\tc = c+1\n\t$t = "b"\n.END\n')
     emu.call("p")
@@ -89,7 +85,7 @@ def test_a_variable_in_parentheses_is_passed_by_value():
     assert (g["x"], g["y"], g["z"], g["$s"]) == (1.0, 2.0, 1.0, "a")
 
 
-def test_a_blank_argument_of_execute_is_undefined_in_the_task():
+def test_a_blank_argument_of_execute_is_undefined_in_the_task(emu_of):
     emu = emu_of(".PROGRAM p()\n\tx = 1\n\tEXECUTE 1 sub(x, , x)\n.END\n" + SUB)
     emu.call("p")
     emu.run(0.1)
@@ -97,7 +93,7 @@ def test_a_blank_argument_of_execute_is_undefined_in_the_task():
     assert (g["da"], g["db"], g["dc"], g["dq"]) == (-1.0, 0.0, -1.0, 0.0)
 
 
-def test_defined_of_a_parameter_passed_by_value_is_true_whatever_its_value():
+def test_defined_of_a_parameter_passed_by_value_is_true_whatever_its_value(emu_of):
     emu = emu_of(".PROGRAM p()\n\tx = 1\n\tCALL sub((x), 2, x+1)\n.END\n" + SUB)
     emu.call("p")
     g = emu.globals

@@ -11,11 +11,7 @@ from aioadept.vplus import Emulator, RealClock
 from aioadept.vplus.iodev import Network
 
 
-def emu_of(src: str, **kw) -> Emulator:
-    return Emulator.from_source(src, filename="t.V2", robot=False, strict=True, **kw)
-
-
-def test_pause_stops_the_task_until_proceed():
+def test_pause_stops_the_task_until_proceed(emu_of):
     emu = emu_of(".PROGRAM p()\n\tx = 1\n\tPAUSE\n\tx = 2\n.END\n")
     emu.execute(1, "p")
     emu.run(1.0)
@@ -26,7 +22,7 @@ def test_pause_stops_the_task_until_proceed():
     assert emu.globals["x"] == 2.0 and emu.task(1).state == "done"
 
 
-def test_prompt_types_its_text_and_reads_a_number_and_a_string():
+def test_prompt_types_its_text_and_reads_a_number_and_a_string(emu_of):
     emu = emu_of('.PROGRAM p()\n\tPROMPT "n? ", n\n\tPROMPT "name? ", $s\n.END\n')
     emu.execute(1, "p")
     emu.run(0.5)
@@ -36,7 +32,7 @@ def test_prompt_types_its_text_and_reads_a_number_and_a_string():
     assert (emu.globals["n"], emu.globals["$s"]) == (42.0, "viper")
 
 
-def test_cycle_end_ends_a_looping_task_after_its_current_cycle():
+def test_cycle_end_ends_a_looping_task_after_its_current_cycle(emu_of):
     emu = emu_of(".PROGRAM p()\n\tn = n+1\n\tWAIT.EVENT 0, 0.1\n.END\n.PROGRAM q()\n\tCYCLE.END 1\n.END\n")
     emu.globals["n"] = 0
     emu.execute(1, "p", cycles=-1)                # for ever
@@ -47,7 +43,7 @@ def test_cycle_end_ends_a_looping_task_after_its_current_cycle():
     assert emu.task(1).state == "done" and emu.globals["n"] == 4.0
 
 
-def test_data_sections_load_into_globals():
+def test_data_sections_load_into_globals(emu_of):
     emu = emu_of(""".PROGRAM p()
 	x = r1+d1
 .END
@@ -76,7 +72,7 @@ $greet "hello, V+"
     assert g["x"] == pytest.approx(1.6)
 
 
-def test_abort_and_kill_a_live_task():
+def test_abort_and_kill_a_live_task(emu_of):
     emu = emu_of(".PROGRAM spin()\n\tWHILE TRUE DO\n\t\tn = n+1\n\tEND\n.END\n"
                  ".PROGRAM stopper()\n\tABORT 1\n.END\n.PROGRAM killer()\n\tKILL 1\n.END\n")
     emu.globals["n"] = 0

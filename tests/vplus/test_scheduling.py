@@ -5,14 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from aioadept.vplus import Emulator
 
-
-def emu_of(src: str) -> Emulator:
-    return Emulator.from_source(src, filename="t.V2", robot=False, strict=True)
-
-
-def test_wait_condition_wakes_when_another_task_sets_the_global_not_at_the_next_cycle():
+def test_wait_condition_wakes_when_another_task_sets_the_global_not_at_the_next_cycle(emu_of):
     emu = emu_of(""".PROGRAM waiter()
 	WAIT flag
 	t1 = TIMER(-3)
@@ -33,13 +27,13 @@ def test_wait_condition_wakes_when_another_task_sets_the_global_not_at_the_next_
     assert emu.globals["t1"] == pytest.approx(emu.globals["t2"], abs=1e-4)
 
 
-def test_wait_condition_on_time_is_re_tested_each_cycle():
+def test_wait_condition_on_time_is_re_tested_each_cycle(emu_of):
     emu = emu_of(".PROGRAM p()\n\tWAIT TIMER(-3) > 0.02\n\tt = TIMER(-3)\n.END\n")
     emu.call("p")
     assert emu.globals["t"] == pytest.approx(0.032, abs=1e-4)
 
 
-def test_set_event_wakes_wait_event_at_once_and_the_flag_is_not_lost():
+def test_set_event_wakes_wait_event_at_once_and_the_flag_is_not_lost(emu_of):
     emu = emu_of(""".PROGRAM waiter()
 	WAIT.EVENT 1, 10
 	t1 = TIMER(-3)
@@ -63,13 +57,13 @@ def test_set_event_wakes_wait_event_at_once_and_the_flag_is_not_lost():
     assert emu.globals["t3"] == pytest.approx(0.013, abs=1e-4)
 
 
-def test_wait_event_times_out_without_an_event():
+def test_wait_event_times_out_without_an_event(emu_of):
     emu = emu_of(".PROGRAM p()\n\tWAIT.EVENT 1, 0.25\n\tt = TIMER(-3)\n.END\n")
     emu.call("p")
     assert emu.globals["t"] == pytest.approx(0.25, abs=1e-4)
 
 
-def test_tasks_waiting_on_each_other_do_not_spin_and_time_moves_on():
+def test_tasks_waiting_on_each_other_do_not_spin_and_time_moves_on(emu_of):
     emu = emu_of(""".PROGRAM a()
 	WAIT b.go
 .END
@@ -90,7 +84,7 @@ def test_tasks_waiting_on_each_other_do_not_spin_and_time_moves_on():
     assert emu.task(1).state == "done" and emu.task(2).state == "done"
 
 
-def test_a_busy_task_does_not_starve_a_condition_waiter():
+def test_a_busy_task_does_not_starve_a_condition_waiter(emu_of):
     emu = emu_of(""".PROGRAM busy()
 	FOR i = 1 TO 100000
 	    n = i
