@@ -100,8 +100,8 @@ def test_a_full_disk_leaves_no_empty_file_and_names_every_output_not_written(tmp
         assert not_written, "the disk was full: something was not written"
         for name, why in not_written.items():
             assert f"{name} ({why})" in line, (name, line)
-    # run.rrd (~140 KiB here) is the first to meet the full disk: before, it was left cut short under its name.
-    assert "run.rrd" in not_written, not_written
+        # run.rrd (~140 KiB here) is the first to meet the full disk: it is named, never left cut short.
+        assert "run.rrd" in not_written, not_written
 
 
 @pytest.mark.timeout(150)
