@@ -76,7 +76,7 @@ gige: $(STAMP)
 # (tests/integration/test_demo_outputs.py) met the disk at other moments with a second test process beside them;
 # ARGS="-n 2 --dist loadfile" runs the suite in two (pytest-xdist), about 13.5 min instead of about 20 here.
 test: $(STAMP) toxiproxy chromium gige nvim
-	$(BIN)/python -m pytest -q -rfEs $(ARGS); rc=$$?; \
+	$(BIN)/python -m pytest -q -rsfE $(ARGS); rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "no tests were collected" >&2; exit 1; fi; exit $$rc
 
 # Every benchmarks/bench_*.py in turn, each JSON kept under runs/bench-*/, then one verdict table

@@ -6,7 +6,9 @@ entry, the interpreter's exit status) keeps one real-process case in each test f
 
 An exception other than SystemExit is printed as the interpreter would (a traceback, exit 1), so a test asserting
 "no traceback" fails on it. The logging setup and the signal handlers a command may change are put back, and a
-command that leaves a signal handler behind fails the test.
+command that leaves a signal handler behind fails the test. A command starts as in a fresh process with respect to
+the process-wide Zenoh session (:mod:`aioadept.bus.zenoh`): an earlier test's open session is set aside while it
+runs and put back after it.
 """
 
 from __future__ import annotations
@@ -33,6 +35,26 @@ def run_real(*args: str, cwd: Path | None = None, timeout: float = 60) -> subpro
     return subprocess.run([*AIOADEPT, *args], capture_output=True, text=True, timeout=timeout, cwd=cwd)
 
 
+_ZENOH_STATE = ("_options", "_session", "_tokens", "_announce")
+
+
+@contextlib.contextmanager
+def _fresh_zenoh_state():
+    """The process-wide Zenoh session state as a new process has it, and the earlier state back afterwards."""
+    from aioadept.bus import zenoh as zb
+
+    saved = {name: getattr(zb, name) for name in _ZENOH_STATE}
+    zb._options, zb._session, zb._tokens, zb._announce = zb.ZenohOptions(), None, [], None
+    try:
+        yield
+    finally:
+        opened = zb._session
+        for name, value in saved.items():
+            setattr(zb, name, value)
+        if opened is not None:
+            opened.close()
+
+
 def run_inproc(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
     """``aioadept ARGS`` as :func:`aioadept.cli.main` in this process: exit status, stdout and stderr."""
     root = logging.getLogger()
@@ -43,7 +65,7 @@ def run_inproc(*args: str, cwd: Path | None = None) -> subprocess.CompletedProce
     try:
         if cwd is not None:
             os.chdir(cwd)
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        with _fresh_zenoh_state(), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
             try:
                 code = main(list(args))
             except SystemExit as exc:
