@@ -1,9 +1,5 @@
 """RobotClient: the asyncio side of the robot line protocol (the paper's MasterControlNode ↔ RobotServer link).
 
-(Over 500 lines on purpose: it is one state machine, connection state, waits and the stop path, whose round-trip
-path is inlined and measured (benchmarks/bench_client.py); its pure parts already live beside it in results.py,
-registry.py and transport.py, and splitting the rest into mixins would scatter one object's state.)
-
 It sits between the commands (:mod:`aioadept.commands`, values that expand to skill calls) and the TCP connection,
 and drives the sans-IO core (:mod:`aioadept.protocol`) over asyncio::
 
@@ -37,22 +33,31 @@ How it works, and the promises it keeps:
 - Values are checked before anything is sent: timeouts (finite, > 0), ``id_start``, the commands themselves
   (:mod:`aioadept.commands`). IDs never repeat one still pending or given up, and never are ``00000000``.
 - Observers (``on_send`` / ``on_ack``, see docs/interfaces.md) get loop-clock timestamps taken at write and read.
+
+Its collaborators, each usable and tested alone: :class:`~aioadept.client.options.ClientOptions` (its settings,
+one frozen value), :class:`~aioadept.client.registry.PendingCalls` (the pending-message table, sans-IO),
+:class:`~aioadept.client.deadlines.DeadlineQueue` (the default-timeout watchdog's queue, sans-IO),
+:mod:`aioadept.client.stopport` (the stop on the stop port and its race with the main connection) and
+:mod:`aioadept.client.transport` (the asyncio transport). What stays here is the connection's state machine,
+the write and wait paths (inlined where a round trip is measured: benchmarks/bench_client.py) and the stop flow.
 """
 
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import logging
 import operator
 import secrets
 import socket
 import struct
-from collections import deque
 from collections.abc import Awaitable, Callable, Iterable, Sequence
 from itertools import chain
 from typing import Any
 
 from aioadept import defaults
+from aioadept.client.deadlines import DeadlineQueue
+from aioadept.client.options import STOP_TIMEOUT_S, ClientOptions
 from aioadept.client.registry import (
     W_TIMED_OUT as _W_TIMED_OUT,
     PendingCalls,
@@ -71,6 +76,7 @@ from aioadept.client.results import (
     SentMessage,
     _make_exec,
 )
+from aioadept.client.stopport import STOP_FAILURES, race_stop, stop_on_port
 from aioadept.client.transport import AckProtocol, loop_fns, read_loop, set_nodelay, unsent_bytes
 from aioadept.commands import Command
 from aioadept.errors import (
@@ -85,7 +91,7 @@ from aioadept.errors import (
     TooManyPending,
 )
 from aioadept.geometry import Pose
-from aioadept.protocol import HELLO_SKILL, HERE_SKILL, MAX_ACK_LINE, STOP_SKILL, SkillCall, Status, parse_ack
+from aioadept.protocol import HELLO_SKILL, HERE_SKILL, MAX_ACK_LINE, STOP_SKILL, SkillCall, Status
 from aioadept.protocol.robotstatus import STATUS_SKILL, RobotStatus, parse_status_fields
 
 __all__ = ["Connector", "RobotClient"]
@@ -99,10 +105,22 @@ _CLOSE_FLUSH_S = 1.0
 STOP_PORT_AFTER_S = 0.5
 """:meth:`RobotClient.stop` also sends the stop on the stop port when the main connection has not answered it this
 long after its write: longer than any deceleration ramp (0.1-0.2 s in the sim), far shorter than the stop timeout."""
-STOP_TIMEOUT_S = 5.0
-"""Default ``RobotClient.stop_timeout_s``: a stop is acked at rest, a deceleration ramp away (0.1-0.2 s in the sim)."""
 # Enum member lookups cost ~0.3 us each in 3.11; the hot paths compare against these module constants instead.
 _NEW, _CONNECTED, _LOST, _CLOSED = ClientState.NEW, ClientState.CONNECTED, ClientState.LOST, ClientState.CLOSED
+
+
+_DEFAULT_OPTIONS = ClientOptions()
+
+
+def _setting(name: str, doc: str) -> property:
+    """A setting of the client, read from and written to its :class:`ClientOptions` (checked on every write)."""
+    def get(self: RobotClient) -> Any:
+        return getattr(self._options, name)
+
+    def set_(self: RobotClient, value: Any) -> None:
+        self._set_option(name, value)
+
+    return property(get, set_, doc=doc)
 
 
 # ---------------------------------------------------------------------------------------------------- client
@@ -161,42 +179,29 @@ class RobotClient:
                  id_start: int | None = None, auto_reconnect: bool = False,
                  connector: Connector | None = None, max_line: int = MAX_ACK_LINE,
                  hello_timeout_s: float | None = None, stop_side_path: bool = False,
-                 max_pending: int | None = defaults.MAX_QUEUED, stop_port: int | str | None = "auto") -> None:
-        if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 0xFFFF:
-            raise ValueError(f"port: {port!r} is not a TCP port number (0..65535)")
-        if id_start is not None and (isinstance(id_start, bool) or not isinstance(id_start, int)
-                                     or not 0 < id_start <= 0xFFFFFFFF):
-            raise ValueError(f"id_start: {id_start!r} is not an int in 1..0xFFFFFFFF (00000000 is reserved)")
-        if max_pending is not None and (isinstance(max_pending, bool) or not isinstance(max_pending, int)
-                                        or max_pending < 1):
-            raise ValueError(f"max_pending: {max_pending!r} is not an int >= 1 (or None: no limit)")
-        if stop_port is not None and stop_port != "auto" and (
-                isinstance(stop_port, bool) or not isinstance(stop_port, int) or not 0 < stop_port <= 0xFFFF):
-            raise ValueError(f"stop_port: {stop_port!r} is not a TCP port number (1..65535), 'auto' or None")
-        self.stop_port = stop_port
-        self.max_pending = max_pending
-        self.host = host
-        self.port = port
-        self.connect_timeout_s = connect_timeout_s  # validated by the properties
-        self.ack_timeout_s = ack_timeout_s
-        self.stop_timeout_s = stop_timeout_s
-        self.auto_reconnect = auto_reconnect
-        self.stop_side_path = stop_side_path
-        self.hello_timeout_s = _check_timeout("hello_timeout_s", hello_timeout_s)
+                 max_pending: int | None = defaults.MAX_QUEUED, stop_port: int | str | None = "auto",
+                 options: ClientOptions | None = None) -> None:
+        given = ClientOptions(host, port, connect_timeout_s, ack_timeout_s, stop_timeout_s, tuple(observers),
+                              id_start, auto_reconnect, connector, max_line, hello_timeout_s, stop_side_path,
+                              max_pending, stop_port)
+        if options is None:
+            options = given
+        elif given != _DEFAULT_OPTIONS:
+            raise TypeError("RobotClient: give either options= or the settings as keywords, not both")
+        self._use_options(options)
         self.server_hello: tuple[int | None, str] | None = None
         """``(protocol_version, server_name)`` from the connect-time ``hello`` check; ``None`` without the check
         or from a server that answered it with an error ack (no extensions)."""
-        self._connector = connector
-        self._observers: list[Observer] = list(observers)
-        self._registry = PendingCalls(id_start=secrets.randbits(32) if id_start is None else id_start,
-                                      max_line=max_line)
+        self._connector = options.connector
+        self._observers: list[Observer] = list(options.observers)
+        self._registry = PendingCalls(
+            id_start=secrets.randbits(32) if options.id_start is None else options.id_start,
+            max_line=options.max_line)
         self._registry.on_unexpected = self._log_unexpected
         self._probe_lines: list[bytes] | None = None
         """While the connect-time ``hello`` runs: the unexpected lines, kept for the one error instead of logged."""
         self._observers_changed()
-        # Waiters with the default timeout, in deadline order, watched by ONE timer (a timer per wait costs
-        # ~10-30 us of loop time per round trip on a small VM; deadlines of a constant timeout come in order).
-        self._deadlines: deque[Submission] = deque()
+        self._deadlines = DeadlineQueue()  # the waits with the default timeout, watched by ONE timer:
         self._watchdog: asyncio.TimerHandle | None = None
         self._state = _NEW
         self._transport: asyncio.BaseTransport | None = None
@@ -229,31 +234,35 @@ class RobotClient:
         return self._connect_lock is not None and self._connect_lock.locked()
 
     @property
-    def connect_timeout_s(self) -> float:
-        """Limit of :meth:`connect` and of each reconnect (seconds, finite, > 0)."""
-        return self._connect_timeout_s
+    def options(self) -> ClientOptions:
+        """The client's settings now (its ``observers``: those it was made with; see :meth:`add_observer`).
+        Setting one of them (``robot.ack_timeout_s = 2``) replaces this value, checked as when it was made."""
+        return self._options
 
-    @connect_timeout_s.setter
-    def connect_timeout_s(self, value: float) -> None:
-        self._connect_timeout_s = _check_timeout("connect_timeout_s", value, none_ok=False)
+    def _use_options(self, options: ClientOptions) -> None:
+        self._options = options
+        # Read on every round trip: plain attributes, not properties.
+        self._connect_timeout_s = options.connect_timeout_s
+        self._ack_timeout_s = options.ack_timeout_s
+        self._stop_timeout_s = options.stop_timeout_s
+        self._max_pending = options.max_pending
 
-    @property
-    def ack_timeout_s(self) -> float | None:
-        """Default limit of every wait for acks (seconds, finite, > 0; ``None``: wait forever)."""
-        return self._ack_timeout_s
+    def _set_option(self, name: str, value: Any) -> None:
+        self._use_options(dataclasses.replace(self._options, **{name: value}))
 
-    @ack_timeout_s.setter
-    def ack_timeout_s(self, value: float | None) -> None:
-        self._ack_timeout_s = _check_timeout("ack_timeout_s", value)
-
-    @property
-    def stop_timeout_s(self) -> float:
-        """Default limit of :meth:`stop`'s wait for its ack (seconds, finite, > 0; never ``None``)."""
-        return self._stop_timeout_s
-
-    @stop_timeout_s.setter
-    def stop_timeout_s(self, value: float) -> None:
-        self._stop_timeout_s = _check_timeout("stop_timeout_s", value, none_ok=False)
+    host = _setting("host", "The robot server's host (also named in every error and log line).")
+    port = _setting("port", "The robot server's TCP port.")
+    connect_timeout_s = _setting("connect_timeout_s",
+                                 "Limit of :meth:`connect` and of each reconnect (seconds, finite, > 0).")
+    ack_timeout_s = _setting("ack_timeout_s",
+                             "Default limit of every wait for acks (seconds, finite, > 0; ``None``: wait forever).")
+    stop_timeout_s = _setting("stop_timeout_s",
+                              "Default limit of :meth:`stop`'s wait for its ack (seconds, finite, > 0; never None).")
+    auto_reconnect = _setting("auto_reconnect", "Reconnect a lost connection before the next new call.")
+    stop_side_path = _setting("stop_side_path", "A stop behind unsent bytes goes first on a new connection.")
+    hello_timeout_s = _setting("hello_timeout_s", "The connect-time ``hello`` check's limit; ``None``: no check.")
+    max_pending = _setting("max_pending", "At most this many messages waiting for their acks (``None``: no limit).")
+    stop_port = _setting("stop_port", "The server's stop port: ``\"auto\"`` (``port`` + 1), a number, or ``None``.")
 
     # ------------------------------------------------------------------------------------------- lifecycle
     @property
@@ -448,7 +457,7 @@ class RobotClient:
         """The one write path: the registry allocates IDs and registers the messages, then one write."""
         if self._state is not _CONNECTED:
             self._raise_not_connected()
-        limit = self.max_pending
+        limit = self._max_pending
         if limit is not None and len(self._registry) + len(calls) > limit and calls[0] is not _STOP:
             n = len(self._registry)
             raise TooManyPending(f"{len(calls)} more message(s) would leave {n + len(calls)} pending on "
@@ -527,29 +536,24 @@ class RobotClient:
                     fns = self._bind_loop(loop)
                 waiter = sub._waiter = fns[2]()
                 now = sub.t_send_s if just_sent else fns[1]()
-                dq = self._deadlines
                 default_s = self._ack_timeout_s
-                if timeout_s is None and default_s is not None and (
-                        not dq or dq[-1]._deadline <= now + default_s):
-                    # _arm's common case inline: joins the watchdog's queue
-                    sub._deadline = now + default_s
-                    while dq and dq[0]._settled:
-                        dq.popleft()
-                    dq.append(sub)
-                    if self._watchdog is None:
-                        self._watchdog = loop.call_at(dq[0]._deadline, self._on_watchdog)
-                else:
-                    self._arm(sub, default_s if timeout_s is None else timeout_s, timeout_s is None, now)
+                if timeout_s is None and default_s is not None:
+                    if not self._deadlines.push(sub, now + default_s):  # the default changed: a timer of its own
+                        sub._timer = loop.call_at(now + default_s, self._time_out, sub)
+                    elif self._watchdog is None:
+                        self._watchdog = loop.call_at(self._deadlines.next_deadline, self._on_watchdog)
+                elif timeout_s is not None:  # a custom timeout: a timer of its own
+                    sub._timer = loop.call_at(now + timeout_s, self._time_out, sub)
                 why = await waiter
                 if why == _W_TIMED_OUT:
-                    missing = tuple(mid for mid, r in zip(sub.ids, sub.results) if r is None)
+                    missing = tuple(mid for mid, r in zip(sub.ids, sub.results, strict=True) if r is None)
                     raise AckTimeout(f"no ack within {default_s if timeout_s is None else timeout_s} s "
                                      f"for {len(missing)} of {len(sub.ids)} message(s) {list(missing)}",
                                      pending=missing)
             if sub._lost_reason is not None and sub.remaining:
                 raise _lost(sub._lost_reason,
-                            acked=tuple(mid for mid, r in zip(sub.ids, sub.results) if r is not None),
-                            unresolved=tuple(mid for mid, r in zip(sub.ids, sub.results) if r is None))
+                            acked=tuple(mid for mid, r in zip(sub.ids, sub.results, strict=True) if r is not None),
+                            unresolved=tuple(mid for mid, r in zip(sub.ids, sub.results, strict=True) if r is None))
         finally:
             if sub.remaining or sub._timer is not None or sub.futures is not None:
                 self._release(sub)
@@ -564,37 +568,16 @@ class RobotClient:
             raise exc
         return results
 
-    def _arm(self, sub: Submission, timeout: float | None, default: bool, now: float) -> None:
-        if timeout is None:
-            return
-        loop = self._loop
-        assert loop is not None
-        deadline = sub._deadline = now + timeout
-        dq = self._deadlines
-        while dq and dq[0]._settled:  # finished waits leave from the front (batches finish roughly in order)
-            dq.popleft()
-        if default and (not dq or dq[-1]._deadline <= deadline):
-            dq.append(sub)
-            if self._watchdog is None:
-                self._watchdog = loop.call_at(dq[0]._deadline, self._on_watchdog)
-        else:  # a custom timeout, or the default changed: a timer of its own
-            sub._timer = loop.call_at(deadline, self._time_out, sub)
-
     def _on_watchdog(self) -> None:
         self._watchdog = None
         loop = self._loop
         assert loop is not None
-        now = loop.time() + 0.001  # the loop may run a timer up to its clock resolution early
-        dq = self._deadlines
-        while dq:
-            sub = dq[0]
-            if not sub._settled and sub._deadline > now:
-                break
-            dq.popleft()
-            if not sub._settled:
-                self._time_out(sub)
-        if dq:
-            self._watchdog = loop.call_at(dq[0]._deadline, self._on_watchdog)
+        # the loop may run a timer up to its clock resolution early
+        for sub in self._deadlines.due(loop.time() + 0.001):
+            self._time_out(sub)
+        deadline = self._deadlines.next_deadline
+        if deadline is not None:
+            self._watchdog = loop.call_at(deadline, self._on_watchdog)
 
     @staticmethod
     def _time_out(sub: Submission) -> None:
@@ -830,11 +813,7 @@ class RobotClient:
         return (await self._wait(self._send((_STOP,)), timeout_s))[0]
 
     def _stop_port_number(self) -> int | None:
-        if self.stop_port is None or self._connector is not None:
-            return None
-        if self.stop_port == "auto":
-            return self.port + defaults.STOP_PORT_OFFSET if 0 < self.port < 0xFFFF else None
-        return int(self.stop_port)
+        return self._options.stop_port_number
 
     async def _stop_port_instead(self, exc: BaseException, timeout_s: float) -> MessageResult:
         """The main connection cannot carry the stop (``exc``): send it on the stop port; if that fails too, the
@@ -844,37 +823,21 @@ class RobotClient:
         log.warning("stop: %s; sending it on the stop port %s:%s", exc, self.host, self._stop_port_number())
         try:
             return await self.stop_on_stop_port(timeout_s=timeout_s)
-        except (ConnectError, AckTimeout, CommandError, CommandAborted) as side:
+        except STOP_FAILURES as side:
             log.error("stop on the stop port %s:%s failed too: %s", self.host, self._stop_port_number(), side)
             raise exc from side
 
+    async def _first_result(self, sub: Submission, timeout_s: float) -> MessageResult:
+        return (await self._wait(sub, timeout_s))[0]
+
     async def _stop_port_race(self, sub: Submission, timeout_s: float, after_s: float) -> MessageResult:
         """Await the stop written on the main connection; if no ack has come ``after_s`` after its write, send it
-        on the stop port as well. The first ``done`` wins; a failure counts only when both have failed."""
-        main = asyncio.ensure_future(self._wait(sub, timeout_s))
-        if self._stop_port_number() is None:
-            return (await main)[0]
-        done, _ = await asyncio.wait({main}, timeout=after_s)
-        if done:
-            return main.result()[0]
-        log.warning("stop: no ack from %s:%s after %.2f s; sending it on the stop port too", self.host, self.port,
-                    after_s)
-        side = asyncio.ensure_future(self.stop_on_stop_port(timeout_s=timeout_s))
-        errors: list[BaseException] = []
-        try:
-            for fut in asyncio.as_completed((main, side)):
-                try:
-                    r = await fut
-                except (ConnectionLost, ConnectError, AckTimeout, CommandError, CommandAborted) as exc:
-                    errors.append(exc)
-                    continue
-                return r[0] if isinstance(r, tuple) else r
-        finally:
-            for fut in (main, side):
-                if not fut.done():
-                    fut.cancel()
-        main_exc = main.exception() if main.done() and not main.cancelled() else errors[0]
-        raise main_exc if main_exc is not None else errors[0]
+        on the stop port as well (:func:`~aioadept.client.stopport.race_stop`)."""
+        side = None
+        if self._stop_port_number() is not None:
+            def side() -> Awaitable[MessageResult]:
+                return self.stop_on_stop_port(timeout_s=timeout_s)
+        return await race_stop(self._first_result(sub, timeout_s), side, after_s, peer=f"{self.host}:{self.port}")
 
     async def stop_on_stop_port(self, *, timeout_s: float | None = None) -> MessageResult:
         """Send ``stop`` on the server's stop port (a connection of its own, closed after the ack) and return its
@@ -892,45 +855,7 @@ class RobotClient:
             raise ClientStateError(f"no stop port for {self.host}:{self.port} (stop_port=None or a connector)")
         timeout_s = (self._stop_timeout_s if timeout_s is None
                      else _check_timeout("timeout_s", timeout_s, none_ok=False))
-        mid = f"{secrets.randbits(32) or 1:08x}"
-        loop = asyncio.get_running_loop()
-        t_send = loop.time()
-        writer = None
-        try:
-            async with asyncio.timeout(timeout_s):
-                reader, writer = await asyncio.open_connection(self.host, port)
-                set_nodelay(writer)
-                t_send = loop.time()
-                writer.write(f"{mid}:{STOP_SKILL}\r\n".encode())
-                msg = SentMessage(mid, STOP_SKILL, (), 0, t_send)
-                for obs in self._observers:
-                    try:
-                        obs.on_send(msg)
-                    except Exception:
-                        log.exception("observer %r failed in on_send", obs)
-                while True:
-                    line = await reader.readuntil(b"\n")
-                    try:
-                        ack = parse_ack(line.rstrip(b"\r\n"))
-                    except Exception:
-                        continue
-                    if ack.id == mid:
-                        break
-        except TimeoutError:
-            raise AckTimeout(f"stop on the stop port {self.host}:{port}: no ack within {timeout_s} s",
-                             pending=(mid,)) from None
-        except (OSError, asyncio.IncompleteReadError, asyncio.LimitOverrunError) as exc:
-            raise ConnectError(f"stop port {self.host}:{port}: {exc or type(exc).__name__}") from exc
-        finally:
-            if writer is not None:
-                writer.close()
-        result = MessageResult(mid, STOP_SKILL, (), 0, t_send, loop.time(), ack)
-        self._notify_ack(result)
-        if ack.status is Status.ERROR:
-            raise CommandError(ack, STOP_SKILL)
-        if ack.status is not Status.DONE:
-            raise CommandAborted(ack, STOP_SKILL)
-        return result
+        return await stop_on_port(self.host, port, timeout_s, on_send=self._notify_sent, on_ack=self._notify_ack)
 
     async def _stop_side(self, sub: Submission, timeout_s: float) -> Submission | None:
         """The stop is behind unsent bytes on a peer that is not reading: open a fresh connection (the sim's
@@ -1068,15 +993,16 @@ class RobotClient:
 
     # ------------------------------------------------------------------------------------------- observers
     def _notify_send(self, sub: Submission) -> None:
-        for mid, call in zip(sub.ids, sub.calls):
-            msg = SentMessage(mid, call.skill, call.args, sub.batch, sub.t_send_s)
-            for obs in self._observers:
-                try:
-                    obs.on_send(msg)
-                except Exception:
-                    log.exception("observer %r failed in on_send", obs)
+        for mid, call in zip(sub.ids, sub.calls, strict=True):
+            self._notify_sent(SentMessage(mid, call.skill, call.args, sub.batch, sub.t_send_s))
 
-    # ------------------------------------------------------------------------------------------- observers
+    def _notify_sent(self, msg: SentMessage) -> None:
+        for obs in self._observers:
+            try:
+                obs.on_send(msg)
+            except Exception:
+                log.exception("observer %r failed in on_send", obs)
+
     def _notify_ack(self, result: MessageResult) -> None:
         for obs in self._observers:
             try:
