@@ -51,6 +51,9 @@ async def run(args: argparse.Namespace, options: Any) -> int:
     if made is None:
         return 2
     emu, clock, wall0 = made
+    from aioadept.vplus import linehits
+
+    lines = linehits.from_env(emu.rt)     # AIOADEPT_VPLUS_LINES: the lines run, for a test suite's report
     debug_server = await _debug_port(args, emu)
     if debug_server is False:
         return 2
@@ -97,6 +100,7 @@ async def run(args: argparse.Namespace, options: Any) -> int:
         if debug_server is not None:
             debug_server.close()
         await _shut_down(emu, ctl, clock, states, publisher, options)
+        linehits.save(lines)
     return sup.status
 
 

@@ -26,9 +26,9 @@ from typing import Any
 
 import coverage
 
-from aioadept.vplus import nodes as N
-from aioadept.vplus.compiler import compile_program
-from aioadept.vplus.loader import Module, load_text, strip_comment
+from aioadept.vplus import linehits
+from aioadept.vplus.linehits import LineRecorder, _hooked, executable_lines  # noqa: F401  (the reporter's rule)
+from aioadept.vplus.loader import strip_comment
 
 SUFFIXES = (".v2", ".pg")
 """The files the plugin claims (case-insensitive)."""
@@ -38,63 +38,20 @@ def is_vplus(filename: str) -> bool:
     return filename.lower().endswith(SUFFIXES)
 
 
-# -- the executable lines of a file ------------------------------------------------------------------------------
-
-def executable_lines(text: str, filename: str = "") -> set[int]:
-    """The lines of ``text`` where a statement runs: those the compiler puts a line hook before (every statement,
-    and the heads of IF, WHILE, CASE and FOR), read from the instrumented form it generates. A program that does
-    not compile (it cannot run) counts its statements by the same rule, as never run."""
-    out: set[int] = set()
-    for prog in load_text(text, filename, Module()).programs.values():
-        if prog.executable:
-            src, consts, problems = compile_program(prog, set(), traced=True)
-            if src is not None:
-                out.update(line for line in consts[-1] if line)
-                continue
-        out.update(line for line, st in prog.steps if _hooked(st))
-    return out
-
-
-_NOT_HOOKED = (N.Declare, N.Nop, N.Value, N.Until)
-
-
-def _hooked(st: N.Stmt | None) -> bool:
-    """Whether the compiler hooks a statement (the rule of its ``block``: declarations, a lone label and the
-    block words DO, ELSE, END, VALUE, ANY, UNTIL have no hook of their own)."""
-    if isinstance(st, N.Label):
-        st = st.stmt
-    if st is None or isinstance(st, _NOT_HOOKED):
-        return False
-    return not (isinstance(st, N.Word) and st.word in ("DO", "ELSE", "END", "ANY"))
-
-
 # -- recording: the emulator's tracer ----------------------------------------------------------------------------
 
-class LineTracer:
-    """The emulator's tracer (:mod:`aioadept.vplus.trace`) for one runtime: the first run of each line of a file
-    that exists is reported to coverage.py by a beacon (:func:`beacon`)."""
+class LineTracer(LineRecorder):
+    """The emulator's tracer for one runtime: the first run of each line of a file that exists is reported to
+    coverage.py by a beacon (:func:`beacon`)."""
 
     seen: set[tuple[str, int]] = set()
     """(path, line) already reported in this process: a later runtime does not hook them again."""
 
-    def __init__(self, rt: Any) -> None:
-        self.rt = rt
-        # the loader names each program's file by its base name; the module keeps the paths it loaded
-        self.paths = {Path(f).name: os.path.abspath(f) for f in rt.module.files if os.path.isfile(f)}
-        for name, prog in rt.module.programs.items():
-            path = self.paths.get(prog.file)
-            if path is not None:
-                rt.trace_lines(name).update(line for line, _ in prog.steps if (path, line) not in self.seen)
+    def __init__(self, rt: Any, hits: set[tuple[str, int]] | None = None) -> None:
+        super().__init__(rt, self.seen if hits is None else hits)
 
-    def line(self, task: Any, frame: Any) -> None:
-        self.rt.trace_lines(frame.program).discard(frame.line)
-        path = self.paths.get(frame.file)
-        if path is not None and (path, frame.line) not in self.seen:
-            self.seen.add((path, frame.line))
-            beacon(path, frame.line)
-
-    def error(self, task: Any, err: Any, frames: Any) -> None:
-        """A V+ error: nothing to record (its line ran, and was recorded then)."""
+    def record(self, path: str, line: int) -> None:
+        beacon(path, line)
 
 
 def beacon(path: str, line: int) -> None:
@@ -105,9 +62,7 @@ def beacon(path: str, line: int) -> None:
 def attach(rt: Any) -> None:
     """Trace ``rt`` (a :class:`aioadept.vplus.runtime.Runtime` with no task running) for line coverage; not one
     whose programs come from no file (``Emulator.from_source``): there is no file to report."""
-    tracer = LineTracer(rt)
-    if tracer.paths:
-        rt.set_tracer(tracer)
+    linehits.attach(rt, recorder=LineTracer)
 
 
 def install() -> None:
