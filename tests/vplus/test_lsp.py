@@ -97,10 +97,13 @@ async def test_diagnostics_on_open_and_on_change_at_the_offending_word(client: L
 async def test_hover_and_completion(client: LanguageClient):
     await _open(client, MAIN)
     doc = T.TextDocumentIdentifier(client.main_uri)
+    # the form, then the one-line summary with the Reference Guide's section
     move = await client.text_document_hover_async(T.HoverParams(doc, _at(4, 6)))
-    assert move.contents.value.startswith("MOVE location (") and "MOVE program instruction" in move.contents.value
+    assert move.contents.value == ("MOVE location\nMoves the robot to a location, the joints interpolated. "
+                                   "(V+ Language Reference Guide v17, MOVE program instruction)")
     length = await client.text_document_hover_async(T.HoverParams(doc, _at(2, 9)))
-    assert length.contents.value.startswith("LEN($string) -> num (") and "LEN" in length.contents.value
+    assert length.contents.value == ("LEN($string) -> num\nThe number of characters in a string. "
+                                     "(V+ Language Reference Guide v17, LEN function)")
     helper = await client.text_document_hover_async(T.HoverParams(doc, _at(3, 10)))
     assert helper.contents.value == ".PROGRAM helper(n) (helper.V2:2)"
     assert await client.text_document_hover_async(T.HoverParams(doc, _at(2, 4))) is None    # x: no V+ word

@@ -1,7 +1,8 @@
 """``aioadept vplus lsp``: the V+ Language Server (stdio), a thin adapter over the language core.
 
 - diagnostics of a document on open, change and save: :func:`aioadept.vplus.check.check`;
-- hover on an instruction or function name: its form and manual section (:func:`aioadept.vplus.registry.describe`);
+- hover on an instruction or function name: its form, a one-line summary and its manual section
+  (:func:`aioadept.vplus.registry.hover`);
   on a program name: its ``.PROGRAM`` line and where it is;
 - go to definition, find references (programs across the workspace's modules, step labels, variables: a
   program's own or global), document symbols (programs and their labels), workspace symbols (programs and
@@ -95,7 +96,7 @@ def hover(ls: LanguageServer, params: T.HoverParams) -> T.Hover | None:
     # the statement's first word is an instruction (MOVE), any other a function (SIG( ... ) ; a name that is
     # both (TIMER, SPEED) is described as what it is where it stands
     first = re.fullmatch(r"\s*(\d+\s+)?", line[:start]) is not None
-    text = registry.describe(word, instruction=first) or registry.describe(word, instruction=not first)
+    text = registry.hover(word, instruction=first) or registry.hover(word, instruction=not first)
     if text is None:
         ws, occ = _occurrence(ls, params)
         if occ is None or occ.kind != PROGRAM:

@@ -14,19 +14,21 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from aioadept.vplus import keywords
+from aioadept.vplus import keywords, summaries
 
 
 @dataclass(frozen=True, slots=True)
 class Builtin:
     """A V+ function: ``form`` as a program writes it, ``result`` (num, str, loc, pp) and where the manual
-    describes it; ``call``: ``NAME(`` parses as a call of it (False for NULL, which takes no parentheses)."""
+    describes it; ``call``: ``NAME(`` parses as a call of it (False for NULL, which takes no parentheses);
+    ``summary``: what it does, in one line (:mod:`aioadept.vplus.summaries`)."""
 
     name: str
     form: str
     result: str
     section: str
     call: bool = True
+    summary: str = ""
 
 
 FUNCTIONS: dict[str, Builtin] = {}
@@ -39,7 +41,7 @@ IMPLEMENTATIONS: dict[str, Callable[..., Any]] = {}
 def register(name: str, form: str, result: str = "num", *, call: bool = True, section: str | None = None) -> Builtin:
     """Record the function ``name``; the section defaults to its entry in the V+ Language Reference Guide."""
     entry = Builtin(name, form, result, section or keywords.where(name, as_function=True) or "emulator extension",
-                    call)
+                    call, summaries.FUNCTIONS.get(name, ""))
     FUNCTIONS[name] = entry
     return entry
 
@@ -64,6 +66,17 @@ def describe(name: str, *, instruction: bool = False) -> str | None:
     if instruction:
         return f"{entry.form} ({entry.section})"
     return f"{entry.form} -> {entry.result} ({entry.section})"
+
+
+def hover(name: str, *, instruction: bool = False) -> str | None:
+    """Hover text: the form (with the result of a function), then the one-line summary and the manual section:
+    ``MOVE location`` / ``Moves the robot ... (V+ Language Reference Guide v17, MOVE program instruction)``;
+    None if not implemented."""
+    entry = (INSTRUCTIONS if instruction else FUNCTIONS).get(name.upper())
+    if entry is None:
+        return None
+    form = entry.form if instruction else f"{entry.form} -> {entry.result}"
+    return f"{form}\n{entry.summary} ({entry.section})".replace("\n ", "\n")
 
 
 def of_result(result: str) -> frozenset[str]:
@@ -121,4 +134,5 @@ for _form in _INSTRUCTION_TABLE.strip().replace("\n", " | ").split("|"):
     _form = _form.strip()
     _word = _form.split(" ")[0].split("(")[0]
     if _word not in INSTRUCTIONS:               # IF ... GOTO is the second form of IF
-        INSTRUCTIONS[_word] = Builtin(_word, _form, "", keywords.where(_word) or "emulator extension")
+        INSTRUCTIONS[_word] = Builtin(_word, _form, "", keywords.where(_word) or "emulator extension",
+                                      summary=summaries.INSTRUCTIONS.get(_word, ""))
