@@ -141,6 +141,69 @@ class Bare:
             ids.remove(line[:8])
 
 
+def pct(xs: list, q: float) -> float:
+    xs = sorted(xs)
+    return xs[min(len(xs) - 1, int(q * len(xs)))]
+
+
+async def _pipelined(bare_ack: Bare, robot, cmd, line: bytes, quick: bool) -> dict:
+    """Pipelined throughput and CPU per message, batches of 10 and of 100, bare client against RobotClient."""
+    perf = time.perf_counter
+    pipelined: dict = {}
+    for size in (10, 100):
+        batches = (200 if size == 10 else 30) if quick else (1500 if size == 10 else 200)
+        commands = [cmd] * size
+        lines = [line] * size
+        acc = {"bare": [0.0, 0.0, 0], "client": [0.0, 0.0, 0]}  # wall, cpu, messages
+        for _ in range(2):  # warm-up both
+            await bare_ack.batch(lines)
+            await robot.cmdexec_joined(*commands)
+        # Interleaved batch by batch (bare, client, client, bare, ...), so each pair of batches runs under the same
+        # load, and the verdict is the median over the pairs of the ratio within each pair: a load spike spoils a
+        # few pairs, not the figure (measured block by block, the ratio swung across its goal from run
+        # to run, 0.89 then 0.95 on a quiet machine).
+        pairs: dict[str, list[float]] = {"throughput": [], "cpu_per_msg": []}
+        for i in range(batches):
+            t = {}
+            for name in (("bare", "client") if i % 2 == 0 else ("client", "bare")):
+                w, c = perf(), time.process_time()
+                if name == "bare":
+                    await bare_ack.batch(lines)
+                else:
+                    await robot.cmdexec_joined(*commands)
+                t[name] = (perf() - w, time.process_time() - c)
+                acc[name][0] += t[name][0]
+                acc[name][1] += t[name][1]
+                acc[name][2] += size
+            pairs["throughput"].append(t["bare"][0] / t["client"][0])
+            if t["bare"][1] > 0:
+                pairs["cpu_per_msg"].append(t["client"][1] / t["bare"][1])
+        pipelined[str(size)] = {
+            name: {"msgs_per_s": a[2] / a[0], "cpu_us_per_msg": a[1] / a[2] * 1e6, "messages": a[2]}
+            for name, a in acc.items()}
+        pipelined[str(size)]["pairs"] = len(pairs["throughput"])
+        pipelined[str(size)]["ratio_median_of_pairs"] = {k: round(statistics.median(v), 3) for k, v in pairs.items()}
+    return pipelined
+
+
+async def _amplification(bare_ack: Bare, line: bytes, per_round: int) -> dict:
+    """The bare client's RTT when it does extra CPU work before each write (busy loop), to show how much a
+    microsecond of client work costs in round trip on this machine (cross-process wake-ups)."""
+    perf = time.perf_counter
+    amplification = {}
+    for spin_us in (0, 20):
+        xs: list = []
+        for _ in range(per_round * 2):
+            t = perf()
+            end = t + spin_us * 1e-6
+            while perf() < end:
+                pass
+            await bare_ack.batch([line])
+            xs.append(perf() - t)
+        amplification[f"bare_plus_{spin_us}us_work_rtt_p50_us"] = pct(xs, 0.5) * 1e6
+    return amplification
+
+
 async def measure(port_ack: int, port_echo: int, quick: bool) -> dict:
     from aioadept.client import RobotClient
     from aioadept.commands import Skill
@@ -179,61 +242,10 @@ async def measure(port_ack: int, port_echo: int, quick: bool) -> dict:
         await rtt_client(rtt["client"])
         await rtt_bare(bare_echo, rtt["echo"])
 
-    def pct(xs: list, q: float) -> float:
-        xs = sorted(xs)
-        return xs[min(len(xs) - 1, int(q * len(xs)))]
-
     rtt_us = {k: {"p50": pct(v, 0.5) * 1e6, "p99": pct(v, 0.99) * 1e6, "n": len(v)} for k, v in rtt.items()}
 
-    # --- pipelined throughput and CPU per message
-    pipelined: dict = {}
-    for size in (10, 100):
-        batches = (200 if size == 10 else 30) if quick else (1500 if size == 10 else 200)
-        commands = [cmd] * size
-        lines = [line] * size
-        acc = {"bare": [0.0, 0.0, 0], "client": [0.0, 0.0, 0]}  # wall, cpu, messages
-        for _ in range(2):  # warm-up both
-            await bare_ack.batch(lines)
-            await robot.cmdexec_joined(*commands)
-        # Interleaved batch by batch (bare, client, client, bare, ...), so each pair of batches runs under the same
-        # load, and the verdict is the median over the pairs of the ratio within each pair: a load spike spoils a
-        # few pairs, not the figure (measured block by block, the ratio swung across its goal from run
-        # to run, 0.89 then 0.95 on a quiet machine).
-        pairs: dict[str, list[float]] = {"throughput": [], "cpu_per_msg": []}
-        for i in range(batches):
-            t = {}
-            for name in (("bare", "client") if i % 2 == 0 else ("client", "bare")):
-                w, c = perf(), time.process_time()
-                if name == "bare":
-                    await bare_ack.batch(lines)
-                else:
-                    await robot.cmdexec_joined(*commands)
-                t[name] = (perf() - w, time.process_time() - c)
-                acc[name][0] += t[name][0]
-                acc[name][1] += t[name][1]
-                acc[name][2] += size
-            pairs["throughput"].append(t["bare"][0] / t["client"][0])
-            if t["bare"][1] > 0:
-                pairs["cpu_per_msg"].append(t["client"][1] / t["bare"][1])
-        pipelined[str(size)] = {
-            name: {"msgs_per_s": a[2] / a[0], "cpu_us_per_msg": a[1] / a[2] * 1e6, "messages": a[2]}
-            for name, a in acc.items()}
-        pipelined[str(size)]["pairs"] = len(pairs["throughput"])
-        pipelined[str(size)]["ratio_median_of_pairs"] = {k: round(statistics.median(v), 3) for k, v in pairs.items()}
-
-    # --- why: the bare client's RTT when it does extra CPU work before each write (busy loop), to show how much a
-    # microsecond of client work costs in round trip on this machine (cross-process wake-ups).
-    amplification = {}
-    for spin_us in (0, 20):
-        xs: list = []
-        for _ in range(per_round * 2):
-            t = perf()
-            end = t + spin_us * 1e-6
-            while perf() < end:
-                pass
-            await bare_ack.batch([line])
-            xs.append(perf() - t)
-        amplification[f"bare_plus_{spin_us}us_work_rtt_p50_us"] = pct(xs, 0.5) * 1e6
+    pipelined = await _pipelined(bare_ack, robot, cmd, line, quick)
+    amplification = await _amplification(bare_ack, line, per_round)
 
     await robot.close()
     for b in (bare_ack, bare_echo):
@@ -281,11 +293,11 @@ async def breakdown(n: int = 100, batches: int = 300) -> dict:
 
     for _ in range(3):
         subs: list = []
-        clock("client_send", lambda: subs.extend(robot._send(calls) for _ in range(batches)))
+        clock("client_send", lambda subs=subs: subs.extend(robot._send(calls) for _ in range(batches)))
         replies = [b"".join([m.encode() + tail for m in s.ids]) for s in subs]
         framer = LineFramer(1024)
-        clock("client_framing", lambda: [framer.feed(r) for r in replies])
-        clock("client_framing_parse_route_build", lambda: [robot._feed(r, 0.0) for r in replies])
+        clock("client_framing", lambda framer=framer, replies=replies: [framer.feed(r) for r in replies])
+        clock("client_framing_parse_route_build", lambda replies=replies: [robot._feed(r, 0.0) for r in replies])
         for s in subs:
             s.cancel()
         subs = [robot._send(calls) for _ in range(batches)]
@@ -295,7 +307,8 @@ async def breakdown(n: int = 100, batches: int = 300) -> dict:
         client_mod._make_result = lambda *a: a
         client_mod._RESULT_TWIN = None
         try:
-            clock("client_same_without_building_results", lambda: [robot._feed(r, 0.0) for r in replies])
+            clock("client_same_without_building_results",
+                  lambda replies=replies: [robot._feed(r, 0.0) for r in replies])
         finally:
             client_mod._make_result, client_mod._RESULT_TWIN = saved
         for s in subs:

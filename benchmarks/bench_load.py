@@ -317,7 +317,7 @@ async def vision_case(comm: Communicator, pid: int, rate: float, seconds: float,
     lat = [r.latency_s for r in ok]
     wait = [max(0.0, -r.attributes["frame_age_ms"] / 1e3) for r in ok]
     proc = [r.attributes["proc_time_ms"] / 1e3 for r in ok]
-    rest = [a - b - c for a, b, c in zip(lat, wait, proc)]
+    rest = [a - b - c for a, b, c in zip(lat, wait, proc, strict=True)]
     frames = {r.attributes.get("frame_seq") for r in ok}
     out: dict[str, Any] = {
         "rate_req_per_s": rate,

@@ -55,7 +55,7 @@ def run_backend(backend: str, parts: int, time_scale: float, out: Path, truth: b
         code = run(cfg, run_dir, locator=(lambda comm, c: WorldTruthLocator(c.robot.state_endpoint, c.world))
                    if truth else None)
     s = json.loads((run_dir / "summary.json").read_text()) if (run_dir / "summary.json").is_file() else {}
-    ratios = [c / f for c, f in zip(s.get("cycle_ms", []), s.get("floor_ms", [])) if f > 0]
+    ratios = [c / f for c, f in zip(s.get("cycle_ms", []), s.get("floor_ms", []), strict=True) if f > 0]
     return {
         "exit_code": code, "parts_placed": s.get("parts_placed", 0), "parts_failed": s.get("parts_failed"),
         "parts_dropped": s.get("parts_dropped"), "error": s.get("error"),

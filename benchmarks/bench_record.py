@@ -31,6 +31,7 @@ import platform
 import statistics
 import sys
 import tempfile
+from itertools import pairwise
 import time
 from pathlib import Path
 
@@ -138,7 +139,7 @@ async def one_run(sim, frames: Path, steps: int, record: bool, out: Path, speed:
                                       state=payloads)
         mcap_s = time.perf_counter() - t0
         assert why is None, why
-    cycles = [b - a for a, b in zip(marks.t, marks.t[1:])]
+    cycles = [b - a for a, b in pairwise(marks.t)]
     hooks = (timed.calls if timed else []) + t_mark
     return {"cycles_s": cycles, "hook_s": hooks, "frames": rrd.logger.counts.get("frame", 0) if rrd else 0,
             "states": rrd.logger.counts.get("state", 0) if rrd else 0, "mcap_write_s": mcap_s,

@@ -25,6 +25,7 @@ import statistics
 import sys
 import tempfile
 import time
+from itertools import pairwise
 from pathlib import Path
 
 from bench_vplus import Conn, start, stop
@@ -125,7 +126,7 @@ async def bench(args: argparse.Namespace) -> dict:
         for p in procs.values():
             await stop(p)
     span = samples[-1].t_s - samples[0].t_s if len(samples) > 1 else 0.0
-    gaps = sorted(b.t_s - a.t_s for a, b in zip(samples, samples[1:]))
+    gaps = sorted(b.t_s - a.t_s for a, b in pairwise(samples))
     out: dict = {"blocks": args.blocks, "messages_per_block": args.messages, "rate_configured_hz": args.rate,
                  "samples": len(samples), "samples_span_s": round(span, 3), "wall_s": round(wall, 3),
                  "rate_hz": round((len(samples) - 1) / span, 1) if span > 0 else None,
@@ -135,7 +136,7 @@ async def bench(args: argparse.Namespace) -> dict:
         out[kind] = {n: {"p50_us_per_block": [round(x * 1e6, 1) for x in lat[n][kind]],
                          "mean_us_per_block": [round(x * 1e6, 1) for x in avg[n][kind]]} for n in names}
         for key, data in (("ratio_per_block", lat), ("mean_ratio_per_block", avg)):
-            ratios = [s / b for s, b in zip(data["streaming"][kind], data["baseline"][kind])]
+            ratios = [s / b for s, b in zip(data["streaming"][kind], data["baseline"][kind], strict=True)]
             out[kind][key] = {"median": round(statistics.median(ratios), 3),
                               "min": round(min(ratios), 3), "max": round(max(ratios), 3)}
     return out
@@ -153,15 +154,18 @@ def main(argv: list[str] | None = None) -> int:
         args.messages, args.warmup, args.blocks = 400, 50, 2
     r = asyncio.run(bench(args))
     verdicts = []
+
+    def med(kind: str, n: str, key: str = "p50_us_per_block") -> float:
+        return statistics.median(r[kind][n][key])
+
     for kind, what in (("exec", "set_speed (executor) ack p50"), ("here", "here (reader) ack p50")):
-        med = lambda n: statistics.median(r[kind][n]["p50_us_per_block"])  # noqa: E731
         ratio = r[kind]["ratio_per_block"]["median"]
         verdicts.append(verdict(f"{what}, V+ server streaming state at {args.rate} Hz vs not streaming (median of "
-                                f"per-block ratios)", med("streaming"), med("baseline"), unit="us", ratio=ratio,
-                                goal="ratio <= 1.10", passed=ratio <= 1.10))
-        mean = lambda n: statistics.median(r[kind][n]["mean_us_per_block"])  # noqa: E731
+                                f"per-block ratios)", med(kind, "streaming"), med(kind, "baseline"), unit="us",
+                                ratio=ratio, goal="ratio <= 1.10", passed=ratio <= 1.10))
         verdicts.append(verdict(f"{what.replace('p50', 'mean')}, streaming vs not (median of per-block ratios)",
-                                mean("streaming"), mean("baseline"), unit="us",
+                                med(kind, "streaming", "mean_us_per_block"), med(kind, "baseline", "mean_us_per_block"),
+                                unit="us",
                                 ratio=r[kind]["mean_ratio_per_block"]["median"]))
     rate = r["rate_hz"]
     verdicts.append(verdict("robot.state rate from the V+ stream through the emulator and aioadept state", rate,

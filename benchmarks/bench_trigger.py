@@ -64,7 +64,7 @@ async def run_config(sim: dict, name: str, vision_args: list[str], steps: int, l
             await robot.cmdexec_joined(SetSpeed(50), MoveToolZ(-params.delta_z_mm * steps))
     return {"cycle_ms_p50": statistics.median(cycles), "motion_ms_p50": statistics.median(motions),
             "floor_ms_p50": statistics.median(floors), "vision_ms_p50": statistics.median(
-                c - m for c, m in zip(cycles, motions)), "cycles": len(cycles)}
+                c - m for c, m in zip(cycles, motions, strict=True)), "cycles": len(cycles)}
 
 
 CYCLE_KEYS = ("cycle_ms", "motion_ms", "vision_ms", "mcn_ms", "vision_floor_ms", "vision_ratio", "cycle_ratio")

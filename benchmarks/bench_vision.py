@@ -303,7 +303,7 @@ def bench_latency(n: int, warmup: int, rounds: int) -> dict:
     per_round: dict[str, list[float]] = {k: [] for k in names if k.startswith("node")}
     for _ in range(rounds):
         medians = {}
-        for kind, name in zip(KINDS, names):
+        for kind, name in zip(KINDS, names, strict=True):
             s_i = _round(kind, n, warmup)
             samples[name] += s_i
             medians[name] = statistics.median(s_i)
@@ -373,7 +373,7 @@ def bench_interleaved(n: int, warmup: int, rounds: int) -> dict:
                     proc.terminate()
                 proc.wait(10)
         ratios.append(round(statistics.median(node_s) / statistics.median(raw_s), 3))
-        pair_ratios += [nd / rw for nd, rw in zip(node_s, raw_s)]
+        pair_ratios += [nd / rw for nd, rw in zip(node_s, raw_s, strict=True)]
         raw_all += raw_s
         node_all += node_s
     return {

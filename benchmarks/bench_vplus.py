@@ -352,8 +352,8 @@ async def bench_servers(args: argparse.Namespace) -> dict:
                          "p99_us": round(xs[min(len(xs) - 1, int(len(xs) * 0.99))] * 1e6, 1)},
             "pipelined_acks_per_s_per_block": _spread(thr[n], 0),
         }
-    out["here_p50_ratio_per_block"] = _spread([v / s for v, s in zip(rtt["vplus"], rtt["python_sim"])])
-    out["pipelined_ratio_per_block"] = _spread([v / s for v, s in zip(thr["vplus"], thr["python_sim"])])
+    out["here_p50_ratio_per_block"] = _spread([v / s for v, s in zip(rtt["vplus"], rtt["python_sim"], strict=True)])
+    out["pipelined_ratio_per_block"] = _spread([v / s for v, s in zip(thr["vplus"], thr["python_sim"], strict=True)])
     return out
 
 

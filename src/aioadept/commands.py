@@ -65,7 +65,7 @@ def _six(name: str, values: Sequence[float] | Pose, units: Sequence[str] = _POSE
     vals = tuple(values)
     if len(vals) != 6:
         raise ValueError(f"{name}: expected 6 numbers, got {len(vals)}")
-    return tuple(_bounded(f"{name}[{i}]", v, unit) for i, (v, unit) in enumerate(zip(vals, units)))
+    return tuple(_bounded(f"{name}[{i}]", v, unit) for i, (v, unit) in enumerate(zip(vals, units, strict=True)))
 
 
 def _bounded(name: str, v: object, unit: str) -> float:
@@ -384,7 +384,8 @@ class Skill(Command):
     def __init__(self, name: str, *args: int | float) -> None:
         units = _MOTION_UNITS.get(name)
         if units is not None:
-            for i, (a, unit) in enumerate(zip(args, units)):
+            # the values given are bounded; a wrong count is the server's to refuse, with its error code
+            for i, (a, unit) in enumerate(zip(args, units, strict=False)):
                 _bounded(f"args[{i}]", a, unit)
         self._init((SkillCall(name, tuple(args)),))
 

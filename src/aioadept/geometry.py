@@ -136,7 +136,7 @@ def rel_world(pose: Pose, delta: Pose | Iterable[float]) -> Pose:
     not composed (that is what the original V+ program does).
     """
     d = delta if isinstance(delta, Pose) else Pose.from_seq(delta)
-    return Pose(*(a + b for a, b in zip(pose.as_tuple(), d.as_tuple())))
+    return Pose(*(a + b for a, b in zip(pose.as_tuple(), d.as_tuple(), strict=True)))
 
 
 def rel_tool(pose: Pose, delta: Pose | Iterable[float]) -> Pose:

@@ -48,7 +48,7 @@ async def test_ack_grammar_of_motion_skills(any_server):
              "bbbb0007:break"]
     await c.send(*lines)
     raws = [await c.raw(30) for _ in lines]
-    for sent, raw in zip(lines, raws):
+    for sent, raw in zip(lines, raws, strict=True):
         assert ACK_RE.match(raw), raw
         assert raw.startswith(sent[:8].encode() + b":done:"), (sent, raw)
     acks = [parse_ack(r[:-2]) for r in raws]

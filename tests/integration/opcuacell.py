@@ -61,7 +61,7 @@ async def opcua_cell_file(tmp_path: Path, models: dict[str, str], opcua_table: s
         started = await asyncio.gather(*(stack.enter_async_context(running_node(
             "sim", "--port", "0", "--state-rate", "50", "--state-endpoint", "tcp://127.0.0.1:0", "--robot-model",
             model, log_path=tmp_path / f"sim-{name}.log")) for name, model in models.items()))  # at once
-        sims = dict(zip(models, started))
+        sims = dict(zip(models, started, strict=True))
         entries = "".join(f'\n[[robots]]\nname = "{name}"\nmodel = "{models[name]}"\nport = {sim.ready["port"]}\n'
                           f'state_endpoint = "{sim.ready["state"]}"\n' for name, sim in sims.items())
         config = tmp_path / "cell.toml"

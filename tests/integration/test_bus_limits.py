@@ -138,7 +138,7 @@ async def test_t_deadline_that_is_not_a_finite_number_is_answered_with_an_error(
             far = await req.ask("0000f000", {"t_deadline": 2_000_000_000})  # an int (2033): fine
         finally:
             await req.close()
-    for d, attrs in zip(bad, answers):
+    for d, attrs in zip(bad, answers, strict=True):
         assert attrs == {"error": f"bad request: t_deadline must be a finite number (epoch s), got {d!r}"}
     assert far == {"ok": 1}
     assert calls == ["00000000", "0000f000"] and node.rejected == len(bad)

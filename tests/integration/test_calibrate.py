@@ -80,7 +80,7 @@ async def test_the_routine_moves_through_the_poses_and_recovers_the_camera():
                              timeout_s=5.0) as comm:
             run = await calibrate(robot, comm, poses, NOMINAL, marker=MARKER, marker_mm=40.0, speed=50)
     assert len(run.views) == 10 and run.skipped == ()
-    for view, asked in zip(run.views, poses):  # the acked poses, where the robot really was
+    for view, asked in zip(run.views, poses, strict=True):  # the acked poses, where the robot really was
         assert pose_error(view.tool, asked)[0] < 0.1
     err = check(run.calibration)
     print("calibration error mm, deg:", err, "rms px:", run.calibration.rms_px)

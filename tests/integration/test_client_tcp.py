@@ -374,7 +374,7 @@ async def test_observers_get_write_and_read_times_and_batches_and_failures_are_c
     assert [m.batch for m in rec.sent] == [1, 2, 2, 3, 3, 3, 4]
     assert [m.skill for m in rec.sent] == ["set_speed", "move_rel_tool", "break"] * 2 + ["break"]
     assert [a.id for a in rec.acks] == [m.id for m in rec.sent]
-    for sent, got in zip(rec.sent, rec.acks):
+    for sent, got in zip(rec.sent, rec.acks, strict=True):
         assert got.t_send_s == sent.t_send_s <= got.t_recv_s
         assert got.args == sent.args and got.batch == sent.batch
     assert rec.acks[1].ack.pose == server.pose

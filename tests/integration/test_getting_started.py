@@ -73,7 +73,7 @@ def test_every_shell_command_of_getting_started_runs_as_written(tmp_path):
             proc.wait()
     statuses = [int(s) for s in rc_log.read_text().split()] if rc_log.exists() else []
     assert len(statuses) == len(expected), output[-3000:]
-    for (argv, want, shown), got in zip(expected, statuses):
+    for (argv, want, shown), got in zip(expected, statuses, strict=True):
         assert got == want, f"{PAGE}: `{argv}` exited {got}, the page says {want}:\n{output[-3000:]}"
         for text in shown:
             assert _shown_matches(text, output, argv), f"{PAGE}: `{argv}`: the page shows {text!r}:\n{output}"

@@ -98,7 +98,7 @@ async def test_a_cell_file_of_a_viper_and_a_cobra_is_two_motion_devices_with_the
         def at(axes, want) -> bool:
             vals = [changes.last.get(pos.nodeid) for _, _, pos, _ in axes]
             return all(v is not None and v.StatusCode.is_good() and abs(v.Value.Value - w) <= 0.01
-                       for v, w in zip(vals, want))
+                       for v, w in zip(vals, want, strict=True))
 
         await until(lambda: at(scara, target[:4]) and at(arm, home), 10, "each robot's own joints")
 

@@ -111,7 +111,7 @@ async def test_only_an_authenticated_user_stops_the_robot_and_the_arm_rests(tmp_
             after = await device.call_method(run_skill, ua.Variant("here", ua.VariantType.String),
                                              ua.Variant([], ua.VariantType.Double))
             # Sent once: the first joint moved by 5 degrees, not 10, and nothing else moved.
-            assert [round(a - b, 2) for a, b in zip(joints(after), joints(here))] == [5.0, 0, 0, 0, 0, 0]
+            assert [round(a - b, 2) for a, b in zip(joints(after), joints(here), strict=True)] == [5.0, 0, 0, 0, 0, 0]
 
 
 @pytest.mark.timeout(60)

@@ -94,7 +94,7 @@ async def test_node_opcua_finds_the_robot_by_type_and_sees_here_s_joints_at_rest
                     await asyncio.sleep(0.02)
 
             await asyncio.wait_for(at_rest(), 10)
-            assert max(abs(a - b) for a, b in zip(here, TARGET)) < 0.01
+            assert max(abs(a - b) for a, b in zip(here, TARGET, strict=True)) < 0.01
             # It saw the arm on its way, not only where it ended.
             moving = [item for item in lines.items if item.get("axis") == 3 and abs(item["value"] - here[2]) > 0.1]
             assert moving, lines.items

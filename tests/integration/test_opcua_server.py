@@ -110,12 +110,12 @@ async def test_a_client_finds_the_robot_by_type_and_sees_here_s_joints_at_rest(t
             await robot.cmdexec(SetSpeed(100))
             await robot.cmdexec(MoveJoints(TARGET))  # with its break: acked at rest
             here = [float(j) for j in (await robot.cmdexec(Here())).messages[0].ack.extra[0].split(",")]
-        assert max(abs(a - b) for a, b in zip(here, TARGET)) < 0.01
+        assert max(abs(a - b) for a, b in zip(here, TARGET, strict=True)) < 0.01
 
         def at_rest() -> bool:
             vals = [changes.last.get(n.nodeid) for n in positions]
             return all(v is not None and v.StatusCode.is_good() and abs(v.Value.Value - h) <= 0.01
-                       for v, h in zip(vals, here))
+                       for v, h in zip(vals, here, strict=True))
 
         await until(at_rest, 5, "the six ActualPosition at here's joints")
         # Values came while it moved, not only at the end, each with the robot's own time as source timestamp.
@@ -354,7 +354,7 @@ async def test_a_client_that_vanishes_leaves_the_others_served(tmp_path) -> None
         sub = await client.create_subscription(50, changes)
         await sub.subscribe_data_change(positions)
         await until(lambda: all(changes.last.get(n.nodeid) and abs(changes.last[n.nodeid].Value.Value - t) <= 0.01
-                                for n, t in zip(positions, TARGET)), 10, "the target, to a client that stayed")
+                                for n, t in zip(positions, TARGET, strict=True)), 10, "the target, to a client that stayed")
         async with RobotClient("127.0.0.1", cell.robot_port) as robot:
             await robot.cmdexec(MoveJoints([0.0, -90.0, 180.0, 0.0, 90.0, 0.0]))
         await until(lambda: abs(changes.last[positions[0].nodeid].Value.Value) <= 0.01, 10, "home again")

@@ -67,7 +67,7 @@ def test_pickplace_places_n_of_n_parts_within_1_mm_and_1_deg(backend, tmp_path):
     assert max(s["place_error_deg"]) <= 1.0
     assert len(s["cycle_ms"]) == len(s["floor_ms"]) == 3
     # the floor is a lower bound of the cycle: what the robot and the locator must take, nothing else
-    assert all(0 < f < c for c, f in zip(s["cycle_ms"], s["floor_ms"]))
+    assert all(0 < f < c for c, f in zip(s["cycle_ms"], s["floor_ms"], strict=True))
     for name in ("gantt.png", "cycle_hist.png", "pickplace.json", "robot.csv", "vision.csv"):
         assert (run_dir / name).is_file(), name
     assert (run_dir / "vision.csv").read_text().count("LocateResponse") == 3

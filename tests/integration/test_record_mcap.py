@@ -69,7 +69,7 @@ def test_run_mcap_holds_every_message_of_robot_csv_and_vision_csv(demo_run):
     schemas: dict[str, tuple[str, str]] = {}
     with (demo_run / "run.mcap").open("rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
-        for schema, channel, message in reader.iter_messages():
+        for schema, channel, _ in reader.iter_messages():
             schemas[channel.topic] = (schema.name, schema.encoding)
             counts[channel.topic] += 1
         attachments = list(reader.iter_attachments())

@@ -106,7 +106,7 @@ async def test_a_ros2_subscriber_on_rmw_zenohs_key_sees_the_arm_in_radians(tmp_p
                     await robot.cmdexec(MoveJoints(TARGET))
                 want = [math.radians(a) for a in TARGET]
                 seq, t_ns, gid, msg = await listener.wait_for(
-                    lambda m: max(abs(a - b) for a, b in zip(m.position, want)) < 1e-6, 10)
+                    lambda m: max(abs(a - b) for a, b in zip(m.position, want, strict=True)) < 1e-6, 10)
         assert msg.name == [f"joint_{i}" for i in range(1, 7)]
         assert list(msg.velocity) == [] and list(msg.effort) == []
         stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
@@ -116,7 +116,7 @@ async def test_a_ros2_subscriber_on_rmw_zenohs_key_sees_the_arm_in_radians(tmp_p
         assert seqs == sorted(seqs) and len(set(seqs)) == len(seqs) and seqs[0] >= 1
         assert len({s[2] for s in listener.samples}) == 1  # one publisher, one GID
         # The arm moved while we listened: earlier samples are elsewhere (not a constant stream of the target).
-        assert any(max(abs(a - b) for a, b in zip(s[3].position, want)) > 0.1 for s in listener.samples)
+        assert any(max(abs(a - b) for a, b in zip(s[3].position, want, strict=True)) > 0.1 for s in listener.samples)
     finally:
         listener.close()
 

@@ -97,7 +97,7 @@ async def test_only_the_authorised_subscriber_receives():
         # The refused ones never completed a handshake: nothing reaches them (a bounded negative check, all three
         # at once; not a readiness wait).
         received = await asyncio.gather(*(receives_within(s, 0.3) for s in subs[1:]))
-        assert [name for name, r in zip(bad, received) if r] == []
+        assert [name for name, r in zip(bad, received, strict=True) if r] == []
     finally:
         for s in subs:
             s.close()

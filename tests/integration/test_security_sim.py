@@ -228,7 +228,7 @@ async def test_max_clients_refuses_the_extra_client_and_serves_the_others():
         assert poses_close(await b.here(), sim.controller.here, tol_mm=1e-3, tol_deg=1e-3)
         await a.close()
         # A slot frees once the server has seen the close; until then a newcomer is refused (retry, no sleep).
-        for attempt in range(200):
+        for _ in range(200):
             acks = await exchange(sim.host, sim.port, b"0000b002:here\r\n", expect_close=False)
             if acks and acks[0].status is Status.DONE:
                 break

@@ -17,7 +17,7 @@ from aioadept.protocol import ErrorCode
 from aioadept.robots.viper_s850 import HOME_JOINTS_DEG
 from aioadept.sim.server import SimOptions, SimServer
 
-PAPER_INIT_MOVE = tuple(a + d for a, d in zip(HOME_JOINTS_DEG, (-90, 60, 30, -90, 0, 0)))
+PAPER_INIT_MOVE = tuple(a + d for a, d in zip(HOME_JOINTS_DEG, (-90, 60, 30, -90, 0, 0), strict=True))
 
 
 @contextlib.asynccontextmanager
@@ -40,7 +40,7 @@ async def joints(robot: RobotClient) -> tuple[float, ...]:
 
 
 def max_move(a, b) -> float:
-    return max(abs(x - y) for x, y in zip(a, b))
+    return max(abs(x - y) for x, y in zip(a, b, strict=True))
 
 
 @pytest.mark.timeout(30)

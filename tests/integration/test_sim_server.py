@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import uuid
+from itertools import pairwise
 
 import pytest
 
@@ -133,7 +134,7 @@ async def test_original_client_style_traffic():
         ids = [uuid.uuid4().hex[:8].encode() for _ in range(4)]
         lines = [b"move_joints:0.000,-90.000,180.000,0.000,90.000,0.000", b"break",
                  b"move_to:-80.000,-481.000,112.500,180.000,90.000,180.000", b"break"]
-        data = b"".join(i + b":" + line + b"\r\n" for i, line in zip(ids, lines))
+        data = b"".join(i + b":" + line + b"\r\n" for i, line in zip(ids, lines, strict=True))
         reader, writer = await asyncio.open_connection(sim.host, sim.port)
         writer.write(data)
         pending = set(ids)
@@ -298,6 +299,6 @@ async def test_state_stream_rate():
     async with running_sim(instant=True, state_endpoint="tcp://127.0.0.1:0", state_rate_hz=50) as sim, \
             Subscriber(sim.state_endpoint, topics=[ROBOT_STATE_TOPIC]) as sub:
         ts = [RobotState.from_bytes((await sub.recv())[1]).t_s for _ in range(16)]
-        gaps = [b - a for a, b in zip(ts, ts[1:])]
+        gaps = [b - a for a, b in pairwise(ts)]
         assert all(g > 0 for g in gaps)
         assert statistics.median(gaps) == pytest.approx(0.02, rel=0.3)

@@ -57,7 +57,7 @@ async def test_relays_good_lines_skips_the_rest_and_reconnects_when_the_port_goe
             assert relay.stats.skipped == 2 and relay.stats.published == 3
             # wall time = t + the smallest (receive time - t) so far: monotonic, and its offset never grows
             walls = [s.wall_time_s for s in got]
-            offsets = [w - s.t_s for w, s in zip(walls, got)]
+            offsets = [w - s.t_s for w, s in zip(walls, got, strict=True)]
             assert walls == sorted(walls) and offsets == sorted(offsets, reverse=True)
             # silent for longer than idle_timeout_s: the relay drops the connection and connects again
             again = RobotState.from_bytes((await asyncio.wait_for(sub.recv(), 5))[1])

@@ -64,7 +64,7 @@ async def test_fig09_of_a_sweep_run_is_drawn_at_the_sweeps_positions(tmp_path, m
     # The frames at their positions along the sweep, every one of them.
     frames = sorted((f["offset_mm"], f["sharpness"]) for f in result["frames"])
     drawn = sorted((float(x), float(y)) for line in ax.get_lines() if line.get_marker() == "o"
-                   for x, y in zip(line.get_xdata(), line.get_ydata()))
+                   for x, y in zip(line.get_xdata(), line.get_ydata(), strict=True))
     assert len(drawn) == len(frames) and np.allclose(drawn, frames)
     # The peak marker (the red vertical line) at the fitted plane, not at a step number.
     (marker,) = [line for line in ax.get_lines() if line.get_color() == "red"]

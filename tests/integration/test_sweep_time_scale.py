@@ -13,6 +13,7 @@ import json
 import os
 import re
 import sys
+from itertools import pairwise
 
 import pytest
 
@@ -65,7 +66,7 @@ async def test_a_sweep_against_a_separately_started_fast_sim_moves_at_the_logged
         return s.in_motion and s.speed_pct == pct
 
     speeds = [b.pose.translation_distance_mm(a.pose) / (b.wall_time_s - a.wall_time_s)
-              for a, b in zip(samples, samples[1:]) if on_line(a) and on_line(b) and b.wall_time_s > a.wall_time_s]
+              for a, b in pairwise(samples) if on_line(a) and on_line(b) and b.wall_time_s > a.wall_time_s]
     assert speeds, f"no samples of the line at {pct} %"
     measured = max(speeds)
     assert abs(measured - logged_mm_s) <= 0.15 * logged_mm_s, (measured, logged_mm_s)

@@ -78,7 +78,7 @@ def test_inline_fast_path_matches_parse_ack(kinds, split):
     try:
         sub = robot.submit(*[Skill("noop", k) for k in range(len(kinds))])
         lines = []
-        for mid, (kind, pose_i, t) in zip(sub.ids, kinds):
+        for mid, (kind, pose_i, t) in zip(sub.ids, kinds, strict=True):
             pose = POSES[pose_i]
             if kind in ("done", "done_same"):
                 line = encode_ack(Ack(mid, Status.DONE, t, t + 1, pose))
@@ -207,7 +207,7 @@ def test_register_writes_ids_and_lines_and_a_lost_connection_says_what_is_known_
     assert w.reg.fail_all("peer closed") == [sub]
     assert w.pending_ids == () and sub.done() and sub.lost_reason == "peer closed" and waiter.result() == 2
     assert sub.futures[0].result() is sub.results[0]
-    for fut, mid in zip(sub.futures[1:], sub.ids[1:]):
+    for fut, mid in zip(sub.futures[1:], sub.ids[1:], strict=True):
         assert isinstance(fut.error, ConnectionLost) and fut.error.unresolved == (mid,)
 
 

@@ -62,7 +62,7 @@ def test_any_six_numbers_either_build_a_line_within_128_or_raise_value_error(cls
     """Property: a motion command is built only from finite values within the bounds, and its line always fits."""
     units = (["mm"] * 3 + ["deg"] * 3) if cls in POSE_CLASSES else ["deg"] * 6
     limit = {"mm": MAX_ABS_MM, "deg": MAX_ABS_DEG}
-    ok = all(math.isfinite(float(v)) and abs(float(v)) <= limit[u] for v, u in zip(values, units))
+    ok = all(math.isfinite(float(v)) and abs(float(v)) <= limit[u] for v, u in zip(values, units, strict=True))
     try:
         cmd = cls(values)
     except ValueError:

@@ -17,7 +17,7 @@ from aioadept.robots.viper_s850_urdf import FLANGE_LINK, JOINTS, link_transforms
 yourdfpy = pytest.importorskip("yourdfpy")
 
 _LIM = kin.VIPER_S850_LIMITS
-joints = st.tuples(*(st.floats(lo, hi, allow_nan=False) for lo, hi in zip(_LIM.min_deg, _LIM.max_deg)))
+joints = st.tuples(*(st.floats(lo, hi, allow_nan=False) for lo, hi in zip(_LIM.min_deg, _LIM.max_deg, strict=True)))
 
 
 @pytest.fixture(scope="module")

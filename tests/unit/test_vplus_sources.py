@@ -488,7 +488,7 @@ def _close(a: tuple, b: tuple) -> bool:
     """Entries equal; command arguments equal to within REAL (single precision) rounding, as V+ stores them."""
     if a[0] == b[0] == "cmd":
         return a[:3] == b[:3] and len(a[3]) == len(b[3]) and all(
-            abs(x - y) <= 1e-6 * max(1.0, abs(y)) for x, y in zip(a[3], b[3]))
+            abs(x - y) <= 1e-6 * max(1.0, abs(y)) for x, y in zip(a[3], b[3], strict=True))
     return a == b
 
 

@@ -57,14 +57,14 @@ def test_a_file_with_several_mistakes_gives_each_at_its_line_and_column(tmp_path
     got = check([("bad.V2", BAD)])
     assert [(p.file, p.line, p.column, p.severity) for p in got] == [("bad.V2", ln, col, "error")
                                                                       for ln, col, _ in WANT]
-    for p, (_, _, fragment) in zip(got, WANT):
+    for p, (_, _, fragment) in zip(got, WANT, strict=True):
         assert fragment in p.message
     (tmp_path / "bad.V2").write_text(BAD)
     done = run_cli("bad.V2", cwd=tmp_path)
     assert done.returncode == 1, done.stderr
     lines = done.stdout.splitlines()
     assert [ln.split(": error: ")[0] for ln in lines] == [f"bad.V2:{ln}:{col}" for ln, col, _ in WANT]
-    assert all(fragment in ln for ln, (_, _, fragment) in zip(lines, WANT))
+    assert all(fragment in ln for ln, (_, _, fragment) in zip(lines, WANT, strict=True))
 
 
 def test_the_github_format_is_one_error_annotation_per_problem(tmp_path, capsys, monkeypatch):
@@ -77,7 +77,7 @@ def test_the_github_format_is_one_error_annotation_per_problem(tmp_path, capsys,
                         "V+ keyword in one [MOVEE] [E001]")
     ends = [p.end_column for p in check([("bad.V2", BAD)])]
     assert [ln.split("::")[1] for ln in lines] == [f"error file=bad.V2,line={ln},col={col},endColumn={end},title=E001"
-                                                   for (ln, col, _), end in zip(WANT, ends)]
+                                                   for (ln, col, _), end in zip(WANT, ends, strict=True)]
 
 
 def test_the_json_format_is_one_array_of_the_problems(tmp_path, capsys, monkeypatch):
@@ -188,7 +188,7 @@ def test_each_warning_at_its_line_and_column_with_its_code_and_none_where_a_vari
     got = check([("main.V2", MAIN), ("lib.V2", LIB)], warnings=True)
     assert all(p.severity == "warning" for p in got)
     assert [f[:4] for f in _found(got)] == [w[:4] for w in WARNED]
-    for p, w in zip(got, WARNED):
+    for p, w in zip(got, WARNED, strict=True):
         assert w[4] in p.message
     assert check([("main.V2", MAIN), ("lib.V2", LIB)]) == []        # warnings only when asked for
 
@@ -316,7 +316,7 @@ def test_the_sarif_format_is_a_sarif_2_1_0_log_with_a_rule_and_a_located_result_
     assert {r["id"] for r in rules} >= {"E001", "W101", "W102", "W103", "W104", "W105", "W106", "W107"}
     want = check([("src/lib.V2", LIB + BAD), ("src/main.V2", MAIN)], warnings=True)
     assert len(run["results"]) == len(want) == 4 + len(WARNED)
-    for r, p in zip(run["results"], want):
+    for r, p in zip(run["results"], want, strict=True):
         assert rules[r["ruleIndex"]]["id"] == r["ruleId"] == p.code
         assert r["level"] == p.severity and r["message"]["text"] == p.message
         (loc,) = r["locations"]

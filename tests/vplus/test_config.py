@@ -33,7 +33,7 @@ def test_the_same_target_in_another_configuration_is_another_joint_solution(word
     other = joints_after("\t" + word)
     assert getattr(kin.configuration(plain), flag) == -value
     assert getattr(kin.configuration(other), flag) == value
-    assert max(abs(a - b) for a, b in zip(plain, other)) > 20.0
+    assert max(abs(a - b) for a, b in zip(plain, other, strict=True)) > 20.0
     # both are the target
     assert pose_of(other) == pytest.approx(pose_of(plain), abs=1e-6)
     # and the request was for that motion only: the arm stays in it, the next motion keeps it

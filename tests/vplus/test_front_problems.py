@@ -36,7 +36,7 @@ def test_ten_mistakes_in_ten_programs_are_ten_problems_each_at_its_line_and_colu
     emu = Emulator.from_source(text, filename="ten.V2", robot=False)
     got = sorted(emu.problems, key=lambda p: p.line)
     assert len(got) == 10, [str(p) for p in got]
-    for prob, (code, message, word), (line, col) in zip(got, MISTAKES, where):
+    for prob, (code, message, word), (line, col) in zip(got, MISTAKES, where, strict=True):
         assert message in prob.message, (code, str(prob))
         assert (prob.file, prob.line, prob.column) == ("ten.V2", line, col), (code, str(prob), prob.column)
         assert prob.word.upper() == word.upper()

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import statistics
 from collections.abc import Mapping, Sequence
+from itertools import pairwise
 from typing import Any
 
 from aioadept.analysis.metrics import Iteration
@@ -37,7 +38,7 @@ def cycle_split(runs: Sequence[Run], iterations: Sequence[Iteration]) -> dict[st
     floors: list[float] = []
     parts: dict[str, list[float]] = {"exposure_ms": [], "readout_ms": [], "graph_ms": []}
     by_run = {r.name: {v.id: v for v in r.vision} for r in runs}
-    for it, nxt in zip(iterations, iterations[1:]):
+    for it, nxt in pairwise(iterations):
         if not (it.complete and nxt.complete and nxt.run == it.run and nxt.index == it.index + 1):
             continue
         starts = [t for t in (it.t_ss_rreq_s, it.t_mrt_rreq_s, it.t_b_rreq_s) if t is not None]

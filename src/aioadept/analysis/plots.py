@@ -236,7 +236,7 @@ def plot_lognormal_pair(a: tuple[np.ndarray, Any, str, str], b: tuple[np.ndarray
     """Figs. 12/13: panels (A) and (B), each ``(values_ms, fit or None, xlabel, panel title)``."""
     fig = _figure(11.0, 4.0)
     axes = fig.subplots(1, 2)
-    for ax, letter, (x, fit, xlabel, panel) in zip(axes, "AB", (a, b)):
+    for ax, letter, (x, fit, xlabel, panel) in zip(axes, "AB", (a, b), strict=True):
         _lognormal_panel(ax, np.asarray(x, dtype=float), fit, letter=letter, xlabel=xlabel, title=panel)
     fig.suptitle(title)
     return _save(fig, path)

@@ -360,14 +360,14 @@ def analyze_runs(run_dirs: Iterable[str | os.PathLike[str]], out_dir: str | os.P
     if not paths:
         raise ValueError("run_dirs: no run folder given")
     names = _names(paths)
-    runs = [_renamed(load_run(p), n) for p, n in zip(paths, names)]
+    runs = [_renamed(load_run(p), n) for p, n in zip(paths, names, strict=True)]
     out = Path(out_dir) if out_dir is not None else (paths[0] if len(paths) == 1 else Path("analysis"))
     out.mkdir(parents=True, exist_ok=True)
 
     per_run = [iterations_of_run(r) for r in runs]
     iterations = tuple(it for its in per_run for it in its)
     infos = tuple(RunInfo(r.name, str(r.path), r.parameters, len(r.robot), len(r.vision), len(its),
-                          sum(1 for it in its if it.complete)) for r, its in zip(runs, per_run))
+                          sum(1 for it in its if it.complete)) for r, its in zip(runs, per_run, strict=True))
     stats: dict[str, Stats] = {}
     fits: dict[str, Any] = {}
     for q in QUANTITIES:

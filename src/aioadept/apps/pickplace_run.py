@@ -97,7 +97,7 @@ def summary_of(result: PickPlaceResult, p: PickPlaceParams, error: str | None,
     placed = [c for c in result.cycles if c.placed]
     cycle_ms = [round(c.cycle_ms, 3) for c in placed]
     floor_ms = [round(c.floor_ms, 3) for c in placed]
-    ratio = [c / f for c, f in zip(cycle_ms, floor_ms) if f > 0]
+    ratio = [c / f for c, f in zip(cycle_ms, floor_ms, strict=True) if f > 0]
     out: dict[str, Any] = {
         "app": "pickplace", "parts": p.parts, "parts_placed": len(placed),
         "parts_failed": len(result.cycles) - len(placed),
@@ -125,7 +125,7 @@ def write_figures(result: PickPlaceResult, run_dir: Path) -> list[str]:
     one = sorted(placed, key=lambda c: c.cycle_ms)[len(placed) // 2]
     fig, ax = plt.subplots(figsize=(8, 2.6))
     names = [s[0] for s in one.steps]
-    for i, (name, t0, t1) in enumerate(one.steps):
+    for i, (_, t0, t1) in enumerate(one.steps):
         ax.barh(i, (t1 - t0) * 1000.0, left=(t0 - one.t_start_s) * 1000.0, color="C%d" % (i % 10))
     ax.set_yticks(range(len(names)), names)
     ax.invert_yaxis()

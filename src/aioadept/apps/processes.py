@@ -14,11 +14,14 @@ import contextlib
 import os
 import shlex
 import signal
+import logging
 import sys
 from pathlib import Path
 from typing import IO, Any
 
 from aioadept.errors import NodeError
+
+log = logging.getLogger(__name__)
 
 # Process groups of the nodes started and not yet reaped, for kill_all_now() (a signal handler's exit path).
 _LIVE_GROUPS: set[int] = set()
@@ -100,9 +103,12 @@ class NodeProcess:
         env = dict(os.environ if self.env is None else self.env)
         env.setdefault("PYTHONUNBUFFERED", "1")
         if self.log_path is not None:
-            self.log_path.parent.mkdir(parents=True, exist_ok=True)
-            self._log = open(self.log_path, "w", encoding="utf-8")  # noqa: SIM115 - closed in stop()
-            self._log.write(f"$ {self.command_line}\n")
+            try:
+                self.log_path.parent.mkdir(parents=True, exist_ok=True)
+                self._log = open(self.log_path, "w", encoding="utf-8")  # noqa: SIM115 - closed in stop()
+            except OSError as exc:
+                log.warning("%s runs without its log %s: %s", self.name, self.log_path, exc.strerror or exc)
+            self._write_log(f"$ {self.command_line}")
         self.proc = await asyncio.create_subprocess_exec(
             *self.argv, stdin=asyncio.subprocess.DEVNULL, stdout=asyncio.subprocess.PIPE,
             stderr=asyncio.subprocess.PIPE, env=env, start_new_session=True, preexec_fn=_die_with_parent(os.getpid()))
@@ -124,7 +130,7 @@ class NodeProcess:
                         break
         except TimeoutError:
             await self.stop()
-            raise NodeError(f"{self.name} did not report READY within {self.ready_timeout_s} s:\n{self.tail()}")
+            raise NodeError(f"{self.name} did not report READY within {self.ready_timeout_s} s:\n{self.tail()}") from None
         except BaseException:
             await self.stop()
             raise
@@ -136,11 +142,27 @@ class NodeProcess:
             self._keep(raw.decode(errors="replace").rstrip())
 
     def _keep(self, line: str) -> None:
-        if self._log is not None:
-            self._log.write(line + "\n")
-            self._log.flush()
+        self._write_log(line)
         self._tail.append(line)
         del self._tail[:-20]
+
+    def _write_log(self, line: str) -> None:
+        """The node's log is a by-product: a write the disk refuses (full, a file-size limit) ends the log with a
+        warning, never the run, and the pump goes on draining the pipe so the node never blocks on it."""
+        if self._log is None:
+            return
+        try:
+            self._log.write(line + "\n")
+            self._log.flush()
+        except OSError as exc:
+            log.warning("%s's log %s is cut short here: %s", self.name, self.log_path, exc.strerror or exc)
+            self._close_log()
+
+    def _close_log(self) -> None:
+        log_file, self._log = self._log, None
+        if log_file is not None:
+            with contextlib.suppress(OSError):  # what is still buffered meets the same full disk
+                log_file.close()
 
     def tail(self) -> str:
         """The last lines the node printed (for error messages)."""
@@ -177,9 +199,7 @@ class NodeProcess:
             with contextlib.suppress(asyncio.CancelledError):
                 await task
         self._pumps.clear()
-        if self._log is not None:
-            self._log.close()
-            self._log = None
+        self._close_log()
         return None if proc is None else proc.returncode
 
 

@@ -232,7 +232,7 @@ class StateTrack:
     @property
     def delay_s(self) -> float:
         """The smallest receive time minus the sender's time seen (the fastest transport, on one clock)."""
-        return min(r - w for r, w in zip(self.recv, self.wall)) if self.wall else 0.0
+        return min(r - w for r, w in zip(self.recv, self.wall, strict=True)) if self.wall else 0.0
 
     @property
     def offset_s(self) -> float:

@@ -212,7 +212,7 @@ class BridgeClient:
                              payload=encode_request(ids, calls), attachment=self.app.encode("ascii"),
                              target=zenoh.QueryTarget.BEST_MATCHING, timeout=(wait_s or 24 * 3600.0) + _MARGIN_S)
             for obs in self._observers:
-                for mid, call in zip(ids, calls):
+                for mid, call in zip(ids, calls, strict=True):
                     _safe(obs.on_send, SentMessage(mid, call.skill, call.args, batch, t_send))
             try:
                 async with asyncio.timeout(None if wait_s is None else wait_s + _MARGIN_S):
@@ -245,7 +245,7 @@ class BridgeClient:
             raise ConnectionLost(f"the bridge answered without acks for {missing}",
                                  acked=tuple(i for i in ids if i in by_id), unresolved=tuple(missing))
         results = tuple(MessageResult(mid, c.skill, c.args, batch, t_send, t_recv, by_id[mid])
-                        for mid, c in zip(ids, calls))
+                        for mid, c in zip(ids, calls, strict=True))
         for r in results:
             for obs in self._observers:
                 _safe(obs.on_ack, r)

@@ -403,7 +403,7 @@ class Bridge:
         except (ConnectionLost, ClientStateError) as exc:
             self._fail(job, BridgeFailure("lost", f"controller not connected, not sent: {exc}"))
             return
-        to_app = dict(zip(sub.ids, req.ids))
+        to_app = dict(zip(sub.ids, req.ids, strict=True))
         try:
             results = await sub.wait()
         except (CommandError, CommandAborted) as exc:

@@ -106,7 +106,7 @@ class BridgeRequest:
 
 
 def encode_request(ids: tuple[str, ...], calls: tuple[SkillCall, ...]) -> bytes:
-    return b"".join(f"{i}:{c.wire}\r\n".encode("ascii") for i, c in zip(ids, calls))
+    return b"".join(f"{i}:{c.wire}\r\n".encode("ascii") for i, c in zip(ids, calls, strict=True))
 
 
 def parse_request(payload: bytes, app: bytes | None) -> BridgeRequest:

@@ -127,8 +127,8 @@ class Responder:
         self.max_queue = max_queue
         self.max_request_bytes = max_request_bytes
         self._handler = handler
-        is_async = inspect.iscoroutinefunction(handler) or inspect.iscoroutinefunction(
-            getattr(handler, "__call__", None))
+        is_async = inspect.iscoroutinefunction(handler) or (callable(handler)
+                                                            and inspect.iscoroutinefunction(handler.__call__))
         self._in_thread = in_thread and not is_async
         # A plain function not sent to a thread runs right in the reader callback: no queue, no task switch.
         self._inline = not is_async and not self._in_thread

@@ -246,7 +246,7 @@ async def run(args: argparse.Namespace, robots: list, users: dict[str, str] | No
             except (AdeptError, OSError) as exc:  # the methods connect when called; said here once
                 logging.getLogger("aioadept.opcua").warning("commands: robot server not reachable yet: %s", exc)
         tasks = [asyncio.create_task(watch(cell), name="opcua-watch")]
-        for r, view in zip(robots, views):
+        for r, view in zip(robots, views, strict=True):
             tasks += [asyncio.create_task(follow_state(r.state_endpoint, view, cell), name=f"opcua-state-{r.name}"),
                       asyncio.create_task(poll_robot(r.host, r.port, view, cell), name=f"opcua-robot-{r.name}")]
         first = robots[0]

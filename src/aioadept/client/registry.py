@@ -200,7 +200,7 @@ class PendingCalls:
             if issued > 0xFFFFFFFF and (not pending.keys().isdisjoint(ids)
                                         or not self._abandoned.keys().isdisjoint(ids)):
                 ids = self._unused_ids(n)
-            data = "".join([f"{mid}:{call.wire}\r\n" for mid, call in zip(ids, calls)]).encode("ascii")
+            data = "".join([f"{mid}:{call.wire}\r\n" for mid, call in zip(ids, calls, strict=True)]).encode("ascii")
         batch = self._batch = self._batch + 1
         # Submission(ids, calls, batch), inline for the same reason.
         sub = _new_submission(Submission)
@@ -343,7 +343,7 @@ class PendingCalls:
         if sub.remaining and sub._lost_reason is None:
             pending = self._pending
             abandoned = self._abandoned
-            for mid, r in zip(sub.ids, sub.results):
+            for mid, r in zip(sub.ids, sub.results, strict=True):
                 if r is None and pending.pop(mid, None) is not None:
                     abandoned[mid] = None
                     if len(abandoned) > _ABANDONED_MEMORY:
@@ -359,7 +359,7 @@ class PendingCalls:
         subs = list({id(sub): sub for sub in pending.values()}.values())  # in send order
         for sub in subs:
             if sub.futures is not None:
-                for mid, fut in zip(sub.ids, sub.futures):
+                for mid, fut in zip(sub.ids, sub.futures, strict=True):
                     if mid in pending and not fut.done():
                         # Per message; wait() merges them into one error with the whole batch's sets.
                         fut.set_exception(lost(why, unresolved=(mid,)))

@@ -100,7 +100,7 @@ class ExecResult:
     def commands(self) -> tuple[CommandResult, ...]:
         out = []
         i = 0
-        for command, n in zip(self.sent, self.sizes):
+        for command, n in zip(self.sent, self.sizes, strict=True):
             out.append(CommandResult(command, self.messages[i:i + n]))
             i += n
         return tuple(out)

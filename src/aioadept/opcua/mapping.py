@@ -219,7 +219,7 @@ class RobotView:
                              f"{self.identity.axes} axes")
         if prev is not None and not self.stale(arrived_s) and state.t_s > prev.t_s:
             dt = state.t_s - prev.t_s
-            self._speeds = tuple((a - b) / dt for a, b in zip(state.joints_deg, prev.joints_deg))
+            self._speeds = tuple((a - b) / dt for a, b in zip(state.joints_deg, prev.joints_deg, strict=True))
         elif prev is None or self.stale(arrived_s):
             self._speeds = None
         self._state = state

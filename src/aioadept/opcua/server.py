@@ -391,7 +391,7 @@ class CellServer:
         A sample that only confirms a value does not rewrite it: its source timestamp stays the time the value
         last changed, as OPC UA Part 4 defines SourceTimestamp (and a resting arm costs the clients nothing)."""
         written = 0
-        for view, nodes in zip(self.views, self._vars):
+        for view, nodes in zip(self.views, self._vars, strict=True):
             for key, reading in view.readings(now_s).items():
                 node = nodes[key]
                 mark = (reading.value, reading.quality)
@@ -484,7 +484,7 @@ def _refuse_writes_as_not_writable(server: Server) -> None:
     async def checked(params: ua.WriteParameters, user: Any = None, **kw: Any) -> list[ua.StatusCode]:
         results = await (write(params, user=user, **kw) if user is not None else write(params, **kw))
         out = []
-        for item, result in zip(params.NodesToWrite, results):
+        for item, result in zip(params.NodesToWrite, results, strict=True):
             if result == denied and item.AttributeId == ua.AttributeIds.Value:
                 level = server.iserver.aspace.read_attribute_value(item.NodeId, ua.AttributeIds.AccessLevel)
                 if level.Value is not None and level.Value.Value is not None and \

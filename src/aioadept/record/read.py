@@ -60,9 +60,12 @@ def blueprint_views(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
             batch = chunk.to_record_batch()
             cols = {n.split(":")[-1]: batch.column(n).to_pylist() for n in batch.schema.names if ":" in n}
             for i in range(batch.num_rows):
-                def first(name: str, i: int = i) -> Any:
-                    v = cols.get(name, [None] * batch.num_rows)[i]
-                    return v[0] if isinstance(v, list) and v else v
-                views.append({"kind": first("class_identifier"), "origin": first("space_origin"),
-                              "name": first("display_name")})
+                views.append({"kind": _cell(cols, "class_identifier", i), "origin": _cell(cols, "space_origin", i),
+                              "name": _cell(cols, "display_name", i)})
     return views
+
+
+def _cell(cols: dict[str, list], name: str, i: int) -> Any:
+    """Row ``i`` of column ``name``, a one-item list unwrapped (None when the file has no such column)."""
+    v = cols[name][i] if name in cols else None
+    return v[0] if isinstance(v, list) and v else v

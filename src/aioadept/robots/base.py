@@ -28,7 +28,7 @@ class JointLimits:
     max_deg: tuple[float, ...] = (170.0, 45.0, 256.0, 190.0, 120.0, 360.0)
 
     def __post_init__(self) -> None:
-        if len(self.min_deg) != len(self.max_deg) or any(lo > hi for lo, hi in zip(self.min_deg, self.max_deg)):
+        if len(self.min_deg) != len(self.max_deg) or any(lo > hi for lo, hi in zip(self.min_deg, self.max_deg, strict=True)):
             raise ValueError(f"JointLimits: expected as many minima as maxima, each <= its maximum, got "
                              f"{self.min_deg} .. {self.max_deg}")
 
@@ -169,7 +169,7 @@ def nearest_solution(candidates: Iterable[Sequence[float]], cur: Sequence[float]
                 break
             cand.append(q)
         else:
-            cost = sum(abs(a - b) for a, b in zip(cand, cur))
+            cost = sum(abs(a - b) for a, b in zip(cand, cur, strict=True))
             if cost < best_cost:
                 best, best_cost = cand, cost
     return best
@@ -189,7 +189,7 @@ def jump_excess(model: Any, sol: Sequence[float], cur: Sequence[float], m_flange
                 jump: JumpLimit) -> tuple[int, float, float, float, float] | None:
     """None if ``sol`` moves no joint more than ``jump`` allows for the tool's move from ``cur`` to the flange
     ``m_flange`` (composed with ``tool``); else (worst joint index, its motion, distance mm, rotation deg, allowed)."""
-    moves = [abs(a - b) for a, b in zip(sol, cur)]
+    moves = [abs(a - b) for a, b in zip(sol, cur, strict=True)]
     worst = max(range(len(moves)), key=moves.__getitem__)
     if moves[worst] <= jump.floor_deg:
         return None  # within the floor whatever the Cartesian size: skip the forward kinematics

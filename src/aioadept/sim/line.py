@@ -269,9 +269,9 @@ def _plan_batch(start_deg: Sequence[float], start_m: np.ndarray, target_m: np.nd
                 short_runs += 1
         k += 1  # sample k + 1 by the scalar inverse kinematics, as the reference loop does
         joints[k] = _solve_sample(solve, poses[k - 1 - lo], joints[k - 1], float(s[k]), length)
-    for k in range(k + 1, n + 1):
-        m = target_m if k == n else _line_pose(start_m, target_m, turn, float(s[k]))
-        joints[k] = _solve_sample(solve, m, joints[k - 1], float(s[k]), length)
+    for j in range(k + 1, n + 1):
+        m = target_m if j == n else _line_pose(start_m, target_m, turn, float(s[j]))
+        joints[j] = _solve_sample(solve, m, joints[j - 1], float(s[j]), length)
     return LinePath(s, joints, length, rotation, start_m.copy(), target_m.copy())
 
 

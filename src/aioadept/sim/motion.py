@@ -156,7 +156,7 @@ def plan_duration(delta_deg: Sequence[float], speed_fraction: float, *, limits: 
         raise ValueError(f"accel_fraction: {accel_fraction} outside (0, 1]")
     ramp = limits.ramp_s / accel_fraction
     duration = 0.0
-    for d, vmax in zip(delta_deg, limits.max_speed_deg_s):
+    for d, vmax in zip(delta_deg, limits.max_speed_deg_s, strict=True):
         d = abs(d)
         if d == 0.0:
             continue

@@ -119,7 +119,7 @@ def _move_rel_joints(ctl: Any, args: tuple[float, ...]) -> SkillGen:
     _check_joint_args(args, "displacement")
     here = ctl.joints_deg
     # a four-axis arm's displacement keeps its trailing values, so that a non-zero one is refused, not dropped
-    return (yield from ctl.move_joints([a + d for a, d in zip(here, args)] + list(args[len(here):])))
+    return (yield from ctl.move_joints([a + d for a, d in zip(here, args, strict=False)] + list(args[len(here):])))
 
 
 def _break(ctl: Any, args: tuple[float, ...]) -> SkillGen:

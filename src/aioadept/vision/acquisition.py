@@ -397,7 +397,8 @@ class Acquisition:
         self._stop.set()
         for ev in self._trigger_events.values():
             ev.set()  # wakes the triggered threads, which then see the stop
-        for t, src in zip(self._threads, self.sources):
+        # no threads before a start or after an earlier stop (stop is idempotent)
+        for t, src in zip(self._threads, self.sources, strict=False):
             t.join(t_s := src.stop_wait_s)
             if t.is_alive():
                 log.warning("%s: a grab is still running after %g s: stopped without it", src.camera_id, t_s)

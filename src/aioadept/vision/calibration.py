@@ -312,7 +312,7 @@ def _closed_form(b: list[np.ndarray], m: list[np.ndarray]) -> tuple[np.ndarray, 
     x = np.eye(4)
     x[:3, :3], x[:3, 3] = rx, tx
     # Y = B_i^-1 X M_i for each view; average (rotation by SVD projection of the mean).
-    ys = [inverse_transform(bi) @ x @ mi for bi, mi in zip(b, m)]
+    ys = [inverse_transform(bi) @ x @ mi for bi, mi in zip(b, m, strict=True)]
     y = np.eye(4)
     u, _, vt = np.linalg.svd(sum(yi[:3, :3] for yi in ys))
     y[:3, :3] = u @ np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt))]) @ vt
@@ -343,7 +343,7 @@ def _residuals(p: np.ndarray, b: list[np.ndarray], corners: list[np.ndarray], ob
     x, y = _unpack(p)
     cam_from_base = inverse_transform(x)
     res = []
-    for bi, ci in zip(b, corners):
+    for bi, ci in zip(b, corners, strict=True):
         cm = cam_from_base @ bi @ y  # camera_from_marker predicted by the two unknowns
         uv, _ = cv2.projectPoints(obj.reshape(-1, 1, 3), cv2.Rodrigues(cm[:3, :3])[0], cm[:3, 3], K, dist)
         res.append((uv.reshape(-1, 2) - ci).ravel())

@@ -171,7 +171,7 @@ class CompGraph:
                     got = len(result) if isinstance(result, tuple) else type(result).__name__
                     raise GraphError(f"{self.name}: function {node.name!r} must return a tuple of "
                                      f"{len(node.outputs)} values {node.outputs}, got {got}")
-                tokens.update(zip(node.outputs, result))
+                tokens.update(zip(node.outputs, result, strict=True))
         total = time.perf_counter() - t_run
         return GraphRun(tokens=MappingProxyType(tokens), node_time_s=MappingProxyType(times), total_time_s=total)
 

@@ -78,7 +78,7 @@ def detect_markers(image: np.ndarray, dictionary: str) -> tuple[Marker, ...]:
         return ()
     bits = int(dictionary.split("_")[1].split("X")[0])
     out = []
-    for i, c in zip(ids.ravel(), corners):
+    for i, c in zip(ids.ravel(), corners, strict=True):
         c = c.reshape(4, 2).astype(np.float32)
         # Corner refinement, chosen by the marker's module (one data bit) in the image, as measured on synthetic
         # views with known corners: the contour fit (lines through the border's edge pixels) is the better one on

@@ -74,7 +74,8 @@ class Camera(abc.ABC):
         """The next frame, or ``None`` when the source is exhausted. May block until a frame is available."""
 
     def close(self) -> None:
-        """Release the device or files. Idempotent."""
+        """Release the device or files. Idempotent. This default, for a source that holds nothing, does nothing."""
+        return None
 
     def __enter__(self) -> Camera:
         return self

@@ -210,11 +210,11 @@ def paper_approach_pose(forward: Callable[[Sequence[float]], Pose] | None = None
     from aioadept.robots import viper_s850 as kin
 
     fk = forward or kin.forward
-    joints = [h + d for h, d in zip(PAPER_HOME_JOINTS_DEG, PAPER_REL_JOINTS_DEG)]
+    joints = [h + d for h, d in zip(PAPER_HOME_JOINTS_DEG, PAPER_REL_JOINTS_DEG, strict=True)]
     after_tool = fk(joints) @ Pose.from_seq(PAPER_REL_TOOL)
     if forward is None:
         j = kin.inverse(after_tool, joints)
-        return kin.forward([a + d for a, d in zip(j, PAPER_REL_JOINTS_2_DEG)])
+        return kin.forward([a + d for a, d in zip(j, PAPER_REL_JOINTS_2_DEG, strict=True)])
     return after_tool @ Pose(roll=PAPER_REL_JOINTS_2_DEG[5])
 
 

@@ -596,7 +596,7 @@ class _Gen:
         self.emit("try:")
         self.ind += 1
         self.frames.append("dispatch")
-        for k, seg in zip([starts[0] - 1, *starts], segs):
+        for k, seg in zip([starts[0] - 1, *starts], segs, strict=True):
             self.emit(f"if {pc} <= {k}:")
             self.ind += 1
             self.emit("pass")
@@ -732,7 +732,7 @@ class _Gen:
         self.hook(b.line)
         self.guarded(b.line, [f"{v} = {code}"])
         first = True
-        for (vs, body), codes in zip(b.cases, vals):
+        for (vs, body), codes in zip(b.cases, vals, strict=True):
             if vs is None:
                 self.emit("else:" if not first else "if True:")
             else:

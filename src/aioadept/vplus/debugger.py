@@ -421,7 +421,7 @@ def children(v: Any) -> list[tuple[str, Any]]:
     """The parts of a value shown under it: an array's elements, a location's x y z yaw pitch roll, a precision
     point's joints; [] for a number or a string."""
     if isinstance(v, Transform):
-        return list(zip(("x", "y", "z", "yaw", "pitch", "roll"), v.decompose()))
+        return list(zip(("x", "y", "z", "yaw", "pitch", "roll"), v.decompose(), strict=True))
     if isinstance(v, PrecisionPoint):
         return [(f"j{i + 1}", x) for i, x in enumerate(v.joints_deg)]
     if isinstance(v, dict):

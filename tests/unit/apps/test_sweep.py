@@ -155,7 +155,7 @@ def test_the_sweep_figure_shows_frames_fit_and_plane(tmp_path):
     s = curve(z)
     fit = fit_peak(z, s)
     result = {"peak_offset_mm": fit.peak_mm, "peak_sigma_mm": fit.sigma_mm, "pose_source": "state-stream",
-              "frames": [{"sweep": 0, "offset_mm": float(a), "sharpness": float(b)} for a, b in zip(z, s)],
+              "frames": [{"sweep": 0, "offset_mm": float(a), "sharpness": float(b)} for a, b in zip(z, s, strict=True)],
               "sweep": {"plans": [{"kind": "coarse", "speed_mm_s": 200.0}], "fits": [fit.as_dict()]}}
     path = plot_sweep(result, tmp_path / "fig09b_sweep.png")
     assert path.stat().st_size > 10_000 and path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -88,6 +88,6 @@ def test_what_the_client_encodes_the_server_parses(mid, skill, args):
     assert wire.endswith(b"\r\n")
     msg = parse_command(wire[:-2])
     assert (msg.id, msg.skill, len(msg.args)) == (mid, skill, len(args))
-    for sent, got in zip(args, msg.args):
+    for sent, got in zip(args, msg.args, strict=True):
         # The wire carries %.3f (reals) or %d (ints): the parsed value is that text's value.
         assert got == type(got)(format_arg(sent)) and abs(got - sent) <= 0.0005 + 1e-9 * abs(sent)

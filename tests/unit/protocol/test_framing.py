@@ -70,7 +70,7 @@ line_st = st.binary(min_size=0, max_size=200).map(lambda b: b.replace(b"\n", b""
 def test_any_split_gives_the_same_items(lines, cuts, crlf):
     stream = b"".join(line + (b"\r\n" if crlf else b"\n") for line in lines)
     points = sorted({c % (len(stream) + 1) for c in cuts})
-    chunks = [stream[a:b] for a, b in zip([0, *points], [*points, len(stream)])]
+    chunks = [stream[a:b] for a, b in zip([0, *points], [*points, len(stream)], strict=True)]
     whole, _ = feed_all([stream])
     split, framer = feed_all(chunks)
     assert split == whole

@@ -278,7 +278,7 @@ def test_any_split_of_a_valid_command_stream_gives_identical_messages(pairs, cut
     points = sorted({c % (len(stream) + 1) for c in cuts})
     framer = LineFramer()
     got = []
-    for a, b in zip([0, *points], [*points, len(stream)]):
+    for a, b in zip([0, *points], [*points, len(stream)], strict=True):
         got += [parse_command(line) for line in framer.feed(stream[a:b])]
     assert got == [parse_command(encode_command(mid, call)[:-2]) for mid, call in pairs]
 
@@ -290,7 +290,7 @@ def test_any_split_of_a_valid_ack_stream_gives_identical_acks(acks, cuts):
     points = sorted({c % (len(stream) + 1) for c in cuts})
     framer = LineFramer(max_line=1024)
     got = []
-    for a, b in zip([0, *points], [*points, len(stream)]):
+    for a, b in zip([0, *points], [*points, len(stream)], strict=True):
         got += [parse_ack(line) for line in framer.feed(stream[a:b])]
     assert got == [parse_ack(encode_ack(a)[:-2]) for a in acks]
 

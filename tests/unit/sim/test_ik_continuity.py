@@ -37,14 +37,14 @@ REFUSALS = {ErrorCode.OUT_OF_REACH, ErrorCode.JOINT_LIMIT, ErrorCode.JOINT_JUMP}
 
 def joint_vectors(margin: float = 1.0):
     return st.tuples(*(st.floats(lo + margin, hi - margin, allow_nan=False)
-                       for lo, hi in zip(LIM.min_deg, LIM.max_deg)))
+                       for lo, hi in zip(LIM.min_deg, LIM.max_deg, strict=True)))
 
 
 def regular_joint_vectors():
     """Joint vectors 10 deg inside the limits with J5 at least 30 deg off the wrist singularity."""
     j5 = st.one_of(st.floats(30, 110), st.floats(-110, -30))
     return st.tuples(*(j5 if i == 4 else st.floats(lo + 10, hi - 10)
-                       for i, (lo, hi) in enumerate(zip(LIM.min_deg, LIM.max_deg))))
+                       for i, (lo, hi) in enumerate(zip(LIM.min_deg, LIM.max_deg, strict=True))))
 
 
 @st.composite
@@ -83,11 +83,11 @@ def away_from_singularities(q, deg: float = 30.0, mm: float = 200.0) -> bool:
     return (abs(math.sin(math.radians(q[4]))) > math.sin(math.radians(deg))
             and abs(arm_radius_mm(q)) > mm
             and abs(math.cos(math.radians(q[2]) - kin._BETA)) > math.sin(math.radians(deg))
-            and all(lo + 10 < v < hi - 10 for v, lo, hi in zip(q, LIM.min_deg, LIM.max_deg)))
+            and all(lo + 10 < v < hi - 10 for v, lo, hi in zip(q, LIM.min_deg, LIM.max_deg, strict=True)))
 
 
 def max_move(a, b) -> float:
-    return max(abs(x - y) for x, y in zip(a, b))
+    return max(abs(x - y) for x, y in zip(a, b, strict=True))
 
 
 def assert_reaches(sol, target: Pose, tool: Pose = Pose()) -> None:
@@ -136,7 +136,7 @@ def test_small_moves_anywhere_never_jump(q, delta, frame):
 @given(st.lists(st.tuples(st.sampled_from([-1.0, 1.0]), st.floats(0.5, 2.5)), min_size=20, max_size=80))
 def test_paper_focus_motions_never_turn_the_wrist(steps):
     """Home, the paper's init_move relative joints, then many move_rel_tool z steps of 0.5-2.5 mm."""
-    q = tuple(a + d for a, d in zip(HOME_JOINTS_DEG, PAPER_INIT_MOVE_REL))
+    q = tuple(a + d for a, d in zip(HOME_JOINTS_DEG, PAPER_INIT_MOVE_REL, strict=True))
     kin.check_joint_path(HOME_JOINTS_DEG, q)
     for sign, dz in steps:
         target = rel_tool(forward(q), (0, 0, sign * dz, 0, 0, 0))

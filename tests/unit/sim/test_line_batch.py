@@ -22,7 +22,7 @@ B = Pose(400.0, 150.0, 400.0, 0.0, 180.0, 30.0)
 
 
 def random_joints(rng: np.random.Generator, shrink: float = 1.0) -> list[float]:
-    return [rng.uniform(lo * shrink, hi * shrink) for lo, hi in zip(LIMITS.min_deg, LIMITS.max_deg)]
+    return [rng.uniform(lo * shrink, hi * shrink) for lo, hi in zip(LIMITS.min_deg, LIMITS.max_deg, strict=True)]
 
 
 def both(start, target: Pose, tool: Pose = Pose()):

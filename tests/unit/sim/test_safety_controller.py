@@ -59,7 +59,7 @@ def test_three_stops_in_a_row_are_each_acked_done_at_rest(rig):
     stops = [rig.send(c, "stop", now=0.3 + 0.01 * i) for i, c in enumerate("abc")]
     assert rig.ack("a", brk).status is Status.ABORTED
     rig.run_until_idle()
-    acks = [rig.ack(c, s) for c, s in zip("abc", stops)]
+    acks = [rig.ack(c, s) for c, s in zip("abc", stops, strict=True)]
     assert [a.status for a in acks] == [Status.DONE] * 3, acks
     t_rest = rig.ctl.trajectory.t_rest_s
     assert all(a.t_done_s == pytest.approx(t_rest, abs=1e-3) for a in acks)
@@ -161,7 +161,7 @@ def test_parse_command_accepts_only_the_grammar(tail):
     except RemoteProtocolError as exc:
         assert exc.code in (ErrorCode.ILLEGAL_VALUE, ErrorCode.MALFORMED_MESSAGE)
         return
-    for tok, v in zip(tail.split(b","), msg.args):
+    for tok, v in zip(tail.split(b","), msg.args, strict=True):
         assert math.isfinite(v)
         assert tok and all(c in b"+-.0123456789" for c in tok), tok
 

@@ -4,6 +4,7 @@ import itertools
 
 import pytest
 
+from aioadept.errors import RobotError
 from aioadept.geometry import Pose, poses_close, rel_tool, rel_world
 from aioadept.protocol import NO_ID, ErrorCode, LineFramer, Status, encode_ack, parse_ack
 from aioadept.robots import viper_s850 as kin
@@ -395,5 +396,5 @@ def test_state_snapshot_tracks_motion(rig):
 def test_constructor_validates_options():
     with pytest.raises(ValueError):
         Controller(monitor_speed_pct=0)
-    with pytest.raises(Exception):
+    with pytest.raises(RobotError, match="J3 300.000 outside"):
         Controller(joints_deg=(0, 0, 300, 0, 0, 0))

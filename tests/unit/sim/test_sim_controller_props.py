@@ -11,7 +11,7 @@ from aioadept.sim.controller import Controller
 
 LIM = kin.VIPER_S850_LIMITS
 
-joints = st.tuples(*(st.floats(lo - 20, hi + 20) for lo, hi in zip(LIM.min_deg, LIM.max_deg)))
+joints = st.tuples(*(st.floats(lo - 20, hi + 20) for lo, hi in zip(LIM.min_deg, LIM.max_deg, strict=True)))
 small = st.tuples(*(st.floats(-60, 60) for _ in range(6)))
 
 command = st.one_of(

@@ -19,7 +19,7 @@ LIM = VIPER_S850_LIMITS
 
 def joint_vectors(margin: float = 1.0):
     return st.tuples(*(st.floats(lo + margin, hi - margin, allow_nan=False)
-                       for lo, hi in zip(LIM.min_deg, LIM.max_deg)))
+                       for lo, hi in zip(LIM.min_deg, LIM.max_deg, strict=True)))
 
 
 def test_home_is_tool_down_at_the_real_acks_pose():
@@ -58,7 +58,7 @@ def test_fk_ik_round_trip_from_a_nearby_start(q, nudge):
     conf = configuration(q)
     assume(0 not in (conf.shoulder, conf.elbow, conf.wrist))
     assume(abs(math.sin(math.radians(q[4]))) > 0.05)  # away from the wrist singularity
-    start = [a + d for a, d in zip(q, nudge)]
+    start = [a + d for a, d in zip(q, nudge, strict=True)]
     assume(not LIM.violations(start) and configuration(start) == conf)
     sol = inverse(forward(q), start)
     assert poses_close(forward(sol), forward(q), tol_mm=1e-6, tol_deg=1e-6)
@@ -67,7 +67,7 @@ def test_fk_ik_round_trip_from_a_nearby_start(q, nudge):
     # it than q, which is one of the solutions.
     assert viper._matches(configuration(sol), viper._free_configuration(start))
     def dist(a):  # the joint-space distance inverse() minimises (sum of the joints' moves)
-        return math.fsum(abs(x - y) for x, y in zip(a, start))
+        return math.fsum(abs(x - y) for x, y in zip(a, start, strict=True))
     assert dist(sol) <= dist(q) + 1e-6
     if viper._free_configuration(start) == conf:  # no flag free: q is the one nearest solution
         assert sol == pytest.approx(q, abs=1e-6)
@@ -152,7 +152,7 @@ def test_joint_limits_are_enforced(joint, value):
 def test_paper_init_move_sequence_is_reachable_and_within_limits():
     q = list(HOME_JOINTS_DEG)
     LIM.check(q)
-    q = [a + d for a, d in zip(q, [-90, 60, 30, -90, 0, 0])]
+    q = [a + d for a, d in zip(q, [-90, 60, 30, -90, 0, 0], strict=True)]
     kin.check_joint_path(HOME_JOINTS_DEG, q)
     approach = forward(q)
     # The pose of the paper's move_to example message.

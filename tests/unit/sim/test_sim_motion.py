@@ -1,5 +1,7 @@
 """Motion timing: synchronised trapezoids, speed scaling, blending, stopping, time scale (pure, no clock)."""
 
+from itertools import pairwise
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -60,8 +62,8 @@ def test_position_is_continuous_and_monotone_along_a_segment():
     seg = Segment(HOME, tuple(np.add(HOME, [90, 0, 0, 0, 0, 0])), 1.0, 0.46, 0.1, 100)
     ps = [seg.progress(t) for t in np.linspace(0.9, 1.6, 701)]
     assert ps[0] == 0 and ps[-1] == 1
-    assert all(b >= a for a, b in zip(ps, ps[1:]))
-    assert max(abs(b - a) for a, b in zip(ps, ps[1:])) < 0.01
+    assert all(b >= a for a, b in pairwise(ps))
+    assert max(abs(b - a) for a, b in pairwise(ps)) < 0.01
 
 
 def test_blended_motion_starts_as_the_previous_decelerates():

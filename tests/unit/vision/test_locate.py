@@ -53,7 +53,7 @@ def test_several_marked_and_coloured_parts_in_one_view():
     assert [(p.kind, p.marker, p.colour) for p in res.parts] == [
         ("marker", 3, "red"), ("marker", 9, "red"), ("colour", None, "blue"), ("colour", None, "green")]
     by = {(p.marker, p.colour): p for p in res.parts}
-    for t, key in zip(truth, [(3, "red"), (9, "red"), (None, "green"), (None, "blue")]):
+    for t, key in zip(truth, [(3, "red"), (9, "red"), (None, "green"), (None, "blue")], strict=True):
         p = by[key]
         assert math.hypot(p.x_mm - t.x_mm, p.y_mm - t.y_mm) <= 1.0
         # a box's yaw (no marker) is defined modulo 180 (along its longer side)

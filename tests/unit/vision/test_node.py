@@ -331,7 +331,7 @@ def test_node_answers_a_t_request_that_is_not_a_finite_number_with_an_error():
             async_out = asyncio.run(node.handle("VisionRequest", None, {"t_request": float("-inf")}))
         finally:
             node.close()
-    for v, out in zip((float("nan"), float("inf"), "x"), outs):
+    for v, out in zip((float("nan"), float("inf"), "x"), outs, strict=True):
         assert out == {"error": f"bad request: t_request must be a finite number (epoch s), got {v!r}"}
     assert async_out["error"].startswith("bad request: t_request")
 

@@ -37,7 +37,7 @@ def test_folder_in_name_order_stamped_at_grab_time_and_looping(tmp_path):
     src = ImageFolderSource(tmp_path, loop=True, clock=lambda: float(next(clock)))
     assert len(src) == 3
     frames = [src.grab() for _ in range(4)]
-    assert [abs(int(f.image.mean()) - v) <= 2 for f, v in zip(frames, [50, 100, 150, 50])] == [True] * 4
+    assert [abs(int(f.image.mean()) - v) <= 2 for f, v in zip(frames, [50, 100, 150, 50], strict=True)] == [True] * 4
     assert [f.t_s for f in frames] == [100.0, 101.0, 102.0, 103.0] and frames[3].seq == 3
     assert frames[0].image.ndim == 2
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from itertools import pairwise
 
 import numpy as np
 import pytest
@@ -73,8 +74,8 @@ def test_z_sweep_peaks_within_one_step_of_the_focal_plane(focus_offset_mm, delta
     peak = int(np.argmax(s))
     assert abs(peak * delta_z_mm - focus_offset_mm) <= delta_z_mm
     # One peak: it rises to the maximum, then falls (what the focus application's stop rule relies on).
-    assert all(b > a for a, b in zip(s[:peak], s[1:peak + 1]))
-    assert all(b < a for a, b in zip(s[peak:], s[peak + 1:]))
+    assert all(b > a for a, b in pairwise(s[:peak + 1]))
+    assert all(b < a for a, b in pairwise(s[peak:]))
 
 
 def test_default_sweep_matches_the_paper_experiment():

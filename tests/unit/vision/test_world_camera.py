@@ -30,7 +30,7 @@ def detect(image: np.ndarray, world: WorldConfig) -> dict[int, np.ndarray]:
     params = cv2.aruco.DetectorParameters()
     params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
     corners, ids, _ = cv2.aruco.ArucoDetector(dictionary, params).detectMarkers(image)
-    return {} if ids is None else {int(i): c.reshape(4, 2) for i, c in zip(ids.ravel(), corners)}
+    return {} if ids is None else {int(i): c.reshape(4, 2) for i, c in zip(ids.ravel(), corners, strict=True)}
 
 
 @pytest.mark.parametrize("camera", [{}, {"yaw_deg": 30.0, "x_mm": 420.0, "y_mm": 40.0}, {"noise_sigma": 6.0}])
