@@ -131,7 +131,8 @@ def _run(cfg: CellConfig, grid: list[tuple[int, float]], runs: int, out: Path) -
         return code
     run_dirs = results[0]
     if not run_dirs:
-        print(f"aioadept experiment: no run succeeded (logs in {out})", file=sys.stderr)
+        print(f"aioadept experiment: no run was saved whole: each failed or could not write its tables (logs in {out})",
+              file=sys.stderr)
         return 1
     from aioadept.analysis import analyze_runs
     from aioadept.apps.interrupt import EXIT_INTERRUPTED, interrupt_handled
