@@ -1,9 +1,5 @@
 """The asyncio TCP adapter of the simulated controller: sockets, the server clock, timers, the state stream.
 
-(Over 500 lines because the stop path and the admission of connections, the parts that must never miss a
-``stop``, share the server's clock, timers and connection table with the line reader; kept in one module so
-the safety path reads in one place. Candidate seam for a later split: the admission/stop-window code.)
-
 It owns everything with I/O and leaves the behaviour to the pure :class:`aioadept.sim.controller.Controller`:
 
 - every chunk read from a client goes through the protocol core's :class:`LineFramer` (V+ READ is not line-framed
@@ -11,7 +7,10 @@ It owns everything with I/O and leaves the behaviour to the pure :class:`aioadep
 - one timer asks :meth:`Controller.step` to run whatever is due next (a break completing, a move getting its slot);
 - acks are encoded with :func:`encode_ack` and written to the connection that sent the command;
 - a :class:`aioadept.bus.pubsub.Publisher` sends :class:`aioadept.bus.messages.RobotState` on ``robot.state``
-  (and, with a world, :class:`aioadept.bus.messages.WorldState` on ``world.state``).
+  (and, with a world, :class:`aioadept.bus.messages.WorldState` on ``world.state``), driven by the state
+  publisher (:class:`aioadept.sim.statepub.StatePublisher`);
+- admission (``allow``, ``max_clients``) happens here; a connection over ``max_clients`` and every connection to
+  the stop port are served by the stop paths (:class:`aioadept.sim.stoppaths.StopPaths`).
 
 The clock is ``TIMER(-3)``: real seconds since the server started (acks show it with 1 ms resolution). The time
 scale speeds up motions only, never this clock. Fault injection (:class:`Faults`) delays acks, drops a connection
@@ -40,15 +39,14 @@ from typing import Any
 from dataclasses import dataclass, field
 
 from aioadept.geometry import NULL, Pose
-from aioadept.errors import RemoteProtocolError
-from aioadept.protocol import (
-    MAX_LINE, NO_ID, STOP_SKILL, Ack, CommandMessage, ErrorCode, LineFramer, Oversize, encode_ack, parse_command,
-)
+from aioadept.protocol import MAX_LINE, NO_ID, Ack, CommandMessage, ErrorCode, LineFramer, Oversize, encode_ack
 from aioadept.robots import model as robot_model
 from aioadept.robots.base import DEFAULT_JUMP_LIMIT, JumpLimit, model_joints
 from aioadept.sim.controller import Controller, Outgoing
 from aioadept.sim.io import HAND_TIME_S, DigitalIO, HandConfig
 from aioadept.sim.line import CartesianLimits
+from aioadept.sim.stoppaths import READ_SIZE, StopPaths
+from aioadept.sim.statepub import MOTION_END_SAMPLE_FAILED, SAMPLE_FAILED, SendFailures, StatePublisher, next_period
 from aioadept.sim.world import World
 from aioadept.worldmodel import WorldConfig
 
@@ -58,8 +56,6 @@ log = logging.getLogger(__name__)
 from aioadept.defaults import MAX_QUEUED as DEFAULT_MAX_QUEUED  # noqa: E402
 from aioadept.defaults import ROBOT_PORT as DEFAULT_PORT, STATE_ENDPOINT as DEFAULT_STATE_ENDPOINT  # noqa: E402
 
-READ_SIZE = 4096
-"""Bytes taken from one connection per read: about a hundred command lines, so one flooding peer's turn is short."""
 LINES_PER_TURN = 32
 """Lines of one connection handled before the handler yields to the loop, so every other connection (and the
 stop it may carry) is read within a few such turns however fast the others send."""
@@ -230,10 +226,6 @@ class SimOptions:
                           model=robot_model(self.robot_model))
 
 
-class _NotAStop(Exception):
-    """A stop probe sent something other than stop."""
-
-
 def _set_keepalive(writer: asyncio.StreamWriter) -> None:
     """Probe idle peers (10 s idle, 5 s interval, 3 probes) and give up on unacknowledged data after 30 s."""
     sock = writer.get_extra_info("socket")
@@ -271,6 +263,36 @@ class _Conn:
         self.stop_ids: set[str] = set()  # its stops not yet answered (the controller does not count them all)
 
 
+class _StopHost:
+    """What the stop paths (:class:`~aioadept.sim.stoppaths.StopPaths`) may do with the server."""
+
+    __slots__ = ("_server",)
+
+    def __init__(self, server: SimServer) -> None:
+        self._server = server
+
+    def now(self) -> float:
+        return self._server.now()
+
+    def handle(self, item: bytes | CommandMessage, conn: _Conn, now: float) -> None:
+        self._server._handle(item, conn, now)
+
+    def reschedule(self) -> None:
+        self._server._reschedule()
+
+    def pending(self, conn: _Conn) -> bool:
+        return bool(self._server.controller.pending(conn.id))
+
+    def settled(self, conn: _Conn) -> bool:
+        return self._server._settled(conn)
+
+    def refusal(self, text: str) -> bytes:
+        return self._server._refusal(text)
+
+    def here(self) -> Pose:
+        return self._server.controller.here
+
+
 class SimServer:
     """The simulated RobotServer on TCP. ``async with SimServer(SimOptions(port=0)) as sim: sim.port``.
 
@@ -278,7 +300,9 @@ class SimServer:
     set when one of its tasks has died (:meth:`die`); ``death`` then says which, and of what.
     """
 
-    def __init__(self, options: SimOptions = SimOptions(), *, controller: Controller | None = None) -> None:
+    def __init__(self, options: SimOptions | None = None, *, controller: Controller | None = None) -> None:
+        if options is None:
+            options = SimOptions()
         self.options = options
         self.controller = controller or options.make_controller()
         self.host = options.host
@@ -299,14 +323,14 @@ class SimServer:
         self._timer: asyncio.TimerHandle | None = None
         self._timer_at: float | None = None
         self._publisher = None
-        self._state_task: asyncio.Task[None] | None = None
+        self._state: StatePublisher | None = None
         self._ids = itertools.count(1)
         self._closed = False
         self.death: tuple[str, BaseException] | None = None
         """(the task that died, its exception), once :meth:`die` has been called."""
         self.dead = asyncio.Event()
-        self._send_failures = _SendFailures()
         self._fault_fired = False
+        self._stop_paths = StopPaths(_StopHost(self), options.stop_window_s)
         self._world_error: BaseException | None = None
         self._guard_world()
 
@@ -338,8 +362,10 @@ class SimServer:
         if self._stop_server is not None:
             self.stop_port = self._stop_server.sockets[0].getsockname()[1]
         if self._publisher is not None:
-            self._state_task = asyncio.create_task(self._publish_state(), name="sim-state")
-            self._state_task.add_done_callback(self._state_task_ended)
+            self._state = StatePublisher(self._publisher, self._samples, self.options.state_rate_hz,
+                                         failed=self._state_failed,
+                                         send_fault=self.options.faults.raise_at == "state-send")
+            self._state.start()
 
     async def close(self) -> None:
         """Stop serving: close the listener and every connection, cancel timers and tasks, close the publisher."""
@@ -352,11 +378,10 @@ class SimServer:
             self._stop_server.close()
         if self._timer is not None:
             self._timer.cancel()
-        if self.death is not None and self._publisher is not None:
-            await self._show_rest()
-        if self._state_task is not None:
-            self._state_task.cancel()
-            await asyncio.gather(self._state_task, return_exceptions=True)
+        if self._state is not None:
+            if self.death is not None:
+                await self._state.show_rest(self._in_motion, REST_WAIT_S)
+            await self._state.stop()
         # Abort the connections rather than cancel their handlers: each handler then sees EOF and returns
         # normally (asyncio's start_server logs handler tasks that end cancelled as errors).
         for conn in list(self._conns.values()):
@@ -394,6 +419,8 @@ class SimServer:
         if self.death is not None:
             return
         self.death = (task, exc)
+        if self._state is not None:
+            self._state.halt()
         if self._timer is not None:  # the executor runs nothing more
             self._timer.cancel()
             self._timer = None
@@ -472,28 +499,8 @@ class SimServer:
         self.die(f"the world's update (run by {by})", self._world_error)
         return True
 
-    async def _show_rest(self) -> None:
-        """After a death: publish the braked arm until it is at rest (at most :data:`REST_WAIT_S`) and two
-        samples more, so a subscriber's last sample shows it at rest. The state task may be the one that died,
-        so this loop publishes on its own; a sample that fails is skipped quietly (the one line is written)."""
-        if self._state_task is not None:
-            self._state_task.cancel()
-            await asyncio.gather(self._state_task, return_exceptions=True)
-            self._state_task = None
-        assert self._loop is not None
-        period = 1.0 / self.options.state_rate_hz
-        t_end = self._loop.time() + REST_WAIT_S
-        extra = 2
-        while extra > 0 and self._loop.time() < t_end:
-            try:
-                moving = self.controller.trajectory.in_motion(self.now())
-            except Exception:  # noqa: BLE001
-                moving = False
-            if not moving:
-                extra -= 1
-            with contextlib.suppress(Exception):
-                self._send_state(self.robot_state(), self.world_state())
-            await asyncio.sleep(period)
+    def _in_motion(self) -> bool:
+        return self.controller.trajectory.in_motion(self.now())
 
     # -- the clock ----------------------------------------------------------------------------------------
     def now(self) -> float:
@@ -516,17 +523,6 @@ class SimServer:
     def _refusal(self, text: str) -> bytes:
         now = self.now()
         return encode_ack(Ack.error(NO_ID, ErrorCode.SERVER_BUSY, text, now, now, self.controller.here))
-
-    def _make_probe_room(self) -> None:
-        probes = [c for c in self._conns.values() if c.limited]
-        if len(probes) < self.options.max_stop_probes:
-            return
-        for c in probes:  # oldest first (dict order): close one that is not carrying a stop
-            if not c.stopped:
-                with contextlib.suppress(OSError):
-                    c.writer.write(self._refusal("too many clients"))
-                c.writer.transport.abort()
-                return
 
     async def _serve_stop_port(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         await self._serve(reader, writer, stop_port=True)
@@ -555,7 +551,7 @@ class SimServer:
             # The reserved stop path: a stop must never be refused for "too many clients".
             if not stop_port:
                 self.rejected_total += 1
-            self._make_probe_room()
+            self._stop_paths.make_room(self._conns.values(), self.options.max_stop_probes)
         conn = _Conn(next(self._ids), f"{peer[0]}:{peer[1]}", writer, limited)
         self._conns[conn.id] = conn
         self.connections_total += 1
@@ -565,9 +561,9 @@ class SimServer:
             _set_keepalive(writer)
         try:
             if stop_port:
-                await self._serve_stop_port_lines(conn, reader, writer)
+                await self._stop_paths.serve_port(conn, reader, writer)
             elif limited:
-                await self._serve_stop_probe(conn, reader, writer)
+                await self._stop_paths.serve_probe(conn, reader, writer)
             else:
                 await self._serve_lines(conn, reader, writer)
         except (ConnectionError, OSError) as exc:
@@ -656,93 +652,6 @@ class SimServer:
             return
         self._dispatch(out)
 
-    async def _serve_stop_probe(self, conn: _Conn, reader: asyncio.StreamReader,
-                                writer: asyncio.StreamWriter) -> None:
-        """A connection over ``max_clients``: within ``stop_window_s`` its ``stop`` lines are executed; anything
-        else, or the end of the window, answers the SERVER_BUSY refusal (ID 00000000) and closes. The connection
-        stays until its stops are acked."""
-        framer = LineFramer(MAX_LINE)
-        loop = asyncio.get_running_loop()
-        deadline = loop.time() + self.options.stop_window_s
-        refuse = True  # unless the peer closed first, or sent only stops
-        try:
-            async with asyncio.timeout_at(deadline):
-                while True:
-                    data = await reader.read(READ_SIZE)
-                    if not data:
-                        refuse = False
-                        break
-                    items = framer.feed(data)
-                    now = self.now()
-                    for item in items:
-                        msg = None
-                        if isinstance(item, bytes):
-                            with contextlib.suppress(RemoteProtocolError):
-                                msg = parse_command(item)
-                        if msg is None or msg.skill != STOP_SKILL:
-                            raise _NotAStop
-                        conn.stopped = True
-                        conn.messages += 1
-                        self._handle(msg, conn, now)
-                    self._reschedule()
-        except TimeoutError:
-            refuse = not conn.stopped  # the window ended: a peer that sent stops gets their acks, no refusal
-        except _NotAStop:
-            pass
-        if conn.stopped and self.controller.pending(conn.id):
-            conn.idle = asyncio.Event()
-            with contextlib.suppress(TimeoutError):
-                async with asyncio.timeout(30.0):  # a stop is at rest in well under a second
-                    await conn.idle.wait()
-        if refuse and not writer.is_closing():
-            with contextlib.suppress(OSError):
-                writer.write(self._refusal("too many clients; only stop is served"))
-                await writer.drain()
-
-    async def _serve_stop_port_lines(self, conn: _Conn, reader: asyncio.StreamReader,
-                                     writer: asyncio.StreamWriter) -> None:
-        """A connection to the stop port: ``stop``, ``here`` and ``hello`` go to the controller (a stop acts the
-        moment it is read); any other line answers UNKNOWN_SKILL and nothing runs. The connection is closed once
-        it has had nothing pending for ``stop_window_s`` (from its connect or its last line), so idle or trickling
-        peers cannot keep the port from the next stop; the vplus server does the same (rs.stmo)."""
-        framer = LineFramer(MAX_LINE)
-        loop = asyncio.get_running_loop()
-        window = self.options.stop_window_s
-        last = loop.time()
-        while True:
-            try:
-                async with asyncio.timeout_at(last + window):
-                    data = await reader.read(READ_SIZE)
-            except TimeoutError:
-                if self._settled(conn):
-                    return
-                conn.idle = asyncio.Event()  # a stop is still coming to rest: close after its ack
-                with contextlib.suppress(TimeoutError):
-                    async with asyncio.timeout(30.0):
-                        await conn.idle.wait()
-                return
-            if not data:
-                return
-            now = self.now()
-            for item in framer.feed(data):
-                msg = None
-                if isinstance(item, bytes):
-                    with contextlib.suppress(RemoteProtocolError):
-                        msg = parse_command(item)
-                if msg is not None and msg.skill not in (STOP_SKILL, "here", "hello"):
-                    ack = Ack.error(msg.id, ErrorCode.UNKNOWN_SKILL,
-                                    "the stop port serves stop, here and hello only", now, now, self.controller.here)
-                    writer.write(encode_ack(ack))
-                    continue
-                if msg is not None and msg.skill == STOP_SKILL:
-                    conn.stopped = True
-                    conn.stop_ids.add(msg.id)
-                conn.messages += 1
-                self._handle(item if msg is None else msg, conn, now)
-            self._reschedule()
-            await writer.drain()
-            last = loop.time()
-
     def _refuse_stalled(self, conn: _Conn, writer: asyncio.StreamWriter, timeout_s: float) -> None:
         now = self.now()
         ack = Ack.error(NO_ID, ErrorCode.MALFORMED_MESSAGE, f"line not completed, nothing received for {timeout_s:g} s",
@@ -819,11 +728,9 @@ class SimServer:
         if self._check_world("the executor"):
             return
         self._fault("callback")  # outside the guard: what reaches the loop's exception handler
-        if out and self._publisher is not None:
-            # A motion ended (or another event was acked): publish the state now, ahead of the acks, so a
-            # subscriber sees the robot at rest before any request that follows the ack, not up to one stream
-            # period later.
-            self._publish_state_now()
+        if out and self._state is not None:
+            # A motion ended (or another event was acked): publish the state now, ahead of the acks.
+            self._state.publish_now()
         self._dispatch(out)
         self._reschedule()
 
@@ -836,51 +743,20 @@ class SimServer:
         """The world sample for now (what the stream publishes on ``world.state``), None without a world."""
         return world_state_sample(self.controller, self.now(), self._wall0, self._world_cursor)
 
-    def _publish_state_now(self) -> None:
-        try:
-            robot, world = self.robot_state(), self.world_state()
-        except Exception as exc:  # noqa: BLE001 - the robot model, not the stream, is broken (see _publish_state)
+    def _samples(self) -> tuple[Any, Any]:
+        return self.robot_state(), self.world_state()
+
+    def _state_failed(self, kind: str, exc: BaseException) -> None:
+        """The state stream could not compute a sample (the robot model's bug: the server dies of it), or its
+        task died."""
+        if kind == SAMPLE_FAILED:
+            if not self._check_world("the state publisher"):
+                self.die("the state publisher (computing a sample)", exc)
+        elif kind == MOTION_END_SAMPLE_FAILED:
             if not self._check_world("the executor, sampling the state at a motion's end"):
                 self.die("the executor (sampling the state at a motion's end)", exc)
-            return
-        self._send_failures.send(lambda: self._send_state(robot, world))
-
-    def _send_state(self, robot: Any, world: Any) -> None:
-        from aioadept.errors import BusError
-        from aioadept.bus.messages import ROBOT_STATE_TOPIC, WORLD_STATE_TOPIC
-
-        assert self._publisher is not None
-        # Decided on the sample itself, not on the clock at sending: a sample taken in the last moment of a motion
-        # and sent just after it ended was once let through (a flaky test_sim_death).
-        if self.options.faults.raise_at == "state-send" and robot.in_motion:
-            raise BusError("injected state-send fault")
-        self._publisher.publish_nowait(ROBOT_STATE_TOPIC, robot.to_bytes())
-        if world is not None:
-            self._publisher.publish_nowait(WORLD_STATE_TOPIC, world.to_bytes())
-
-    def _state_task_ended(self, task: asyncio.Task[None]) -> None:
-        # A failure outside the per-sample guards (a bug of the loop itself) would end the stream silently: the
-        # subscribers would see a server whose arm no longer reports, while it still moves it.
-        if not task.cancelled() and task.exception() is not None:
-            self.die("the state publisher", task.exception())  # type: ignore[arg-type]
-
-    async def _publish_state(self) -> None:
-        """The state stream's task. A sample that cannot be sent is dropped (the stream observes the arm, it does
-        not drive it: acks and stops go on; subscribers see the gap in ``t_s``). A sample that cannot be computed
-        is the robot model's bug, the one the executor runs on: that is the server's death."""
-        assert self._publisher is not None
-        loop = asyncio.get_running_loop()
-        period = 1.0 / self.options.state_rate_hz
-        next_t = loop.time()
-        while self.death is None:
-            try:
-                robot, world = self.robot_state(), self.world_state()
-            except Exception as exc:  # noqa: BLE001
-                if not self._check_world("the state publisher"):
-                    self.die("the state publisher (computing a sample)", exc)
-                return
-            self._send_failures.send(lambda: self._send_state(robot, world))
-            next_t = await _next_period(loop, next_t, period)
+        else:
+            self.die("the state publisher", exc)
 
 
 def robot_state_sample(controller: Controller, now: float, wall0: float,
@@ -924,43 +800,6 @@ def world_state_sample(controller: Controller, now: float, wall0: float,
     return WorldState(now, wall0 + now, snap.parts, events, snap.sensors_on)
 
 
-class _SendFailures:
-    """The state stream's failures to send, logged once per run of them (not one traceback per sample, 100 a
-    second): the first failure says what failed, the first success after it how many samples were dropped."""
-
-    __slots__ = ("dropped", "first")
-
-    def __init__(self) -> None:
-        self.dropped = 0
-        self.first: str | None = None
-
-    def send(self, send: Callable[[], None]) -> None:
-        try:
-            send()
-        except Exception as exc:  # noqa: BLE001 - a full or closed socket, a transport error: drop the sample
-            if not self.dropped:
-                self.first = f"{type(exc).__name__}: {exc}"
-                log.warning("state stream: a sample was not sent (%s); dropping samples until one is",
-                            self.first)
-            self.dropped += 1
-            return
-        if self.dropped:
-            log.warning("state stream: sending again after %d dropped samples (%s)", self.dropped, self.first)
-            self.dropped, self.first = 0, None
-
-
-async def _next_period(loop: asyncio.AbstractEventLoop, next_t: float, period: float) -> float:
-    """Sleep until ``next_t + period`` and return that time: a fixed schedule, not sleep(period) after the
-    work, so the rate does not drift; a schedule fallen behind (suspended, overloaded) skips the missed samples."""
-    next_t += period
-    delay = next_t - loop.time()
-    if delay < -period:
-        next_t = loop.time()
-        delay = 0.0
-    await asyncio.sleep(max(delay, 0.0))
-    return next_t
-
-
 async def publish_robot_states(publisher: Any, sample: Callable[[], Any], rate_hz: float, *,
                                world_sample: Callable[[], Any] | None = None) -> None:
     """Publish ``sample()`` on ``robot.state`` (and ``world_sample()``, if given, on ``world.state``) at
@@ -972,7 +811,7 @@ async def publish_robot_states(publisher: Any, sample: Callable[[], Any], rate_h
     loop = asyncio.get_running_loop()
     period = 1.0 / rate_hz
     next_t = loop.time()
-    failures = _SendFailures()
+    failures = SendFailures()
 
     def send() -> None:
         publisher.publish_nowait(ROBOT_STATE_TOPIC, sample().to_bytes())
@@ -983,4 +822,4 @@ async def publish_robot_states(publisher: Any, sample: Callable[[], Any], rate_h
 
     while True:
         failures.send(send)
-        next_t = await _next_period(loop, next_t, period)
+        next_t = await next_period(loop, next_t, period)
