@@ -68,48 +68,63 @@ def _expected(file: str) -> list[tuple[int, int, int, str, str]]:
         k = head.lower().index(prog.name[:8], head.upper().index(".PROGRAM") + 8)
         out.append((prog.line, k, k + len(prog.name), "entity.name.function", "program name"))
         for line, stmt in prog.steps:
-            indent, toks = prog.indent[line], tokenize(prog.source[line])
-            at = {indent + t.col: t for t in toks}
-            for t in toks:
-                a, b = indent + t.col, indent + t.col + len(t.text)
-                if t.kind == "str":
-                    out.append((line, a, b, "string.quoted.double", "string"))
-                elif t.kind == "num" and t.text.startswith("^"):
-                    out.append((line, a, b, "constant.numeric", "radix constant"))
-                elif t.kind == "num" and t.text.startswith("'"):
-                    out.append((line, a, b, "constant.character", "ASCII constant"))
-            inner = stmt
-            if isinstance(stmt, N.Label):
-                t = toks[0]
-                out.append((line, indent + t.col, indent + t.col + len(t.text), "entity.name.label", "label"))
-                toks, inner = toks[1:], stmt.stmt
-            if inner is None:
-                continue
-            first = toks[0]
-            if not isinstance(inner, N.Assign):
-                out.append((line, indent + first.col, indent + first.col + len(first.text), "keyword",
-                            "instruction"))
-            if isinstance(inner, (N.Goto, N.IfGoto)):
-                t = toks[-1]
-                out.append((line, indent + t.col, indent + t.col + len(t.text), "entity.name.label", "GOTO target"))
-            if isinstance(inner, (N.CallStmt, N.Execute, N.Reacte)):
-                t = next(t for t in toks[1:] if t.kind == "name" and t.text.lower().startswith(inner.name[:8]))
-                out.append((line, indent + t.col, indent + t.col + len(t.text), "entity.name.function",
-                            "program called"))
-            stack: list[N.Node] = [stmt]
-            while stack:
-                node = stack.pop()
-                stack.extend(node.children())
-                t = at.get(node.span.col - 1)
-                if t is None:
-                    continue
-                a, b = node.span.col - 1, node.span.col - 1 + len(t.text)
-                if isinstance(node, N.Call) and not node.bare:
-                    out.append((line, a, b, "support.function", "function called"))
-                elif isinstance(node, N.Num) and t.kind == "num" and not t.text.startswith(("^", "'")):
-                    out.append((line, a, b, "constant.numeric", "number"))
-                elif isinstance(node, (N.Name, N.Index, N.Array)):
-                    out.append((line, a, b, "!keyword", "variable"))
+            out += _step_expected(prog, line, stmt)
+    return out
+
+
+def _step_expected(prog, line: int, stmt: N.Node) -> list[tuple[int, int, int, str, str]]:
+    """The tokens of one step: its strings and constants, label, instruction, GOTO target, program called, and
+    the functions, numbers and variables of its tree."""
+    out = []
+    indent, toks = prog.indent[line], tokenize(prog.source[line])
+    at = {indent + t.col: t for t in toks}
+    for t in toks:
+        a, b = indent + t.col, indent + t.col + len(t.text)
+        if t.kind == "str":
+            out.append((line, a, b, "string.quoted.double", "string"))
+        elif t.kind == "num" and t.text.startswith("^"):
+            out.append((line, a, b, "constant.numeric", "radix constant"))
+        elif t.kind == "num" and t.text.startswith("'"):
+            out.append((line, a, b, "constant.character", "ASCII constant"))
+    inner = stmt
+    if isinstance(stmt, N.Label):
+        t = toks[0]
+        out.append((line, indent + t.col, indent + t.col + len(t.text), "entity.name.label", "label"))
+        toks, inner = toks[1:], stmt.stmt
+    if inner is None:
+        return out
+    first = toks[0]
+    if not isinstance(inner, N.Assign):
+        out.append((line, indent + first.col, indent + first.col + len(first.text), "keyword",
+                    "instruction"))
+    if isinstance(inner, (N.Goto, N.IfGoto)):
+        t = toks[-1]
+        out.append((line, indent + t.col, indent + t.col + len(t.text), "entity.name.label", "GOTO target"))
+    if isinstance(inner, (N.CallStmt, N.Execute, N.Reacte)):
+        t = next(t for t in toks[1:] if t.kind == "name" and t.text.lower().startswith(inner.name[:8]))
+        out.append((line, indent + t.col, indent + t.col + len(t.text), "entity.name.function",
+                    "program called"))
+    out += _tree_expected(line, stmt, at)
+    return out
+
+
+def _tree_expected(line: int, stmt: N.Node, at: dict) -> list[tuple[int, int, int, str, str]]:
+    """The functions called, numbers and variables of a step's tree (``at``: its tokens by column)."""
+    out = []
+    stack: list[N.Node] = [stmt]
+    while stack:
+        node = stack.pop()
+        stack.extend(node.children())
+        t = at.get(node.span.col - 1)
+        if t is None:
+            continue
+        a, b = node.span.col - 1, node.span.col - 1 + len(t.text)
+        if isinstance(node, N.Call) and not node.bare:
+            out.append((line, a, b, "support.function", "function called"))
+        elif isinstance(node, N.Num) and t.kind == "num" and not t.text.startswith(("^", "'")):
+            out.append((line, a, b, "constant.numeric", "number"))
+        elif isinstance(node, (N.Name, N.Index, N.Array)):
+            out.append((line, a, b, "!keyword", "variable"))
     return out
 
 

@@ -299,6 +299,13 @@ def test_called_programs_exist():
                 assert target in progs, f"{prog.file}:{n}: {target} is not defined"
 
 
+# A block's opening word: what its line must match, and the problem when it does not.
+_OPENERS = {"IF": (r".*THEN$", "IF without THEN at the end of the line"), "WHILE": (r".*DO$", "WHILE without DO"),
+            "FOR": (r"FOR [a-z][a-z0-9._]* = .+ TO .+", "malformed FOR"), "CASE": (r".*OF$", "CASE without OF")}
+# A word that continues an open block: the block it must be inside.
+_INSIDE = {"ELSE": "IF", "VALUE": "CASE", "ANY": "CASE"}
+
+
 def block_problems(prog: Program) -> list[str]:
     """Check that control structures open and close in order (a multi-line IF needs END, DO needs UNTIL)."""
     stack: list[tuple[str, int]] = []
@@ -314,30 +321,16 @@ def block_problems(prog: Program) -> list[str]:
                 problems.append(f"{n}: {word} after an executable instruction")
             continue
         declarations_over = True
-        if word == "IF":
-            if not code.endswith("THEN"):
-                problems.append(f"{n}: IF without THEN at the end of the line")
-            stack.append(("IF", n))
-        elif word == "WHILE":
-            if not code.endswith("DO"):
-                problems.append(f"{n}: WHILE without DO")
-            stack.append(("WHILE", n))
-        elif word == "FOR":
-            if not re.match(r"FOR [a-z][a-z0-9._]* = .+ TO .+", code):
-                problems.append(f"{n}: malformed FOR")
-            stack.append(("FOR", n))
-        elif word == "CASE":
-            if not code.endswith("OF"):
-                problems.append(f"{n}: CASE without OF")
-            stack.append(("CASE", n))
+        if word in _OPENERS:
+            pattern, problem = _OPENERS[word]
+            if not re.match(pattern, code):
+                problems.append(f"{n}: {problem}")
+            stack.append((word, n))
         elif code == "DO":
             stack.append(("DO", n))
-        elif word == "ELSE":
-            if not stack or stack[-1][0] != "IF":
-                problems.append(f"{n}: ELSE outside IF")
-        elif word in ("VALUE", "ANY"):
-            if not stack or stack[-1][0] != "CASE":
-                problems.append(f"{n}: {word} outside CASE")
+        elif word in _INSIDE:
+            if not stack or stack[-1][0] != _INSIDE[word]:
+                problems.append(f"{n}: {word} outside {_INSIDE[word]}")
         elif word == "UNTIL":
             if not stack or stack.pop()[0] != "DO":
                 problems.append(f"{n}: UNTIL without DO")

@@ -108,7 +108,6 @@ class CellConfig:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any], *, source: str = "config") -> CellConfig:
-        from aioadept.configfile import check_ranges, check_section
         from aioadept.errors import ConfigError
 
         known = {"robot": RobotSection, "vision": VisionSection, "focus": FocusParams, "run": RunSection,
@@ -126,51 +125,10 @@ class CellConfig:
 
             parts["calibration"] = CameraCalibration.from_table(data["calibration"], f"{source} [calibration]")
         for name, typ in known.items():
-            # Unknown keys, wrong types and values out of range as one line naming file, key and what was expected
-            # (ConfigError).
-            where = f"{source} [{name}]"
-            if typ is WorldConfig:
-                if name in data:
-                    from aioadept.worldfile import world_from_table
-
-                    parts[name] = world_from_table(data[name], where)
-                continue
-            if typ is VisionSection:
-                parts[name] = VisionSection.from_table(data.get(name, {}), where)
-                continue
-            try:
-                parts[name] = typ(**check_section(typ, data.get(name, {}), where))  # FocusParams checks its ranges
-                check_ranges(parts[name])
-                if typ is BusSection:
-                    bus = parts[name]
-                    if bus.zenoh_config and Path(source).is_file():  # relative to the cell file, as its other files
-                        bus.zenoh_config = str(Path(source).parent / bus.zenoh_config)
-                    bus.check(where)
-            except ConfigError:
-                raise
-            except ValueError as exc:
-                raise ConfigError(f"{where}: {exc}") from None
+            if name in data or typ is not WorldConfig:
+                parts[name] = _section(typ, data.get(name, {}), f"{source} [{name}]", source)
         cfg = cls(**parts)
-        v = cfg.vision
-        if "world" in v.sources() and not v.world and (cfg.world is None or cfg.world.camera is None):
-            raise ConfigError(f'{source} [vision]: source = "world" needs a [world] table with [world.camera] (or '
-                              f'world = FILE)')
-        if cfg.calibration is not None and v.graph == "locate" and not v.calibration and Path(source).is_file():
-            v.calibration = source  # the node a starter runs reads this file's [calibration] (vision_argv)
-        if v.graph == "locate" and not v.calibration:
-            raise ConfigError(f'{source} [vision]: graph = "locate" needs a [calibration] table (aioadept calibrate '
-                              f'writes one) or calibration = FILE')
-        if not v.exposure_ms > 0:  # the node takes 0 (a camera's own minimum); a cell's camera must expose
-            raise ConfigError(f"{source} [vision]: exposure_ms = {v.exposure_ms!r}: expected a finite number of "
-                              f"ms > 0")
-        from aioadept.bus.endpoints import is_none, parse_endpoint
-        from aioadept.errors import BusError
-
-        try:
-            if not is_none(cfg.robot.state_endpoint):  # "none": the sim publishes no state stream
-                parse_endpoint(cfg.robot.state_endpoint)
-        except BusError as exc:
-            raise ConfigError(f"{source}: robot.state_endpoint: {exc}") from None
+        _check_cell(cfg, source)
         return cfg
 
     def to_dict(self) -> dict[str, Any]:
@@ -180,6 +138,59 @@ class CellConfig:
         out = dataclasses.asdict(self)
         out["vision"].pop("state_endpoint", None)
         return out
+
+
+def _section(typ: type, table: Any, where: str, source: str) -> Any:
+    """One section of the cell file, its unknown keys, wrong types and values out of range as one line naming
+    file, key and what was expected (ConfigError)."""
+    from aioadept.configfile import check_ranges, check_section
+    from aioadept.errors import ConfigError
+
+    if typ is WorldConfig:
+        from aioadept.worldfile import world_from_table
+
+        return world_from_table(table, where)
+    if typ is VisionSection:
+        return VisionSection.from_table(table, where)
+    try:
+        part = typ(**check_section(typ, table, where))  # FocusParams checks its ranges
+        check_ranges(part)
+        if typ is BusSection:
+            if part.zenoh_config and Path(source).is_file():  # relative to the cell file, as its other files
+                part.zenoh_config = str(Path(source).parent / part.zenoh_config)
+            part.check(where)
+    except ConfigError:
+        raise
+    except ValueError as exc:
+        raise ConfigError(f"{where}: {exc}") from None
+    return part
+
+
+def _check_cell(cfg: CellConfig, source: str) -> None:
+    """What one section alone cannot check: the world the camera needs, the locate graph's calibration, the
+    robot's state stream."""
+    from aioadept.errors import ConfigError
+
+    v = cfg.vision
+    if "world" in v.sources() and not v.world and (cfg.world is None or cfg.world.camera is None):
+        raise ConfigError(f'{source} [vision]: source = "world" needs a [world] table with [world.camera] (or '
+                          f'world = FILE)')
+    if cfg.calibration is not None and v.graph == "locate" and not v.calibration and Path(source).is_file():
+        v.calibration = source  # the node a starter runs reads this file's [calibration] (vision_argv)
+    if v.graph == "locate" and not v.calibration:
+        raise ConfigError(f'{source} [vision]: graph = "locate" needs a [calibration] table (aioadept calibrate '
+                          f'writes one) or calibration = FILE')
+    if not v.exposure_ms > 0:  # the node takes 0 (a camera's own minimum); a cell's camera must expose
+        raise ConfigError(f"{source} [vision]: exposure_ms = {v.exposure_ms!r}: expected a finite number of "
+                          f"ms > 0")
+    from aioadept.bus.endpoints import is_none, parse_endpoint
+    from aioadept.errors import BusError
+
+    try:
+        if not is_none(cfg.robot.state_endpoint):  # "none": the sim publishes no state stream
+            parse_endpoint(cfg.robot.state_endpoint)
+    except BusError as exc:
+        raise ConfigError(f"{source}: robot.state_endpoint: {exc}") from None
 
 
 def _with_free_port(endpoint: str) -> str:

@@ -27,6 +27,7 @@ import asyncio
 import logging
 import math
 import time
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -193,14 +194,8 @@ async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: floa
     try:
         if state_endpoint:
             feed = StateFeed(approach, curve=state_curve)
-            try:
-                if await feed.start(state_endpoint):
-                    source = "state-stream"
-                else:
-                    log.warning("no robot state on %s within 1 s: frames placed by the planned profile",
-                                state_endpoint)
-            except Exception as exc:  # a bad address must not stop a calibration that can do without it
-                log.warning("robot state stream %s: %s; frames placed by the planned profile", state_endpoint, exc)
+            if await _start_feed(feed, state_endpoint):
+                source = "state-stream"
         plan = plan_sweep(params, exposure_ms, 0.0, min(params.sweep_range_mm, max_reach_mm(params)),
                           time_scale=time_scale)
         while True:
@@ -227,15 +222,7 @@ async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: floa
                     t_known = time.time()
                 break
             if len(run.plans) >= params.max_sweeps:
-                end = "far" if fit.side > 0 else "near"
-                why = fit.why or (f"peak not bracketed (sharpness still rising at the {end} end)"
-                                  if not fit.bracketed else
-                                  f"peak uncertainty {fit.sigma_mm:.3f} mm above max_peak_sigma_mm "
-                                  f"{params.max_peak_sigma_mm:g}")
-                if run.errors:
-                    why += f"; the vision node refused {run.errors} frame(s), first: {run.first_error}"
-                raise FocusError(f"no focal plane after {len(run.plans)} sweep(s): {why}",
-                                 sharpness=[f.sharpness for f in run.frames])
+                raise _no_focal_plane(run, fit, params)
             plan = next_plan(params, exposure_ms, fit, here_mm, time_scale,
                               forward_only=source == "planned-profile")
         peak = fit.peak_mm
@@ -267,6 +254,30 @@ async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: floa
                "state_delay_s": feed.track.delay_s if feed is not None and len(feed.track) else None,
                "frame_errors": run.errors, "exposure_ms": exposure_ms,
                "timing_sigma_mm": run.timing_sigma_mm})
+
+
+async def _start_feed(feed: StateFeed, state_endpoint: str) -> bool:
+    """Whether the robot state stream answers; if not, the frames are placed by the planned profile (logged)."""
+    try:
+        if await feed.start(state_endpoint):
+            return True
+        log.warning("no robot state on %s within 1 s: frames placed by the planned profile", state_endpoint)
+    except Exception as exc:  # a bad address must not stop a calibration that can do without it
+        log.warning("robot state stream %s: %s; frames placed by the planned profile", state_endpoint, exc)
+    return False
+
+
+def _no_focal_plane(run: SweepRun, fit: PeakFit, params: Any) -> FocusError:
+    """The error of a search that ran out of sweeps, saying why the last fit did not settle it."""
+    end = "far" if fit.side > 0 else "near"
+    why = fit.why or (f"peak not bracketed (sharpness still rising at the {end} end)"
+                      if not fit.bracketed else
+                      f"peak uncertainty {fit.sigma_mm:.3f} mm above max_peak_sigma_mm "
+                      f"{params.max_peak_sigma_mm:g}")
+    if run.errors:
+        why += f"; the vision node refused {run.errors} frame(s), first: {run.first_error}"
+    return FocusError(f"no focal plane after {len(run.plans)} sweep(s): {why}",
+                      sharpness=[f.sharpness for f in run.frames])
 
 
 async def robot_time_scale(rc: Robot, fallback: float) -> float:
@@ -307,44 +318,44 @@ async def _one_sweep(rc: Robot, comm: Vision, approach: Pose, plan: SweepPlan, i
     motion = asyncio.ensure_future(rc.cmdexec_joined(SetSpeed(plan.speed_pct), MoveToS(to, break_move=False),
                                                      Break()))
     frames: list[SweepFrame] = []
-    pending: set[asyncio.Task[Any]] = set()
     known: list[float] = []
-
-    failed: list[BaseException] = []
-
-    def settled(task: asyncio.Task[Any]) -> None:
-        pending.discard(task)
-        if not task.cancelled() and task.exception() is not None:
-            failed.append(task.exception())  # type: ignore[arg-type]
 
     async def one_frame(t_send: float) -> None:
         try:
             resp = await comm.request("VisionRequest", {}, timeout_s=vision_timeout_s)
         except TimeoutError as exc:
             raise FocusError(f"sweep {index}: no answer from the vision node ({exc})") from exc
-        t_recv = time.time()
-        attrs = dict(resp.attributes)
-        if attrs.get("error") or "sharpness" not in attrs or "frame_t" not in attrs:
-            run.errors += 1
-            run.first_error = run.first_error or str(attrs.get("error") or "no sharpness in the answer")
-            log.debug("sweep frame refused: %s", attrs.get("error"))
+        f = _sweep_frame(run, index, dict(resp.attributes), t_send, time.time())
+        if f is None:
             return
-        exp_s = float(attrs.get("exposure_ms", 0.0)) / 1e3
-        ro_s = float(attrs.get("readout_ms", 0.0)) / 1e3
-        ft = float(attrs["frame_t"])
-        f = SweepFrame(index, math.nan, float(attrs["sharpness"]), t_send_s=t_send, t_recv_s=t_recv, frame_t_s=ft,
-                  exposure_s=exp_s, readout_s=ro_s)
         frames.append(f)
-        if feed is not None and source == "state-stream" and not known:
-            # Online: place what we have and see whether the peak is known already (the robot still moving).
-            _place_vision_clock(run, frames)
-            for g in frames:
-                if math.isnan(g.offset_mm) and feed.track.covers(g.t_mid_s):
-                    g.offset_mm = feed.track.at(g.t_mid_s)
-            placed = [g for g in [*run.frames, *frames] if math.isfinite(g.offset_mm)]
-            fit = fit_peak([g.offset_mm for g in placed], [g.sharpness for g in placed])
-            if fit.ok and fit.bracketed and fit.sigma_mm <= params.max_peak_sigma_mm:
-                known.append(time.time())
+        if feed is not None and source == "state-stream" and not known and _peak_known(run, frames, feed, params):
+            known.append(time.time())
+
+    result = await _frames_during(motion, one_frame, interval_s)
+    _place_vision_clock(run, frames)
+    if feed is not None and source == "state-stream":
+        for f in frames:
+            if math.isnan(f.offset_mm) and await feed.wait_covering(f.t_mid_s):
+                f.offset_mm = feed.track.at(f.t_mid_s)
+    else:
+        _place_by_profile(run, frames, result, plan, ramp_s / time_scale, epoch_minus_loop)
+    run.frames.extend(frames)
+    return known[0] if known else None
+
+
+async def _frames_during(motion: asyncio.Future[Any], one_frame: Callable[[float], Awaitable[None]],
+                         interval_s: float) -> Any:
+    """Ask for a frame every ``interval_s`` while ``motion`` runs and return the motion's result. A frame's own
+    error stops the asking and is raised once the motion has ended."""
+    loop = asyncio.get_running_loop()
+    pending: set[asyncio.Task[Any]] = set()
+    failed: list[BaseException] = []
+
+    def settled(task: asyncio.Task[Any]) -> None:
+        pending.discard(task)
+        if not task.cancelled() and task.exception() is not None:
+            failed.append(task.exception())  # type: ignore[arg-type]
 
     try:
         next_t = loop.time()
@@ -370,21 +381,37 @@ async def _one_sweep(rc: Robot, comm: Vision, approach: Pose, plan: SweepPlan, i
             await asyncio.gather(*pending, return_exceptions=True)
         if failed:
             raise failed[0]
+        return result
     finally:
         for task in pending:
             task.cancel()
         if not motion.done():
             motion.cancel()
         await asyncio.gather(motion, *pending, return_exceptions=True)
+
+
+def _sweep_frame(run: SweepRun, index: int, attrs: dict[str, Any], t_send: float, t_recv: float) -> SweepFrame | None:
+    """The frame of a vision node's answer, not yet placed; None for a refusal (counted in ``run``)."""
+    if attrs.get("error") or "sharpness" not in attrs or "frame_t" not in attrs:
+        run.errors += 1
+        run.first_error = run.first_error or str(attrs.get("error") or "no sharpness in the answer")
+        log.debug("sweep frame refused: %s", attrs.get("error"))
+        return None
+    return SweepFrame(index, math.nan, float(attrs["sharpness"]), t_send_s=t_send, t_recv_s=t_recv,
+                      frame_t_s=float(attrs["frame_t"]), exposure_s=float(attrs.get("exposure_ms", 0.0)) / 1e3,
+                      readout_s=float(attrs.get("readout_ms", 0.0)) / 1e3)
+
+
+def _peak_known(run: SweepRun, frames: list[SweepFrame], feed: StateFeed, params: Any) -> bool:
+    """Online, the robot still moving: place the frames the state stream covers so far and tell whether their
+    fit already settles the peak."""
     _place_vision_clock(run, frames)
-    if feed is not None and source == "state-stream":
-        for f in frames:
-            if math.isnan(f.offset_mm) and await feed.wait_covering(f.t_mid_s):
-                f.offset_mm = feed.track.at(f.t_mid_s)
-    else:
-        _place_by_profile(run, frames, result, plan, ramp_s / time_scale, epoch_minus_loop)
-    run.frames.extend(frames)
-    return known[0] if known else None
+    for g in frames:
+        if math.isnan(g.offset_mm) and feed.track.covers(g.t_mid_s):
+            g.offset_mm = feed.track.at(g.t_mid_s)
+    placed = [g for g in [*run.frames, *frames] if math.isfinite(g.offset_mm)]
+    fit = fit_peak([g.offset_mm for g in placed], [g.sharpness for g in placed])
+    return fit.ok and fit.bracketed and fit.sigma_mm <= params.max_peak_sigma_mm
 
 
 def _here() -> Any:

@@ -193,6 +193,42 @@ def _load_config(path: str) -> tuple[dict[str, Any], Any]:
 def resolve_options(argv: list[str]) -> argparse.Namespace:
     """Defaults < config file < command line."""
     parser = build_parser()
+    merged, given, bus, config = _merged(parser, argv)
+    streams = {"request_endpoint": (defaults.REQUEST_ENDPOINT, "vision", "request"),
+               "response_endpoint": (defaults.RESPONSE_ENDPOINT, "vision", "response"),
+               "state_endpoint": (defaults.STATE_ENDPOINT, "sim", "state")}
+    if bus is not None:  # the cell file's [bus]: the transport and keys of the demo's application
+        from aioadept.cli.options import apply_cell_bus
+
+        try:
+            apply_cell_bus(merged, bus, given, {k: v[1:] for k, v in streams.items()}, config)
+        except ValueError as exc:
+            from aioadept.configfile import report
+
+            raise SystemExit(report("aioadept vision", exc)) from None
+    _check_values(parser, merged)
+    _check_endpoints(parser, merged, streams)
+    merged["curve"] = _curve_server(parser, merged)
+    from aioadept.cli.options import check_listeners, zenoh_listener, zmq_listener
+
+    curve = merged["curve"] is not None
+    try:
+        check_listeners("aioadept vision", [
+            *zmq_listener("--request-endpoint", merged["request_endpoint"], False, curve,
+                          "send the node requests"),
+            *zmq_listener("--response-endpoint", merged["response_endpoint"], True, curve, "read its answers"),
+            *zmq_listener("--state-endpoint", merged["state_endpoint"], False, False,
+                          "forge the robot state it measures against"),
+            *zenoh_listener(merged, "read and publish the cell's streams")], bool(merged.get("insecure")))
+    except ValueError as exc:
+        parser.error(str(exc))
+    _load_files(parser, merged)
+    return argparse.Namespace(**merged)
+
+
+def _merged(parser: argparse.ArgumentParser, argv: list[str]) -> tuple[dict[str, Any], set[str], Any, Any]:
+    """The defaults, the cell file's options and the command line's, in that order; the keys the command line
+    gave, the cell file's [bus] table (or None) and the cell file's path."""
     args = parser.parse_args(argv)
     merged = dict(DEFAULTS)
     merged.update(transport="zeromq", cell=None, zenoh_connect=None, zenoh_listen=None, zenoh_config=None, node=None)
@@ -213,18 +249,11 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
         if key != "config" and value is not None:
             merged[key] = value
             given.add(key)
-    streams = {"request_endpoint": (defaults.REQUEST_ENDPOINT, "vision", "request"),
-               "response_endpoint": (defaults.RESPONSE_ENDPOINT, "vision", "response"),
-               "state_endpoint": (defaults.STATE_ENDPOINT, "sim", "state")}
-    if bus is not None:  # the cell file's [bus]: the transport and keys of the demo's application
-        from aioadept.cli.options import apply_cell_bus
+    return merged, given, bus, args.config
 
-        try:
-            apply_cell_bus(merged, bus, given, {k: v[1:] for k, v in streams.items()}, args.config)
-        except ValueError as exc:
-            from aioadept.configfile import report
 
-            raise SystemExit(report("aioadept vision", exc)) from None
+def _check_values(parser: argparse.ArgumentParser, merged: dict[str, Any]) -> None:
+    """The option values' own checks (an error names the option); the two ages become floats."""
     if merged["policy"] not in ("nearest", "after"):
         parser.error(f"policy must be nearest or after, got {merged['policy']!r}")
     if merged["inline"]:
@@ -235,20 +264,14 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
         parser.error(f"graph-thread must be one of {', '.join(GRAPH_THREAD_CHOICES)}, got {merged['graph_thread']!r}")
     if float(merged["graph_inline_max_ms"]) < 0:
         parser.error("graph-inline-max-ms must be >= 0")
-    try:
-        max_age = float(merged["max_state_age"])
-    except (TypeError, ValueError):
-        max_age = float("nan")
-    if not max_age > 0:  # NaN too
-        parser.error(f"max-state-age must be > 0 seconds (inf: no check), got {merged['max_state_age']!r}")
-    merged["max_state_age"] = max_age
-    try:
-        max_frame_age = float(merged["max_frame_age"])
-    except (TypeError, ValueError):
-        max_frame_age = float("nan")
-    if not max_frame_age > 0:
-        parser.error(f"max-frame-age must be > 0 seconds (inf: no check), got {merged['max_frame_age']!r}")
-    merged["max_frame_age"] = max_frame_age
+    for key in ("max_state_age", "max_frame_age"):
+        try:
+            age = float(merged[key])
+        except (TypeError, ValueError):
+            age = float("nan")
+        if not age > 0:  # NaN too
+            parser.error(f"{key.replace('_', '-')} must be > 0 seconds (inf: no check), got {merged[key]!r}")
+        merged[key] = age
     if merged["trigger"] not in ("auto", "software", "free"):
         parser.error(f"trigger must be auto, software or free, got {merged['trigger']!r}")
     for key in ("exposure_ms", "readout_ms"):
@@ -261,6 +284,10 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
         value = merged[key]
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             parser.error(f"{key.replace('_', '-')} must be an integer >= 1, got {value!r}")
+
+
+def _check_endpoints(parser: argparse.ArgumentParser, merged: dict[str, Any], streams: dict[str, tuple]) -> None:
+    """The transport's endpoints or keys, each parsed, and the ranges VisionOptions holds its fields to."""
     from aioadept.cli.options import apply_node_transport
 
     try:
@@ -283,20 +310,10 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
         check_ranges(VisionOptions(**{k: merged[k] for k in VisionOptions.__dataclass_fields__}))
     except ValueError as exc:
         parser.error(str(exc))
-    merged["curve"] = _curve_server(parser, merged)
-    from aioadept.cli.options import check_listeners, zenoh_listener, zmq_listener
 
-    curve = merged["curve"] is not None
-    try:
-        check_listeners("aioadept vision", [
-            *zmq_listener("--request-endpoint", merged["request_endpoint"], False, curve,
-                          "send the node requests"),
-            *zmq_listener("--response-endpoint", merged["response_endpoint"], True, curve, "read its answers"),
-            *zmq_listener("--state-endpoint", merged["state_endpoint"], False, False,
-                          "forge the robot state it measures against"),
-            *zenoh_listener(merged, "read and publish the cell's streams")], bool(merged.get("insecure")))
-    except ValueError as exc:
-        parser.error(str(exc))
+
+def _load_files(parser: argparse.ArgumentParser, merged: dict[str, Any]) -> None:
+    """The world of ``--source world`` and the calibration of ``--graph locate``, loaded before anything starts."""
     merged["world_config"] = None
     if "world" in merged["source"]:
         if not merged["world"]:
@@ -322,7 +339,6 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
             merged["locate_calibration"] = load_calibration(merged["calibration"])
         except ValueError as exc:
             raise SystemExit(report("aioadept vision", exc)) from None
-    return argparse.Namespace(**merged)
 
 
 def _curve_server(parser: argparse.ArgumentParser, merged: dict[str, Any]) -> Any:

@@ -262,10 +262,7 @@ class ScriptedServer:
                 if reply.drop:
                     conn.events.append(Event("drop", msg.id, now()))
                     state["dropped"] = True
-                    if reply.reset:
-                        writer.transport.abort()
-                    else:
-                        writer.close()
+                    _hang_up(writer, reply.reset)
                     return
                 if reply.silent:
                     continue
@@ -276,10 +273,7 @@ class ScriptedServer:
                         await asyncio.sleep(reply.delay_s)  # the simulated skill's duration, not a readiness wait
                     finally:
                         state["current"] = None
-                extra = reply.extra
-                if msg.skill == HELLO_SKILL and not extra:
-                    extra = (str(PROTOCOL_VERSION), self.server_name)
-                ack(msg.id, reply.status, extra, reply.pose, t_start)
+                ack(msg.id, reply.status, self._extra(msg, reply), reply.pose, t_start)
 
         executor = loop.create_task(execute())
         framer = LineFramer(max_line=self.max_line)
@@ -294,36 +288,54 @@ class ScriptedServer:
                     break
                 conn.chunks.append(data)
                 for item in framer.feed(data):
-                    if isinstance(item, Oversize):
-                        conn.events.append(Event("bad", "", now(), item.head))
-                        ack_err = Ack.error(recover_id(item.head), ErrorCode.LINE_TOO_LONG, None, 0.0, 0.0, self.pose)
-                        writer.write(encode_ack(ack_err))
+                    msg = self._parsed(item, conn, writer, now())
+                    if msg is None:
                         continue
-                    try:
-                        msg = parse_command(item)
-                    except RemoteProtocolError as exc:
-                        conn.events.append(Event("bad", exc.id or "", now(), item))
-                        writer.write(encode_ack(Ack.error(exc.id, exc.code, exc.message, 0.0, 0.0, self.pose)))
-                        continue
-                    conn.events.append(Event("recv", msg.id, now(), item))
                     if msg.skill == STOP_SKILL:
                         executor = await self._stop(executor, queue, state, ack, msg, execute, loop)
                         continue
                     conn_count += 1
                     queue.put_nowait((msg, self._reply_for(msg, next(self._count), conn_count)))
         finally:
-            executor.cancel()
-            try:
-                await executor
-            except (asyncio.CancelledError, Exception):
-                pass
-            if not writer.is_closing():
-                writer.close()
-            try:
-                await writer.wait_closed()
-            except (ConnectionError, OSError):
-                pass
-            conn.closed.set()
+            await self._close(executor, writer, conn)
+
+    def _extra(self, msg: CommandMessage, reply: Reply) -> tuple[str, ...]:
+        """The ack's extra fields: the script's, else a hello's version and server name."""
+        if msg.skill == HELLO_SKILL and not reply.extra:
+            return (str(PROTOCOL_VERSION), self.server_name)
+        return reply.extra
+
+    def _parsed(self, item: bytes | Oversize, conn: Connection, writer: asyncio.StreamWriter,
+                now: float) -> CommandMessage | None:
+        """The command of a line, recorded as received; None for a line refused with its error ack."""
+        if isinstance(item, Oversize):
+            conn.events.append(Event("bad", "", now, item.head))
+            writer.write(encode_ack(Ack.error(recover_id(item.head), ErrorCode.LINE_TOO_LONG, None, 0.0, 0.0,
+                                              self.pose)))
+            return None
+        try:
+            msg = parse_command(item)
+        except RemoteProtocolError as exc:
+            conn.events.append(Event("bad", exc.id or "", now, item))
+            writer.write(encode_ack(Ack.error(exc.id, exc.code, exc.message, 0.0, 0.0, self.pose)))
+            return None
+        conn.events.append(Event("recv", msg.id, now, item))
+        return msg
+
+    @staticmethod
+    async def _close(executor: asyncio.Task[None], writer: asyncio.StreamWriter, conn: Connection) -> None:
+        executor.cancel()
+        try:
+            await executor
+        except (asyncio.CancelledError, Exception):
+            pass
+        if not writer.is_closing():
+            writer.close()
+        try:
+            await writer.wait_closed()
+        except (ConnectionError, OSError):
+            pass
+        conn.closed.set()
 
     async def _stop(self, executor: asyncio.Task[None], queue: asyncio.Queue, state: dict[str, Any], ack: Any,
                     msg: CommandMessage, execute: Any, loop: asyncio.AbstractEventLoop) -> asyncio.Task[None]:
@@ -341,3 +353,11 @@ class ScriptedServer:
             ack(queued.id, Status.ABORTED)
         ack(msg.id, Status.DONE)
         return loop.create_task(execute())
+
+
+def _hang_up(writer: asyncio.StreamWriter, reset: bool) -> None:
+    """Close the connection: with an RST (``reset``) or an orderly FIN."""
+    if reset:
+        writer.transport.abort()
+    else:
+        writer.close()

@@ -151,6 +151,9 @@ class VisionOptions:
         for key in ("max_queue", "max_request_bytes"):
             if getattr(self, key) < 1:
                 raise ValueError(f"{key} = {getattr(self, key)!r}: expected an integer >= 1")
+        self._check_endpoints()
+
+    def _check_endpoints(self) -> None:
         from aioadept.bus.endpoints import is_none, parse_endpoint
         from aioadept.errors import BusError
 

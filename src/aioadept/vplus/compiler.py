@@ -515,7 +515,7 @@ class _Gen:
                 executable = True
 
     def declare_names(self, line: int, st: N.Declare) -> None:
-        for name, typ, is_arr in st.names:
+        for name, typ, _ in st.names:
             if st.word == "GLOBAL":
                 if typ == "DOUBLE":
                     self.doubles.add(name)

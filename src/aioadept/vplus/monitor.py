@@ -469,7 +469,7 @@ async def serve(files: list[str], time_scale: float = 1.0) -> int:
             break
         out(mon.command(line))
     mon.end()
-    for stop, fut in serving:
+    for stop, _ in serving:
         stop.set()
     await asyncio.gather(*(f for _, f in serving), return_exceptions=True)
     print(file=sys.stdout, flush=True)
