@@ -12,10 +12,19 @@
 docs/vplus.md, "The emulator", says what runs, how it is emulated and what is not supported.
 """
 
-from aioadept.vplus.emulator import CallResult, Emulator, GlobalsView, LoadError
-from aioadept.vplus.errors import VPlusError
-from aioadept.vplus.loader import LoadProblem
-from aioadept.vplus.runtime import RealClock, VirtualClock
+import importlib
+
+_WHERE = {"CallResult": "emulator", "Emulator": "emulator", "GlobalsView": "emulator", "LoadError": "emulator",
+          "VPlusError": "errors", "LoadProblem": "loader", "RealClock": "runtime", "VirtualClock": "runtime"}
+
+
+def __getattr__(name: str):
+    # Imported on first use: the source tools (aioadept vplus check, the language server) import the front end
+    # (aioadept.vplus.check, .parse, .loader) without the run time (asyncio, the robot, numpy)
+    if name in _WHERE:
+        return getattr(importlib.import_module(f"aioadept.vplus.{_WHERE[name]}"), name)
+    raise AttributeError(f"module 'aioadept.vplus' has no attribute {name!r}")
+
 
 __all__ = ["CallResult", "Emulator", "GlobalsView", "LoadError", "LoadProblem", "RealClock", "VPlusError",
            "VirtualClock"]

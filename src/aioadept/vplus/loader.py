@@ -29,7 +29,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from aioadept.vplus import locations as L
 from aioadept.vplus.compiler import compile_program
 from aioadept.vplus.parse import VSyntaxError, norm, parse_statement
 from aioadept.vplus.program import LoadProblem, Param, Program
@@ -290,7 +289,9 @@ def _data_line(section: str, code: str) -> tuple[str, str, Any, Any]:
             raise ValueError("expected joint values")
         return ("PPOINT", name, index, tuple(nums))
     if len(nums) == 12:
-        return ("LOC", name, index, L.by_column(nums))
+        from aioadept.vplus.locations import by_column   # numpy: only a file with stored locations needs it
+
+        return ("LOC", name, index, by_column(nums))
     if len(nums) != 6:
         raise ValueError(f"expected the 12 values of a stored transformation (or x y z yaw pitch roll), "
                          f"got {len(nums)}")
