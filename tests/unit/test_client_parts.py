@@ -6,13 +6,15 @@ from __future__ import annotations
 
 import asyncio
 import dataclasses
+import socket
+import struct
 
 import pytest
 
 from aioadept import RobotClient
 from aioadept.client.deadlines import DeadlineQueue
 from aioadept.client.options import ClientOptions
-from aioadept.client.stopport import race_stop, stop_on_port
+from aioadept.client.stopport import drop_unsent_on_close, open_side_socket, race_stop, stop_on_port
 from aioadept.errors import AckTimeout, CommandError, ConnectError, ConnectionLost
 from aioadept.ports import free_port
 
@@ -187,3 +189,33 @@ async def test_race_a_failure_counts_only_when_both_fail_and_then_the_main_one_i
         await race_stop(_after(0.05, exc=lost), lambda: _after(0, exc=ConnectError("refused")),
                         0.01, peer="p")
     assert info.value is lost
+
+
+@pytest.mark.timeout(10)
+async def test_the_side_path_opens_a_connected_socket_and_the_old_connection_resets_on_close():
+    accepted = asyncio.Event()
+
+    async def serve(reader, writer):
+        accepted.set()
+        await reader.read()
+        writer.close()
+
+    port = free_port("127.0.0.1")
+    server = await asyncio.start_server(serve, "127.0.0.1", port)
+    try:
+        side = await open_side_socket("127.0.0.1", port, 2.0)
+        try:
+            assert not side.getblocking() and side.getpeername() == ("127.0.0.1", port)
+            await asyncio.wait_for(accepted.wait(), 2.0)
+        finally:
+            side.close()
+        _, writer = await asyncio.open_connection("127.0.0.1", port)
+        drop_unsent_on_close(writer.transport)
+        linger = writer.get_extra_info("socket").getsockopt(socket.SOL_SOCKET, socket.SO_LINGER, 8)
+        assert struct.unpack("ii", linger) == (1, 0)
+        writer.transport.abort()
+    finally:
+        server.close()
+        await server.wait_closed()
+    with pytest.raises(OSError):
+        await open_side_socket("127.0.0.1", port, 2.0)  # nobody listens any more

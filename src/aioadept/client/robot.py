@@ -50,7 +50,6 @@ import logging
 import operator
 import secrets
 import socket
-import struct
 from collections.abc import Awaitable, Callable, Iterable, Sequence
 from itertools import chain
 from typing import Any
@@ -76,7 +75,7 @@ from aioadept.client.results import (
     SentMessage,
     _make_exec,
 )
-from aioadept.client.stopport import STOP_FAILURES, race_stop, stop_on_port
+from aioadept.client.stopport import STOP_FAILURES, drop_unsent_on_close, open_side_socket, race_stop, stop_on_port
 from aioadept.client.transport import AckProtocol, loop_fns, read_loop, set_nodelay, unsent_bytes
 from aioadept.commands import Command
 from aioadept.errors import (
@@ -864,19 +863,9 @@ class RobotClient:
         one, which becomes the client's connection. Returns the new stop's submission, or ``None`` when the side
         connection cannot be opened (refused, or no answer in time): the stop already written on the old connection
         then stands alone, untouched (a one-client server without the reserved path is not harmed)."""
-        loop = asyncio.get_running_loop()
         transport = self._transport
         try:
-            async with asyncio.timeout(min(self._connect_timeout_s, timeout_s)):
-                infos = await loop.getaddrinfo(self.host, self.port, type=socket.SOCK_STREAM)
-                family, type_, proto, _, addr = infos[0]
-                side = socket.socket(family, type_, proto)
-                try:
-                    side.setblocking(False)
-                    await loop.sock_connect(side, addr)
-                except BaseException:
-                    side.close()
-                    raise
+            side = await open_side_socket(self.host, self.port, min(self._connect_timeout_s, timeout_s))
         except (OSError, TimeoutError) as exc:
             log.warning("stop behind unsent bytes to %s:%s; side connection failed (%s): the stop waits on the "
                         "old connection", self.host, self.port, exc)
@@ -886,12 +875,8 @@ class RobotClient:
             return None
         log.warning("stop behind unsent bytes to %s:%s: resetting the connection (unsent commands are dropped) "
                     "and sending the stop on a new one", self.host, self.port)
-        old = transport.get_extra_info("socket") if transport is not None else None
-        if old is not None:
-            try:  # SO_LINGER 0: close sends RST and drops the kernel's unsent bytes too
-                old.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
-            except OSError:
-                pass
+        if transport is not None:
+            drop_unsent_on_close(transport)
         self._on_lost(ConnectionResetError("reset by the client: a stop was behind unsent bytes"))
         if transport is not None:
             transport.abort()  # type: ignore[attr-defined]

@@ -4,6 +4,9 @@ The stop port (docs/protocol.md 4.2.1) is a second TCP port of the server that s
 ``hello``. :func:`stop_on_port` sends one ``stop`` there on a connection of its own and returns its result;
 :func:`race_stop` awaits the stop already written on the main connection and, when no ack has come after a while,
 sends it on the stop port as well: the first ``done`` wins (a second stop cannot move the robot).
+:func:`open_side_socket` and :func:`drop_unsent_on_close` serve the opt-in side path (``stop_side_path``): a stop
+stuck behind unsent bytes goes first on a new connection, and the old one is reset so its unsent commands never
+reach the server.
 """
 
 from __future__ import annotations
@@ -11,6 +14,8 @@ from __future__ import annotations
 import asyncio
 import logging
 import secrets
+import socket
+import struct
 from collections.abc import Awaitable, Callable
 
 from aioadept.client.results import MessageResult, SentMessage
@@ -18,7 +23,7 @@ from aioadept.client.transport import set_nodelay
 from aioadept.errors import AckTimeout, CommandAborted, CommandError, ConnectError, ConnectionLost
 from aioadept.protocol import STOP_SKILL, Status, parse_ack
 
-__all__ = ["STOP_FAILURES", "race_stop", "stop_on_port"]
+__all__ = ["STOP_FAILURES", "drop_unsent_on_close", "open_side_socket", "race_stop", "stop_on_port"]
 
 log = logging.getLogger("aioadept.client")
 
@@ -101,3 +106,31 @@ async def race_stop(main: Awaitable[MessageResult], side: Callable[[], Awaitable
                 task.cancel()
     main_exc = main_task.exception() if main_task.done() and not main_task.cancelled() else errors[0]
     raise main_exc if main_exc is not None else errors[0]
+
+
+async def open_side_socket(host: str, port: int, timeout_s: float) -> socket.socket:
+    """A new non-blocking TCP socket connected to ``host:port`` (raises OSError, or TimeoutError after
+    ``timeout_s``), for the client to adopt as its connection."""
+    loop = asyncio.get_running_loop()
+    async with asyncio.timeout(timeout_s):
+        infos = await loop.getaddrinfo(host, port, type=socket.SOCK_STREAM)
+        family, type_, proto, _, addr = infos[0]
+        side = socket.socket(family, type_, proto)
+        try:
+            side.setblocking(False)
+            await loop.sock_connect(side, addr)
+        except BaseException:
+            side.close()
+            raise
+    return side
+
+
+def drop_unsent_on_close(transport: asyncio.BaseTransport) -> None:
+    """SO_LINGER 0 on ``transport``'s socket: closing it then sends RST and drops the kernel's unsent bytes too,
+    so nothing written before reaches the peer after that."""
+    sock = transport.get_extra_info("socket")
+    if sock is not None:
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+        except OSError:
+            pass
