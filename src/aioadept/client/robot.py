@@ -170,6 +170,9 @@ class RobotClient:
       the rest runs. The client refuses such a write whole, before anything is sent
       (:class:`~aioadept.errors.TooManyPending`). A ``stop`` is never refused. ``None``: no limit (a server
       started with a larger ``--max-queued``).
+    - ``options``: all of the above as one :class:`~aioadept.client.options.ClientOptions` (then no other
+      argument: ``TypeError``). :attr:`options` holds the settings in force; setting one (``robot.ack_timeout_s``)
+      checks it as the constructor does.
     """
 
     def __init__(self, host: str = defaults.ROBOT_HOST, port: int = defaults.ROBOT_PORT, *,
