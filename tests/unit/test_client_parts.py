@@ -14,6 +14,7 @@ import pytest
 from aioadept import RobotClient
 from aioadept.client.deadlines import DeadlineQueue
 from aioadept.client.options import ClientOptions
+from aioadept.client.ready import ReadyAttempts
 from aioadept.client.stopport import drop_unsent_on_close, open_side_socket, race_stop, stop_on_port
 from aioadept.errors import AckTimeout, CommandError, ConnectError, ConnectionLost
 from aioadept.ports import free_port
@@ -93,6 +94,31 @@ def test_a_deadline_before_the_last_one_is_refused_for_a_timer_of_its_own():
     a._settled = True
     assert q.push(c, 5.0)  # a left the front on the way: order holds again
     assert q.due(5.0) == [c]
+
+
+# --------------------------------------------------------------------------------- wait_ready's schedule
+def test_ready_attempts_back_off_doubling_up_to_the_cap_and_never_past_the_deadline():
+    tries = ReadyAttempts("10.0.0.5:1234", 1.0, 0.15, now=100.0)
+    assert tries.begin(100.0) == 1.0 and tries.attempts == 1
+    assert [tries.pause(100.0) for _ in range(4)] == [0.05, 0.1, 0.15, 0.15]
+    assert tries.begin(100.9) == pytest.approx(0.1)
+    assert tries.pause(100.98) == pytest.approx(0.02)  # the deadline comes first
+
+
+def test_ready_attempts_end_naming_the_attempts_and_the_last_failure():
+    tries = ReadyAttempts("10.0.0.5:1234", 2.0, 1.0, now=0.0)
+    tries.begin(0.0)
+    tries.failed(ConnectError("connect to 10.0.0.5:1234: refused"), connected=False)
+    assert tries.last == "ConnectError: connect to 10.0.0.5:1234: refused"
+    tries.begin(1.0)
+    tries.failed(TimeoutError(), connected=True)
+    assert tries.last == "connected, but no answer to hello"
+    tries.failed(AckTimeout("no ack", pending=("00000001",)), connected=False)
+    assert tries.last == "connected, but no answer to hello"
+    tries.failed(TimeoutError(), connected=False)
+    with pytest.raises(ConnectError, match=r"^10.0.0.5:1234 not ready within 2 s \(2 attempts; last: no connection "
+                                           r"before the deadline\)$"):
+        tries.begin(2.0)
 
 
 # -------------------------------------------------------------------------------------- the stop port

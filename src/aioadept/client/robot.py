@@ -37,7 +37,8 @@ How it works, and the promises it keeps:
 Its collaborators, each usable and tested alone: :class:`~aioadept.client.options.ClientOptions` (its settings,
 one frozen value), :class:`~aioadept.client.registry.PendingCalls` (the pending-message table, sans-IO),
 :class:`~aioadept.client.deadlines.DeadlineQueue` (the default-timeout watchdog's queue, sans-IO),
-:mod:`aioadept.client.stopport` (the stop on the stop port and its race with the main connection) and
+:mod:`aioadept.client.stopport` (the stop on the stop port and its race with the main connection),
+:class:`~aioadept.client.ready.ReadyAttempts` (:meth:`RobotClient.wait_ready`'s schedule, sans-IO) and
 :mod:`aioadept.client.transport` (the asyncio transport). What stays here is the connection's state machine,
 the write and wait paths (inlined where a round trip is measured: benchmarks/bench_client.py) and the stop flow.
 """
@@ -57,6 +58,7 @@ from typing import Any
 from aioadept import defaults
 from aioadept.client.deadlines import DeadlineQueue
 from aioadept.client.options import STOP_TIMEOUT_S, ClientOptions
+from aioadept.client.ready import ReadyAttempts
 from aioadept.client.registry import (
     W_TIMED_OUT as _W_TIMED_OUT,
     PendingCalls,
@@ -949,16 +951,9 @@ class RobotClient:
         _check_timeout("timeout_s", timeout_s, none_ok=False)
         _check_timeout("max_backoff_s", max_backoff_s, none_ok=False)
         loop = asyncio.get_running_loop()
-        deadline = loop.time() + timeout_s
-        backoff = 0.05
-        attempts = 0
-        last = "none"
+        tries = ReadyAttempts(f"{self.host}:{self.port}", timeout_s, max_backoff_s, loop.time())
         while True:
-            left = deadline - loop.time()
-            if left <= 0:
-                raise ConnectError(f"{self.host}:{self.port} not ready within {timeout_s:g} s "
-                                   f"({attempts} attempts; last: {last})")
-            attempts += 1
+            left = tries.begin(loop.time())
             try:
                 async with asyncio.timeout(left):
                     if self._state is not _CONNECTED:
@@ -967,17 +962,11 @@ class RobotClient:
             except CommandError:
                 return None, ""
             except (ConnectError, ConnectionLost, AckTimeout, NotARobotServer, TimeoutError) as exc:
-                if isinstance(exc, AckTimeout) or (type(exc) is TimeoutError and self._state is _CONNECTED):
-                    last = "connected, but no answer to hello"
-                elif type(exc) is TimeoutError:
-                    last = "no connection before the deadline"
-                else:
-                    last = f"{type(exc).__name__}: {exc}"
+                tries.failed(exc, connected=self._state is _CONNECTED)
                 if self._state is _CONNECTED:
                     await self.close()
                 self._state = _NEW    # connect() may be called again (as after a failed hello check)
-            await asyncio.sleep(min(backoff, max(deadline - loop.time(), 0.0)))
-            backoff = min(backoff * 2, max_backoff_s)
+            await asyncio.sleep(tries.pause(loop.time()))
 
     # ------------------------------------------------------------------------------------------- observers
     def _notify_send(self, sub: Submission) -> None:
