@@ -24,7 +24,7 @@ from pathlib import Path
 
 from verdicts import verdict
 
-from aioadept.apps.cell import CellConfig
+from aioadept.cell.config import CellConfig
 from aioadept.apps.demo import run_demo
 
 

@@ -36,7 +36,8 @@ from pathlib import Path
 
 from verdicts import verdict
 
-from aioadept.apps.multicell import multi_from_dict, run_multi
+from aioadept.apps.multicell import run_multi
+from aioadept.cell.multi import multi_from_dict
 
 
 def cell(n: int, transport: str, out: Path) -> dict:

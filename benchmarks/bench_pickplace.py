@@ -27,7 +27,8 @@ from pathlib import Path
 
 from verdicts import verdict
 
-from aioadept.apps.cell import CellConfig, new_run_dir
+from aioadept.apps.cell import new_run_dir
+from aioadept.cell.config import CellConfig
 from aioadept.apps.pickplace import PickPlaceParams
 from aioadept.testing.world_truth import WorldTruthLocator
 

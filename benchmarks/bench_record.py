@@ -78,7 +78,7 @@ class Timed:
 async def one_run(sim, frames: Path, steps: int, record: bool, out: Path, speed: int) -> dict:  # noqa: ANN001
     from aioadept.apps.paper import ufloop
     from aioadept.bus import Communicator, Responder
-    from aioadept.capture import Recorder
+    from aioadept.runs.capture import Recorder
     from aioadept.client import RobotClient
     from aioadept.record.hook import MarkTee
     from aioadept.record.live import RunRecording

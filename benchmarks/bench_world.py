@@ -21,11 +21,11 @@ from pathlib import Path
 
 from verdicts import verdict
 
-from aioadept.apps.cell import CellConfig
+from aioadept.cell.config import CellConfig
 from aioadept.geometry import Pose
 from aioadept.sim.controller import Controller
 from aioadept.sim.server import robot_state_sample, world_state_sample
-from aioadept.sim.world import World
+from aioadept.world import World
 from aioadept.vision.virtual_camera import paper_approach_pose, paper_camera
 from aioadept.vision.world_camera import WorldView
 

@@ -14,8 +14,9 @@ import time
 
 import pytest
 
-from aioadept.apps.cell import CellConfig, sim_argv, vision_argv
-from aioadept.apps.cellbus import with_transport
+from aioadept.apps.cell import sim_argv, vision_argv
+from aioadept.cell.config import CellConfig
+from aioadept.cell.bus import with_transport
 from aioadept.bus import Communicator, Publisher
 from aioadept.errors import BusError
 from aioadept.apps.processes import NodeProcess

@@ -18,7 +18,7 @@ import pytest
 
 from aioadept.geometry import pose_error
 from aioadept.vision.calibration import CameraCalibration
-from aioadept.worldfile import load_world
+from aioadept.cell.world import load_world
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -13,7 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from aioadept.apps.cell import CellConfig, vision_argv
+from aioadept.apps.cell import vision_argv
+from aioadept.cell.config import CellConfig
 from aioadept.ports import free_port
 from aioadept.cli.vision import resolve_options
 

@@ -14,9 +14,9 @@ from pathlib import Path
 
 import pytest
 
-from aioadept.apps.cell import CellConfig, RobotSection
+from aioadept.cell.config import CellConfig, RobotSection
 from aioadept.apps.focus import FocusParams
-from aioadept.configfile import Range, range_of
+from aioadept.cell.schema import Range, range_of
 from aioadept.errors import ConfigError
 from aioadept.vision.options import VisionOptions
 

@@ -11,7 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from aioadept.apps.cell import CellConfig, new_run_dir
+from aioadept.apps.cell import new_run_dir
+from aioadept.cell.config import CellConfig
 from aioadept.robots import model
 
 ROOT = Path(__file__).resolve().parents[2]

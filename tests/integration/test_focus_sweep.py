@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from aioadept.apps.cell import CellConfig
+from aioadept.cell.config import CellConfig
 from aioadept.apps.demo import run_demo
 from aioadept.apps.focus import FocusParams
 from aioadept.apps.sweep import sweep_focus

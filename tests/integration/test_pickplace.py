@@ -20,13 +20,14 @@ from pathlib import Path
 
 import pytest
 
-from aioadept.apps.cell import CellConfig, new_run_dir
+from aioadept.apps.cell import new_run_dir
+from aioadept.cell.config import CellConfig
 from aioadept.apps.pickplace import LocateAnswer, PickPlaceParams, pickplace
 from aioadept.errors import PickPlaceError
 from aioadept.client import RobotClient
 from aioadept.testing.sim import running_sim
 from aioadept.testing.world_truth import WorldTruthLocator
-from aioadept.worldfile import world_from_table
+from aioadept.cell.world import world_from_table
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "examples" / "pickplace-cell.toml"
@@ -234,7 +235,8 @@ def test_the_cli_says_no_part_on_the_feeder_in_one_line_exit_1_and_keeps_the_run
 
 SIGNAL_SCRIPT = """
 import sys
-from aioadept.apps.cell import CellConfig, new_run_dir
+from aioadept.apps.cell import new_run_dir
+from aioadept.cell.config import CellConfig
 from aioadept.apps.pickplace import PickPlaceParams
 from aioadept.cli.pickplace import run
 from aioadept.testing.world_truth import WorldTruthLocator

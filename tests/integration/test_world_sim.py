@@ -156,7 +156,7 @@ async def test_the_vision_node_sees_the_part_where_the_world_stream_puts_it(tmp_
     published world state puts it, before and after the robot carries the part away."""
     from aioadept.bus.communicator import Communicator
     from aioadept.vision.world_camera import WorldView
-    from aioadept.worldfile import load_world
+    from aioadept.cell.world import load_world
 
     cell = tmp_path / "cell.toml"
     cell.write_text(WORLD_CAM)
@@ -202,7 +202,7 @@ async def test_the_recording_draws_the_parts_in_3d_and_the_world_cameras_view(tm
     view; the same entities a live viewer gets."""
     from aioadept.record.live import RunRecording
     from aioadept.record.read import read_rrd
-    from aioadept.worldfile import load_world
+    from aioadept.cell.world import load_world
 
     cell = tmp_path / "cell.toml"
     cell.write_text(WORLD_CAM)

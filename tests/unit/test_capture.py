@@ -10,7 +10,7 @@ import json
 import pytest
 
 from aioadept.bus import Request, Response
-from aioadept.capture import MARK_COLUMNS, ROBOT_COLUMNS, VISION_COLUMNS, Recorder, load_run
+from aioadept.runs.capture import MARK_COLUMNS, ROBOT_COLUMNS, VISION_COLUMNS, Recorder, load_run
 from aioadept.client import MessageResult, SentMessage
 from aioadept.geometry import Pose
 from aioadept.protocol import Ack, Status
@@ -197,7 +197,7 @@ class _FullDisk:
 
 
 def _disk_full_for(monkeypatch, names, room=10):
-    from aioadept import capture
+    from aioadept.runs import capture
 
     real = capture._open_for_write
 
@@ -244,7 +244,7 @@ def test_a_full_disk_at_run_json_reports_it_and_leaves_no_partial_run_json(tmp_p
 
 
 def test_write_atomic_replaces_whole_or_not_at_all(tmp_path, monkeypatch):
-    from aioadept.capture import write_atomic
+    from aioadept.runs.capture import write_atomic
 
     target = tmp_path / "focus.json"
     write_atomic(target, '{"old": true}')

@@ -5,9 +5,9 @@ from __future__ import annotations
 import errno
 import json
 
-from aioadept import capture
+from aioadept.runs import capture
 from aioadept.analysis.synthetic import synthetic_recorder
-from aioadept.capture import RUN_JSON_RESERVE, note_not_written
+from aioadept.runs.capture import RUN_JSON_RESERVE, note_not_written
 
 
 def _run(path):

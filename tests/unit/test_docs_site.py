@@ -128,7 +128,7 @@ def test_the_getting_started_client_example_runs_against_the_simulator_as_docume
 def test_the_cell_file_page_documents_every_key_and_no_other() -> None:
     import dataclasses
 
-    from aioadept.apps.cell import CellConfig
+    from aioadept.cell.config import CellConfig
 
     page = (ROOT / "docs" / "focus.md").read_text(encoding="utf-8")
     for section in dataclasses.fields(CellConfig):
@@ -149,11 +149,11 @@ def test_the_cell_file_page_documents_every_key_and_no_other() -> None:
 def test_world_docs_name_every_key_of_the_world_table() -> None:
     import dataclasses
 
-    from aioadept import worldfile
+    from aioadept.cell import world as world_tables
 
     page = (ROOT / "docs" / "sim.md").read_text(encoding="utf-8")
     section = page.split("## The world", 1)[1].split("\n## ", 1)[0]
-    for table in (worldfile._WorldTable, worldfile._PartTable, worldfile._FeederTable, worldfile._PalletTable,
-                  worldfile._CameraTable):
+    for table in (world_tables._WorldTable, world_tables._PartTable, world_tables._FeederTable,
+                  world_tables._PalletTable, world_tables._CameraTable):
         missing = [f.name for f in dataclasses.fields(table) if not re.search(rf"\b{f.name}\b", section)]
         assert not missing, (table.__name__, missing)

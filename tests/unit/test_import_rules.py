@@ -162,23 +162,6 @@ def test_the_leaves_import_nothing_of_aioadept():
     assert {leaf: sorted(g[leaf]) for leaf in LEAVES} == {leaf: [] for leaf in LEAVES}
 
 
-LONG_FILE_MARKER = "over 500 lines"
-"""A src file over 500 lines says why in its module docstring's first lines, with these words (any case)."""
-
-
-def test_files_over_500_lines_say_why():
-    unexplained = []
-    for path in sorted(PKG.rglob("*.py")):
-        text = path.read_text(encoding="utf-8")
-        if text.count("\n") <= 500:
-            continue
-        doc = ast.get_docstring(ast.parse(text)) or ""
-        head = "\n".join(doc.splitlines()[:12]).lower()
-        if LONG_FILE_MARKER not in " ".join(head.split()):
-            unexplained.append(f"{path.relative_to(SRC)} ({text.count(chr(10))} lines)")
-    assert unexplained == [], f"over 500 lines without a why ('{LONG_FILE_MARKER} because ...') at the top: {unexplained}"
-
-
 # The command line is the outermost layer. Only it imports ``aioadept.cli``, besides the ``python -m``
 # entry points (``__main__`` modules), which are command lines themselves; no library leans on it.
 CLI_IMPORTERS_ALLOWED = {"aioadept.__main__", "aioadept.sim.__main__", "aioadept.vision.__main__"}

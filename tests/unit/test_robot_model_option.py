@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import pytest
 
-from aioadept.apps.cell import CellConfig, sim_argv
+from aioadept.apps.cell import sim_argv
+from aioadept.cell.config import CellConfig
 from aioadept.cli.sim import build_parser, options_from_args, parse_args
-from aioadept.configfile import report
+from aioadept.cell.schema import report
 
 
 def _cell(tmp_path, model: str):

@@ -7,10 +7,11 @@ import json
 
 import pytest
 
-from aioadept.apps.cell import CellConfig, write_world_file
+from aioadept.apps.cell import write_world_file
+from aioadept.cell.config import CellConfig
 from aioadept.errors import ConfigError
 from aioadept.sim.io import INPUTS
-from aioadept.worldfile import INPUT_SIGNALS, load_world, world_from_table, world_to_table
+from aioadept.cell.world import INPUT_SIGNALS, load_world, world_from_table, world_to_table
 
 GOOD = {
     "table_z_mm": 5,
@@ -103,7 +104,7 @@ def test_the_example_world_loads_and_its_camera_sees_every_marker():
 
     import cv2
 
-    from aioadept.sim.world import World
+    from aioadept.world import World
     from aioadept.vision.world_camera import WorldView
 
     example = Path(__file__).resolve().parents[2] / "examples" / "world-cell.toml"

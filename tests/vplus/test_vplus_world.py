@@ -7,9 +7,9 @@ from __future__ import annotations
 import pytest
 
 from aioadept.sim.controller import Controller
-from aioadept.worldmodel import Feeder, PartSpec
-from aioadept.sim.world import World
-from aioadept.worldmodel import WorldConfig
+from aioadept.world import Feeder, PartSpec
+from aioadept.world import World
+from aioadept.world import WorldConfig
 from aioadept.vplus import Emulator
 from aioadept.vplus.emulator import make_robot
 

@@ -1,6 +1,6 @@
 """The paper's timing analysis over recorded runs (Semeniuta & Falkman 2019, "Time measurements").
 
-Where it sits: :mod:`aioadept.capture` records a run folder; this package turns it into the paper's quantities
+Where it sits: :mod:`aioadept.runs.capture` records a run folder; this package turns it into the paper's quantities
 (:mod:`.metrics`, eqs. 1-5), distribution fits (:mod:`.fits`), figures like Figs. 9-13 (:mod:`.plots`, matplotlib
 imported only there), the focus loop's cycle split (:mod:`.cycle`) and a summary (:mod:`.report`).
 ``aioadept analyze RUN_DIR...`` is :mod:`.__main__`.

@@ -11,7 +11,7 @@ from itertools import pairwise
 from typing import Any
 
 from aioadept.analysis.metrics import Iteration
-from aioadept.capture import Run
+from aioadept.runs.capture import Run
 
 __all__ = ["cycle_line", "cycle_split"]
 

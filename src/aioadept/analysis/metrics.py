@@ -1,6 +1,6 @@
 """The paper's timing metrics (Semeniuta & Falkman 2019, "Time measurements", eqs. 1-5), as pure functions.
 
-Input: the records of a run (:class:`aioadept.capture.Run`, or any objects with the same attributes). Output:
+Input: the records of a run (:class:`aioadept.runs.capture.Run`, or any objects with the same attributes). Output:
 one :class:`Iteration` per vision request of the approach loop, with its timestamps and tau values in ms.
 
 An iteration ``i`` of the paper's ``ufloop`` is one vision request followed by one robot batch of exactly the three
@@ -223,7 +223,7 @@ def _with_taus(it: Iteration, prev: Iteration | None) -> Iteration:
 
 
 def iterations_of_run(run: Any, *, skills: Sequence[str] = APPROACH_SKILLS) -> tuple[Iteration, ...]:
-    """:func:`find_iterations` on a :class:`aioadept.capture.Run` (its name and parameters go into each row)."""
+    """:func:`find_iterations` on a :class:`aioadept.runs.capture.Run` (its name and parameters go into each row)."""
     return find_iterations(run.robot, run.vision, marks=getattr(run, "marks", ()), run=run.name,
                            parameters=run.parameters, skills=skills)
 

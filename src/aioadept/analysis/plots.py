@@ -43,7 +43,7 @@ def _figure(width_in: float, height_in: float) -> Any:
 
 
 def _save(fig: Any, path: str | os.PathLike[str]) -> Path:
-    from aioadept.capture import write_atomic
+    from aioadept.runs.capture import write_atomic
 
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)

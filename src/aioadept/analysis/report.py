@@ -26,7 +26,7 @@ from aioadept.analysis.fits import fit_for
 from aioadept.analysis.metrics import QUANTITIES, Iteration, Stats, describe, iterations_of_run, quantity_values
 from aioadept.analysis.outputs import publish, staging
 from aioadept.errors import AnalysisSaveError
-from aioadept.capture import Run, load_run, write_atomic
+from aioadept.runs.capture import Run, load_run, write_atomic
 
 __all__ = [
     "ANALYSIS_FILES", "DEFAULT_GROUP_BY", "FIGURES", "Group", "RunInfo", "Summary", "analyze_runs",

@@ -1,6 +1,6 @@
 """Synthetic focus-loop runs with realistic timing, for trying the analysis and plots without a cell.
 
-:func:`synthetic_recorder` drives a :class:`aioadept.capture.Recorder` through the same observer hooks the
+:func:`synthetic_recorder` drives a :class:`aioadept.runs.capture.Recorder` through the same observer hooks the
 RobotClient and Communicator call, with the message pattern of the paper's ``ufloop``: an ``init_move`` batch, then
 per iteration one vision request and one ``set_speed``/``move_rel_tool``/``break`` batch, then the retract batch.
 Timing model (all seeded):
@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from aioadept.bus import Request, Response
-from aioadept.capture import Recorder
+from aioadept.runs.capture import Recorder
 from aioadept.client import MessageResult, SentMessage
 from aioadept.robots import paper_cell
 from aioadept.geometry import Pose

@@ -13,8 +13,9 @@ import dataclasses
 import logging
 from pathlib import Path
 
-from aioadept.apps.cell import CellConfig, RunOutcome, run_focus_once, running_cell
-from aioadept.apps.runfolder import merged_save_error
+from aioadept.apps.cell import RunOutcome, run_focus_once, running_cell
+from aioadept.cell.config import CellConfig
+from aioadept.runs.folder import merged_save_error
 from aioadept.apps.interrupt import Interrupter
 
 log = logging.getLogger("aioadept.demo")

@@ -12,7 +12,8 @@ import itertools
 import logging
 from pathlib import Path
 
-from aioadept.apps.cell import CellConfig, new_run_dir, run_focus_once, running_cell
+from aioadept.apps.cell import new_run_dir, run_focus_once, running_cell
+from aioadept.cell.config import CellConfig
 from aioadept.apps.interrupt import Interrupter
 
 log = logging.getLogger("aioadept.experiment")
@@ -25,7 +26,7 @@ async def run_experiment(cfg: CellConfig, grid: list[tuple[int, float]], runs: i
     and logged)."""
     from rich.progress import Progress
 
-    from aioadept.capture import note_not_written
+    from aioadept.runs.capture import note_not_written
     from aioadept.errors import RunSaveError
 
     done: list[Path] = []

@@ -31,7 +31,7 @@ from aioadept.apps.paper import (
     ufloop,
 )
 from aioadept.apps.sweep import MODES, SWEEP_RANGES
-from aioadept.configfile import check_ranges, ranged
+from aioadept.cell.schema import check_ranges, ranged
 from aioadept.errors import AdeptError, FocusStopped, StopFailed
 
 log = logging.getLogger(__name__)
@@ -42,7 +42,7 @@ class FocusParams:
     """Parameters of one calibration run (the paper varied speed in {5..100} and delta_z in {1.5, 2.0, 2.5}).
 
     Each field's range is :data:`~aioadept.apps.paper.FOCUS_RANGES`' (read with
-    :func:`aioadept.configfile.range_of`): a value outside it raises ValueError naming the field, so a run never
+    :func:`aioadept.cell.schema.range_of`): a value outside it raises ValueError naming the field, so a run never
     starts with a step that cannot find the focal plane (0, negative: the approach pose or noise would be reported
     as the peak) or a speed the robot refuses.
     """

@@ -19,7 +19,7 @@ from typing import Any, Protocol
 
 from aioadept.bus.messages import VISION_REQUEST
 from aioadept.commands import SPEED_MAX, SPEED_MIN, MoveJoints, MoveRelJoints, MoveRelTool, MoveTo, MoveToolZ, SetSpeed
-from aioadept.configfile import Range
+from aioadept.cell.schema import Range
 from aioadept.errors import AdeptError, CommandAborted, CommandError, FocusError, VisionError
 from aioadept.geometry import Pose
 from aioadept.robots import paper_cell

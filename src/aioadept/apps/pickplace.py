@@ -28,11 +28,11 @@ from typing import Any, Protocol
 from aioadept.bus.located import LOCATE_REQUEST, LocatedPart, parts_from_attributes
 from aioadept.commands import (SPEED_MAX, SPEED_MIN, Appros, CloseHand, Departs, MoveToS, OpenHand, SetSpeed, Sig,
                                WaitSig)
-from aioadept.configfile import Range, check_ranges, ranged
+from aioadept.cell.schema import Range, check_ranges, ranged
 from aioadept.errors import AdeptError, CommandError, PickPlaceError
 from aioadept.geometry import Pose
 from aioadept.protocol.codes import ErrorCode
-from aioadept.worldmodel import Feeder, Pallet
+from aioadept.world import Feeder, Pallet
 
 log = logging.getLogger(__name__)
 

@@ -21,8 +21,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from aioadept.apps.cell import CellConfig, _guarded, stop_port_of
-from aioadept.apps.runfolder import abandon_run, run_error
+from aioadept.apps.cell import _guarded, stop_port_of
+from aioadept.cell.config import CellConfig
+from aioadept.runs.folder import abandon_run, run_error
 from aioadept.apps.pickplace import BusLocator, PickPlaceParams, PickPlaceResult, pickplace
 from aioadept.errors import PickPlaceError
 
@@ -158,7 +159,7 @@ async def run_pickplace_once(cfg: CellConfig, run_dir: Path, *, interrupter: Any
     from aioadept import __version__
     from aioadept.bus import Communicator
     from aioadept.bus.endpoints import is_none, opposite
-    from aioadept.capture import Recorder, write_atomic
+    from aioadept.runs.capture import Recorder, write_atomic
     from aioadept.client import RobotClient
     from aioadept.record.hook import MarkTee, open_run_recording, open_state_tap, write_run_mcap_of
 

@@ -222,7 +222,7 @@ async def run_watched(coro: Any, *nodes: NodeProcess) -> Any:
 
     The cancellation carries the cause (``NodeError: <node> exited unexpectedly with code N``, the words the
     app's failure line starts with), so a run that saves its folder while it is cancelled names the dead node
-    as its error (:func:`aioadept.apps.runfolder.run_error`), not an interrupt."""
+    as its error (:func:`aioadept.runs.folder.run_error`), not an interrupt."""
     main = asyncio.ensure_future(coro)
     if not nodes:
         return await main

@@ -38,7 +38,7 @@ from aioadept.apps.sweep_model import (PeakFit, StateTrack, _finite, axis_offset
                                       profile_offset)
 from aioadept.apps.sweep_plan import SweepPlan, check_sweep, max_reach_mm, next_plan, plan_sweep
 from aioadept.commands import Break, MoveToS, SetSpeed
-from aioadept.configfile import Range
+from aioadept.cell.schema import Range
 from aioadept.errors import CommandAborted, CommandError
 from aioadept.geometry import Pose
 

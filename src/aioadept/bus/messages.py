@@ -378,14 +378,14 @@ WORLD_STATE_TOPIC = b"world.state"
 
 @dataclass(frozen=True, slots=True)
 class WorldState:
-    """One sample of the simulated world (:mod:`aioadept.sim.world`): at server time ``t_s`` (epoch
+    """One sample of the simulated world (:mod:`aioadept.world`): at server time ``t_s`` (epoch
     ``wall_time_s``) every part's pose and whether it is held or fell, the world's inputs that are on, and the
-    events since the previous sample (:class:`aioadept.worldmodel.WorldEvent`; ``seq`` is not sent: 0 here)."""
+    events since the previous sample (:class:`aioadept.world.WorldEvent`; ``seq`` is not sent: 0 here)."""
 
     t_s: float
     wall_time_s: float
-    parts: tuple = ()        # tuple[aioadept.worldmodel.PartState, ...]
-    events: tuple = ()       # tuple[aioadept.worldmodel.WorldEvent, ...]
+    parts: tuple = ()        # tuple[aioadept.world.PartState, ...]
+    events: tuple = ()       # tuple[aioadept.world.WorldEvent, ...]
     sensors_on: tuple[int, ...] = ()
 
     def to_bytes(self) -> bytes:
@@ -406,7 +406,7 @@ class WorldState:
     @classmethod
     def from_bytes(cls, data: bytes) -> WorldState:
         """Parse ``aioadept.WorldState`` bytes; garbage or missing required fields raise :class:`BusError`."""
-        from aioadept.worldmodel import PartState, WorldEvent
+        from aioadept.world import PartState, WorldEvent
 
         pb = _parse(aioadept_pb2.WorldState(), data, "an aioadept WorldState")
         return cls(
@@ -417,7 +417,7 @@ class WorldState:
             sensors_on=tuple(pb.sensors_on),
         )
 
-    def part(self, part_id: int):  # -> aioadept.worldmodel.PartState
+    def part(self, part_id: int):  # -> aioadept.world.PartState
         for p in self.parts:
             if p.id == part_id:
                 return p

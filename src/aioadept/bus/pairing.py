@@ -80,7 +80,7 @@ class Response:
 
 
 class BusObserver(Protocol):
-    """Timing hooks (e.g. aioadept.capture). Every method is optional; none may block; exceptions are logged.
+    """Timing hooks (e.g. aioadept.runs.capture). Every method is optional; none may block; exceptions are logged.
 
     ``on_request`` is called once per request, at its first publish; ``on_republish`` (an aioadept extension) at
     each re-publication of the same id, with that moment as ``t_send_s``; ``on_response`` when it is matched.

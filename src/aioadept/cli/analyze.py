@@ -21,8 +21,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="aioadept analyze",
         description="Compute the paper's timing quantities (tau_r, switching durations; eqs. 1-5) over run folders "
-                    "written by aioadept.capture, pool them across runs, fit their distributions and write figures "
-                    "like the paper's Figs. 9-13, summary.json and iterations.csv: into the run folder for one "
+                    "written by aioadept.runs.capture, pool them across runs, fit their distributions and write "
+                    "figures like the paper's Figs. 9-13, summary.json and iterations.csv: into the run folder for one "
                     "run, into ./analysis/ (created in the current folder) for several, unless --out. Folders "
                     "without a run (e.g. the logs a failed demo leaves) are skipped with a note.",
         epilog="Exit codes: 0 analysed; 1 no complete approach iteration (outputs still written); 2 no readable "

@@ -29,8 +29,8 @@ from aioadept.cli.options import (
     setup_logging,
     with_default,
 )
-from aioadept.configfile import report
-from aioadept.configfile import Range
+from aioadept.cell.schema import report
+from aioadept.cell.schema import Range
 
 log = logging.getLogger("aioadept.calibrate")
 
@@ -85,8 +85,8 @@ def main(argv: list[str] | None = None) -> int:
     setup_logging(logging.DEBUG if args.verbose else logging.INFO, fmt="%(levelname)s %(name)s: %(message)s")
     from aioadept.apps.calibrate import calibration_poses, check_poses
     from aioadept.errors import CalibrationError
-    from aioadept.apps.cell import CellConfig
-    from aioadept.apps.cellbus import with_transport, zenoh_session
+    from aioadept.cell.config import CellConfig
+    from aioadept.cell.bus import with_transport, zenoh_session
     from aioadept.geometry import Pose
     from aioadept.vision.calibration import CameraCalibration
 
@@ -117,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.write is not None and not args.write.parent.is_dir():
             raise ValueError(f"--write {args.write}: no folder {args.write.parent} to write it in; nothing was moved")
         if args.write is not None and args.write.exists():
-            from aioadept.configfile import load_toml
+            from aioadept.cell.schema import load_toml
 
             load_toml(args.write)  # a file we would rewrite must be TOML now: one line, before any motion
     except (OSError, ValueError, CalibrationError) as exc:

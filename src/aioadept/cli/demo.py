@@ -14,7 +14,8 @@ import logging
 import sys
 from pathlib import Path
 
-from aioadept.apps.cell import CellConfig, new_run_dir
+from aioadept.apps.cell import new_run_dir
+from aioadept.cell.config import CellConfig
 from aioadept.apps.demo import run_demo
 from aioadept.cli.options import (
     ArgumentParser,
@@ -26,14 +27,14 @@ from aioadept.cli.options import (
     description,
     option_help,
 )
-from aioadept.configfile import report
+from aioadept.cell.schema import report
 from aioadept.cli.report import run_once
 
 log = logging.getLogger("aioadept.demo")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from aioadept.apps.cell import RobotSection
+    from aioadept.cell.config import RobotSection
     from aioadept.vision.options import VisionOptions
 
     p = ArgumentParser(prog="aioadept demo", description=description(__doc__))
@@ -83,8 +84,8 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     configure_logging(args.verbose)
     if args.config:
-        from aioadept.apps.multicell import is_multi
-        from aioadept.configfile import load_toml
+        from aioadept.cell.multi import is_multi
+        from aioadept.cell.schema import load_toml
 
         try:
             data = load_toml(args.config)

@@ -12,7 +12,7 @@ import logging
 import sys
 from pathlib import Path
 
-from aioadept.apps.cell import CellConfig
+from aioadept.cell.config import CellConfig
 from aioadept.apps.experiment import run_experiment
 from aioadept.apps.interrupt import Interrupter, run_interruptible
 from aioadept.cli.options import (
@@ -23,7 +23,7 @@ from aioadept.cli.options import (
     configure_logging,
     description,
 )
-from aioadept.configfile import report
+from aioadept.cell.schema import report
 
 log = logging.getLogger("aioadept.experiment")
 
@@ -56,7 +56,7 @@ def grid_of(args: argparse.Namespace) -> list[tuple[int, float]]:
 
 def build_parser() -> argparse.ArgumentParser:
     from aioadept.apps.focus import FocusParams
-    from aioadept.configfile import range_of
+    from aioadept.cell.schema import range_of
 
     p = ArgumentParser(prog="aioadept experiment", description=description(__doc__))
     add_config(p, "cell description (TOML)", type=Path)

@@ -10,7 +10,8 @@ import logging
 import sys
 from pathlib import Path
 
-from aioadept.apps.cell import CellConfig, new_run_dir, run_focus_once
+from aioadept.apps.cell import new_run_dir, run_focus_once
+from aioadept.cell.config import CellConfig
 from aioadept import defaults
 from aioadept.cli.options import (
     ArgumentParser,
@@ -24,7 +25,7 @@ from aioadept.cli.options import (
     parse_robot_address,
     with_default,
 )
-from aioadept.configfile import report
+from aioadept.cell.schema import report
 from aioadept.cli.report import run_once
 
 log = logging.getLogger("aioadept.focus")
@@ -105,7 +106,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _run(cfg: CellConfig, run_dir: Path) -> int:
     from aioadept.apps.cell import resolve_ports
-    from aioadept.apps.cellbus import zenoh_session
+    from aioadept.cell.bus import zenoh_session
     from aioadept.errors import BusError
 
     cfg = resolve_ports(cfg)  # [bus] transport = "zenoh": the cell's keys, and this process joins its router

@@ -24,7 +24,7 @@ PROG = "aioadept demo"
 def multi_config(args: argparse.Namespace, data: dict[str, Any], options: Callable[..., Any]) -> Any:
     """The file's cell with the command line's ``options`` (``aioadept demo``'s) applied to every robot
     (ValueError naming the mistake)."""
-    from aioadept.apps.multicell import multi_from_dict
+    from aioadept.cell.multi import multi_from_dict
 
     multi = multi_from_dict(data, source=str(args.config))
     for m in multi.members:
@@ -36,7 +36,7 @@ def main_multi(args: argparse.Namespace, data: dict[str, Any], options: Callable
     """``options(cfg, args, from_file=True)``: the demo's options applied to one robot's cell."""
     from aioadept.apps.interrupt import run_interruptible
     from aioadept.apps.multicell import new_multi_run_dir, run_multi
-    from aioadept.configfile import report
+    from aioadept.cell.schema import report
     from aioadept.record.hook import keep_frames
 
     if getattr(args, "view", False):

@@ -272,7 +272,7 @@ async def run(args: argparse.Namespace, robots: list, users: dict[str, str] | No
 
 def main(argv: list[str] | None = None) -> int:
     from aioadept.cli.options import run_node, setup_logging
-    from aioadept.configfile import report
+    from aioadept.cell.schema import report
 
     parser = build_parser()
     args = parser.parse_args(argv)

@@ -17,8 +17,8 @@ from aioadept import defaults
 from aioadept.errors import ConfigError
 
 if TYPE_CHECKING:
-    from aioadept.apps.cell import CellConfig
-    from aioadept.apps.cellbus import BusSection
+    from aioadept.cell.config import CellConfig
+    from aioadept.cell.bus import BusSection
 
 __all__ = [
     "ArgumentParser", "DefaultsHelpFormatter", "Listener", "ROBOT_HELP", "add_cell_options", "add_config",
@@ -60,7 +60,7 @@ class DefaultsHelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
 
 
 def add_config(p: argparse.ArgumentParser, help: str, **kw) -> None:  # noqa: A002
-    """``--config FILE``: a TOML file read with :func:`aioadept.configfile.load_toml`."""
+    """``--config FILE``: a TOML file read with :func:`aioadept.cell.schema.load_toml`."""
     p.add_argument("--config", metavar="FILE", help=help, **kw)
 
 
@@ -91,8 +91,8 @@ _FOCUS_OPTIONS = (("speed", "approach_speed"), ("delta_z", "delta_z_mm"), ("max_
 
 def option_help(text: str, cls: type, name: str) -> str:
     """An option's help ending in the range and default of dataclass field ``cls.name``, both read from the field
-    (:func:`aioadept.configfile.range_of`), so ``--help`` says what the check enforces."""
-    from aioadept.configfile import range_of
+    (:func:`aioadept.cell.schema.range_of`), so ``--help`` says what the check enforces."""
+    from aioadept.cell.schema import range_of
 
     default = next(f.default for f in dataclasses.fields(cls) if f.name == name)
     return f"{text} ({range_of(cls, name).text}; default {default:g})".replace("%", "%%")  # argparse expands %
@@ -130,7 +130,7 @@ def add_mode_option(p: argparse.ArgumentParser) -> None:
 
 def check_option(option: str, cls: type, name: str, value: object) -> None:
     """ValueError ``"--OPTION VALUE: expected ..."`` unless ``value`` is in the range of field ``cls.name``."""
-    from aioadept.configfile import range_of
+    from aioadept.cell.schema import range_of
 
     range_of(cls, name).check(option, value, sep=" ")
 
@@ -275,7 +275,7 @@ def apply_node_transport(values: dict, node: str, streams: dict[str, tuple[str, 
         if given:
             raise ValueError(f"--{given[0].replace('_', '-')} needs --transport zenoh")
         return
-    from aioadept.apps.cellbus import check_chunk
+    from aioadept.cell.bus import check_chunk
     from aioadept.bus import zenoh as zb
     from aioadept.errors import BusError
 
@@ -297,21 +297,21 @@ def apply_cell_bus(values: dict, bus: "BusSection", given: set[str], streams: di
                    source: str) -> None:
     """A node started from a cell file (``aioadept sim|vision|state --config CELL.toml``): the file's ``[bus]``
     table applied to the node's options ``values`` (defaults < the file < the command line) as a starter applies it
-    to the nodes it runs (:func:`aioadept.apps.cellbus.transport_argv` and
-    :func:`~aioadept.apps.cellbus.with_transport`), so the node meets the demo's application on the same transport
+    to the nodes it runs (:func:`aioadept.cell.bus.transport_argv` and
+    :func:`~aioadept.cell.bus.with_transport`), so the node meets the demo's application on the same transport
     and keys. Call it before :func:`apply_node_transport`.
 
     ``given`` names the options the command line gave; each wins over the file: ``--transport`` over
     ``transport``, ``--cell`` over ``cell``, ``--zenoh-connect``/``--zenoh-listen`` over ``zenoh_router`` (a node
     connects to the router; it is never the router because of the file), an endpoint over the key the file's would
     become. On Zenoh every endpoint of ``streams`` (option -> (owner node, topic)) the command line did not give
-    becomes the cell's key unless it is ``zenoh:`` or ``none`` (:func:`~aioadept.apps.cellbus.on_cell_key`).
+    becomes the cell's key unless it is ``zenoh:`` or ``none`` (:func:`~aioadept.cell.bus.on_cell_key`).
     ValueError naming the option, or :class:`~aioadept.errors.ConfigError` naming the file and the key."""
     if "transport" not in given:
         values["transport"] = bus.transport
     if values.get("transport") != "zenoh":
         return
-    from aioadept.apps.cellbus import check_chunk, on_cell_key
+    from aioadept.cell.bus import check_chunk, on_cell_key
     from aioadept.errors import BusError
 
     if "cell" not in given:

@@ -42,9 +42,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def pickplace_config(args: argparse.Namespace):  # noqa: ANN201
     """The cell of ``args``; ValueError/OSError (one line naming the file, key or option) for anything bad."""
-    from aioadept.apps.cell import CellConfig
+    from aioadept.cell.config import CellConfig
     from aioadept.apps.pickplace import PickPlaceParams
-    from aioadept.configfile import range_of
+    from aioadept.cell.schema import range_of
 
     path = args.config or EXAMPLE_CELL
     cfg = CellConfig.from_toml(path)
@@ -96,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
     (nothing started, no run folder); 130 interrupted with the robot stopped."""
     args = build_parser().parse_args(argv)
     configure_logging(args.verbose)
-    from aioadept.configfile import report
+    from aioadept.cell.schema import report
 
     try:
         cfg = pickplace_config(args)

@@ -80,7 +80,7 @@ def report_saving(outcome: Any, *, analyze: bool, prog: str) -> int:
     is named, with its reason, in one line on stderr and in ``run.json``'s ``not_written``. Returns 0, or
     :data:`EXIT_NOT_SAVED`.
     """
-    from aioadept.capture import note_not_written
+    from aioadept.runs.capture import note_not_written
     from aioadept.errors import RunSaveError
 
     run_dir = Path(outcome.run_dir)

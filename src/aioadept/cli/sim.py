@@ -295,11 +295,11 @@ def parse_args(parser: argparse.ArgumentParser, argv: list[str] | None) -> argpa
     line, exit 2."""
     argv = list(sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(argv)
-    from aioadept.configfile import report
+    from aioadept.cell.schema import report
 
     world = None
     if args.config:
-        from aioadept.apps.cell import CellConfig
+        from aioadept.cell.config import CellConfig
 
         try:
             cell = CellConfig.from_toml(args.config)
@@ -319,7 +319,7 @@ def parse_args(parser: argparse.ArgumentParser, argv: list[str] | None) -> argpa
         except ValueError as exc:
             raise SystemExit(report("aioadept sim", exc)) from None
     if args.world:
-        from aioadept.worldfile import load_world
+        from aioadept.cell.world import load_world
 
         try:
             world = load_world(args.world)

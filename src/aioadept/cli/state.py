@@ -60,7 +60,7 @@ def parse_args(parser: argparse.ArgumentParser, argv: list[str] | None) -> argpa
     argv = list(sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(argv)
     if args.config:
-        from aioadept.apps.cell import CellConfig
+        from aioadept.cell.config import CellConfig
         from aioadept.cli.options import apply_cell_bus
 
         cell = CellConfig.from_toml(args.config)
@@ -102,7 +102,7 @@ async def run(host: str, port: int, endpoint: str, curve) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     from aioadept.cli.options import apply_node_transport, parse_robot_address
-    from aioadept.configfile import report
+    from aioadept.cell.schema import report
     from aioadept.cli.sim import _state_curve
 
     parser = build_parser()

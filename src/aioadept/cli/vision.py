@@ -162,13 +162,13 @@ def load_config(path: str) -> dict[str, Any]:
 
 def _load_config(path: str) -> tuple[dict[str, Any], Any]:
     """:func:`load_config`'s options, and the cell file's ``[bus]`` table (a
-    :class:`~aioadept.apps.cellbus.BusSection`; None for a file of options only)."""
-    from aioadept.configfile import load_toml
+    :class:`~aioadept.cell.bus.BusSection`; None for a file of options only)."""
+    from aioadept.cell.schema import load_toml
 
     data = load_toml(path)  # the file named, and the line of bad TOML (the reader every --config shares)
     bus = None
     if set(data) & {"robot", "vision", "focus", "run", "bus"}:  # a cell file: one schema, checked as demo checks it
-        from aioadept.apps.cell import CellConfig
+        from aioadept.cell.config import CellConfig
 
         cfg = CellConfig.from_dict(data, source=str(path))
         table = {str(k).replace("-", "_") for k in (data.get("vision") or {})}
@@ -203,7 +203,7 @@ def resolve_options(argv: list[str]) -> argparse.Namespace:
         try:
             apply_cell_bus(merged, bus, given, {k: v[1:] for k, v in streams.items()}, config)
         except ValueError as exc:
-            from aioadept.configfile import report
+            from aioadept.cell.schema import report
 
             raise SystemExit(report("aioadept vision", exc)) from None
     _check_values(parser, merged)
@@ -238,7 +238,7 @@ def _merged(parser: argparse.ArgumentParser, argv: list[str]) -> tuple[dict[str,
             options, bus = _load_config(args.config)
             merged.update(options)
         except (OSError, ValueError, tomllib.TOMLDecodeError) as exc:  # one line naming the file and the key
-            from aioadept.configfile import report
+            from aioadept.cell.schema import report
 
             raise SystemExit(report("aioadept vision", exc)) from None
         extra = merged.pop("vision_args", None)
@@ -304,7 +304,7 @@ def _check_endpoints(parser: argparse.ArgumentParser, merged: dict[str, Any], st
             parse_endpoint(merged[key])
         except BusError as exc:
             parser.error(f"--{key.replace('_', '-')}: {exc}")
-    from aioadept.configfile import check_ranges
+    from aioadept.cell.schema import check_ranges
 
     try:  # the ranges of VisionOptions' fields, the same the cell file is checked against
         check_ranges(VisionOptions(**{k: merged[k] for k in VisionOptions.__dataclass_fields__}))
@@ -318,8 +318,8 @@ def _load_files(parser: argparse.ArgumentParser, merged: dict[str, Any]) -> None
     if "world" in merged["source"]:
         if not merged["world"]:
             parser.error("--source world needs --world FILE (a cell file with [world], or its .json)")
-        from aioadept.configfile import report
-        from aioadept.worldfile import load_world
+        from aioadept.cell.schema import report
+        from aioadept.cell.world import load_world
 
         try:
             merged["world_config"] = load_world(merged["world"])
@@ -332,7 +332,7 @@ def _load_files(parser: argparse.ArgumentParser, merged: dict[str, Any]) -> None
     if merged["graph"] == "locate":
         if not merged["calibration"]:
             parser.error("--graph locate needs --calibration FILE (a cell file with a [calibration] table)")
-        from aioadept.configfile import report
+        from aioadept.cell.schema import report
         from aioadept.vision.calibration import load_calibration
 
         try:  # before anything starts: one line naming the file and the key

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from aioadept.configfile import ConfigError, check_ranges, check_section, load_toml
+from aioadept.cell.schema import ConfigError, check_ranges, check_section, load_toml
 from aioadept.opcua.mapping import STALE_AFTER_S, Identity, MotionDeviceCategory, identity_of_model
 from aioadept.opcua.security import check_modes
 
@@ -100,7 +100,7 @@ def identity_for(name: str, model: str | None, device: dict[str, Any], where: st
 
 
 def _robot(table: dict[str, Any], where: str) -> Any:
-    from aioadept.apps.cell import RobotSection
+    from aioadept.cell.config import RobotSection
 
     try:
         robot = RobotSection(**check_section(RobotSection, table, where))
@@ -119,8 +119,8 @@ def plan_from_dict(data: dict[str, Any], *, source: str = "config") -> CellPlan:
     """The server of the cell file ``data`` (``source`` names it in messages). :class:`ConfigError` for an unknown
     key, a value of the wrong type, a name used twice, a device table of no robot, two robots on one address, a port
     0, or a cell whose robot.state goes over Zenoh (this server follows ZeroMQ only)."""
-    from aioadept.apps.cell import CellConfig
-    from aioadept.apps.multicell import _entries, _name, is_multi
+    from aioadept.cell.config import CellConfig
+    from aioadept.cell.multi import _entries, _name, is_multi
 
     rest = {k: v for k, v in data.items() if k != "opcua"}
     section = OpcuaSection(**check_section(OpcuaSection, data.get("opcua", {}), f"{source} [opcua]"))

@@ -16,7 +16,7 @@ import uuid
 from pathlib import Path
 from typing import Any
 
-from aioadept.capture import load_run
+from aioadept.runs.capture import load_run
 from aioadept.geometry import Pose
 from aioadept.record.model import run_model
 from aioadept.record.rrd import APP_ID, CellLogger, default_blueprint, frame_file
@@ -28,7 +28,8 @@ __all__ = ["rrd_from_run"]
 def rrd_from_run(run_dir: str | os.PathLike[str], out: str | os.PathLike[str] | None = None) -> Path:
     """Write ``run.rrd`` (or ``out``) for the run folder ``run_dir``; returns its path.
 
-    Raises ``FileNotFoundError``/``ValueError`` as :func:`aioadept.capture.load_run` for a folder that is not a run.
+    Raises ``FileNotFoundError``/``ValueError`` as :func:`aioadept.runs.capture.load_run` for a folder that is not
+    a run.
     """
     import rerun as rr
 

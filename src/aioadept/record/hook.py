@@ -167,7 +167,7 @@ def open_state_tap(cfg: Any) -> Any:
 
 def write_run_mcap_of(cfg: Any, run_dir: Path, recorder: Any, meta: dict[str, Any],
                       state: list[bytes] | None = None) -> str | None:
-    """Write ``run.mcap`` of the run ``recorder`` (a :class:`aioadept.capture.Recorder`) recorded into ``run_dir``,
+    """Write ``run.mcap`` of the run ``recorder`` (a :class:`aioadept.runs.capture.Recorder`) recorded into ``run_dir``,
     with the ``state`` payloads an :func:`open_state_tap` kept; None when written or not wanted
     (:func:`mcap_wanted`), else why it was not written. Blocking: call it in a thread."""
     if not mcap_wanted(cfg):

@@ -2,7 +2,7 @@
 
 :class:`RunRecording` is one more observer of the :class:`~aioadept.client.RobotClient` and the
 :class:`~aioadept.bus.Communicator` (``on_send``/``on_ack``/``on_request``/``on_response``) and takes the
-application's marks, like :class:`aioadept.capture.Recorder`. Its hooks run inside the protocol path, so they only
+application's marks, like :class:`aioadept.runs.capture.Recorder`. Its hooks run inside the protocol path, so they only
 put the record object on a queue (``SimpleQueue.put``, well under a microsecond); one worker thread does the rest:
 converting, forward kinematics, reading and downsampling the frame files, and Rerun's logging calls. A frame is
 therefore never read or encoded on the event loop; without a viewer (a file only) the frames are read and logged
@@ -88,7 +88,7 @@ class RunRecording:
     """Record a run into ``rrd_path`` (and stream it to ``viewer_url``, a ``rerun+http://HOST:PORT/proxy``).
 
     Use as an (async) context manager, or call :meth:`start`/:meth:`close`. ``clock_ref``: an object with
-    ``start_wall_epoch_s``/``start_loop_s`` (the run's :class:`aioadept.capture.Recorder`) so both logs share the
+    ``start_wall_epoch_s``/``start_loop_s`` (the run's :class:`aioadept.runs.capture.Recorder`) so both logs share the
     same mapping from loop time to wall time. ``name`` becomes the recording's name in the viewer.
     ``short_switch_interval``: while it runs, set the interpreter's GIL switch interval to
     :data:`SWITCH_INTERVAL_S` (restored when the last such recording closes). The CLIs turn it on; it is off by

@@ -1,11 +1,11 @@
 """``run.mcap``: a run in MCAP with Foxglove's schemas, for the tools of the robotics world (the ``[mcap]`` extra).
 
-Written after the run from the same records as ``robot.csv`` and ``vision.csv`` (a :class:`aioadept.capture.Run`:
-the :class:`~aioadept.capture.Recorder`'s snapshot, or :func:`~aioadept.capture.load_run` of an older folder), so
-it holds exactly their messages, plus the frames the vision node saved and the robot-state messages a
-:class:`StateTap` kept. Nothing is done on the protocol path: the file is written once the run is over, like the
-frames of ``run.rrd``. Topics (times are wall clock, epoch ns; the
-loop-clock stamps are shifted by ``start_wall_epoch_s - start_loop_s`` as in ``run.rrd``):
+Written after the run from the same records as ``robot.csv`` and ``vision.csv`` (a :class:`aioadept.runs.capture.Run`:
+the :class:`~aioadept.runs.capture.Recorder`'s snapshot, or :func:`~aioadept.runs.capture.load_run` of an older folder),
+so it holds exactly their messages, plus the frames the vision node saved and the robot-state messages a
+:class:`StateTap` kept. Nothing is done on the protocol path: the file is written once the run is over, like the frames
+of ``run.rrd``. Topics (times are wall clock, epoch ns; the loop-clock stamps are shifted by ``start_wall_epoch_s -
+start_loop_s`` as in ``run.rrd``):
 
 =====================  =================================  ==================================================
 ``/robot/command``     ``foxglove.Log``                   every command sent (one per ``robot.csv`` row)
@@ -19,13 +19,12 @@ loop-clock stamps are shifted by ``start_wall_epoch_s - start_loop_s`` as in ``r
 ``/camera/image``      ``foxglove.CompressedImage``       each frame that answered a request, the PNG as saved
 =====================  =================================  ==================================================
 
-The URDF of the run's robot model (:func:`aioadept.robots.urdf.urdf`, whose link names ``/tf`` uses; the model is
-its parameters' ``cell.robot.model``, :func:`aioadept.record.model.run_model`) twice: on ``/robot_description``
-as ROS 2 publishes it (``std_msgs/msg/String`` in CDR: Foxglove's 3D panel and Rerun's MCAP reader draw the arm
-from it), and as the attachment ``<model>.urdf`` (``viper_s850.urdf``, ``cobra_s600.urdf``, ...: :func:`urdf_name`);
-metadata ``aioadept`` (version, start time, the run's parameters, the robot model). Like ``run.rrd``, the file is written under a
-temporary name and renamed into place only when complete: a full disk leaves no ``run.mcap`` at all.
-"""
+The URDF of the run's robot model (:func:`aioadept.robots.urdf.urdf`, whose link names ``/tf`` uses; the model is its
+parameters' ``cell.robot.model``, :func:`aioadept.record.model.run_model`) twice: on ``/robot_description`` as ROS 2
+publishes it (``std_msgs/msg/String`` in CDR: Foxglove's 3D panel and Rerun's MCAP reader draw the arm from it), and as
+the attachment ``<model>.urdf`` (``viper_s850.urdf``, ``cobra_s600.urdf``, ...: :func:`urdf_name`); metadata
+``aioadept`` (version, start time, the run's parameters, the robot model). Like ``run.rrd``, the file is written under a
+temporary name and renamed into place only when complete: a full disk leaves no ``run.mcap`` at all."""
 
 from __future__ import annotations
 
@@ -55,7 +54,7 @@ def urdf_name(arm: Any) -> str:
 
 log = logging.getLogger(__name__)
 
-# vision.csv's own columns back to the response attribute they came from (aioadept.capture._VISION_KNOWN).
+# vision.csv's own columns back to the response attribute they came from (aioadept.runs.capture._VISION_KNOWN).
 _RESPONSE_FIELDS = (("sharpness", "sharpness"), ("frame_t_epoch_s", "frame_t"), ("proc_time_ms", "proc_time_ms"),
                     ("error", "error"), ("t_trigger_epoch_s", "t_trigger"),
                     ("t_exposure_start_epoch_s", "t_exposure_start"), ("exposure_ms", "exposure_ms"),
@@ -277,7 +276,7 @@ def ros2_string_cdr(text: str) -> bytes:
 
 def write_run_mcap(run: Any, path: str | os.PathLike[str], *, frames_dir: str | os.PathLike[str] | None = None,
                    frame_wait_s: float = 5.0, state: list[bytes] | None = None) -> str | None:
-    """Write ``run`` (a :class:`aioadept.capture.Run`) to ``path`` (``run.mcap``); None when written, else why not
+    """Write ``run`` (a :class:`aioadept.runs.capture.Run`) to ``path`` (``run.mcap``); None when written, else why not
     (then no file is left under ``path``, nor under its temporary name). Never raises for a write error: the
     caller names the file in ``run.json``'s ``not_written``. ``frames_dir``: where the vision node saved its
     frames (``<camera>_<seq>.png``); ``frame_wait_s``: how long to wait for the first frame file not yet there;

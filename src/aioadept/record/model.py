@@ -73,7 +73,7 @@ def joints_from_pose(pose: Pose, seed_deg: Sequence[float] | None = None,
 
 
 def run_model(metadata: Mapping[str, Any] | None) -> RobotModel:
-    """The robot model of a run (``metadata``: a :class:`aioadept.capture.Run`'s, as ``run.json`` keeps it): its
+    """The robot model of a run (``metadata``: a :class:`aioadept.runs.capture.Run`'s, as ``run.json`` keeps it): its
     parameters' ``cell.robot.model`` (the cell file's ``[robot] model``), else the default (runs before robot
     models, or without a cell). An unknown name draws the default too, with a warning naming it: a recording is
     never refused for it."""

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from aioadept.worldmodel import WorldConfig
+from aioadept.world import WorldConfig
 
 IMAGE_RATE_HZ = 2.0
 """World camera images logged per second at most (each is a render: a few ms of the recording thread)."""

@@ -1,9 +1,7 @@
 """The simulated SmartController running AdeptServer: skills, one serial executor, V+ motion semantics.
-(Over 500 lines because the queue, the executor, the stop path and the acks share one state; they read together.)
-
-(Over 500 lines because it is the one robot model both backends drive: the executor, forward processing, stop
-and the motion generators (joint and straight-line) share its state; the skill table, the timing and the line
-planning already live in skills.py, motion.py and line.py.)
+It is the one robot model both backends drive: the queue, the executor, forward processing, the stop path, the
+acks and the motion generators (joint and straight-line) share its state; the skill table, the timing and the
+line planning live in skills.py, motion.py and line.py.
 
 Pure: no sockets, no clock. The TCP adapter (:mod:`aioadept.sim.server`) feeds it lines with the time they were
 read and calls :meth:`Controller.step` when :meth:`Controller.next_wake_s` says something is due; tests do the
@@ -41,7 +39,7 @@ Semantics, following the original V+ AdeptServer (docs/protocol.md):
 - Three stops in a row each get ``done`` once the arm is at rest: a stop never aborts another stop.
 - A connection that goes away loses its queued commands and a skill of its that is still waiting (a move for its
   slot): they never run. Motions it already started go on.
-- With a world (:mod:`aioadept.sim.world`, ``world=``), the hand's valves grasp and release its parts at the
+- With a world (:mod:`aioadept.world`, ``world=``), the hand's valves grasp and release its parts at the
   tool's pose (:meth:`Controller._hand_drive`) and its feeder sensor drives an input, whichever backend switched
   them.
 - Values are checked before anything moves: set_speed within [``min_speed_pct``, 100], pose rotations within
@@ -83,8 +81,8 @@ from aioadept.robots.viper import VIPER_S850
 from aioadept.sim.io import DigitalIO, HandState, IoSnapshot
 from aioadept.sim.line import CartesianLimits, LinePath, plan_tool_line
 from aioadept.sim.motion import MotionLimits, Trajectory
-from aioadept.sim.world import World
-from aioadept.worldmodel import WorldEvent, WorldSnapshot
+from aioadept.world import World
+from aioadept.world import WorldEvent, WorldSnapshot
 
 from aioadept.sim.skills import (_STOP_RUN, AIR_SIGNAL, MIN_SPEED_PCT, SkillFunc, SkillGen, SkillResult, SkillSpec,
                                  default_skills)
@@ -184,7 +182,7 @@ class Controller:
         self.io = (io or DigitalIO()).scaled(time_scale, instant)  # digital I/O and the hand: the one model
         self.signals = self.io.values  # signal states by number: read them; change them through self.io
         self.world = world
-        """The parts the hand grasps and the feeder sensor drives (aioadept.sim.world), or None: no world."""
+        """The parts the hand grasps and the feeder sensor drives (aioadept.world), or None: no world."""
         if world is not None:
             self.io.on_drive = self._hand_drive
             world.time_scale = time_scale
@@ -503,7 +501,7 @@ class Controller:
         return ControllerState(t_s, joints, self._forward(joints), self.trajectory.in_motion(t_s),
                                float(speed), self.air, self.io.snapshot(t_s))
 
-    # -- the world (aioadept.sim.world) ------------------------------------------------------------------------
+    # -- the world (aioadept.world) ------------------------------------------------------------------------
     def _hand_drive(self, drive: HandState, t_s: float) -> None:
         """The valves drive the hand another way at ``t_s``: the world grasps or releases a part at the TCP."""
         assert self.world is not None

@@ -18,7 +18,7 @@ The hand is a pneumatic gripper on two valve outputs (:class:`HandConfig`): the 
 off drives it open, the reverse closed, both off relaxes it (no force; it stays where it is). It takes
 ``close_time_s`` to travel fully. Its closed-fully switch (an input, ``closed_switch``) is on only when the
 fingers are fully closed, i.e. closed on nothing: closing on a part (:attr:`Hand.part`, set by a test or by the
-sim's world, :mod:`aioadept.sim.world`) stops the fingers short, and the switch stays off. A missed pick is
+sim's world, :mod:`aioadept.world`) stops the fingers short, and the switch stays off. A missed pick is
 therefore visible as ``SIG(closed_switch)`` after ``CLOSEI``.
 """
 
@@ -232,11 +232,11 @@ class DigitalIO:
         self._now = 0.0
         self.on_advance: Callable[[float], None] | None = None
         """Called whenever the I/O advances to a time (every read and write of a signal does): the controller's
-        world brings the feeder's next part there (aioadept.sim.world, ``World.step``), so that inputs it drives
+        world brings the feeder's next part there (aioadept.world, ``World.step``), so that inputs it drives
         change on both backends at the same times."""
         self.on_drive: Callable[[HandState, float], None] | None = None
         """Called when the valves drive the hand another way (open, closed, relaxed), at that time, before the
-        closed-fully switch is updated: the controller's world (aioadept.sim.world) grasps or releases a part
+        closed-fully switch is updated: the controller's world (aioadept.world) grasps or releases a part
         there and sets :attr:`Hand.part`."""
 
     # -- reading -------------------------------------------------------------------------------------------

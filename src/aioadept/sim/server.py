@@ -47,8 +47,8 @@ from aioadept.sim.io import HAND_TIME_S, DigitalIO, HandConfig
 from aioadept.sim.line import CartesianLimits
 from aioadept.sim.stoppaths import READ_SIZE, StopPaths
 from aioadept.sim.statepub import MOTION_END_SAMPLE_FAILED, SAMPLE_FAILED, SendFailures, StatePublisher, next_period
-from aioadept.sim.world import World
-from aioadept.worldmodel import WorldConfig
+from aioadept.world import World
+from aioadept.world import WorldConfig
 
 log = logging.getLogger(__name__)
 
@@ -180,7 +180,7 @@ class SimOptions:
     cartesian_limits: CartesianLimits = field(default_factory=CartesianLimits)
     """What 100 % speed means for a straight line (tool mm/s and deg/s; docs/sim.md)."""
     world: WorldConfig | None = None
-    """The parts, feeder and pallet of the cell (aioadept.sim.world; the cell file's [world]); None: no world."""
+    """The parts, feeder and pallet of the cell (aioadept.world; the cell file's [world]); None: no world."""
 
     def __post_init__(self) -> None:
         arm = robot_model(self.robot_model)  # ValueError naming the known models

@@ -11,7 +11,7 @@ from typing import Any
 from aioadept.apps.pickplace import LocateAnswer
 from aioadept.bus.located import LocatedPart
 from aioadept.apps.pickplace_run import WorldWatch
-from aioadept.worldmodel import WorldConfig
+from aioadept.world import WorldConfig
 
 
 class WorldTruthLocator:

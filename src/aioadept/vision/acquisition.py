@@ -1,5 +1,5 @@
 """Acquisition into ring buffers, software-triggered or free-running, and the frame for a request (FxIS,
-Semeniuta 2018). Over 500 lines because the ring, the two grabbing loops and their one stop share the same state.
+Semeniuta 2018). The ring, the two grabbing loops and their one stop share the same state.
 
 **Software trigger** (``trigger="auto"`` for sources that can, ``"software"`` to insist): the source's thread waits
 for :meth:`Acquisition.trigger`; a request triggers its own exposure and is answered from that frame, whatever the

@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from aioadept.configfile import Range, check_ranges, check_section, ranged
+from aioadept.cell.schema import Range, check_ranges, check_section, ranged
 from aioadept.errors import ConfigError
 from aioadept.geometry import Pose, decompose, inverse_transform
 
@@ -204,7 +204,7 @@ def _vec(v: np.ndarray) -> str:
 def load_calibration(path: str | Path) -> CameraCalibration:
     """The ``[calibration]`` table of a TOML cell file; :class:`ConfigError` for a missing file, bad TOML or no
     such table."""
-    from aioadept.configfile import load_toml
+    from aioadept.cell.schema import load_toml
 
     data = load_toml(path)
     if "calibration" not in data:

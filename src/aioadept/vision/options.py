@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from aioadept.configfile import Range, check_ranges, ranged
+from aioadept.cell.schema import Range, check_ranges, ranged
 from aioadept.defaults import REQUEST_ENDPOINT, RESPONSE_ENDPOINT, STATE_ENDPOINT
 
 SOURCES: dict[str, str] = {
@@ -97,13 +97,13 @@ class VisionOptions:
     max_request_bytes: int = 1 << 20
     world: str | None = None
     """The simulated world the ``world`` source renders: a cell file (its ``[world]`` table) or the ``.json`` a
-    starter writes (aioadept.worldfile); its ``[world.camera]`` places the camera."""
+    starter writes (aioadept.cell.world); its ``[world.camera]`` places the camera."""
 
     @classmethod
     def from_table(cls, table: Any, where: str) -> VisionOptions:
         """The options of a TOML table (keys with ``_`` or ``-``), checked once; ``where`` names the file and table
         in messages (``"cell.toml [vision]"``). Raises :class:`~aioadept.errors.ConfigError`."""
-        from aioadept.configfile import check_section
+        from aioadept.cell.schema import check_section
         from aioadept.errors import ConfigError
 
         if isinstance(table, dict):

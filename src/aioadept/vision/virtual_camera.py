@@ -1,8 +1,7 @@
 """A virtual camera that sees the calibration object on the simulated robot's tool, with thin-lens defocus.
 
-(Over 500 lines because the camera model is one chain, robot state -> tool pose at the frame's time -> thin-lens
-blur -> sensor noise -> exposure/readout timing, each step a few small functions that read the same optics and
-paper geometry; a split would pass that state across modules for no reader's gain.)
+The camera model is one chain, robot state -> tool pose at the frame's time -> thin-lens blur -> sensor noise ->
+exposure/readout timing, each step a few small functions that read the same optics and paper geometry.
 
 Where it sits: the sim publishes :class:`aioadept.bus.messages.RobotState` at 100 Hz; a
 :class:`RobotStateFollower` (one owned thread) keeps a short :class:`PoseHistory` of tool poses, each at its own time on

@@ -4,11 +4,11 @@ Where it sits: the sim publishes :class:`aioadept.bus.messages.WorldState` on ``
 state; a :class:`WorldStateFollower` (one owned thread) keeps the newest sample; :class:`WorldCameraSource` renders
 a frame from it on each grab, and the acquisition service buffers the frames like those of any camera. The world's
 configuration (what the parts look like, where the camera is) comes from the cell file's ``[world]`` table
-(:mod:`aioadept.worldfile`). :class:`WorldView` is the pure part (parts in, image out), used by the source, the
+(:mod:`aioadept.cell.world`). :class:`WorldView` is the pure part (parts in, image out), used by the source, the
 recording (a colour view without noise) and the tests.
 
 Camera model, the virtual camera's (:mod:`aioadept.vision.virtual_camera`): a pinhole with OpenCV axes at
-:meth:`aioadept.worldmodel.WorldCamera.pose`, :class:`~aioadept.vision.virtual_camera.LensOptics` (4.65 um pixels,
+:meth:`aioadept.world.WorldCamera.pose`, :class:`~aioadept.vision.virtual_camera.LensOptics` (4.65 um pixels,
 the cell file's focal length and f-number and size), the lens focused on the table top, the sensor placed where
 that plane is imaged (so the focal length in pixels is that image distance over the pixel size); the thin-lens
 blur of the table-top plane for the whole frame (parts are a few cm tall: their blur differs by a fraction of a
@@ -37,7 +37,7 @@ from aioadept.geometry import Pose, inverse_transform
 from aioadept.vision.sources import Camera, Frame
 from aioadept.vision.virtual_camera import (DEFAULT_EXPOSURE_MS, LensOptics, NoiseField, TopicFollower, disk_kernel,
                                            gige_readout_ms)
-from aioadept.worldmodel import PartSpec, PartState, WorldCamera, WorldConfig, flat_matrix, label_mm, marker_bits
+from aioadept.world import PartSpec, PartState, WorldCamera, WorldConfig, flat_matrix, label_mm, marker_bits
 
 log = logging.getLogger(__name__)
 
@@ -53,7 +53,7 @@ def _shade(rgb: tuple[int, int, int], k: float) -> tuple[int, int, int]:
 
 
 class WorldView:
-    """Renders parts (:class:`aioadept.worldmodel.PartState`) as the world's camera sees them; pure and cheap to
+    """Renders parts (:class:`aioadept.world.PartState`) as the world's camera sees them; pure and cheap to
     call (the marker images are generated once). ``seed`` makes the noise reproducible."""
 
     def __init__(self, world: WorldConfig, *, seed: int | None = None) -> None:

@@ -54,7 +54,7 @@ def make_emulator(a: dict, console: Callable[[int, str], None], on_listen: Calla
 
     world = None
     if a["cell"]:
-        from aioadept.worldfile import load_world
+        from aioadept.cell.world import load_world
 
         try:
             world = load_world(a["cell"])

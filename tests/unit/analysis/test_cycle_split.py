@@ -12,7 +12,7 @@ from aioadept.analysis import analyze_runs
 from aioadept.analysis.metrics import Iteration
 from aioadept.analysis.cycle import cycle_line, cycle_split
 from aioadept.analysis.synthetic import synthetic_recorder
-from aioadept.capture import load_run
+from aioadept.runs.capture import load_run
 
 
 def _run_with_exposure(tmp_path):

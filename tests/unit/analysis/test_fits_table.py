@@ -7,7 +7,7 @@ from aioadept.analysis import analyze_runs
 from aioadept.analysis.report import FAMILY_NAMES, fits_table
 from aioadept.analysis.metrics import QUANTITIES
 from aioadept.bus import Request, Response
-from aioadept.capture import Recorder
+from aioadept.runs.capture import Recorder
 from aioadept.client import MessageResult, SentMessage
 from aioadept.geometry import Pose
 from aioadept.protocol import Ack, Status

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from aioadept.analysis.metrics import describe, find_iterations, iterations_of_run, quantity_values
-from aioadept.capture import Mark, RobotRecord, Run, VisionRecord
+from aioadept.runs.capture import Mark, RobotRecord, Run, VisionRecord
 
 APPROACH = (0.0, 0.0, 2.0, 0.0, 0.0, 0.0)
 RETRACT = (0.0, 0.0, -2.0, 0.0, 0.0, 0.0)

@@ -12,7 +12,7 @@ from aioadept.cli.analyze import main
 from aioadept.analysis.report import gantt_bars
 from aioadept.analysis.synthetic import synthetic_recorder
 from aioadept.bus import Request, Response
-from aioadept.capture import Recorder, load_run
+from aioadept.runs.capture import Recorder, load_run
 from aioadept.client import MessageResult, SentMessage
 from aioadept.geometry import Pose
 from aioadept.protocol import Ack, Status

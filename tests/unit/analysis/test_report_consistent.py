@@ -8,7 +8,7 @@ import json
 
 import pytest
 
-from aioadept import capture
+from aioadept.runs import capture
 from aioadept.analysis import FIGURES, analyze_runs
 from aioadept.analysis.report import ANALYSIS_FILES
 from aioadept.errors import AnalysisSaveError

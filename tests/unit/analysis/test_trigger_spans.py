@@ -10,7 +10,7 @@ import pytest
 from aioadept.analysis import plots
 from aioadept.analysis.report import vision_spans
 from aioadept.bus import Request, Response
-from aioadept.capture import VISION_COLUMNS, Recorder, load_run
+from aioadept.runs.capture import VISION_COLUMNS, Recorder, load_run
 
 EPOCH = 1.7e9
 

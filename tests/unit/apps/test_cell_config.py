@@ -4,7 +4,8 @@ from pathlib import Path
 
 import pytest
 
-from aioadept.apps.cell import CellConfig, resolve_ports, sim_argv, vision_argv
+from aioadept.apps.cell import resolve_ports, sim_argv, vision_argv
+from aioadept.cell.config import CellConfig
 from aioadept.apps.processes import parse_ready
 
 EXAMPLE = Path(__file__).parents[3] / "examples" / "cell.toml"

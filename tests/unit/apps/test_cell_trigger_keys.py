@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from aioadept.apps.cell import CellConfig, vision_argv
+from aioadept.apps.cell import vision_argv
+from aioadept.cell.config import CellConfig
 from aioadept.errors import ConfigError
 
 

@@ -9,8 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from aioadept.apps.cell import CellConfig
-from aioadept.apps.multicell import MAX_ROBOTS, is_multi, multi_from_dict, prepared
+from aioadept.cell.config import CellConfig
+from aioadept.apps.multicell import prepared
+from aioadept.cell.multi import MAX_ROBOTS, is_multi, multi_from_dict
 from aioadept.errors import ConfigError
 
 pytestmark = pytest.mark.timeout(20)

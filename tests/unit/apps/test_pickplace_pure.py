@@ -18,7 +18,7 @@ from aioadept.apps.pickplace import (
     tool_down,
 )
 from aioadept.errors import PickPlaceError
-from aioadept.worldmodel import Feeder, Pallet
+from aioadept.world import Feeder, Pallet
 
 
 @pytest.mark.parametrize("heading", [0.0, 10.0, -75.0, 90.0, 179.0, -180.0])

@@ -115,7 +115,7 @@ def test_planned_profile_is_a_trapezoid_between_the_acks():
 
 
 def test_cell_values_out_of_range_name_the_key():
-    from aioadept.apps.cell import CellConfig
+    from aioadept.cell.config import CellConfig
     from aioadept.errors import ConfigError
 
     with pytest.raises(ConfigError, match=r"\[focus\].*max_blur_fraction = 0"):

@@ -42,7 +42,7 @@ def test_pending_registry_adds_once_and_removes_on_every_path():
 @pytest.mark.parametrize("path", SOURCES, ids=lambda p: p.name)
 def test_the_bus_knows_none_of_its_users(path):
     users = ("aioadept.vision", "aioadept.apps", "aioadept.sim", "aioadept.client", "aioadept.record",
-             "aioadept.capture", "aioadept.analysis", "aioadept.cli")
+             "aioadept.runs.capture", "aioadept.analysis", "aioadept.cli")
     bad = sorted(m for m in imported_modules(path) if m.startswith(users))
     assert not bad, f"{path.name} imports {bad}"
     assert "aioadept.errors.VisionError" not in imported_modules(path)

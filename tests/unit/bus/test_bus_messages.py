@@ -213,7 +213,7 @@ def test_image_array_errors():
 
 def test_world_state_round_trips_parts_events_and_sensors():
     from aioadept.bus.messages import WorldState
-    from aioadept.worldmodel import PartState, WorldEvent
+    from aioadept.world import PartState, WorldEvent
 
     st = WorldState(12.5, 1.7e9, (PartState(1, Pose(1.0, 2.0, 3.0, 0.0, 0.0, 30.0), grasped=True),
                                   PartState(2, Pose(-5.0, 0.5, 0.0), dropped=True)),

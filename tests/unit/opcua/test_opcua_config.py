@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from aioadept.configfile import ConfigError
+from aioadept.cell.schema import ConfigError
 from aioadept.opcua.config import plan_from_dict
 from aioadept.opcua.mapping import (DEGREE, MILLIMETRE, MILLIMETRE_PER_SECOND, AxisMotionProfile, MotionDeviceCategory,
                                     identity_of_model)

@@ -166,8 +166,8 @@ def test_a_cobra_run_carries_its_urdf_joint_names_and_arm(tmp_path):
 
 def test_a_cells_recording_draws_the_cells_arm(tmp_path):
     """open_run_recording (what focus and pickplace call) hands the cell file's [robot] model to the recording."""
-    from aioadept.apps.cell import CellConfig
-    from aioadept.capture import Recorder
+    from aioadept.cell.config import CellConfig
+    from aioadept.runs.capture import Recorder
     from aioadept.record.hook import open_run_recording
 
     from pathlib import Path

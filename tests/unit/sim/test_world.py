@@ -11,9 +11,9 @@ import pytest
 from aioadept.geometry import Pose, pose_error
 from aioadept.sim.controller import Controller
 from aioadept.sim.io import DigitalIO, HandConfig
-from aioadept.worldmodel import Feeder, Pallet, PartSpec
-from aioadept.sim.world import World
-from aioadept.worldmodel import WorldConfig
+from aioadept.world import Feeder, Pallet, PartSpec
+from aioadept.world import World
+from aioadept.world import WorldConfig
 
 DOWN = dict(yaw=0.0, pitch=180.0, roll=0.0)  # tool z pointing down
 

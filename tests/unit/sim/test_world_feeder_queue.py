@@ -10,8 +10,8 @@ import pytest
 from aioadept.errors import ConfigError
 from aioadept.geometry import Pose
 from aioadept.sim.controller import Controller
-from aioadept.sim.world import World
-from aioadept.worldfile import world_from_table, world_to_table
+from aioadept.world import World
+from aioadept.cell.world import world_from_table, world_to_table
 
 TABLE = {
     "parts": [{"id": 7, "size_mm": [40, 30, 20], "marker": 3, "marker_mm": 15, "x_mm": 400.0, "y_mm": 100.0,

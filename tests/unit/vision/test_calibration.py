@@ -91,7 +91,8 @@ def test_calibration_refuses_too_few_views_and_views_that_do_not_turn_the_tool()
 
 
 def test_a_cell_file_with_the_locator_names_its_own_calibration_for_the_node(tmp_path):
-    from aioadept.apps.cell import CellConfig, vision_argv
+    from aioadept.apps.cell import vision_argv
+    from aioadept.cell.config import CellConfig
 
     cell = tmp_path / "cell.toml"
     cell.write_text('[vision]\ngraph = "locate"\n', encoding="utf-8")

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from aioadept.geometry import Pose
-from aioadept.sim.world import World
+from aioadept.world import World
 from aioadept.vision.world_camera import TABLE_GREY, WorldCameraSource, WorldView
-from aioadept.worldmodel import Feeder, PartSpec, WorldCamera, WorldConfig
+from aioadept.world import Feeder, PartSpec, WorldCamera, WorldConfig
 
 
 def config(**camera) -> WorldConfig:

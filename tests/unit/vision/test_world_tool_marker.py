@@ -11,7 +11,7 @@ from aioadept.errors import ConfigError
 from aioadept.geometry import Pose
 from aioadept.vision.locate import detect_markers
 from aioadept.vision.world_camera import WorldCameraSource, WorldView, parts_at_rest
-from aioadept.worldfile import world_from_table, world_to_table
+from aioadept.cell.world import world_from_table, world_to_table
 
 TABLE = {"table_z_mm": 380.0, "aruco_dict": "DICT_4X4_250",
          "parts": [{"id": 1, "size_mm": [40, 30, 25], "marker": 1, "marker_mm": 20, "x_mm": 480.0, "y_mm": 150.0}],

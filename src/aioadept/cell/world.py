@@ -1,4 +1,4 @@
-"""The cell file's ``[world]`` table -> :class:`aioadept.worldmodel.WorldConfig`, every value checked before anything
+"""The cell file's ``[world]`` table -> :class:`aioadept.world.WorldConfig`, every value checked before anything
 starts (one line naming the file, the key and what was expected: :class:`aioadept.errors.ConfigError`).
 
 The table, as ``examples/cell.toml`` shows it::
@@ -9,7 +9,7 @@ The table, as ``examples/cell.toml`` shows it::
     id = 1
     shape = "box"             # or "cylinder" (size_mm = [diameter, height])
     size_mm = [40, 30, 20]
-    colour = "red"            # a name of aioadept.worldmodel.COLOURS or [r, g, b]
+    colour = "red"            # a name of aioadept.world.COLOURS or [r, g, b]
     marker = 3                # ArUco id on the top face (omit: none); marker_mm its side
     x_mm = 450.0
     y_mm = 150.0
@@ -34,9 +34,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from aioadept.configfile import Range, check_ranges, check_section, ranged
+from aioadept.cell.schema import Range, check_ranges, check_section, ranged
 from aioadept.errors import ConfigError
-from aioadept.worldmodel import (COLOURS, SHAPES, Feeder, Pallet, PartSpec, ToolMarker, WorldCamera, WorldConfig,
+from aioadept.world import (COLOURS, SHAPES, Feeder, Pallet, PartSpec, ToolMarker, WorldCamera, WorldConfig,
                                  fed_parts, label_mm)
 
 ARUCO_DICTS = {"DICT_4X4_50": 50, "DICT_4X4_100": 100, "DICT_4X4_250": 250, "DICT_5X5_50": 50,
@@ -174,7 +174,7 @@ def _part(data: Any, where: str, aruco_dict: str) -> PartSpec:
 
 
 def _queue(feeder: Feeder, parts: list[PartSpec], where: str, n_ids: int) -> tuple[PartSpec, ...]:
-    """The feeder's queued parts (:func:`aioadept.worldmodel.fed_parts`), checked: a template to copy, and each part
+    """The feeder's queued parts (:func:`aioadept.world.fed_parts`), checked: a template to copy, and each part
     inside the feeder's rectangle (else it would never turn the part-present sensor on)."""
     if feeder.template is None:
         if not parts:
@@ -280,7 +280,7 @@ def load_world(path: str | Path) -> WorldConfig:
         except (ValueError, UnicodeDecodeError) as exc:
             raise ConfigError(f"{p}: not valid JSON: {exc}") from None
         return world_from_table(data, f"{p}")
-    from aioadept.configfile import load_toml
+    from aioadept.cell.schema import load_toml
 
     data = load_toml(p)
     if "world" not in data:

@@ -56,7 +56,7 @@ def save_run(recorder: Any, run_dir: Path, meta: dict[str, Any]) -> OSError | No
 
     Returns a :class:`~aioadept.errors.RunSaveError` naming every file not written, or None.
     """
-    from aioadept.capture import write_atomic
+    from aioadept.runs.capture import write_atomic
     from aioadept.errors import RunSaveError
 
     err: RunSaveError | None = None

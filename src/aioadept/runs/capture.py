@@ -1,8 +1,7 @@
 """Timing capture: a recorder fed by the RobotClient and Communicator observer hooks, and the run folder format.
 
-(Over 500 lines because the recorder and the run folder format it writes are one contract, the columns
-written and the columns read back (older folders too); split candidate: the run-folder writer/reader as its own
-module.)
+The recorder and the run folder format it writes are one contract: the columns written and the columns read back
+(older folders too).
 
 Where it sits in the data path: ``RobotClient`` calls ``on_send``/``on_ack`` and ``bus.Communicator`` calls
 ``on_request``/``on_response`` (see ``docs/interfaces.md``); the application adds free-form marks
