@@ -3,7 +3,8 @@
 Every ``aioadept sim --vplus`` a test starts inherits ``AIOADEPT_VPLUS_LINES`` (a temporary folder) and writes the
 lines it ran there when it ends (:mod:`aioadept.vplus.linehits`); at the end of the run the folder's files are
 merged and each ``vplus/*.V2`` file is printed with its statements, misses, percentage and missed lines. Nothing is
-printed when no emulated server ran. Registered by tests/conftest.py; ``-p no:vplus_coverage`` turns it off.
+printed when no emulated server ran. With ``AIOADEPT_VPLUS_LINES`` set by the caller, that folder is used and
+kept, so several runs add up. Registered by tests/conftest.py; ``-p no:vplus_coverage`` turns it off.
 """
 
 from __future__ import annotations
@@ -22,10 +23,13 @@ SHIPPED = sorted((ROOT / "vplus").glob("*.V2"))
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    if os.environ.get(linehits.ENV) or hasattr(config, "workerinput"):
-        return                          # a pytest-xdist worker (or a caller) records into the folder it was given
-    folder = tempfile.mkdtemp(prefix="vplus-lines-")
-    os.environ[linehits.ENV] = folder
+    if hasattr(config, "workerinput"):
+        return                          # a pytest-xdist worker: its servers write into the folder it inherited
+    folder = os.environ.get(linehits.ENV)
+    if folder:
+        config.stash[_KEEP] = True      # the caller's folder: reported, and kept (several runs add up there)
+    else:
+        folder = os.environ[linehits.ENV] = tempfile.mkdtemp(prefix="vplus-lines-")
     config.stash[_FOLDER] = folder
 
 
@@ -42,9 +46,10 @@ def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter, config: p
 
 def pytest_unconfigure(config: pytest.Config) -> None:
     folder = config.stash.get(_FOLDER, None)
-    if folder is not None:
+    if folder is not None and not config.stash.get(_KEEP, False):
         del os.environ[linehits.ENV]
         shutil.rmtree(folder, ignore_errors=True)
 
 
 _FOLDER = pytest.StashKey[str]()
+_KEEP = pytest.StashKey[bool]()
