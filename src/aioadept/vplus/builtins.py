@@ -127,14 +127,15 @@ def _decode(c: dict, k: Any, breaks: str, mode: float) -> str:
     s = c[k]
     if type(s) is not str or type(breaks) is not str:
         raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* ($DECODE needs strings)")
-    i = 0
-    n = len(s)
+    # str.find and str.lstrip instead of a loop over the characters (a server frames every line with $DECODE)
     if mode == 0:
-        while i < n and s[i] not in breaks:
-            i += 1
+        i = len(s)
+        for b in breaks:
+            j = s.find(b, 0, i)
+            if j >= 0:
+                i = j
     else:
-        while i < n and s[i] in breaks:
-            i += 1
+        i = len(s) - len(s.lstrip(breaks))
     c[k] = s[i:]
     return s[:i]
 

@@ -472,15 +472,25 @@ class Runtime:
 
     def storage_used(self) -> int:
         """Array elements held now: global arrays, each task's LOCAL arrays and the AUTO arrays of its calls."""
-        n = sum(len(v) for v in self.globals.values() if isinstance(v, dict))
+        # (counted once per cycle while a server serves: plain loops, and a frame's locals read only for the
+        # generators of compiled programs, not for built-ins such as READ or WAIT.EVENT that they yield from)
+        n = 0
+        for v in self.globals.values():
+            if isinstance(v, dict):
+                n += len(v)
         for T in self._order:
             for local in T.statics.values():
-                n += sum(len(v) for v in local.values() if isinstance(v, dict))
+                for v in local.values():
+                    if isinstance(v, dict):
+                        n += len(v)
             gen = T.gen
             while gen is not None and gen.gi_frame is not None:
-                autos = gen.gi_frame.f_locals.get("L")       # a program's AUTO variables (compiler)
-                if type(autos) is dict:
-                    n += sum(len(v) for v in autos.values() if isinstance(v, dict))
+                if gen.gi_code.co_name == "_prog":
+                    autos = gen.gi_frame.f_locals.get("L")       # a program's AUTO variables (compiler)
+                    if type(autos) is dict:
+                        for v in autos.values():
+                            if isinstance(v, dict):
+                                n += len(v)
                 gen = gen.gi_yieldfrom
         return n
 
