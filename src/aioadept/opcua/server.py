@@ -37,6 +37,7 @@ from asyncua.common.manage_nodes import delete_nodes
 
 from aioadept.opcua.commands import VENDOR_NS
 from aioadept.opcua.security import APPLICATION_URI, check_modes, server_certificate
+from aioadept.opcua.subscriptions import SharedDataValue, install as _install_subscriptions
 from aioadept.opcua.mapping import (DEGREE_CELSIUS, DI_NS, INSTANCE_NS, NODESETS, ROBOTICS_NS, EngineeringUnit, Identity,
                                     Quality, Reading, RobotView)
 
@@ -78,51 +79,6 @@ async def load_nodesets(server: Server) -> None:
         await server.import_xml(xmlstring=without_design_tool_only((folder / name).read_text(encoding="utf-8")))
 
 
-class _SharedDataValue(ua.DataValue):
-    """A DataValue this server never changes once written. asyncua's monitored items deep-copy every value written
-    (for each subscriber, at each write), in case the writer changes it later: with 20 clients that copying was most
-    of the server's CPU. This one is shared instead (:func:`_lean_data_changes`); it encodes as any DataValue."""
-
-    __slots__ = ()
-
-    def __deepcopy__(self, memo: dict) -> _SharedDataValue:
-        return self
-
-
-def _lean_data_changes() -> None:
-    """asyncua's data change of a monitored item, for a :class:`_SharedDataValue`, without its two costs that do not
-    change what a client gets: the copy of the value, and an empty notification made first (its default DataValue
-    and Variant) and filled after. Every other value goes the library's own way. Same trigger and deadband checks,
-    same queue. Installed once per process; it touches only values this server wrote."""
-    from asyncua.server.monitored_item_service import MonitoredItemService
-
-    library = MonitoredItemService.datachange_callback
-    if getattr(library, "_aioadept", False):
-        return
-
-    async def datachange_callback(self: Any, handle: int, value: ua.DataValue, error: Any = None) -> None:
-        if error or type(value) is not _SharedDataValue:
-            return await library(self, handle, value, error)
-        mid = self._monitored_datachange[handle]
-        mdata = self._monitored_items[mid]
-        if mdata.mode == ua.MonitoringMode.Disabled:
-            return None
-        values = mdata.mvalue
-        values.old_dvalue, values.current_dvalue = values.current_dvalue, value
-        if mdata.filter:
-            changed = self._is_data_changed(values, mdata.filter.Trigger) and \
-                self._is_deadband_exceeded(values, mdata.filter)
-        else:
-            changed = self._is_data_changed(values, ua.DataChangeTrigger.StatusValue)
-        if changed:
-            await self.isub.enqueue_datachange_event(
-                mid, ua.MonitoredItemNotification(ClientHandle=mdata.client_handle, Value=value), mdata.queue_size)
-        return None
-
-    datachange_callback._aioadept = True  # type: ignore[attr-defined]
-    MonitoredItemService.datachange_callback = datachange_callback  # type: ignore[method-assign]
-
-
 def _time(epoch_s: float | None) -> datetime.datetime | None:
     if epoch_s is None:
         return None
@@ -158,7 +114,7 @@ class CellServer:
         # Anonymous sessions read and browse; only a user of the users file may call a method.
         self.server.set_security_policy([_POLICIES[m] for m in self.security], permission_ruleset=_Roles())
         _refuse_writes_as_not_writable(self.server)
-        _lean_data_changes()
+        _install_subscriptions()
         self.system: Node | None = None
         self._vars: list[dict[tuple, Node]] = []
         self._written: dict[ua.NodeId, tuple] = {}
@@ -229,7 +185,7 @@ class CellServer:
 
     async def _set(self, node: Node, value: Any, vtype: ua.VariantType, quality: Quality = Quality.GOOD) -> None:
         """Write a fixed value; None (nothing known) is written as no value, with ``quality`` saying why."""
-        await self.server.write_attribute_value(node.nodeid, _SharedDataValue(
+        await self.server.write_attribute_value(node.nodeid, SharedDataValue(
             ua.Variant() if value is None else ua.Variant(value, vtype),
             StatusCode=ua.StatusCode(STATUS_CODES[quality])))
 
@@ -417,9 +373,9 @@ class CellServer:
             variant = ua.Variant(v, ua.VariantType.String)
         else:
             variant = ua.Variant(float(v), ua.VariantType.Double)
-        return _SharedDataValue(variant, StatusCode=ua.StatusCode(STATUS_CODES[reading.quality]),
-                            SourceTimestamp=_time(reading.source_time_s),
-                            ServerTimestamp=datetime.datetime.now(datetime.timezone.utc))
+        return SharedDataValue(variant, StatusCode=ua.StatusCode(STATUS_CODES[reading.quality]),
+                               SourceTimestamp=_time(reading.source_time_s),
+                               ServerTimestamp=datetime.datetime.now(datetime.timezone.utc))
 
 
 class _Users:

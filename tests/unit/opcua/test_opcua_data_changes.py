@@ -1,6 +1,8 @@
-"""The server's short path for its own values through asyncua's monitored items (aioadept.opcua.server
-``_lean_data_changes``): a subscriber gets the same notifications as through the library's own path (a change is
-queued, a value that did not change is not, a disabled item gets nothing), without a copy of the value."""
+"""How asyncua's subscriptions serve the server's own values (aioadept.opcua.subscriptions): a monitored item with a
+queue of one (a client asked 0 or 1, revised to 1 as OPC UA Part 4 says) is sampled once per publishing cycle and
+hears no write; an item with a queue hears every write; both get the same notifications as through the library's own
+path (a change is queued, a value that did not change is not, a disabled item gets nothing), without a copy of the
+value. Real asyncua subscriptions and address space, no server or socket: each publishing cycle is called by hand."""
 
 from __future__ import annotations
 
@@ -45,12 +47,12 @@ def value(cls, v: float, status: int = 0):
 async def test_the_server_s_own_values_give_the_same_notifications_without_a_copy() -> None:
     from asyncua import ua
 
-    from aioadept.opcua.server import _lean_data_changes, _SharedDataValue
+    from aioadept.opcua.subscriptions import SharedDataValue, install
 
-    _lean_data_changes()
-    _lean_data_changes()  # once per process, however many servers
+    install()
+    install()  # once per process, however many servers
     got = {}
-    for cls in (ua.DataValue, _SharedDataValue):
+    for cls in (ua.DataValue, SharedDataValue):
         srv, item, queue = service()
         sequence = [value(cls, 1.0), value(cls, 1.0), value(cls, 2.0), value(cls, 2.0, ua.StatusCodes.BadNotSupported)]
         for v in sequence:
@@ -58,10 +60,110 @@ async def test_the_server_s_own_values_give_the_same_notifications_without_a_cop
         item.mode = ua.MonitoringMode.Disabled
         await srv.datachange_callback(3, value(cls, 3.0))
         got[cls] = [(mid, handle, (v.Value.Value, v.StatusCode.value), size) for mid, handle, v, size in queue.queued]
-        if cls is _SharedDataValue:
+        if cls is SharedDataValue:
             assert queue.queued[0][2] is sequence[0]            # the value written, not a copy of it
             assert item.mvalue.current_dvalue is sequence[-1]
             assert copy.deepcopy(sequence[0]) is sequence[0]
     # A change, the same value again (nothing), another change, a change of status; nothing once disabled.
-    assert got[ua.DataValue] == got[_SharedDataValue] == [
+    assert got[ua.DataValue] == got[SharedDataValue] == [
         (7, 42, (1.0, 0), 1), (7, 42, (2.0, 0), 1), (7, 42, (2.0, ua.StatusCodes.BadNotSupported), 1)]
+
+
+class Cell:
+    """One variable in a real asyncua address space, one real subscription on it (publishing by hand)."""
+
+    def __init__(self, first) -> None:
+        from asyncua import ua
+        from asyncua.server.address_space import AddressSpace, AttributeValue, NodeData
+        from asyncua.server.internal_subscription import InternalSubscription
+
+        self.nodeid = ua.NodeId("Axis1.ActualPosition", 2)
+        self.aspace = AddressSpace()
+        node = NodeData(self.nodeid)
+        node.attributes[ua.AttributeIds.Value] = AttributeValue(first)
+        self.aspace[self.nodeid] = node
+        self.published: list = []
+        data = ua.CreateSubscriptionResult(SubscriptionId=1, RevisedPublishingInterval=100.0,
+                                           RevisedLifetimeCount=10_000, RevisedMaxKeepAliveCount=10_000)
+        self.sub = InternalSubscription(data, self.aspace, self._published, ua.NodeId(1, 1))
+
+    async def _published(self, result) -> None:
+        self.published.append(result)
+
+    async def monitor(self, queue_size: int, handle: int):
+        from asyncua import ua
+
+        item = ua.MonitoredItemCreateRequest(
+            ItemToMonitor=ua.ReadValueId(NodeId=self.nodeid, AttributeId=ua.AttributeIds.Value),
+            MonitoringMode=ua.MonitoringMode.Reporting,
+            RequestedParameters=ua.MonitoringParameters(ClientHandle=handle, QueueSize=queue_size))
+        (result,) = await self.sub.monitored_item_srv.create_monitored_items(
+            ua.CreateMonitoredItemsParameters(ItemsToCreate=[item]))
+        return result
+
+    async def write(self, *values) -> None:
+        from asyncua import ua
+
+        for v in values:
+            await self.aspace.write_attribute_value(self.nodeid, ua.AttributeIds.Value, v)
+
+    def callbacks(self) -> int:
+        from asyncua import ua
+
+        return len(self.aspace[self.nodeid].attributes[ua.AttributeIds.Value].datachange_callbacks)
+
+    async def cycle(self) -> dict[int, list]:
+        """One publishing cycle: each client handle's values in it (value, status code)."""
+        self.published.clear()
+        await self.sub.publish_results()
+        out: dict[int, list] = {}
+        for result in self.published:
+            for data in result.NotificationMessage.NotificationData:
+                for n in data.MonitoredItems:
+                    out.setdefault(n.ClientHandle, []).append((n.Value.Value.Value, n.Value.StatusCode.value))
+        return out
+
+
+async def test_a_queue_of_one_is_sampled_once_per_publish_and_a_queue_hears_every_write() -> None:
+    from asyncua import ua
+
+    from aioadept.opcua.subscriptions import SharedDataValue, install
+
+    install()
+    cell = Cell(value(SharedDataValue, 1.0))
+    one, zero, five = await cell.monitor(1, 11), await cell.monitor(0, 10), await cell.monitor(5, 50)
+    # Part 4, 7.16: 0 or 1 is a queue of one; the sampled items are off the write path, the queued one on it.
+    assert (one.RevisedQueueSize, zero.RevisedQueueSize, five.RevisedQueueSize) == (1, 1, 5)
+    assert cell.callbacks() == 1
+    assert await cell.cycle() == {11: [(1.0, 0)], 10: [(1.0, 0)], 50: [(1.0, 0)]}  # the first values
+
+    written = [value(SharedDataValue, x) for x in (2.0, 3.0, 4.0)]
+    await cell.write(*written)  # three samples between two publishes
+    got = await cell.cycle()
+    assert got[11] == got[10] == [(4.0, 0)]                      # the newest, once
+    assert got[50] == [(2.0, 0), (3.0, 0), (4.0, 0)]              # every sample, in order
+    assert cell.sub.monitored_item_srv._monitored_items[one.MonitoredItemId].mvalue.current_dvalue is written[-1]
+
+    assert await cell.cycle() == {}                               # nothing written: nothing sent
+    await cell.write(value(SharedDataValue, 4.0))                 # the same value again: no change to report
+    assert await cell.cycle() == {}
+    await cell.write(value(SharedDataValue, 4.0, ua.StatusCodes.UncertainNoCommunicationLastUsableValue))
+    got = await cell.cycle()
+    assert got[11] == got[50] == [(4.0, ua.StatusCodes.UncertainNoCommunicationLastUsableValue)]
+
+    # Disabled: nothing, and the value is taken again once enabled.
+    srv = cell.sub.monitored_item_srv
+    await srv.set_monitoring_mode(ua.MonitoringMode.Disabled, [one.MonitoredItemId])
+    await cell.write(value(SharedDataValue, 5.0))
+    assert 11 not in await cell.cycle()
+    await srv.set_monitoring_mode(ua.MonitoringMode.Reporting, [one.MonitoredItemId])
+    assert (await cell.cycle())[11] == [(5.0, 0)]
+
+    # A queue asked later puts the item back on the write path; a deleted item is sampled no more.
+    modify = ua.MonitoredItemModifyRequest(MonitoredItemId=one.MonitoredItemId,
+                                           RequestedParameters=ua.MonitoringParameters(ClientHandle=11, QueueSize=3))
+    (modified,) = srv.modify_monitored_items(ua.ModifyMonitoredItemsParameters(ItemsToModify=[modify]))
+    assert modified.RevisedQueueSize == 3 and cell.callbacks() == 2
+    srv.delete_monitored_items([zero.MonitoredItemId])
+    await cell.write(value(SharedDataValue, 6.0), value(SharedDataValue, 7.0))
+    assert await cell.cycle() == {11: [(6.0, 0), (7.0, 0)], 50: [(6.0, 0), (7.0, 0)]}

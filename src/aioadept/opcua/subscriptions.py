@@ -1,0 +1,147 @@
+"""How asyncua's subscriptions serve this server's own values: what a subscribed client costs the server.
+
+asyncua notifies every monitored item of a node at every write of it (a Python call, a trigger check and a queued
+notification per item and per write), deep-copies the value each time in case the writer changes it later, and takes
+a requested queue size of 0 as "no limit". With 20 clients subscribed at 100 ms to six axes that move at the state
+rate (50 Hz), that was 6000 item notifications a second, five of every six of them sent and then superseded within the
+same publish. :func:`install` changes three things, for the values this server writes (:class:`SharedDataValue`, which
+it never changes after writing) and nothing else:
+
+- **Sampled at the publishing interval.** A data monitored item whose queue holds one value (a client asked 0 or 1:
+  OPC UA Part 4, 7.16 MonitoringParameters, "the Server returns the default queue size which shall be 1 ... The queue
+  has a single entry, effectively disabling queuing") no longer hears every write: its subscription looks at the
+  node's value once per publishing cycle, the revised sampling interval asyncua gives every item, and queues it when
+  it differs from the last one it took (the same trigger and deadband checks). A write costs no client anything; a
+  publish costs one identity check per item. Every value still carries its own source timestamp.
+- **Every sample for a client that asks a queue** (queue size above 1): such an item hears every write as before, on a
+  shorter path: no copy of the value, the notification made once (the library made an empty one, with its own
+  DataValue and Variant, then filled it).
+- A requested queue size of 0 is revised to 1, as Part 4 says, for every data monitored item.
+
+Installed once per process (:func:`install`); every other value and item goes the library's own way.
+"""
+
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+from asyncua import ua
+
+__all__ = ["SharedDataValue", "install"]
+
+
+class SharedDataValue(ua.DataValue):
+    """A DataValue this server never changes once written: shared with every subscriber instead of copied (it is its
+    own deep copy); it encodes as any DataValue."""
+
+    __slots__ = ()
+
+    def __deepcopy__(self, memo: dict) -> SharedDataValue:
+        return self
+
+
+def _reported(service: Any, mdata: Any, value: ua.DataValue) -> bool:
+    """Take ``value`` as ``mdata``'s newest value; whether it is a change to report (the library's trigger and
+    deadband checks)."""
+    values = mdata.mvalue
+    values.old_dvalue, values.current_dvalue = values.current_dvalue, value
+    if mdata.filter:
+        return service._is_data_changed(values, mdata.filter.Trigger) and \
+            service._is_deadband_exceeded(values, mdata.filter)
+    return service._is_data_changed(values, ua.DataChangeTrigger.StatusValue)
+
+
+def _sampled(service: Any) -> dict[int, list]:
+    """The service's items sampled at publishing: monitored item id -> [node id, attribute, the value last taken]."""
+    return service.__dict__.setdefault("_aioadept_sampled", {})
+
+
+async def sample(service: Any) -> int:
+    """Queue a notification for each item of ``service`` (a subscription's MonitoredItemService) sampled at
+    publishing whose node holds a value it has not taken yet and that is a change to report; returns how many."""
+    queued = 0
+    for mid, entry in list(_sampled(service).items()):
+        nodeid, attr, seen = entry
+        value = service.aspace.read_attribute_value(nodeid, attr)
+        if value is seen:
+            continue
+        entry[2] = value
+        mdata = service._monitored_items.get(mid)
+        if mdata is None or mdata.mode == ua.MonitoringMode.Disabled:
+            continue
+        if type(value) is not SharedDataValue:  # somebody else's value: copied, as the library does
+            value = copy.deepcopy(value)
+        if _reported(service, mdata, value):
+            await service.isub.enqueue_datachange_event(
+                mid, ua.MonitoredItemNotification(ClientHandle=mdata.client_handle, Value=value), mdata.queue_size)
+            queued += 1
+    return queued
+
+
+def install() -> None:
+    """Change asyncua's subscriptions as the module says (idempotent, process-wide)."""
+    from asyncua.server.internal_subscription import InternalSubscription
+    from asyncua.server.monitored_item_service import MonitoredItemService
+
+    if getattr(MonitoredItemService.datachange_callback, "_aioadept", False):
+        return
+    library_callback = MonitoredItemService.datachange_callback
+    library_create = MonitoredItemService._create_data_change_monitored_item
+    library_modify = MonitoredItemService._modify_monitored_item
+    library_delete = MonitoredItemService._delete_monitored_items
+    library_publish = InternalSubscription.publish_results
+
+    async def datachange_callback(self: Any, handle: int, value: ua.DataValue, error: Any = None) -> None:
+        if error or type(value) is not SharedDataValue:
+            return await library_callback(self, handle, value, error)
+        mid = self._monitored_datachange[handle]
+        mdata = self._monitored_items[mid]
+        if mdata.mode == ua.MonitoringMode.Disabled:
+            return None
+        if _reported(self, mdata, value):
+            await self.isub.enqueue_datachange_event(
+                mid, ua.MonitoredItemNotification(ClientHandle=mdata.client_handle, Value=value), mdata.queue_size)
+        return None
+
+    async def create(self: Any, params: ua.MonitoredItemCreateRequest) -> ua.MonitoredItemCreateResult:
+        result = await library_create(self, params)  # with the item's first value queued
+        if not result.StatusCode.is_good() or params.RequestedParameters.QueueSize > 1:
+            return result
+        mdata = self._monitored_items[result.MonitoredItemId]
+        mdata.queue_size = result.RevisedQueueSize = 1
+        item = params.ItemToMonitor
+        if type(mdata.mvalue.current_dvalue) is SharedDataValue:
+            self.aspace.delete_datachange_callback(mdata.callback_handle)
+            _sampled(self)[result.MonitoredItemId] = [item.NodeId, item.AttributeId, mdata.mvalue.current_dvalue]
+        return result
+
+    def modify(self: Any, params: ua.MonitoredItemModifyRequest) -> ua.MonitoredItemModifyResult:
+        result = library_modify(self, params)
+        mdata = self._monitored_items.get(params.MonitoredItemId)
+        if mdata is None or not result.StatusCode.is_good():
+            return result
+        if params.RequestedParameters.QueueSize <= 1:
+            mdata.queue_size = result.RevisedQueueSize = 1
+        entry = _sampled(self).get(params.MonitoredItemId)
+        if entry is not None and mdata.queue_size > 1:  # a queue asked now: every write from here on
+            del _sampled(self)[params.MonitoredItemId]
+            self._monitored_datachange.pop(mdata.callback_handle, None)
+            _, mdata.callback_handle = self.aspace.add_datachange_callback(entry[0], entry[1], self.datachange_callback)
+            self._monitored_datachange[mdata.callback_handle] = params.MonitoredItemId
+        return result
+
+    def delete(self: Any, mid: int) -> ua.StatusCode:
+        _sampled(self).pop(mid, None)
+        return library_delete(self, mid)
+
+    async def publish_results(self: Any, requestdata: Any = None) -> bool:
+        await sample(self.monitored_item_srv)
+        return await library_publish(self, requestdata)
+
+    datachange_callback._aioadept = True  # type: ignore[attr-defined]
+    MonitoredItemService.datachange_callback = datachange_callback  # type: ignore[method-assign]
+    MonitoredItemService._create_data_change_monitored_item = create  # type: ignore[method-assign]
+    MonitoredItemService._modify_monitored_item = modify  # type: ignore[method-assign]
+    MonitoredItemService._delete_monitored_items = delete  # type: ignore[method-assign]
+    InternalSubscription.publish_results = publish_results  # type: ignore[method-assign]
