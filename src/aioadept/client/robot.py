@@ -34,13 +34,13 @@ How it works, and the promises it keeps:
   (:mod:`aioadept.commands`). IDs never repeat one still pending or given up, and never are ``00000000``.
 - Observers (``on_send`` / ``on_ack``, see docs/interfaces.md) get loop-clock timestamps taken at write and read.
 
-Its collaborators, each usable and tested alone: :class:`~aioadept.client.options.ClientOptions` (its settings,
-one frozen value), :class:`~aioadept.client.registry.PendingCalls` (the pending-message table, sans-IO),
-:class:`~aioadept.client.deadlines.DeadlineQueue` (the default-timeout watchdog's queue, sans-IO),
-:mod:`aioadept.client.stopport` (the stop on the stop port and its race with the main connection),
-:class:`~aioadept.client.ready.ReadyAttempts` (:meth:`RobotClient.wait_ready`'s schedule, sans-IO) and
-:mod:`aioadept.client.transport` (the asyncio transport). What stays here is the connection's state machine,
-the write and wait paths (inlined where a round trip is measured: benchmarks/bench_client.py) and the stop flow.
+Its collaborators, each usable and tested alone: ``client/options.py`` (``ClientOptions``: its settings, one
+frozen value), ``client/registry.py`` (``PendingCalls``: the pending-message table, sans-IO),
+``client/deadlines.py`` (``DeadlineQueue``: the default-timeout watchdog's queue, sans-IO), ``client/stopport.py``
+(the stop on the stop port and its race with the main connection; the side path's sockets), ``client/ready.py``
+(``ReadyAttempts``: :meth:`RobotClient.wait_ready`'s schedule, sans-IO) and ``client/transport.py`` (the asyncio
+transport). What stays here is the connection's state machine, the write and wait paths (inlined where a round
+trip is measured: benchmarks/bench_client.py) and the stop flow.
 """
 
 from __future__ import annotations
@@ -172,7 +172,7 @@ class RobotClient:
       the rest runs. The client refuses such a write whole, before anything is sent
       (:class:`~aioadept.errors.TooManyPending`). A ``stop`` is never refused. ``None``: no limit (a server
       started with a larger ``--max-queued``).
-    - ``options``: all of the above as one :class:`~aioadept.client.options.ClientOptions` (then no other
+    - ``options``: all of the above as one ``ClientOptions`` (``aioadept.client.options``; then no other
       argument: ``TypeError``). :attr:`options` holds the settings in force; setting one (``robot.ack_timeout_s``)
       checks it as the constructor does.
     """
@@ -836,7 +836,7 @@ class RobotClient:
 
     async def _stop_port_race(self, sub: Submission, timeout_s: float, after_s: float) -> MessageResult:
         """Await the stop written on the main connection; if no ack has come ``after_s`` after its write, send it
-        on the stop port as well (:func:`~aioadept.client.stopport.race_stop`)."""
+        on the stop port as well (``race_stop`` in ``client/stopport.py``)."""
         side = None
         if self._stop_port_number() is not None:
             def side() -> Awaitable[MessageResult]:
