@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: venv venv-install demo demo-multi test bench docs proto clean toxiproxy chromium gige nvim
+.PHONY: venv venv-install demo demo-multi test conformance-models bench docs proto clean toxiproxy chromium gige nvim
 
 # Two makes started at once (two terminals on a fresh clone) must not install into one .venv together: the
 # install runs under a lock, and a make that waited for it finds the stamp fresh and installs nothing.
@@ -77,6 +77,13 @@ gige: $(STAMP)
 # ARGS="-n 2 --dist loadfile" runs the suite in two (pytest-xdist), about 13.5 min instead of about 20 here.
 test: $(STAMP) toxiproxy chromium gige nvim
 	$(BIN)/python -m pytest -q -rsfE $(ARGS); rc=$$?; \
+	if [ $$rc -eq 5 ]; then echo "no tests were collected" >&2; exit 1; fi; exit $$rc
+
+# The whole conformance suite (tests/conformance) on every robot model (viper-s850, viper-s650, cobra-s600,
+# cobra-s800), each on both backends: the Python sim and the V+ server on the emulator. `make test` runs it whole
+# on the Viper s850 only and a model-differences subset on the others (docs/sim.md, "Robot models").
+conformance-models: $(STAMP)
+	AIOADEPT_CONFORMANCE_MODELS=all $(BIN)/python -m pytest tests/conformance -q -rsfE $(ARGS); rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "no tests were collected" >&2; exit 1; fi; exit $$rc
 
 # Every benchmarks/bench_*.py in turn, each JSON kept under runs/bench-*/, then one verdict table

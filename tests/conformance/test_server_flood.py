@@ -19,13 +19,13 @@ MAX_QUEUED = 64  # per connection: aioadept sim --max-queued (default), rs.maxq 
 
 
 @pytest.mark.timeout(150)
-async def test_a_stop_is_read_at_once_while_another_client_has_a_long_queue(server):
+async def test_a_stop_is_read_at_once_while_another_client_has_a_long_queue(server, arm):
     a = await server.connect()
     b = await server.connect()
-    lines = ["kk000000:set_speed:10"]
+    lines = [f"kk000000:set_speed:{arm.speed(10)}"]
     for i in range(1, PAIRS + 1):
         j1 = 60 if i % 2 else 0  # J1 by 60 deg at 10 %: seconds per move
-        lines += [f"km{i:06d}:move_joints:{j1},-90,180,0,90,0", f"kb{i:06d}:break"]
+        lines += [f"km{i:06d}:move_joints:{arm.j1_wire(j1)}", f"kb{i:06d}:break"]
     await a.send(*lines)
     got: dict[str, object] = {}
     first_move = asyncio.Event()

@@ -76,9 +76,9 @@ async def test_close_hand_acks_no_sooner_than_hand_time_and_reports_closed_on_no
 
 
 @pytest.mark.timeout(90)
-async def test_hand_acts_only_when_the_arm_is_at_rest(server):
+async def test_hand_acts_only_when_the_arm_is_at_rest(server, arm):
     c = await server.connect()
-    await c.send("40000001:move_joints:15.000,-90.000,180.000,0.000,90.000,0.000", "40000002:close_hand",
+    await c.send(f"40000001:move_joints:{arm.j1_wire(15)}", "40000002:close_hand",
                  "40000003:here")
     move, close, here = await c.acks(3, timeout=30)
     assert [a.status for a in (move, close, here)] == [Status.DONE] * 3

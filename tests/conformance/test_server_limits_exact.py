@@ -14,14 +14,21 @@ from aioadept.protocol import ErrorCode, Status
 
 ILLEGAL, JOINT = ErrorCode.ILLEGAL_VALUE, ErrorCode.JOINT_LIMIT
 PAST = [("signal:512.00001", ILLEGAL), ("signal:-512.000001", ILLEGAL), ("wait_sig:1002,3600.0001", ILLEGAL),
-        ("set_speed:100.000001", ILLEGAL), ("move_joints:0,-90,180,0,90,360.00001", JOINT)]
+        ("set_speed:100.000001", ILLEGAL)]
+
+
+def past_last_joint(arm) -> str:
+    """``move_joints`` to home but the last joint 0.00001 past its upper limit (the text keeps every digit)."""
+    q = [f"{v:g}" for v in arm.six(arm.home)]
+    q[arm.last] = f"{arm.m.limits.max_deg[arm.last]:g}.00001"
+    return "move_joints:" + ",".join(q)
 INSIDE = ["wait_sig:-2001,3599.99999999", "set_speed:100.0000", "signal:-8.0000"]
 
 
 @pytest.mark.timeout(60)
-async def test_a_number_past_a_limit_by_less_than_a_real_is_refused_and_one_inside_is_taken(server):
+async def test_a_number_past_a_limit_by_less_than_a_real_is_refused_and_one_inside_is_taken(server, arm):
     a = await server.connect()
-    for i, (cmd, code) in enumerate(PAST):
+    for i, (cmd, code) in enumerate([*PAST, (past_last_joint(arm), JOINT)]):
         mid = f"kl{i:06d}"
         await a.send(f"{mid}:{cmd}")
         ack = await a.ack()

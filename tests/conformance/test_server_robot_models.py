@@ -44,10 +44,10 @@ def _target(m) -> tuple[float, ...]:
 
 
 @pytest.mark.timeout(120)
-@pytest.mark.parametrize("backend,name", _cases(NAMES))
-async def test_the_sim_serves_the_paper_skills_on_each_model(start_server, backend, name):
-    m = model(name)
-    async with start_server(backend, "--robot-model", name, "--time-scale", "5") as srv:
+@pytest.mark.parametrize("backend,robot_model", _cases(NAMES))
+async def test_the_sim_serves_the_paper_skills_on_each_model(start_server, backend, robot_model):
+    m = model(robot_model)
+    async with start_server(backend, "--time-scale", "5") as srv:
         c = await srv.connect()
         await c.send("aaaa0001:here")
         here = await c.ack()
@@ -107,10 +107,10 @@ REFUSED = {
 
 
 @pytest.mark.timeout(120)
-@pytest.mark.parametrize("backend,name", _cases([n for n in NAMES if n.startswith("cobra")]))
-async def test_a_cobra_refuses_what_a_scara_cannot_do_and_nothing_moves(start_server, backend, name):
-    m = model(name)
-    async with start_server(backend, "--robot-model", name, "--time-scale", "5") as srv:
+@pytest.mark.parametrize("backend,robot_model", _cases([n for n in NAMES if n.startswith("cobra")]))
+async def test_a_cobra_refuses_what_a_scara_cannot_do_and_nothing_moves(start_server, backend, robot_model):
+    m = model(robot_model)
+    async with start_server(backend, "--time-scale", "5") as srv:
         c = await srv.connect()
         await c.send("bbbb0001:here")
         home = (await c.ack()).pose
@@ -140,15 +140,16 @@ async def test_a_cobra_refuses_what_a_scara_cannot_do_and_nothing_moves(start_se
 
 
 @pytest.mark.timeout(120)
-@pytest.mark.parametrize("backend,name", [("python", n) for n in NAMES] + [("vplus", "cobra-s600")])
-async def test_a_stop_from_another_connection_halts_each_model_and_nothing_moves_after(start_server, backend, name):
+@pytest.mark.parametrize("backend,robot_model", [("python", n) for n in NAMES] + [("vplus", "cobra-s600")])
+async def test_a_stop_from_another_connection_halts_each_model_and_nothing_moves_after(start_server, backend,
+                                                                                         robot_model):
     """The stop path on every model (on the V+ server: the Cobra; its six-joint path is the suite's s850's): J1
     across most of its range at 10 % is a motion of seconds; a stop from a second connection aborts the waiting
     break, is done once the arm rests short of the target, and the arm stays there."""
-    m = model(name)
+    m = model(robot_model)
     target = list(m.home_deg)
     target[0] = m.limits.max_deg[0] - 5.0
-    async with start_server(backend, "--robot-model", name) as srv:
+    async with start_server(backend) as srv:
         a, b = await srv.connect(), await srv.connect()
         await a.send("dddd0001:set_speed:10", f"dddd0002:move_joints:{_wire_joints(m, target)}", "dddd0003:break")
         speed, move = await a.acks(2)

@@ -13,27 +13,21 @@ import asyncio
 
 import pytest
 
-from aioadept.geometry import Pose, poses_close
+from aioadept.geometry import poses_close
 from aioadept.protocol import NO_ID, ErrorCode, Status
 from aioadept.protocol.robotstatus import parse_status_fields
-from aioadept.robots import viper_s850 as kin
-
-HOME = "0,-90,180,0,90,0"
-
-
-def pose_of(joints: str) -> Pose:
-    return kin.forward([float(v) for v in joints.split(",")])
 
 
 # -- item 1: read-only queries from an idle connection are answered by the reader at once ----------------------
 
 @pytest.mark.timeout(90)
 async def test_here_hello_and_status_from_an_idle_connection_are_answered_while_another_clients_break_waits(
-        server):
+        server, arm):
     mover = await server.connect()
     poller = await server.connect()
     # J1 turns 150 deg at 10 %: about 6 s, during which the mover's break waits (and, in V+, holds task 1).
-    await mover.send("aaaa0001:set_speed:10", "aaaa0002:move_joints:150,-90,180,0,90,0", "aaaa0003:break")
+    await mover.send(f"aaaa0001:set_speed:{arm.speed(10)}", f"aaaa0002:move_joints:{arm.j1_wire(150)}",
+                     "aaaa0003:break")
     speed, move = await mover.acks(2)
     assert speed.ok and move.ok
     brk = asyncio.create_task(mover.ack(30))
@@ -51,22 +45,22 @@ async def test_here_hello_and_status_from_an_idle_connection_are_answered_while_
     assert st.moving and st.error_code == 0 and st.power and not st.estop, status.extra  # the mover's arm
     assert (brk_ack.id, brk_ack.status) == ("aaaa0003", Status.DONE)
     assert max(here.t_done_s, hello.t_done_s, status.t_done_s) <= brk_ack.t_done_s
-    assert not poses_close(here.pose, pose_of("150,-90,180,0,90,0"), tol_mm=1.0, tol_deg=1.0), \
+    assert not poses_close(here.pose, arm.pose(arm.j1(150)), tol_mm=1.0, tol_deg=1.0), \
         "the pose is the current one, not the target's"
     await mover.close()
     await poller.close()
 
 
 @pytest.mark.timeout(90)
-async def test_here_behind_the_same_connections_own_commands_keeps_its_order(server):
+async def test_here_behind_the_same_connections_own_commands_keeps_its_order(server, arm):
     c = await server.connect()
     # here with commands of its own connection pending runs in turn: after the break, at the target.
-    await c.send("cccc0001:set_speed:20", "cccc0002:move_joints:60,-90,180,0,90,0", "cccc0003:break",
+    await c.send(f"cccc0001:set_speed:{arm.speed(20)}", f"cccc0002:move_joints:{arm.j1_wire(60)}", "cccc0003:break",
                  "cccc0004:here", "cccc0005:hello")
     acks = await c.acks(5, timeout=30)
     assert [a.id for a in acks] == ["cccc0001", "cccc0002", "cccc0003", "cccc0004", "cccc0005"]
     assert all(a.ok for a in acks), acks
-    assert poses_close(acks[3].pose, pose_of("60,-90,180,0,90,0"), tol_mm=0.05, tol_deg=0.05), \
+    assert poses_close(acks[3].pose, arm.pose(arm.j1(60)), tol_mm=0.05, tol_deg=0.05), \
         "here came after the break: the arm is at the target"
     await c.close()
 
@@ -74,43 +68,43 @@ async def test_here_behind_the_same_connections_own_commands_keeps_its_order(ser
 # -- item 2: the reserved ID ------------------------------------------------------------------------------------
 
 @pytest.mark.timeout(90)
-async def test_the_reserved_id_is_refused_and_nothing_runs(server):
+async def test_the_reserved_id_is_refused_and_nothing_runs(server, arm):
     c = await server.connect()
-    await c.send("00000000:move_joints:30,-90,180,0,90,0", "00000000:here", "dddd0001:break", "dddd0002:here")
+    await c.send(f"00000000:move_joints:{arm.j1_wire(30)}", "00000000:here", "dddd0001:break", "dddd0002:here")
     move, here0, brk, here = await c.acks(4, timeout=30)
     for ack in (move, here0):
         assert (ack.id, ack.status, ack.error_code) == (NO_ID, Status.ERROR, ErrorCode.MALFORMED_MESSAGE), ack
     assert brk.ok and here.ok
-    assert poses_close(here.pose, pose_of(HOME), tol_mm=0.01, tol_deg=0.01), "the refused move never ran"
+    assert poses_close(here.pose, arm.home_pose, tol_mm=0.01, tol_deg=0.01), "the refused move never ran"
     await c.close()
 
 
 # -- item 3: an ID still pending on the same connection --------------------------------------------------------
 
 @pytest.mark.timeout(90)
-async def test_a_duplicate_pending_id_answers_an_error_at_once_and_nothing_hangs(server):
+async def test_a_duplicate_pending_id_answers_an_error_at_once_and_nothing_hangs(server, arm):
     c = await server.connect()
     # J1 to 60 at 10 %: the break waits a few seconds; the second eeee0003 comes while it is pending.
-    await c.send("eeee0001:set_speed:10", "eeee0002:move_joints:60,-90,180,0,90,0")
+    await c.send(f"eeee0001:set_speed:{arm.speed(10)}", f"eeee0002:move_joints:{arm.j1_wire(60)}")
     speed, move = await c.acks(2)
     assert speed.ok and move.ok
-    await c.send("eeee0003:break", "eeee0003:move_joints:-60,-90,180,0,90,0")
+    await c.send("eeee0003:break", f"eeee0003:move_joints:{arm.j1_wire(-60)}")
     dup, brk = await c.acks(2, timeout=30)
     assert (dup.id, dup.status, dup.error_code) == ("eeee0003", Status.ERROR, ErrorCode.MALFORMED_MESSAGE), \
         "the duplicate is refused at once, before the pending break is answered"
     assert (brk.id, brk.status) == ("eeee0003", Status.DONE)
-    assert poses_close(brk.pose, pose_of("60,-90,180,0,90,0"), tol_mm=0.05, tol_deg=0.05)
+    assert poses_close(brk.pose, arm.pose(arm.j1(60)), tol_mm=0.05, tol_deg=0.05)
     # The ID is free again once answered, and the refused move never ran.
     await c.send("eeee0003:here")
     here = await c.ack()
-    assert here.ok and poses_close(here.pose, pose_of("60,-90,180,0,90,0"), tol_mm=0.05, tol_deg=0.05)
+    assert here.ok and poses_close(here.pose, arm.pose(arm.j1(60)), tol_mm=0.05, tol_deg=0.05)
     await c.close()
 
 
 @pytest.mark.timeout(90)
-async def test_a_stop_is_never_refused_for_a_duplicate_id(server):
+async def test_a_stop_is_never_refused_for_a_duplicate_id(server, arm):
     c = await server.connect()
-    await c.send("kkkk0001:set_speed:10", "kkkk0002:move_joints:150,-90,180,0,90,0")
+    await c.send(f"kkkk0001:set_speed:{arm.speed(10)}", f"kkkk0002:move_joints:{arm.j1_wire(150)}")
     assert all(a.ok for a in await c.acks(2))
     # kkkk0003 is pending (the break waits for the motion); a stop with the same ID is still served.
     await c.send("kkkk0003:break", "kkkk0003:stop")
@@ -123,9 +117,9 @@ async def test_a_stop_is_never_refused_for_a_duplicate_id(server):
 # -- item 4: a stop never aborts a stop -------------------------------------------------------------------------
 
 @pytest.mark.timeout(90)
-async def test_three_stops_in_a_row_each_get_done(server):
+async def test_three_stops_in_a_row_each_get_done(server, arm):
     c = await server.connect()
-    await c.send("ffff0001:set_speed:10", "ffff0002:move_joints:150,-90,180,0,90,0", "ffff0003:break")
+    await c.send(f"ffff0001:set_speed:{arm.speed(10)}", f"ffff0002:move_joints:{arm.j1_wire(150)}", "ffff0003:break")
     speed, move = await c.acks(2)
     assert speed.ok and move.ok
     await c.send("ffff0004:stop", "ffff0005:stop", "ffff0006:stop")
@@ -145,7 +139,15 @@ async def test_three_stops_in_a_row_each_get_done(server):
 
 # -- item 5: numbers outside the grammar, absurd magnitudes ----------------------------------------------------
 
-BAD_VALUES = [
+def bad_values(arm) -> list[tuple[str, ErrorCode]]:
+    """Numbers outside the grammar or absurd, each refused before anything moves (the joint ones on the arm's own
+    joints: J1 and its last joint)."""
+    return [*BAD_NUMBERS,
+            (f"gggg0016:move_joints:{arm.wire(arm.with_joint(0, 3601))}", ErrorCode.ILLEGAL_VALUE),
+            (f"gggg0017:move_rel_joints:{arm.rel_last(-1000000)}", ErrorCode.ILLEGAL_VALUE)]
+
+
+BAD_NUMBERS = [
     ("gggg0001:set_speed:0.001", ErrorCode.ILLEGAL_VALUE),
     ("gggg0002:set_speed:0." + "0" * 20 + "1", ErrorCode.ILLEGAL_VALUE),
     ("gggg0003:set_speed:1e308", ErrorCode.ILLEGAL_VALUE),
@@ -161,17 +163,15 @@ BAD_VALUES = [
     ("gggg0013:move_to:20000,0,500,0,180,0", ErrorCode.ILLEGAL_VALUE),
     ("gggg0014:move_rel_world:0,0,0,0,0,720", ErrorCode.ILLEGAL_VALUE),
     ("gggg0015:move_rel_tool:0,0,-10001,0,0,0", ErrorCode.ILLEGAL_VALUE),
-    ("gggg0016:move_joints:3601,-90,180,0,90,0", ErrorCode.ILLEGAL_VALUE),
-    ("gggg0017:move_rel_joints:0,0,0,0,0,-1000000", ErrorCode.ILLEGAL_VALUE),
 ]
 
 
 @pytest.mark.timeout(120)
-async def test_bad_values_answer_error_acks_and_nothing_moves(server):
+async def test_bad_values_answer_error_acks_and_nothing_moves(server, arm):
     c = await server.connect()
     await c.send("gggg0000:here")
     home = (await c.ack()).pose
-    for k, (line, code) in enumerate(BAD_VALUES):
+    for k, (line, code) in enumerate(bad_values(arm)):
         await c.send(line)
         ack = await c.ack()
         assert (ack.id, ack.status, ack.error_code) == (line[:8], Status.ERROR, code), (line, ack)
@@ -183,10 +183,10 @@ async def test_bad_values_answer_error_acks_and_nothing_moves(server):
 
 
 @pytest.mark.timeout(90)
-async def test_numbers_of_the_grammar_within_the_limits_are_accepted(server):
+async def test_numbers_of_the_grammar_within_the_limits_are_accepted(server, arm):
     c = await server.connect()
     ok = ["jjjj0001:set_speed:+50", "jjjj0002:set_speed:050", "jjjj0003:move_rel_world:0,0,.5,0,0,-0.",
-          "jjjj0004:break", "jjjj0005:move_rel_joints:0,0,0,0,0,-10.000", "jjjj0006:break",
+          "jjjj0004:break", f"jjjj0005:move_rel_joints:{arm.rel_last(-10)}", "jjjj0006:break",
           "jjjj0007:set_speed:" + "0" * 21 + "100"]  # 24 characters: the longest accepted
     await c.send(*ok)
     acks = await c.acks(len(ok), timeout=30)

@@ -19,9 +19,13 @@ from aioadept.protocol import Status
 from aioadept.sim.io import HAND_TIME_S
 
 VPLUS = Path(__file__).resolve().parents[2] / "vplus"
-SLOW_MOVE = ("set_speed:10", "move_joints:150,-90,180,0,90,0")   # J1 turns 150 deg at 10 %: about 6 s
 SETTLE_S = 6 * HAND_TIME_S   # long past the moment a hand skill that got through would have switched
 ACTED = {"open_hand": "-1,0", "close_hand": "0,-1", "relax_hand": "0,0"}  # sig:1,2 once the skill has acted
+
+
+def slow_move(arm) -> tuple[str, str]:
+    """J1 turns 150 deg (a Cobra's 100) at 10 % of the s850's rate: seconds."""
+    return f"set_speed:{arm.speed(10)}", f"move_joints:{arm.j1_wire(150)}"
 
 
 def _signal_wired_hand(tmp_path: Path) -> tuple[str, ...]:
@@ -47,14 +51,14 @@ async def _stop_from_another_connection(server, stop_id: str):
     ("close_hand", "relax_hand", "0,-1"),     # closed: the close valve stays on
 ])
 async def test_a_hand_skill_waiting_for_a_motion_when_a_stop_comes_never_switches_the_valves(
-        backend, wiring, setup, skill, valves, start_server, tmp_path):
+        backend, wiring, setup, skill, valves, start_server, tmp_path, arm):
     extra = _signal_wired_hand(tmp_path) if wiring == "signal" else ()
     async with start_server(backend, *extra) as server:
         c = await server.connect()
         if setup:
             await c.send(f"a0000000:{setup}")
             assert (await c.ack(timeout=30)).status is Status.DONE
-        await c.send(f"a0000001:{SLOW_MOVE[0]}", f"a0000002:{SLOW_MOVE[1]}", f"a0000003:{skill}")
+        await c.send(f"a0000001:{slow_move(arm)[0]}", f"a0000002:{slow_move(arm)[1]}", f"a0000003:{skill}")
         speed, move = await c.acks(2)
         assert speed.ok and move.ok, (speed, move)
         await asyncio.sleep(0.3)                  # the hand skill waits for the arm to be at rest
@@ -77,10 +81,11 @@ async def test_a_hand_skill_waiting_for_a_motion_when_a_stop_comes_never_switche
 
 @pytest.mark.timeout(90)
 @pytest.mark.parametrize("command,outputs", [("signal:5,2007", "5,2007"), ("enable_air", "8")])
-async def test_an_output_queued_behind_a_motion_never_switches_after_a_stop(server, command, outputs):
+async def test_an_output_queued_behind_a_motion_never_switches_after_a_stop(server, command, outputs, arm):
     """The output waits behind a second motion, which waits for its turn behind the slow one."""
     c = await server.connect()
-    await c.send(f"b0000001:{SLOW_MOVE[0]}", f"b0000002:{SLOW_MOVE[1]}", "b0000003:move_joints:0,-90,180,0,90,0",
+    await c.send(f"b0000001:{slow_move(arm)[0]}", f"b0000002:{slow_move(arm)[1]}",
+                 f"b0000003:move_joints:{arm.home_wire}",
                  f"b0000004:{command}")
     speed, move = await c.acks(2)
     assert speed.ok and move.ok, (speed, move)

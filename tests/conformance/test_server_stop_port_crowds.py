@@ -21,8 +21,6 @@ from aioadept.geometry import poses_close
 from aioadept.protocol import parse_ack
 from aioadept.testing.crowds import stop_through
 
-FAR = "60,-90,180,0,90,0"  # J1 by 60 deg at 10 %: seconds
-HOME = "0,-90,180,0,90,0"
 CROWDS = {"monitors": 4, "slowloris": 6, "storm": 8}  # the V+ server's stop port has rs.smaxcli = 4 slots
 
 
@@ -54,7 +52,7 @@ async def _here(reader: asyncio.StreamReader, writer: asyncio.StreamWriter, mid:
 @pytest.mark.parametrize("kind", sorted(CROWDS))
 @pytest.mark.parametrize("backend", ["python", "vplus"])
 @pytest.mark.timeout(120)
-async def test_a_newcomers_stop_gets_in_past_a_crowd_on_the_stop_port(backend, kind, start_server):
+async def test_a_newcomers_stop_gets_in_past_a_crowd_on_the_stop_port(backend, kind, start_server, arm):
     extra = ("--max-clients", "4") if backend == "python" else ()
     async with start_server(backend, *extra) as server:
         held = [await asyncio.open_connection(server.host, server.port) for _ in range(4 if backend == "python"
@@ -62,8 +60,9 @@ async def test_a_newcomers_stop_gets_in_past_a_crowd_on_the_stop_port(backend, k
         reader, mover = held[0]
         async with _crowd(kind, server.host, server.stop_port, CROWDS[kind]):
             for i in range(3):
-                mover.write(f"kw{i:06d}:set_speed:10\r\nkx{i:06d}:move_joints:{FAR if i % 2 == 0 else HOME}\r\n"
-                            .encode())
+                # J1 by 60 deg at 10 % (the s850's rate on every model): seconds
+                target = arm.j1_wire(60) if i % 2 == 0 else arm.home_wire
+                mover.write(f"kw{i:06d}:set_speed:{arm.speed(10)}\r\nkx{i:06d}:move_joints:{target}\r\n".encode())
                 await mover.drain()
                 await asyncio.sleep(0.3)  # moving
                 # generous for a loaded CI machine; the goal is 100 ms at p95 (benchmarks/bench_safety.py); the

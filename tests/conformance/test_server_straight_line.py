@@ -2,7 +2,8 @@
 ``appros``, ``depart``, ``departs``, over real TCP, with the same assertions for the Python sim and the V+ server on
 the emulator (conftest.py).
 
-The line is checked by sampling the arm while it moves: a second connection with nothing pending asks ``here``,
+Poses are about the robot model's work point (fixture ``arm``), tool pointing down, so each test means the same on
+a Viper and a Cobra. The line is checked by sampling the arm while it moves: a second connection with nothing pending asks ``here``,
 which both servers answer at once from the current state (docs/protocol.md 4.5), as fast as the answers come.
 The same sampling of a joint-interpolated ``move_to`` between the same ends must see the tool leave the line, so
 the check can fail. Timing bounds are generous (the machine is shared).
@@ -21,15 +22,15 @@ import pytest
 from aioadept.geometry import Pose, poses_close, zyz_to_rotation
 from aioadept.protocol import Ack, ErrorCode, Status
 from aioadept.sim.line import line_pose_matrix
+from modelarm import Arm
 
-# A 300 mm line in front of the arm, tool pointing down, turning 30 deg about its axis on the way.
-A = Pose(400.0, -150.0, 400.0, 0.0, 180.0, 0.0)
-B = Pose(400.0, 150.0, 400.0, 0.0, 180.0, 30.0)
 LINE_TOL_MM = 0.5
+wire = Arm.pose_wire
 
 
-def wire(p: Pose, *extra: float) -> str:
-    return ",".join("%.3f" % v for v in (*p.as_tuple(), *extra))
+def ends(arm: Arm) -> tuple[Pose, Pose]:
+    """A 300 mm line in front of the arm, tool pointing down, turning 30 deg about its axis on the way."""
+    return arm.at(0, -150, 0), arm.at(0, 150, 0, roll=30)
 
 
 def v_code(ack: Ack) -> int | None:
@@ -43,7 +44,7 @@ def v_code(ack: Ack) -> int | None:
     return ack.error_code
 
 
-def off_line_mm(p: Pose, a: Pose = A, b: Pose = B) -> tuple[float, float]:
+def off_line_mm(p: Pose, a: Pose, b: Pose) -> tuple[float, float]:
     """(distance of p's position from the segment a-b in mm, the fraction along it of its projection)."""
     pa, pb, pp = a.position_mm, b.position_mm, p.position_mm
     d = pb - pa
@@ -51,7 +52,7 @@ def off_line_mm(p: Pose, a: Pose = A, b: Pose = B) -> tuple[float, float]:
     return float(np.linalg.norm(pp - (pa + f * d))), f
 
 
-def orientation_error_deg(p: Pose, f: float, a: Pose = A, b: Pose = B) -> float:
+def orientation_error_deg(p: Pose, f: float, a: Pose, b: Pose) -> float:
     """Angle between p's orientation and the slerp of a's and b's at fraction f."""
     want = line_pose_matrix(a.to_matrix(), b.to_matrix(), f)[:3, :3]
     r = want.T @ zyz_to_rotation(p.yaw, p.pitch, p.roll)
@@ -85,7 +86,9 @@ async def sample_while_moving(server, c, lines: list[str], tag: str) -> tuple[li
 
 
 @pytest.mark.timeout(120)
-async def test_move_to_s_keeps_the_tool_on_the_line_at_the_straight_line_speed(server):
+@pytest.mark.every_model
+async def test_move_to_s_keeps_the_tool_on_the_line_at_the_straight_line_speed(server, arm):
+    A, B = ends(arm)
     c = await server.connect()
     await go(c, A, "aa00")
     # 10 % of the 2000 mm/s straight-line speed: 300 mm take about 1.5 s plus the ramps.
@@ -95,9 +98,9 @@ async def test_move_to_s_keeps_the_tool_on_the_line_at_the_straight_line_speed(s
     assert poses_close(brk.pose, B, tol_mm=0.01, tol_deg=0.01), "the line ends at the target"
     inside = []
     for p in poses:
-        dist, f = off_line_mm(p)
+        dist, f = off_line_mm(p, A, B)
         assert dist <= LINE_TOL_MM, f"{p} is {dist:.3f} mm off the line"
-        assert orientation_error_deg(p, f) <= 0.5, f"{p}: orientation off the slerp"
+        assert orientation_error_deg(p, f, A, B) <= 0.5, f"{p}: orientation off the slerp"
         if 0.05 < f < 0.95:
             inside.append(p)
     assert len(inside) >= 10, f"only {len(inside)} samples in the middle of the line: the check saw no motion"
@@ -108,12 +111,13 @@ async def test_move_to_s_keeps_the_tool_on_the_line_at_the_straight_line_speed(s
     (speed, move, brk), poses = await sample_while_moving(
         server, c, ["ae000001:set_speed:10", f"ae000002:move_to:{wire(B)}", "ae000003:break"], "af00")
     assert brk.ok
-    assert max(off_line_mm(p)[0] for p in poses) > 2.0, "a joint move bows away from the line"
+    assert max(off_line_mm(p, A, B)[0] for p in poses) > 2.0, "a joint move bows away from the line"
     await c.close()
 
 
 @pytest.mark.timeout(120)
-async def test_stop_during_a_straight_line_brings_the_tool_to_rest_on_the_line(server):
+async def test_stop_during_a_straight_line_brings_the_tool_to_rest_on_the_line(server, arm):
+    A, B = ends(arm)
     c = await server.connect()
     await go(c, A, "ba00")
     await c.send("bb000001:set_speed:10", f"bb000002:move_to_s:{wire(B)}", "bb000003:break")
@@ -127,7 +131,7 @@ async def test_stop_during_a_straight_line_brings_the_tool_to_rest_on_the_line(s
     assert (brk.status, stop.status) == (Status.ABORTED, Status.DONE)
     await other.send("bc000002:here")
     rest = (await other.ack()).pose
-    dist, f = off_line_mm(rest)
+    dist, f = off_line_mm(rest, A, B)
     assert dist <= LINE_TOL_MM, f"stopped {dist:.3f} mm off the line"
     assert 0.05 < f < 0.95, f"stopped part-way ({f:.2f} of the line)"
     await asyncio.sleep(0.3)
@@ -138,34 +142,49 @@ async def test_stop_during_a_straight_line_brings_the_tool_to_rest_on_the_line(s
 
 
 @pytest.mark.timeout(120)
-async def test_move_rel_tool_s_appro_appros_depart_departs(server):
+@pytest.mark.every_model
+async def test_move_rel_tool_s_appro_appros_depart_departs(server, arm):
     c = await server.connect()
-    p = Pose(400.0, 0.0, 400.0, 0.0, 180.0, 0.0)
+    p = arm.at()
     await go(c, p, "ca00")
-    # Tool Z points down: -40 along it is 40 mm up in the world.
+    # Tool Z points down (on a Viper here, on a Cobra always): -40 along it is 40 mm up in the world.
     await c.send("cb000001:move_rel_tool_s:0.000,0.000,-40.000,0.000,0.000,0.000", "cb000002:break")
     move, brk = await c.acks(2)
-    assert move.ok and brk.ok and poses_close(brk.pose, Pose(400, 0, 440, 0, 180, 0), tol_mm=0.01, tol_deg=0.01)
-    steps = [(f"cc000001:appro:{wire(p, 50)}", 450.0),       # 50 mm from p back along its tool Z: above it
-             (f"cc000003:appros:{wire(p, 20)}", 420.0),
-             ("cc000005:depart:30.000", 450.0),              # the tool backs off along its own Z: up
-             ("cc000007:departs:-10.000", 440.0)]            # a negative distance goes the other way
-    for i, (line, z) in enumerate(steps):
+    assert move.ok and brk.ok and poses_close(brk.pose, arm.at(dz=40), tol_mm=0.01, tol_deg=0.01)
+    steps = [(f"cc000001:appro:{wire(p, 50)}", 50.0),        # 50 mm from p back along its tool Z: above it
+             (f"cc000003:appros:{wire(p, 20)}", 20.0),
+             ("cc000005:depart:30.000", 50.0),               # the tool backs off along its own Z: up
+             ("cc000007:departs:-10.000", 40.0)]             # a negative distance goes the other way
+    for i, (line, dz) in enumerate(steps):
         await c.send(line, f"cd00000{i}:break")
         move, brk = await c.acks(2)
         assert move.ok and brk.ok, (line, move, brk)
-        assert poses_close(brk.pose, Pose(400, 0, z, 0, 180, 0), tol_mm=0.01, tol_deg=0.01), (line, brk.pose)
+        assert poses_close(brk.pose, arm.at(dz=dz), tol_mm=0.01, tol_deg=0.01), (line, brk.pose)
     await c.close()
 
 
+BULGE = {
+    "viper-s850": (Pose(776.5, 68.4, 508.0, -109.4, 167.5, 21.5), Pose(754.8, 80.5, 681.7, -165.9, 31.6, -153.0)),
+    "viper-s650": (Pose(589.9, 63.1, 400.1, -125.0, 149.3, 5.5), Pose(593.7, 14.5, 577.8, -163.3, 24.8, -156.5)),
+}
+"""Per Viper, two reachable poses near full reach, the tool turned over between them, whose straight line takes the
+wrist centre out of the workspace part-way (the s650's found by a search about the s850's joints)."""
+
+
+@pytest.mark.viper_only
 @pytest.mark.timeout(120)
-async def test_lines_through_a_singularity_past_a_joint_limit_or_out_of_reach_are_refused_before_moving(server):
+async def test_lines_through_a_singularity_past_a_joint_limit_or_out_of_reach_are_refused_before_moving(server, arm):
+    """Viper-only by nature: the line passes a wrist singularity (J5 = 0), which a SCARA has not, and its poses
+    (the tool horizontal, the tool turned over) are orientations a SCARA refuses anyway (test_server_robot_models
+    checks those refusals)."""
+    m = arm.m
     c = await server.connect()
-    # Tool horizontal along +x, wrist centre just below the forearm's axis: crossing y = 0 the wrist passes next
-    # to its singularity (J5 = 0) and J4 would have to spin half a turn.
-    a = Pose(560.0, -50.0, 785.0, 0.0, 90.0, 0.0)
+    # Tool horizontal along +x, wrist centre 5 mm below the forearm's axis (J2 -90, J3 180): crossing y = 0 the
+    # wrist passes next to its singularity (J5 = 0) and J4 would have to spin half a turn.
+    x, z = m.a1 + m.d4 + m.d6, m.d1 + m.a2 + m.a3 - 5.0
+    a = Pose(x, -50.0, z, 0.0, 90.0, 0.0)
     await go(c, a, "da00")
-    await c.send(f"db000001:move_to_s:{wire(Pose(560.0, 50.0, 785.0, 0.0, 90.0, 0.0))}", "db000002:here")
+    await c.send(f"db000001:move_to_s:{wire(Pose(x, 50.0, z, 0.0, 90.0, 0.0))}", "db000002:here")
     ack, here = await c.acks(2)
     assert (ack.id, ack.status, v_code(ack)) == ("db000001", Status.ERROR, ErrorCode.JOINT_JUMP), ack
     assert ack.pose == here.pose and poses_close(here.pose, a, tol_mm=0.01, tol_deg=0.01), "nothing moved"
@@ -186,9 +205,8 @@ async def test_lines_through_a_singularity_past_a_joint_limit_or_out_of_reach_ar
     move, brk = await c.acks(2, timeout=30)
     assert move.ok and brk.ok and poses_close(brk.pose, end, tol_mm=0.01, tol_deg=0.01)
 
-    # Near full reach, turning the tool over: the wrist centre bulges out of the workspace part-way (27 of 175 mm).
-    start = Pose(776.5, 68.4, 508.0, -109.4, 167.5, 21.5)
-    end = Pose(754.8, 80.5, 681.7, -165.9, 31.6, -153.0)
+    # Near full reach, turning the tool over: the wrist centre bulges out of the workspace part-way.
+    start, end = BULGE[arm.name]
     await go(c, start, "df00")
     await c.send(f"dg000001:move_to_s:{wire(end)}", "dg000002:here", f"dg000003:move_to:{wire(end)}", "dg000004:break")
     ack, here, move, brk = await c.acks(4, timeout=30)
@@ -230,7 +248,8 @@ async def _send_cli(port: int, *argv: str) -> tuple[int, str, str]:
 
 
 @pytest.mark.timeout(120)
-async def test_aioadept_send_drives_each_line_skill(server):
+async def test_aioadept_send_drives_each_line_skill(server, arm):
+    A, B = ends(arm)
     code, out, err = await _send_cli(server.port, f"move_to:{wire(A)}", "break", f"move_to_s:{wire(B)}", "break",
                                      "move_rel_tool_s:0,0,-20,0,0,0", "break", f"appro:{wire(A, 30)}", "break",
                                      f"appros:{wire(A, 10)}", "break", "depart:20", "break", "departs:-5", "break")
@@ -239,7 +258,8 @@ async def test_aioadept_send_drives_each_line_skill(server):
     assert [s for s, _ in rows] == ["move_to", "break", "move_to_s", "break", "move_rel_tool_s", "break", "appro",
                                     "break", "appros", "break", "depart", "break", "departs", "break"]
     assert all(status == "done" for _, status in rows), out
-    assert "pose=400.000,-150.000,425.000," in out.splitlines()[-1], "A, 10 + 20 - 5 mm up its tool axis"
+    end = arm.at(0, -150, 25)
+    assert f"pose={end.x:.3f},{end.y:.3f},{end.z:.3f}," in out.splitlines()[-1], "A, 10 + 20 - 5 mm up its tool axis"
     # A bad number is refused by the client before it is sent: one line naming it, no traceback.
     code, out, err = await _send_cli(server.port, "departs:1e9")
     assert code != 0 and "Traceback" not in err and len(err.strip().splitlines()) == 1, err

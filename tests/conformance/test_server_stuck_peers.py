@@ -22,9 +22,7 @@ from aioadept.defaults import MAX_QUEUED
 from aioadept.geometry import poses_close
 from aioadept.protocol import ErrorCode, Status
 
-
-HOME = "0,-90,180,0,90,0"
-FAR = "60,-90,180,0,90,0"  # J1 by 60 deg: seconds at 10 %
+# The arm's motion in these tests: J1 by 60 deg at 10 % (arm.speed: the s850's rate on every model), seconds.
 
 
 async def _flooder(server) -> tuple[asyncio.StreamWriter, int]:
@@ -72,9 +70,9 @@ async def _at_rest(line, tag: str) -> None:
 
 
 @pytest.mark.timeout(180)
-async def test_a_client_that_never_reads_its_acks_cannot_hold_off_another_clients_stop(server):
+async def test_a_client_that_never_reads_its_acks_cannot_hold_off_another_clients_stop(server, arm):
     b = await server.connect()
-    await b.send("kb000001:set_speed:10", f"kb000002:move_joints:{FAR}")
+    await b.send(f"kb000001:set_speed:{arm.speed(10)}", f"kb000002:move_joints:{arm.j1_wire(60)}")
     assert [a.status for a in await b.acks(2)] == [Status.DONE, Status.DONE]  # moving (forward processing)
     flood, sent = await _flooder(server)
     # Another client's stop is read, executed and acked at once (the goal is 100 ms at p95:
@@ -89,7 +87,7 @@ async def test_a_client_that_never_reads_its_acks_cannot_hold_off_another_client
     # The flooder is reset (RST); the server goes on serving everyone, and is not frozen by it
     _reset(flood)
     await asyncio.sleep(0.3)
-    await b.send(f"ke000001:move_joints:{HOME}", "ke000002:break")
+    await b.send(f"ke000001:move_joints:{arm.home_wire}", "ke000002:break")
     assert [a.status for a in await b.acks(2, 60)] == [Status.DONE, Status.DONE]
     d = await server.connect()
     await d.send("kf000001:here")
@@ -126,13 +124,13 @@ async def _hold_every_slot(server, n: int) -> list[asyncio.StreamWriter]:
 
 @pytest.mark.parametrize("backend", ["python", "vplus"])
 @pytest.mark.timeout(180)
-async def test_with_every_slot_held_a_stop_gets_in_through_the_stop_port(backend, start_server):
+async def test_with_every_slot_held_a_stop_gets_in_through_the_stop_port(backend, start_server, arm):
     # every slot: the sim started with --max-clients 4; the V+ server's rs.maxcli (vplus/rsconfig.V2) is 10
     extra = ("--max-clients", "4") if backend == "python" else ()
     async with start_server(backend, *extra) as server:
         held = await _hold_every_slot(server, 4 if backend == "python" else 10)
         mover = held[0]
-        mover.write(b"ka000001:set_speed:10\r\n" + f"ka000002:move_joints:{FAR}\r\n".encode())
+        mover.write(f"ka000001:set_speed:{arm.speed(10)}\r\nka000002:move_joints:{arm.j1_wire(60)}\r\n".encode())
         await mover.drain()
         await asyncio.sleep(1.0)  # moving
         s = await server.connect_stop_port()
@@ -142,7 +140,7 @@ async def test_with_every_slot_held_a_stop_gets_in_through_the_stop_port(backend
         await s.send("ka000004:here")
         at = await s.ack()
         assert at.status is Status.DONE
-        await s.send(f"ka000005:move_joints:{HOME}")
+        await s.send(f"ka000005:move_joints:{arm.home_wire}")
         refused = await s.ack()
         assert (refused.status, refused.error_code) == (Status.ERROR, ErrorCode.UNKNOWN_SKILL), refused
         await asyncio.sleep(0.5)
@@ -169,9 +167,9 @@ async def test_with_every_slot_held_a_stop_gets_in_through_the_stop_port(backend
 
 
 @pytest.mark.timeout(120)
-async def test_a_flood_of_stops_leaves_the_connection_usable(server):
+async def test_a_flood_of_stops_leaves_the_connection_usable(server, arm):
     a = await server.connect()
-    await a.send("kh000000:set_speed:10", f"kh000001:move_joints:{FAR}")
+    await a.send(f"kh000000:set_speed:{arm.speed(10)}", f"kh000001:move_joints:{arm.j1_wire(60)}")
     assert [x.status for x in await a.acks(2)] == [Status.DONE, Status.DONE]
     await asyncio.sleep(0.3)
     await a.send(*[f"ks{i:06d}:stop" for i in range(300)])
@@ -183,18 +181,18 @@ async def test_a_flood_of_stops_leaves_the_connection_usable(server):
     assert all(x.status is Status.DONE for x in got.values()), {x.status for x in got.values()}
     await a.send("kh000002:here")
     assert (await a.ack()).status is Status.DONE
-    await a.send("kh000003:set_speed:100", f"kh000004:move_joints:{HOME}", "kh000005:break")
+    await a.send("kh000003:set_speed:100", f"kh000004:move_joints:{arm.home_wire}", "kh000005:break")
     acks = await a.acks(3, 60)
     assert [x.status for x in acks] == [Status.DONE] * 3, acks
     await a.close()
 
 
 @pytest.mark.timeout(120)
-async def test_both_servers_admit_the_same_number_of_pending_commands(server):
+async def test_both_servers_admit_the_same_number_of_pending_commands(server, arm):
     """One running command (a break waiting for a move) plus 80 pipelined: MAX_QUEUED pending in all, the running
     one included (as RobotClient(max_pending) counts), so 80 - (MAX_QUEUED - 1) are refused, the last ones."""
     a = await server.connect()
-    await a.send("km000000:set_speed:10", f"km000001:move_joints:{FAR}", "km000002:break")
+    await a.send(f"km000000:set_speed:{arm.speed(10)}", f"km000001:move_joints:{arm.j1_wire(60)}", "km000002:break")
     assert [x.status for x in await a.acks(2)] == [Status.DONE, Status.DONE]  # the break now runs
     ids = [f"kq{i:06d}" for i in range(80)]
     await a.send(*[f"{i}:here" for i in ids])
@@ -247,7 +245,7 @@ class _Relay:
 
 
 @pytest.mark.timeout(120)
-async def test_robot_client_stops_through_the_stop_port_when_its_connection_is_gone(server):
+async def test_robot_client_stops_through_the_stop_port_when_its_connection_is_gone(server, arm):
     """RobotClient's stop() by itself: its connection is cut while the arm moves and it cannot reconnect; the stop
     goes through the stop port, and the arm is at rest when stop() returns."""
     from aioadept import Skill
@@ -258,8 +256,8 @@ async def test_robot_client_stops_through_the_stop_port_when_its_connection_is_g
     relay_port = await relay.__aenter__()
     robot = RobotClient("127.0.0.1", relay_port, stop_port=server.stop_port)
     await robot.connect()
-    await robot.cmdexec(Skill("set_speed", 10))
-    await robot.cmdexec(Skill("move_joints", 60, -90, 180, 0, 90, 0))  # acked as the motion starts
+    await robot.cmdexec(Skill("set_speed", arm.speed(10)))
+    await robot.cmdexec(Skill("move_joints", *arm.six(arm.j1(60))))  # acked as the motion starts
     await asyncio.sleep(0.5)
     relay.cut()  # the network path is gone, and the relay's port no longer accepts: no reconnect either
     await asyncio.sleep(0.1)
@@ -275,14 +273,14 @@ async def test_robot_client_stops_through_the_stop_port_when_its_connection_is_g
 
 @pytest.mark.parametrize("backend", ["python", "vplus"])
 @pytest.mark.timeout(120)
-async def test_send_stop_with_every_slot_held_gets_in(backend, start_server):
+async def test_send_stop_with_every_slot_held_gets_in(backend, start_server, arm):
     """`aioadept send stop`, the emergency stop of a terminal, when every client slot is held: through the stop
     port (the sim's main port would also let it in through its stop window)."""
     extra = ("--max-clients", "4") if backend == "python" else ()
     async with start_server(backend, *extra) as server:
         held = await _hold_every_slot(server, 4 if backend == "python" else 10)
         mover = held[0]
-        mover.write(b"kt000001:set_speed:10\r\n" + f"kt000002:move_joints:{FAR}\r\n".encode())
+        mover.write(f"kt000001:set_speed:{arm.speed(10)}\r\nkt000002:move_joints:{arm.j1_wire(60)}\r\n".encode())
         await mover.drain()
         await asyncio.sleep(1.0)
         proc = await asyncio.create_subprocess_exec(

@@ -15,7 +15,7 @@ SIM_TIME_SCALE = {"python": 1.0}
 
 
 @pytest.mark.timeout(90)
-async def test_status_at_rest_then_moving_then_at_rest(server):
+async def test_status_at_rest_then_moving_then_at_rest(server, arm):
     c = await server.connect()
     await c.send("cccc0001:status")
     idle = await c.ack()
@@ -25,7 +25,7 @@ async def test_status_at_rest_then_moving_then_at_rest(server):
                                                           error_text="", power=True, estop=False, hand="relaxed",
                                                           time_scale=SIM_TIME_SCALE.get(server.backend))
     # a long joint move: forward processing acks it as it starts; status then finds the arm moving
-    await c.send("cccc0002:set_speed:10", "cccc0003:move_joints:60.000,-90.000,180.000,0.000,90.000,0.000",
+    await c.send(f"cccc0002:set_speed:{arm.speed(10)}", f"cccc0003:move_joints:{arm.j1_wire(60)}",
                  "cccc0004:status")
     _, move, moving = await c.acks(3)
     assert move.status is Status.DONE and moving.status is Status.DONE
@@ -41,11 +41,12 @@ async def test_status_at_rest_then_moving_then_at_rest(server):
 
 
 @pytest.mark.timeout(90)
-async def test_client_status_and_the_command(server):
+async def test_client_status_and_the_command(server, arm):
     async with RobotClient(server.host, server.port) as robot:
         st = await robot.status()
         assert (st.moving, st.speed_pct, st.error_code, st.power, st.estop) == (False, 100.0, 0, True, False)
-        res = await robot.cmdexec(SetSpeed(10), MoveJoints([60, -90, 180, 0, 90, 0], break_move=False), GetStatus())
+        res = await robot.cmdexec(SetSpeed(arm.speed(10)), MoveJoints(arm.six(arm.j1(60)), break_move=False),
+                                  GetStatus())
         assert res.messages[-1].skill == "status"
         assert parse_status_fields(res.messages[-1].ack.extra).moving
         await robot.stop()

@@ -27,7 +27,7 @@ import numpy as np
 from aioadept.errors import RobotError
 from aioadept.geometry import NULL, Pose, decompose, inverse_transform
 from aioadept.protocol import ErrorCode
-from aioadept.robots import RobotModel
+from aioadept.robots import RobotModel, all_solutions
 from aioadept.robots import viper_s850_batch as kb
 from aioadept.robots.base import DEFAULT_JUMP_LIMIT, JointLimits, JumpLimit
 from aioadept.robots import scara
@@ -406,6 +406,11 @@ def plan_tool_line(start_deg: Sequence[float], pose: Pose, tool: Pose = NULL, *,
     if not np.isfinite(target_m).all():
         raise RobotError(ErrorCode.ILLEGAL_VALUE, "location is not finite")
     step_jump = jump if jump is not None else DEFAULT_JUMP_LIMIT
+    end_flange = target_m if tool == NULL else target_m @ inverse_transform(tool.to_matrix())
+    if not all_solutions(model, end_flange[None])[1].any():
+        # An end no configuration reaches is out of range whatever the line passes first (a shorter arm meets the
+        # stretched-arm singularity on the way before the line leaves its reach): the error is the end's.
+        raise RobotError(ErrorCode.OUT_OF_REACH, "location out of range (the line's end)")
 
     def solve(m: np.ndarray, seed: tuple[float, ...]) -> tuple[float, ...]:
         sample = decompose(m)
