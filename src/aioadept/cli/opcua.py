@@ -55,6 +55,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the server's certificate (DER or PEM) for sign/sign-and-encrypt, with --private-key; none: "
                         "one made self-signed at first start and kept in ~/.local/share/aioadept/opcua")
     p.add_argument("--private-key", metavar="FILE", dest="private_key", help="the certificate's private key (PEM)")
+    p.add_argument("--trust", metavar="DIR",
+                   help="the trust list: a folder of client application certificates (DER or PEM; a CA's trusts what "
+                        "it signed); a client whose certificate it does not hold is refused (BadCertificateUntrusted). "
+                        "Only with sign/sign-and-encrypt, none not offered; without it any client certificate is taken")
     add_insecure_option(p)
     p.add_argument("--allow-commands", action="store_true", dest="allow_commands",
                    help="give each robot the methods Stop() and RunSkill(Skill, Arguments) (vendor namespace "
@@ -63,6 +67,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--users", metavar="FILE",
                    help="with --allow-commands: NAME:PASSWORD lines, the users who may call the methods (the file "
                         "must be readable by its owner only)")
+    p.add_argument("--user-certificates", metavar="DIR", dest="user_certificates",
+                   help="with --allow-commands: a folder of user certificates (DER or PEM, or their CA's): a user who "
+                        "presents one (an X509 identity token) may call the methods, named by its common name; only "
+                        "with sign/sign-and-encrypt, none not offered")
     p.add_argument("--robot-model", default=None, dest="robot_model", metavar="NAME",
                    help="the arm (aioadept sim --robot-model): its axes (a Cobra's four, J3 linear in mm), and the "
                         "Model and MotionDeviceCategory unless --model/--category say otherwise (none: the Viper "
@@ -205,7 +213,8 @@ def robot_plans(parser: argparse.ArgumentParser, args: argparse.Namespace) -> li
     o = cell.opcua
     for opt, value in (("endpoint", o.endpoint), ("users", o.users or None), ("stale_after", o.stale_after_s),
                        ("security", ",".join(o.security)), ("certificate", o.certificate or None),
-                       ("private_key", o.private_key or None)):
+                       ("private_key", o.private_key or None), ("trust", o.trust or None),
+                       ("user_certificates", o.user_certificates or None)):
         if opt not in given:
             setattr(args, opt, value)
     args.allow_commands = args.allow_commands or o.allow_commands
@@ -233,10 +242,11 @@ async def run(args: argparse.Namespace, robots: list, users: dict[str, str] | No
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, stop.set)
     views = [RobotView(r.identity, stale_after_s=args.stale_after) for r in robots]
-    commands = [RobotCommands(r.host, r.port) for r in robots] if users else None
+    commands = [RobotCommands(r.host, r.port) for r in robots] if args.allow_commands else None
     cell = CellServer(args.endpoint, views, commands=commands, users=users, security=security,
                       certificate=args.certificate and Path(args.certificate),
-                      private_key=args.private_key and Path(args.private_key))
+                      private_key=args.private_key and Path(args.private_key), trust=args.trust and Path(args.trust),
+                      user_certificates=args.user_certificates and Path(args.user_certificates))
     tasks: list[asyncio.Task] = []
     try:
         await cell.start()
@@ -296,11 +306,19 @@ def main(argv: list[str] | None = None) -> int:
                 raise ValueError(f"{option} {path}: no such file")
         if not args.stale_after > 0:
             raise ValueError(f"--stale-after {args.stale_after!r}: expected seconds > 0")
-        if args.allow_commands != bool(args.users):
-            raise ValueError("--allow-commands needs --users FILE (who may command), and --users is only for "
-                             "--allow-commands")
+        if args.allow_commands != bool(args.users or args.user_certificates):
+            raise ValueError("--allow-commands needs --users FILE or --user-certificates DIR (who may command), and "
+                             "--users is only for --allow-commands")
+        for option, folder in (("--trust", args.trust), ("--user-certificates", args.user_certificates)):
+            if folder and "none" in security:
+                raise ValueError(f"{option}: only with --security sign or sign-and-encrypt, none not offered (a "
+                                 f"client that picks none skips it)")
+            if folder:
+                from aioadept.opcua.security import check_trust_folder
+
+                check_trust_folder(Path(folder), option)
         users = None
-        if args.allow_commands:
+        if args.users:
             from aioadept.opcua.commands import read_users
 
             users = read_users(args.users)

@@ -53,6 +53,10 @@ class OpcuaSection:
     certificate: str = ""
     """The server's certificate (relative to the cell file), with ``private_key``; none: one made at first start."""
     private_key: str = ""
+    trust: str = ""
+    """The trust list: a folder of client application certificates (relative to the cell file); none: any client."""
+    user_certificates: str = ""
+    """A folder of user certificates that may command (relative to the cell file), with ``allow_commands``."""
     name: str = DEFAULT_NAME
     """The MotionDevice's browse name of a cell with one ``[robot]`` (``[[robots]]`` entries have their own)."""
     devices: dict[str, Any] = field(default_factory=dict)
@@ -130,7 +134,7 @@ def plan_from_dict(data: dict[str, Any], *, source: str = "config") -> CellPlan:
         check_modes(section.security, f"{source} [opcua]: security =")
     except ValueError as exc:
         raise ConfigError(str(exc)) from None
-    for key in ("users", "certificate", "private_key"):
+    for key in ("users", "certificate", "private_key", "trust", "user_certificates"):
         if getattr(section, key) and Path(source).is_file():  # relative to the cell file, as its other files
             setattr(section, key, str(Path(source).parent / getattr(section, key)))
     many = is_multi(rest)

@@ -4,7 +4,10 @@ Three modes, each a SecurityPolicy and a MessageSecurityMode of OPC UA Part 2/4:
 signature, no encryption; loopback only unless ``--insecure``), ``sign`` and ``sign-and-encrypt`` (Basic256Sha256,
 every message signed, or signed and encrypted). A signed mode needs the server's application instance certificate
 and its private key: given (``--certificate``/``--private-key``), or made once, self-signed, into the user's folder
-(:func:`server_certificate`) and kept, so clients that trusted it keep trusting it. docs/opcua.md, "Security".
+(:func:`server_certificate`) and kept, so clients that trusted it keep trusting it. Which clients the server trusts:
+with a trust list (``--trust DIR``, :func:`trust_list`), only those whose application certificate it holds
+(:func:`client_validator`); users may present a certificate instead of a password (``--user-certificates DIR``, an
+X509 identity token, :class:`UserCertificate`). docs/opcua.md, "Security".
 """
 
 from __future__ import annotations
@@ -13,8 +16,10 @@ import os
 import socket
 from collections.abc import Iterable
 from pathlib import Path
+from typing import Any
 
-__all__ = ["APPLICATION_URI", "MODES", "ENCRYPTED", "certificate_folder", "check_modes", "server_certificate"]
+__all__ = ["APPLICATION_URI", "MODES", "ENCRYPTED", "UserCertificate", "certificate_folder", "check_modes", "check_trust_folder",
+           "client_validator", "common_name", "mark_user_certificates", "server_certificate", "trust_list"]
 
 MODES = ("none", "sign", "sign-and-encrypt")
 """The modes by the names the options and the cell file use."""
@@ -59,3 +64,68 @@ async def server_certificate(host: str, folder: Path | None = None) -> tuple[Pat
     finally:
         os.umask(old)
     return cert, key
+
+
+class UserCertificate(bytes):
+    """A user certificate (DER) that came in an X509 identity token and whose signature the server checked: told
+    apart from the secure channel's application certificate, which asyncua hands the user manager the same way."""
+
+
+def mark_user_certificates(iserver: Any) -> None:
+    """Make asyncua's check of an X509 identity token answer a :class:`UserCertificate`."""
+    verify = iserver.verify_x509_token
+
+    def verified(isession: Any, token: Any, signature: Any) -> UserCertificate:
+        return UserCertificate(verify(isession, token, signature))
+
+    iserver.verify_x509_token = verified
+
+
+def check_trust_folder(folder: Path, option: str = "--trust") -> list[Path]:
+    """The certificate files of the trust-list folder ``folder`` (``*.der``, ``*.pem``); ValueError naming ``option``
+    and the folder when it is missing or holds none, or the file that is not a certificate (a private key, say)."""
+    from cryptography import x509
+
+    if not folder.is_dir():
+        raise ValueError(f"{option} {folder}: no such folder")
+    files = sorted(p for p in folder.iterdir() if p.suffix.lower() in (".der", ".pem"))
+    if not files:
+        raise ValueError(f"{option} {folder}: no certificate (.der or .pem) in it")
+    for f in files:
+        data = f.read_bytes()
+        try:
+            (x509.load_pem_x509_certificate if data.lstrip().startswith(b"-----") else x509.load_der_x509_certificate)(
+                data)
+        except ValueError:
+            raise ValueError(f"{option} {folder}: {f.name} is not a certificate (keep keys elsewhere)") from None
+    return files
+
+
+async def trust_list(folder: Path, option: str = "--trust") -> Any:
+    """The certificates of ``folder`` (DER or PEM: each trusted itself, a CA's trusts what it signed) as asyncua's
+    TrustStore; ValueError as :func:`check_trust_folder`."""
+    from asyncua.crypto.truststore import TrustStore
+
+    check_trust_folder(folder, option)
+    store = TrustStore([folder], [])
+    await store.load()
+    return store
+
+
+def client_validator(store: Any) -> Any:
+    """asyncua's check of a client's application certificate at CreateSession: valid now, for the ApplicationUri the
+    client gives, for a client, and in ``store``; else the session is refused (BadCertificateUntrusted for a
+    certificate the store does not hold)."""
+    from asyncua.crypto.validator import CertificateValidator, CertificateValidatorOptions as O
+
+    return CertificateValidator(O.TIME_RANGE | O.URI | O.TRUSTED | O.PEER_CLIENT, store)
+
+
+def common_name(der: bytes) -> str:
+    """The certificate's subject common name (its user's name), or its SHA-256 fingerprint when it has none."""
+    from cryptography import x509
+    from cryptography.hazmat.primitives import hashes
+
+    cert = x509.load_der_x509_certificate(der)
+    names = cert.subject.get_attributes_for_oid(x509.NameOID.COMMON_NAME)
+    return str(names[0].value) if names else cert.fingerprint(hashes.SHA256()).hex()

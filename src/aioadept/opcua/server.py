@@ -36,7 +36,8 @@ from asyncua.common.instantiate_util import instantiate
 from asyncua.common.manage_nodes import delete_nodes
 
 from aioadept.opcua.commands import VENDOR_NS
-from aioadept.opcua.security import APPLICATION_URI, check_modes, server_certificate
+from aioadept.opcua.security import (APPLICATION_URI, UserCertificate, check_modes, client_validator, common_name,
+                                     mark_user_certificates, server_certificate, trust_list)
 from aioadept.opcua.subscriptions import SharedDataValue, install as _install_subscriptions
 from aioadept.opcua.mapping import (DEGREE_CELSIUS, DI_NS, INSTANCE_NS, NODESETS, ROBOTICS_NS, EngineeringUnit, Identity,
                                     Quality, Reading, RobotView)
@@ -97,12 +98,16 @@ class CellServer:
 
     def __init__(self, endpoint: str, views: Sequence[RobotView], *, commands: Sequence[Any] | None = None,
                  users: dict[str, str] | None = None, security: Sequence[str] = ("none",),
-                 certificate: Path | None = None, private_key: Path | None = None) -> None:
+                 certificate: Path | None = None, private_key: Path | None = None, trust: Path | None = None,
+                 user_certificates: Path | None = None) -> None:
         names = [v.identity.name for v in views]
         if not names or len(set(names)) != len(names):
             raise ValueError(f"robots {names}: expected at least one, each with its own name")
-        if commands is not None and (len(commands) != len(views) or not users):
+        if commands is not None and (len(commands) != len(views) or not (users or user_certificates)):
             raise ValueError("commands need one RobotCommands per robot and at least one user")
+        if (trust or user_certificates) and "none" in check_modes(security):
+            raise ValueError("a trust list or user certificates need sign or sign-and-encrypt only (with none a "
+                             "client skips them)")
         self.endpoint = endpoint
         self.views = list(views)
         self.commands = None if commands is None else list(commands)
@@ -110,7 +115,9 @@ class CellServer:
         if (certificate is None) != (private_key is None):
             raise ValueError("a certificate needs its private key, and a private key its certificate")
         self.certificate, self.private_key = certificate, private_key
-        self.server = Server(user_manager=_Users(users or {}))
+        self.trust, self.user_certificates = trust, user_certificates
+        self.users = _Users(users or {})
+        self.server = Server(user_manager=self.users)
         # Anonymous sessions read and browse; only a user of the users file may call a method.
         self.server.set_security_policy([_POLICIES[m] for m in self.security], permission_ruleset=_Roles())
         _refuse_writes_as_not_writable(self.server)
@@ -135,7 +142,16 @@ class CellServer:
                 cert, key = await server_certificate(urlsplit(self.endpoint).hostname or "localhost")
             await s.load_certificate(str(cert))
             await s.load_private_key(str(key))
-        s.set_identity_tokens([ua.AnonymousIdentityToken] + ([ua.UserNameIdentityToken] if self.commands else []))
+        if self.trust is not None:
+            s.set_certificate_validator(client_validator(await trust_list(self.trust)))
+        tokens = [ua.AnonymousIdentityToken]
+        if self.commands and self.users.users:
+            tokens.append(ua.UserNameIdentityToken)
+        if self.commands and self.user_certificates is not None:
+            self.users.certificates = await trust_list(self.user_certificates, "--user-certificates")
+            mark_user_certificates(s.iserver)
+            tokens.append(ua.X509IdentityToken)
+        s.set_identity_tokens(tokens)
         await load_nodesets(s)
         _cache_reference_subtypes(s)
         for uri in (DI_NS, ROBOTICS_NS):
@@ -380,17 +396,26 @@ class CellServer:
 
 class _Users:
     """asyncua's user manager: no user name is an anonymous session (it may read); a name and password of the users
-    file is a user (it may call the methods); anything else is refused."""
+    file, or a user certificate of the user certificates' trust list (named by its common name), is a user (it may
+    call the methods); anything else is refused."""
 
     def __init__(self, users: dict[str, str]) -> None:
         self.users = users
+        self.certificates: Any = None
+        """The user certificates' TrustStore, when the server takes X509 identity tokens."""
 
     def get_user(self, iserver: Any, username: str | None = None, password: Any = None, certificate: Any = None):
         from asyncua.crypto.permission_rules import User, UserRole
+        from cryptography import x509
 
         from aioadept.opcua.commands import password_ok
 
-        if username is None:  # an anonymous token (user certificates are not among the tokens offered)
+        if isinstance(certificate, UserCertificate):  # an X509 identity token, its signature checked
+            if self.certificates is not None and self.certificates.is_trusted(x509.load_der_x509_certificate(
+                    certificate)):
+                return User(role=UserRole.User, name=common_name(certificate))
+            return None
+        if username is None:  # an anonymous token (a certificate here is the secure channel's, not a user's)
             return User(role=UserRole.Anonymous)
         if password_ok(self.users, username, password):
             return User(role=UserRole.User, name=username)
