@@ -94,7 +94,7 @@ async def test_relayed_v_plus_stream_matches_the_sims_own_topic_and_here(tmp_pat
                 # every sample's pose is the forward kinematics of its joints (%.3f joints: 0.001 deg is ~0.015 mm).
                 # The joints and the pose are two HEREs (rsstate.V2): while the arm moves, the task may be switched
                 # between them, so a moving sample's joints are checked to lie on the path between its neighbours
-                for prev, s, nxt in zip([moved[0], *moved], moved, [*moved[1:], moved[-1]], strict=True):
+                for prev, s, nxt in zip([moved[0], *moved[:-1]], moved, [*moved[1:], moved[-1]], strict=True):
                     fk = kin.forward(s.joints_deg)
                     if not (s.in_motion or prev.in_motion or nxt.in_motion):
                         assert poses_close(fk, s.pose, tol_mm=0.05, tol_deg=0.01)
