@@ -66,3 +66,17 @@ def test_an_emulated_server_started_with_the_variable_writes_its_lines_when_it_e
     subprocess.run([sys.executable, "-m", "aioadept", "sim", "--vplus", str(path), "--run", "t.run",
                     "--instant", "--state-endpoint", "none"], env=env, capture_output=True, timeout=60)
     assert len(list(folder.iterdir())) == 1
+
+
+def test_the_recorder_keeps_the_auto_variables_python_locals_as_without_a_tracer(tmp_path):
+    path = tmp_path / "t.V2"
+    path.write_text(PROG)
+    emu = Emulator.load(path, robot=False, strict=True)
+    linehits.attach(emu.rt)
+    code = emu.rt.programs["t.main"].__code__
+    assert "V_i" in code.co_varnames and "_dbg" in code.co_names      # a local, and the line hook
+    emu.call("t.main", 1)
+    # a debugger's tracer still has them in L, where it reads and sets them
+    emu2 = Emulator.load(path, robot=False, strict=True)
+    emu2.rt.set_tracer(linehits.LineRecorder(emu2.rt))
+    assert "V_i" not in emu2.rt.programs["t.main"].__code__.co_varnames

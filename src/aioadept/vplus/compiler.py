@@ -168,9 +168,10 @@ def _nest(steps: list[tuple[int, Any]]) -> tuple[list, list[CompileError]]:
 
 class _Gen:
     def __init__(self, prog: Program, doubles: set[str], boxed: frozenset[str] = frozenset(),
-                 traced: bool = False) -> None:
+                 traced: bool = False, variables: bool = True) -> None:
         self.prog = prog
         self.traced = traced                # the instrumented form: a line hook before each statement
+        self.variables = variables          # traced: every AUTO in L, where a debugger reads and sets it
         self.at_line = 0                    # the V+ line of the code being emitted (traced: the hook's)
         self.line_of: list[int] = []        # traced: the V+ line of each emitted Python line
         self.keep_boxed = boxed             # AUTOs that stay in L (passed on by reference: known from a former pass)
@@ -528,8 +529,8 @@ class _Gen:
         p = self.prog
         tree, self.problems = _nest(p.steps)
         self.declare(p.steps)
-        # traced: every AUTO stays in L, where a debugger reads and sets it
-        self.fast = set() if self.traced else {n for n in self.autos if n not in self.keep_boxed}
+        # traced for a debugger: every AUTO stays in L, where it reads and sets them
+        self.fast = set() if self.traced and self.variables else {n for n in self.autos if n not in self.keep_boxed}
         self.ind = 0
         self.emit("def _prog(T, A):")
         self.ind = 1
@@ -1066,7 +1067,7 @@ def vplus_name(local: str) -> str:
     return "".join(out)
 
 
-def compile_program(prog: Program, doubles: set[str], *, traced: bool = False
+def compile_program(prog: Program, doubles: set[str], *, traced: bool = False, variables: bool = True
                     ) -> tuple[str | None, list[Any], list[LoadProblem]]:
     """Python source of one program (defines ``_prog``) and its constants, or the problems that prevent it.
 
@@ -1077,11 +1078,12 @@ def compile_program(prog: Program, doubles: set[str], *, traced: bool = False
 
     ``traced``: the instrumented form (a line hook before each statement, every AUTO in ``L``); its constants
     end with the V+ line of each line of the Python source (index: Python line - 1), read by the tracer for the
-    line a caller's frame is at.
+    line a caller's frame is at. ``variables=False``: the AUTOs stay Python locals as in the plain form (a line
+    hook that reads no variable, as line coverage's, costs the hook's test only).
     """
     boxed: frozenset[str] = frozenset()
     for _ in range(3):
-        gen = _Gen(prog, doubles, boxed, traced)
+        gen = _Gen(prog, doubles, boxed, traced, variables)
         src = gen.program()
         if gen.problems:
             return None, [], [_problem(prog, exc) for exc in gen.problems]

@@ -9,7 +9,8 @@ does so at the end of ``make test``). The coverage.py plugin (:mod:`aioadept.vpl
 with the same tracer.
 
 The recorder asks for the line hook at each statement of each program once: the first run of a line records it and
-drops the hook, so from then on a statement costs the instrumented form's two tests, whatever ran it before.
+drops the hook, so from then on a statement costs the hook's two tests, whatever ran it before; the AUTO variables
+stay Python locals as in the plain form (the recorder reads none).
 """
 
 from __future__ import annotations
@@ -94,7 +95,7 @@ def attach(rt: Any, hits: set[tuple[str, int]] | None = None, recorder: type[Lin
     tracer = recorder(rt, hits)
     if not tracer.paths:
         return None
-    rt.set_tracer(tracer)
+    rt.set_tracer(tracer, variables=False)
     return tracer
 
 

@@ -209,9 +209,10 @@ class Runtime:
                     out |= {n for n, t, _ in st.names if t == "DOUBLE"}
         return out
 
-    def compile_all(self, traced: bool = False) -> None:
-        """Compile every program (``traced``: the instrumented form, aioadept.vplus.trace) into ``programs``,
-        which is updated in place (the generated code's CALL holds it)."""
+    def compile_all(self, traced: bool = False, variables: bool = True) -> None:
+        """Compile every program (``traced``: the instrumented form, aioadept.vplus.trace; ``variables``: with its
+        AUTOs where a tracer reads them) into ``programs``, which is updated in place (the generated code's CALL
+        holds it)."""
         ns_base = self._namespace()
         doubles = self.doubles()
         for name, prog in self.module.programs.items():
@@ -219,10 +220,10 @@ class Runtime:
                 self.not_executable[name] = prog.problems
                 continue
             key = (prog.file, prog.name, prog.line, repr(prog.params), repr(sorted(prog.source.items())),
-                   frozenset(doubles), traced)
+                   frozenset(doubles), traced, variables)
             hit = _COMPILED.get(key)
             if hit is None:
-                src, consts, problems = compile_program(prog, doubles, traced=traced)
+                src, consts, problems = compile_program(prog, doubles, traced=traced, variables=variables)
                 try:
                     code = None if problems else compile(src, f"<V+ {prog.name} ({prog.file})>", "exec")
                 except SyntaxError as exc:
@@ -249,15 +250,16 @@ class Runtime:
             self.programs[name] = ns["_prog"]
 
     # -- tracing (aioadept.vplus.trace) ---------------------------------------------------------------------
-    def set_tracer(self, tracer: Any, *, all_lines: bool = False) -> None:
+    def set_tracer(self, tracer: Any, *, all_lines: bool = False, variables: bool = True) -> None:
         """Run the programs in their instrumented form, calling ``tracer`` (aioadept.vplus.trace); before any task
-        starts. ``all_lines``: its line hook runs before every statement (line coverage)."""
+        starts. ``all_lines``: its line hook runs before every statement. ``variables=False``: the tracer reads no
+        AUTO variable (``Frame.autos`` is empty), which keeps them as fast as without a tracer (line coverage)."""
         if self.active():
             raise RuntimeError("set_tracer: a task is running; set the tracer before tasks start")
         self.tracer = tracer
         if all_lines:
             self._trace_lines = {name: Every() for name in self.module.programs}
-        self.compile_all(traced=True)
+        self.compile_all(traced=True, variables=variables)
 
     def trace_lines(self, program: str) -> set[int]:
         """The lines of ``program`` at which the tracer's line hook runs for every task (breakpoints)."""
