@@ -18,6 +18,8 @@ it never changes after writing) and nothing else:
   DataValue and Variant, then filled it).
 - A requested queue size of 0 is revised to 1, as Part 4 says, for every data monitored item.
 
+And a value is encoded once for every subscriber that gets it, not once each.
+
 Installed once per process (:func:`install`); every other value and item goes the library's own way.
 """
 
@@ -33,12 +35,33 @@ __all__ = ["SharedDataValue", "install"]
 
 class SharedDataValue(ua.DataValue):
     """A DataValue this server never changes once written: shared with every subscriber instead of copied (it is its
-    own deep copy); it encodes as any DataValue."""
+    own deep copy), and encoded once for all of them (:func:`_encoded_once`); the bytes are any DataValue's."""
 
-    __slots__ = ()
+    __slots__ = ("_binary",)
 
     def __deepcopy__(self, memo: dict) -> SharedDataValue:
         return self
+
+
+def _encoded_once() -> None:
+    """asyncua's binary encoding of a :class:`SharedDataValue`: the library's DataValue encoding, made at the first
+    publish that carries the value and kept on it for every other subscriber's (about 20 us a value in Python, six
+    values per publish, ten publishes a second per client)."""
+    from asyncua.ua import ua_binary
+
+    library = ua_binary.create_dataclass_serializer
+    encode = library(ua.DataValue)
+
+    def encode_once(value: SharedDataValue) -> bytes:
+        data = getattr(value, "_binary", None)
+        if data is None:
+            data = value._binary = encode(value)
+        return data
+
+    def serializer(cls: type) -> Any:
+        return encode_once if cls is SharedDataValue else library(cls)
+
+    ua_binary.create_dataclass_serializer = serializer
 
 
 def _reported(service: Any, mdata: Any, value: ua.DataValue) -> bool:
@@ -139,6 +162,7 @@ def install() -> None:
         await sample(self.monitored_item_srv)
         return await library_publish(self, requestdata)
 
+    _encoded_once()
     datachange_callback._aioadept = True  # type: ignore[attr-defined]
     MonitoredItemService.datachange_callback = datachange_callback  # type: ignore[method-assign]
     MonitoredItemService._create_data_change_monitored_item = create  # type: ignore[method-assign]

@@ -167,3 +167,19 @@ async def test_a_queue_of_one_is_sampled_once_per_publish_and_a_queue_hears_ever
     srv.delete_monitored_items([zero.MonitoredItemId])
     await cell.write(value(SharedDataValue, 6.0), value(SharedDataValue, 7.0))
     assert await cell.cycle() == {11: [(6.0, 0), (7.0, 0)], 50: [(6.0, 0), (7.0, 0)]}
+
+
+def test_a_shared_value_is_encoded_once_into_a_data_value_s_bytes() -> None:
+    from asyncua import ua
+    from asyncua.ua.ua_binary import struct_to_binary
+
+    from aioadept.opcua.subscriptions import SharedDataValue, install
+
+    install()
+    shared, plain = value(SharedDataValue, 12.5, ua.StatusCodes.UncertainNoCommunicationLastUsableValue), \
+        value(ua.DataValue, 12.5, ua.StatusCodes.UncertainNoCommunicationLastUsableValue)
+    expected = struct_to_binary(ua.MonitoredItemNotification(ClientHandle=9, Value=plain))
+    first = struct_to_binary(ua.MonitoredItemNotification(ClientHandle=9, Value=shared))
+    assert first == expected
+    assert shared._binary is not None                          # kept on the value for the next subscriber
+    assert struct_to_binary(ua.MonitoredItemNotification(ClientHandle=9, Value=shared)) == expected
