@@ -15,6 +15,34 @@ imports besides :mod:`aioadept.geometry` (neither imports anything of aioadept).
 """
 
 import importlib
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # the names as a type checker and the API reference see them; imported lazily below
+    from aioadept.protocol.codes import DEFAULT_TEXT, ErrorCode, describe
+    from aioadept.protocol.framing import DELIMITER, MAX_ACK_LINE, MAX_LINE, LineFramer, Oversize
+    from aioadept.protocol.messages import (
+        HELLO_SKILL,
+        HERE_SKILL,
+        ID_LENGTH,
+        MAX_SKILL_NAME,
+        NO_ID,
+        PROTOCOL_VERSION,
+        STOP_SKILL,
+        Ack,
+        CommandMessage,
+        IdAllocator,
+        SkillCall,
+        Status,
+        check_skill_name,
+        encode_ack,
+        encode_command,
+        format_arg,
+        parse_ack,
+        parse_command,
+        recover_id,
+        sanitize_text,
+    )
+    from aioadept.protocol.reader import AckReader, BadAck
 
 _WHERE = {
     **dict.fromkeys(("DEFAULT_TEXT", "ErrorCode", "describe"), "codes"),

@@ -13,6 +13,13 @@ docs/vplus.md, "The emulator", says what runs, how it is emulated and what is no
 """
 
 import importlib
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # the names as a type checker and the API reference see them; imported lazily below
+    from aioadept.vplus.emulator import CallResult, Emulator, GlobalsView, LoadError
+    from aioadept.vplus.errors import VPlusError
+    from aioadept.vplus.loader import LoadProblem
+    from aioadept.vplus.runtime import RealClock, VirtualClock
 
 _WHERE = {"CallResult": "emulator", "Emulator": "emulator", "GlobalsView": "emulator", "LoadError": "emulator",
           "VPlusError": "errors", "LoadProblem": "loader", "RealClock": "runtime", "VirtualClock": "runtime"}
