@@ -1,9 +1,5 @@
 """The functions and instructions that compiled V+ code calls: one namespace per :class:`Runtime`.
 
-(Over 500 lines because it is one namespace: the V+ functions and instructions a compiled program calls are
-looked up in one table per runtime, and splitting the table by theme would scatter the semantics docs/vplus.md
-lists in one place.)
-
 Semantics follow the V+ Language Reference Guide where it is explicit; the choices made where it is silent are
 listed in docs/vplus.md ("The emulator").
 """

@@ -1,8 +1,5 @@
 """V+ programs to Python: each ``.PROGRAM`` becomes one generator function.
 
-(Over 500 lines because each V+ statement kind has its code generator here, all writing into one generated
-function with one shared scope of labels and locals; a split by statement kind would pass that scope around.)
-
 Why generate Python source: a tree-walking interpreter in Python runs a simple V+ statement in several
 microseconds; generated code runs it as a few bytecodes (a dict store, an ``array('f')`` round trip for REAL
 precision). Structured control (IF, WHILE, DO, FOR, CASE) becomes native Python control flow. A program that uses

@@ -2,10 +2,6 @@
 
 A disk LUN (``ATTACH (lun, 4) "DISK"``) is :mod:`aioadept.vplus.disk`'s: READ, WRITE, FCLOSE and DETACH hand it over.
 
-(Over 500 lines because the TCP device is one model: what a READ hands over and in which order, the output
-buffers, no-wait writes and closing one client all share its connection table. Seam for a split: ``Network``'s
-fault injection.)
-
 TCP follows the V+ TCP/IP usage of the original AdeptServer (docs/vplus.md, Sources):
 
 - ``ATTACH (lun, 4) "TCP"`` attaches the TCP device; mode 4 picks a free logical unit and returns it in ``lun``.

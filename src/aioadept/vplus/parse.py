@@ -1,8 +1,5 @@
 """V+ source text to syntax trees: the tokenizer, the expression parser and the statement parser.
 
-(Over 500 lines because the tokenizer, the expression grammar and the statement grammar of V+ are one
-recursive-descent parser whose parts call each other; split, each part would import the others.)
-
 One line of a ``.PROGRAM`` body in, one :mod:`~aioadept.vplus.nodes` statement out, each node with its span;
 :mod:`aioadept.vplus.compiler` turns the statements of a program into Python. Nothing here runs code or knows
 about tasks. Statements are parsed by a table, :data:`STATEMENTS`, from the leading keyword to a small function.

@@ -1,8 +1,5 @@
 """The V+ run time: global data, tasks and their scheduler, the clock, built-in functions and instructions.
 
-(Over 500 lines because the scheduler is one model: rounds, time slices, the wake-ups of blocked tasks and the
-errors that end a task all work on the one task table. Seam for a split: the real-time slicing at the end.)
-
 Programs compiled by :mod:`aioadept.vplus.compiler` run here as generators, one stack of them per task.
 
 **Time slicing.** V+ divides time into slices and runs the tasks by priority in each slice; a task gives up the
