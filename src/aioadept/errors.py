@@ -38,7 +38,13 @@ code catches our types only. An error that is also a builtin one keeps that base
     ├─ CalibrationError (ValueError)   the camera calibration could not be made
     ├─ MalformedRequest (ValueError)   a query the Zenoh bridge refuses (answered ``malformed``; nothing sent)
     ├─ BridgeRefused               the bridge refused a query (``malformed`` or ``closed``); nothing of it was sent
-    └─ BridgeNameTaken             another bridge holds this robot's name on the Zenoh network
+    ├─ BridgeNameTaken             another bridge holds this robot's name on the Zenoh network
+    └─ ViewerUnavailable (RuntimeError)   Rerun is not installed, or its live viewer could not be started
+
+The V+ emulator's errors are AdeptErrors too, defined beside V+'s table of error codes and texts in
+:mod:`aioadept.vplus`: ``VPlusError`` (an error of a V+ program: V+'s code and text, where it happened; its
+``VPlusRobotError``), ``LoadError`` (a module that did not load, with every problem), ``VSyntaxError`` and
+``CompileError`` (one line of it), and its tools' ``DebugError``, ``MonitorError`` and ``LaunchError`` (ValueError).
 
 This module imports nothing of aioadept, so that every layer, the sans-IO protocol core included, can raise
 these.
@@ -57,7 +63,7 @@ __all__ = [
     "CommandAborted", "CommandError", "ConfigError", "ConnectError", "ConnectionLost", "FocusError", "FocusStopped",
     "GraphError", "LocalProtocolError", "MalformedRequest", "NodeError", "NotARobotServer", "ObjectNotFound",
     "PickPlaceError", "ProtocolError", "RemoteError", "RemoteProtocolError", "RequestTimeout", "RobotError",
-    "RunSaveError", "StopFailed", "TooManyPending", "VisionError",
+    "RunSaveError", "StopFailed", "TooManyPending", "ViewerUnavailable", "VisionError",
 ]
 
 
@@ -381,3 +387,9 @@ def one_line(exc: BaseException) -> str:
     at = f" at {os.path.basename(tb[-1].filename)}:{tb[-1].lineno}" if tb else ""
     text = " ".join(str(exc).split())
     return f"{type(exc).__name__}: {text}{at}" if text else f"{type(exc).__name__}{at}"
+
+
+# ------------------------------------------------------------------------------------------------- the recordings
+
+class ViewerUnavailable(AdeptError, RuntimeError):
+    """Rerun is not installed, or its viewer could not be started; the message is one line for the user."""

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from aioadept.errors import ViewerUnavailable
+
 __all__ = [
     "VIEWER_INSTALL_HINT", "RunRecording", "ViewerServer", "ViewerUnavailable", "rerun_available", "require_rerun",
     "rrd_from_run",
@@ -23,10 +25,6 @@ __all__ = [
 
 VIEWER_INSTALL_HINT = ("the live viewer needs the optional Rerun package: pip install 'aioadept[viewer]' "
                        "(or: pip install rerun-sdk==0.41.0)")
-
-
-class ViewerUnavailable(RuntimeError):
-    """Rerun is not installed, or its viewer could not be started; the message is one line for the user."""
 
 
 def rerun_available() -> bool:

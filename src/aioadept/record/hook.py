@@ -15,7 +15,8 @@ from pathlib import Path
 from collections.abc import Callable
 from typing import Any
 
-from aioadept.record import VIEWER_INSTALL_HINT, ViewerUnavailable, rerun_available
+from aioadept.errors import ViewerUnavailable
+from aioadept.record import VIEWER_INSTALL_HINT, rerun_available
 
 __all__ = ["add_view_options", "frames_dir_of", "keep_frames", "open_run_recording", "run_with_viewer", "start_viewer",
            "mcap_wanted", "open_state_tap", "wait_for_viewer", "write_run_mcap_of"]

@@ -29,7 +29,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from aioadept.record import VIEWER_INSTALL_HINT, ViewerUnavailable
+from aioadept.errors import ViewerUnavailable
+from aioadept.record import VIEWER_INSTALL_HINT
 from aioadept.ports import free_port
 
 __all__ = ["ViewerServer", "rerun_executable", "viewer_env"]

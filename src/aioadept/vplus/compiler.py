@@ -32,6 +32,7 @@ import re
 from dataclasses import dataclass, field
 from typing import Any
 
+from aioadept.errors import AdeptError
 from aioadept.vplus import nodes as N
 from aioadept.vplus import registry
 from aioadept.vplus.program import LoadProblem, Program
@@ -48,7 +49,7 @@ _FMT_RE = re.compile(r"([A-Z])(\d+)?(?:\.(\d+))?\Z")       # as builtins._FMT_RE
 _LOOP_JUMP = {"EXIT": _Goto(-1), "NEXT": _Goto(-2)}               # raised across a dispatch loop (module doc)
 
 
-class CompileError(Exception):
+class CompileError(AdeptError):
     """A program that cannot be compiled: ``line`` (0: the statement's), ``message``, the offending ``word`` and
     the node whose span says where (``None``: the statement)."""
 

@@ -6,10 +6,12 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+from aioadept.errors import AdeptError
+
 LAUNCH_KEYS = {"modules", "program", "task", "portMap", "timeScale", "disk", "cell", "stopOnEntry"}
 
 
-class LaunchError(ValueError):
+class LaunchError(AdeptError, ValueError):
     """A bad ``launch`` argument: the message names the key."""
 
 

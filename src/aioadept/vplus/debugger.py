@@ -30,6 +30,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from aioadept.errors import AdeptError
 from aioadept.vplus import nodes as N
 from aioadept.vplus.compiler import _Gen
 from aioadept.vplus.errors import VPlusError
@@ -42,7 +43,7 @@ from aioadept.vplus.trace import Frame, is_program_frame, stack, suspended_stack
 EXCEPTION_MODES = ("all", "untrapped", "none")
 
 
-class DebugError(Exception):
+class DebugError(AdeptError):
     """A request the debugger cannot do (a bad expression, no such task or frame): its message is for the user."""
 
 

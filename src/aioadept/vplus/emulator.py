@@ -21,13 +21,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from aioadept.errors import AdeptError
 from aioadept.vplus.errors import VPlusError
 from aioadept.vplus.loader import LoadProblem, Module, load_files, load_text
 from aioadept.vplus.parse import norm
 from aioadept.vplus.runtime import STORAGE_LIMIT, RealClock, Runtime, Task, VirtualClock, f32
 
 
-class LoadError(Exception):
+class LoadError(AdeptError):
     """Raised by ``Emulator.load(..., strict=True)`` when a line did not load."""
 
     def __init__(self, problems: list[LoadProblem]) -> None:

@@ -8,6 +8,7 @@ V+ error reads the same as the Python sim's.
 
 from __future__ import annotations
 
+from aioadept.errors import AdeptError
 from aioadept.protocol import ErrorCode
 
 UNDEFINED_VALUE = -401          # UNCONFIRMED number
@@ -68,7 +69,7 @@ def text(code: int) -> str:
     return TEXT.get(int(code), f"*Error {int(code)}*")
 
 
-class VPlusError(Exception):
+class VPlusError(AdeptError):
     """An error of a V+ program: code, text, and where (file, program, source line, task).
 
     ``fatal`` is set once the error has been offered to the task's REACTE program (or there was none): it then

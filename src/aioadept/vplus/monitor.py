@@ -14,6 +14,7 @@ import sys
 from collections.abc import Callable
 from typing import Any
 
+from aioadept.errors import AdeptError
 from aioadept.vplus.debugger import DebugError, Debugger, render
 from aioadept.vplus.parse import norm
 
@@ -25,7 +26,7 @@ NOT_HERE = ("RETRY", "ZERO", "STORE", "DELETE", "DELETEP", "EDIT", "SEE", "COPY"
 """V+ monitor commands this monitor does not have: each gets one line saying so."""
 
 
-class MonitorError(Exception):
+class MonitorError(AdeptError):
     """A command that cannot be done: its text is the reply."""
 
 

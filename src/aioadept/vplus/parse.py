@@ -15,13 +15,14 @@ import re
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
+from aioadept.errors import AdeptError
 from aioadept.vplus import keywords, registry
 from aioadept.vplus import nodes as N
 
 MAX_NAME = 15
 
 
-class VSyntaxError(Exception):
+class VSyntaxError(AdeptError):
     """A line that cannot be parsed; ``word`` is the offending token, ``col`` its 1-based column (0: unknown)."""
 
     def __init__(self, message: str, word: str = "", col: int = 0) -> None:
