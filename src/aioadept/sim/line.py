@@ -409,7 +409,12 @@ def plan_tool_line(start_deg: Sequence[float], pose: Pose, tool: Pose = NULL, *,
     end_flange = target_m if tool == NULL else target_m @ inverse_transform(tool.to_matrix())
     if not all_solutions(model, end_flange[None])[1].any():
         # An end no configuration reaches is out of range whatever the line passes first (a shorter arm meets the
-        # stretched-arm singularity on the way before the line leaves its reach): the error is the end's.
+        # stretched-arm singularity on the way before the line leaves its reach): the error is the end's, with the
+        # model's reason (out of reach, a SCARA's orientation).
+        try:
+            model.inverse(pose, start_deg, tool, limits=limits, jump=None)
+        except RobotError as exc:
+            raise RobotError(ErrorCode.OUT_OF_REACH, f"the line's end: {exc.message}") from exc
         raise RobotError(ErrorCode.OUT_OF_REACH, "location out of range (the line's end)")
 
     def solve(m: np.ndarray, seed: tuple[float, ...]) -> tuple[float, ...]:
