@@ -62,3 +62,25 @@ def test_a_security_mistake_is_one_line(args, says, capsys) -> None:
     assert main(args) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("aioadept opcua: ") and says in err[0], err
+
+
+async def test_a_trust_folder_holds_certificates_only_and_trusts_what_it_holds(tmp_path) -> None:
+    from asyncua.crypto.uacrypto import load_certificate
+
+    from aioadept.opcua.security import check_trust_folder, trust_list
+
+    trusted, other = tmp_path / "trusted", tmp_path / "other"
+    trusted.mkdir()
+    other.mkdir()
+    cert, key = await server_certificate("127.0.0.1", trusted)  # a certificate and, beside it, its key
+    stranger, _ = await server_certificate("localhost", other)
+    with pytest.raises(ValueError, match=r"--trust .*trusted: server-key\.pem is not a certificate \(keep keys"):
+        check_trust_folder(trusted)
+    key.rename(tmp_path / key.name)
+    assert check_trust_folder(trusted) == [cert]
+    store = await trust_list(trusted)
+    assert store.is_trusted(await load_certificate(str(cert)))
+    assert not store.is_trusted(await load_certificate(str(stranger)))
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(ValueError, match=r"--user-certificates .*empty: no certificate"):
+        check_trust_folder(tmp_path / "empty", "--user-certificates")
