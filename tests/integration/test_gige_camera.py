@@ -89,15 +89,25 @@ def test_triggered_grabs_with_the_exposure_set_on_the_camera(fake_camera):
         assert cam.can_trigger and cam.exposure_s == pytest.approx(0.0025)
         assert cam._cam.get_string("TriggerMode") == "On" and cam._cam.get_string("TriggerSource") == "Software"
         assert cam._cam.get_pixel_format_as_string() == "Mono8"
-        frames = []
-        for _ in range(3):
+        frames, lost = [], 0
+        while len(frames) < 3:
             t_before = time.time()
-            f = cam.grab()
+            try:
+                f = cam.grab()
+            except VisionError as exc:
+                # The stream is UDP: with the machine loaded (two test processes on 2 cores) the receiving thread
+                # may miss a packet, and the frame is reported lost, as a real camera's would be. Its trigger was
+                # counted, so the next frame's seq shows the gap.
+                assert "frame lost" in str(exc), exc
+                lost += 1
+                assert lost <= 2, "more than two frames lost on loopback"
+                continue
             frames.append(f)
             assert f.t_trigger >= t_before and f.t_s >= f.t_trigger  # exposure after its own trigger
             assert f.exposure_s == pytest.approx(0.0025) and f.readout_s >= 0
             assert f.image.shape == (cam.height_px, cam.width_px) == (512, 512) and f.image.dtype.name == "uint8"
-        assert [f.seq for f in frames] == [0, 1, 2]
+        seqs = [f.seq for f in frames]
+        assert seqs == sorted(set(seqs)) and seqs[-1] == 2 + lost, (seqs, lost)
         assert frames[0].image.std() > 0  # the fake camera's test pattern, not an empty buffer
 
 
