@@ -163,6 +163,10 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--debug-port", type=int, default=None, dest="debug_port", metavar="PORT",
                    help="with --vplus: serve V+ debugger (Debug Adapter Protocol) attach sessions on 127.0.0.1:PORT "
                         "(docs/vplus.md, Debugging)")
+    v.add_argument("--tcp-send-buffer", type=int, default=None, dest="tcp_send_buffer", metavar="BYTES",
+                   help="with --vplus, for tests: each TCP connection's socket send buffer (SO_SNDBUF) and the "
+                        "emulator's output buffer are BYTES (1024..16777216), so that a peer that does not read "
+                        "backs the V+ program's output up after a few KiB, as on a controller (docs/vplus.md)")
     add_node_transport_options(p)
     return p
 
@@ -329,11 +333,18 @@ def parse_args(parser: argparse.ArgumentParser, argv: list[str] | None) -> argpa
     return args
 
 
+def _check_vplus_options(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """The options that only the V+ emulator has: refused (one line, exit 2) without --vplus or out of range."""
+    if args.vplus is None and (args.run or args.map_port or args.disk or args.tcp_send_buffer is not None):
+        parser.error("--run, --map-port, --disk and --tcp-send-buffer need --vplus")
+    if args.tcp_send_buffer is not None and not 1024 <= args.tcp_send_buffer <= 1 << 24:
+        parser.error(f"--tcp-send-buffer {args.tcp_send_buffer}: out of range (1024..16777216 bytes)")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parse_args(parser, argv)
-    if args.vplus is None and (args.run or args.map_port or args.disk):
-        parser.error("--run, --map-port and --disk need --vplus")
+    _check_vplus_options(parser, args)
     if args.disk is not None and os.path.exists(args.disk) and not os.path.isdir(args.disk):
         parser.error(f"--disk {args.disk}: not a folder")
     if args.vplus is not None:

@@ -82,7 +82,8 @@ async def run(args: argparse.Namespace, options: Any) -> int:
         why = "already in use" if exc.errno == errno.EADDRINUSE else one_line(exc)
         sup.die(f"V+ port {vport} ({host}:{port}) cannot be bound: {why} (--map-port {vport}=0 binds a free port)")
 
-    emu.rt.devices = Network(args.host, port_map, on_listen, faults=options.faults, on_bind_error=on_bind_error)
+    emu.rt.devices = Network(args.host, port_map, on_listen, faults=options.faults, on_bind_error=on_bind_error,
+                             send_buffer=getattr(args, "tcp_send_buffer", None))
     loop = asyncio.get_running_loop()
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, stop.set)

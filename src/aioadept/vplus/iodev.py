@@ -16,7 +16,8 @@ TCP follows the V+ TCP/IP usage of the original AdeptServer (docs/vplus.md, Sour
   another client's stop is at most one buffer.
 - ``WRITE (lun, handle) items`` sends the items and CR LF unless the last format is ``/S``. It waits until the
   record is out, as V+ output does (V+ Language User's Guide, "Output Wait Modes", p. 213): here, until the
-  connection's output buffer (64 KiB) has room, i.e. while the peer does not read. A connection that is lost
+  connection's output buffer (64 KiB; ``Network.send_buffer`` for small ones) has room, i.e. while the peer does
+  not read. A connection that is lost
   meanwhile (the peer reset or closed) ends the wait with an error IOSTAT, never a task blocked for ever.
 - ``/N`` (no wait) in a WRITE returns at once; ``IOSTAT(lun, 3)`` is then 0 while that output is not complete,
   1 once it is, negative if it failed. A second WRITE on the same LUN before the first no-wait one completed
@@ -36,6 +37,7 @@ from __future__ import annotations
 
 import asyncio
 import re
+import socket
 from collections import deque
 from collections.abc import Callable, Generator
 from dataclasses import dataclass, field
@@ -71,8 +73,18 @@ class Network:
     # closed right after its Nth WRITE is sent: the program then reads IOSTAT 101)
     faults: Any = None
     server_transports: set = field(default_factory=set)   # connections accepted by a /LOCAL_PORT server
+    # ``aioadept sim --tcp-send-buffer BYTES`` (an emulator option for tests): each connection's socket send buffer
+    # (SO_SNDBUF) is that small, as a controller's are, and so is the emulator's own output buffer (out_limit), so
+    # that a peer that stops reading backs the program's output up after a few KiB instead of the megabytes that
+    # the kernel grows a loopback socket's buffer to. None: the OS's buffer and 64 KiB
+    send_buffer: int | None = None
     _written: dict[asyncio.Transport, int] = field(default_factory=dict)
     _delayed: dict[asyncio.Transport, deque] = field(default_factory=dict)
+
+    @property
+    def out_limit(self) -> int:
+        """Bytes a connection's output may hold unread (beyond the socket's buffer) before WRITE waits."""
+        return _PAUSE_BYTES if self.send_buffer is None else self.send_buffer
 
     def flush(self) -> None:
         """Send what WRITE queued (the scheduler calls it before it yields to asyncio)."""
@@ -165,6 +177,11 @@ class TcpLun:
         queued = net.pending_bytes.get(tr, 0) if net is not None else 0
         return tr.get_write_buffer_size() + queued
 
+    def backed_up(self, tr: asyncio.Transport) -> bool:
+        """More of what was written to ``tr`` is unread than the emulator's output buffer holds."""
+        net = self.rt.devices
+        return self.out_bytes(tr) > (_PAUSE_BYTES if net is None else net.out_limit)
+
     def nowait_state(self) -> int:
         """IOSTAT(lun, 3): 1 the last no-wait output is complete (or there was none), 0 not yet, < 0 it failed."""
         tr = self.nowait
@@ -173,7 +190,7 @@ class TcpLun:
         if tr.is_closing() or tr not in self.conns.values():
             self.nowait, self.nowait_err = None, E.DEVICE_ERROR   # lost before its output was out
             return self.nowait_err
-        if self.out_bytes(tr) > _PAUSE_BYTES:
+        if self.backed_up(tr):
             return 0
         self.nowait = None
         return 1
@@ -185,7 +202,7 @@ class TcpLun:
             return False
         # A peer that reads gets what was written to it, then the end of the connection; one that does not (its
         # output buffer full) is reset: nothing of it is kept for a peer that will not take it.
-        reads = self.out_bytes(tr) <= _PAUSE_BYTES
+        reads = not self.backed_up(tr)
         net = self.rt.devices
         if net is not None:
             parts = net.pending.pop(tr, None)
@@ -388,6 +405,10 @@ class _Proto(asyncio.Protocol):
         self.lun.conns[h] = transport   # type: ignore[assignment]
         self.lun.reserved.add(h)
         net = self.lun.rt.devices
+        if net is not None and net.send_buffer is not None:
+            sock = transport.get_extra_info("socket")
+            if sock is not None:
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, net.send_buffer)
         if self.lun.is_server and net is not None:
             net.server_transports.add(transport)
         self.lun.push(100, h)
@@ -727,7 +748,7 @@ def write(rt: Any):
             dev.nowait = tr
             return
         # V+ WRITE waits until the record is out: here while the peer does not read.
-        if dev.out_bytes(tr) > _PAUSE_BYTES and not (yield from _wait_read(rt, T, dev, net, tr, h)):
+        if dev.backed_up(tr) and not (yield from _wait_read(rt, T, dev, net, tr, h)):
             T.iostat[n] = E.DEVICE_ERROR
 
     return io_write
@@ -755,11 +776,11 @@ def _wait_nowait(rt: Any, T: Any, dev: Any, net: Any, st: int) -> Generator:
 
 
 def _wait_read(rt: Any, T: Any, dev: Any, net: Any, tr: Any, h: int) -> Generator:
-    """Wait while more than _PAUSE_BYTES of what was written to ``tr`` (connection ``h``) is unread: return True,
+    """Wait while more of what was written to ``tr`` (connection ``h``) is unread than the output buffer holds: return True,
     or False when the connection is lost meanwhile (reset, closed): a WRITE never waits for ever on a dead peer."""
     if net is not None:
         net.flush()
-    while dev.out_bytes(tr) > _PAUSE_BYTES:
+    while dev.backed_up(tr):
         if tr.is_closing() or dev.conns.get(h) is not tr:
             return False
         T.io_wait = True
