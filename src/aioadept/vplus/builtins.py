@@ -74,6 +74,8 @@ def _loc_store(c: dict, key: str, arr: Any, idx: Any, v: Any, name: str) -> None
 
 
 def _dbl(v: Any) -> float:
+    if type(v) is float:
+        return v
     if isinstance(v, str):
         raise VPlusError(E.ILLEGAL_OPERATION, "*Illegal operation* (a string assigned to a real variable)")
     return float(v)
@@ -626,6 +628,10 @@ def _functions(rt: Runtime) -> dict[str, Any]:
     the run time (TIMER, SIG, TASK, HERE ...) and the location functions."""
 
     def timer(n: float = 0.0) -> float:
+        # TIMER(-3) and the like (what a server reads several times per command): no integer conversion needed,
+        # a real <= -0.5 rounds to a negative number (vint)
+        if type(n) is float and n <= -0.5:
+            return rt.now - rt.t0
         k = vint(n)
         if k < 0:
             return rt.now - rt.t0

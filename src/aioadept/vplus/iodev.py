@@ -597,16 +597,16 @@ def detach(rt: Any):
 def read(rt: Any):
     def io_read(T: Any, lun: Any, handle: tuple | None, mode: float, targets: tuple) -> Generator:
         n = int(lun)
-        disk = _disk_of(T, n)
-        if disk is not None:
-            from aioadept.vplus import disk as D
+        dev = T.luns.get(n)              # one look-up: a server READs several times per command
+        if type(dev) is not TcpLun:
+            if type(dev) is DiskLun:
+                from aioadept.vplus import disk as D
 
-            D.read(T, disk, targets)
-            return
-        dev = _lun_of(T, n)
-        if dev is None:
-            T.iostat[n] = E.NOT_ATTACHED
-            return
+                D.read(T, dev, targets)
+                return
+            if not isinstance(dev, TcpLun):
+                T.iostat[n] = E.NOT_ATTACHED
+                return
         while True:
             ev = dev.pop()
             if ev is not None:
@@ -708,14 +708,14 @@ def _no_wait(items: tuple) -> bool:
 def write(rt: Any):
     def io_write(T: Any, lun: Any, handle: Any, items: tuple) -> Generator:
         n = int(lun)
-        disk = _disk_of(T, n)
-        if disk is not None:
-            _write_disk(T, disk, items)
-            return
-        dev = _lun_of(T, n)
-        if dev is None:
-            T.iostat[n] = E.NOT_ATTACHED
-            return
+        dev = T.luns.get(n)
+        if type(dev) is not TcpLun:
+            if type(dev) is DiskLun:
+                _write_disk(T, dev, items)
+                return
+            if not isinstance(dev, TcpLun):
+                T.iostat[n] = E.NOT_ATTACHED
+                return
         net = rt.devices
         # A no-wait output still under way on this LUN is waited for first; if it failed, this one is cancelled
         # and IOSTAT reports the first's error (V+ Language User's Guide, "Output Wait Modes").

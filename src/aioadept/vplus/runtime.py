@@ -560,20 +560,29 @@ class Runtime:
         if self.on_wake is not None:
             self.on_wake()
 
-    def wake_io(self, task: Task | None) -> None:
-        """I/O arrived: a task blocked in READ mode 0 runs at once; conditions are re-tested."""
+    def wake_io(self, task: Task | None, woken: bool = False) -> None:
+        """I/O arrived: a task blocked in READ mode 0 runs at once; conditions are re-tested.
+
+        When the I/O woke ``task`` (``woken``: its READ or WAIT.EVENT), the conditions are re-tested after its turn
+        instead (its turn is progress: run_round re-tests them in the next round of the same burst), when they can
+        see what it did with the input: a re-test before it, which found nothing new, was a task resumption and
+        a round trip's latency spent for nothing (the executor is task 1, the reader task 2)."""
         if task is not None and task.state == "running" and task.io_wait:
             task.wake = min(task.wake, self.now)
-        self.wake_conditions()
+            woken = True
+        if not woken:
+            self.wake_conditions()
         self._poke()
 
     def io_event(self, task: Task) -> None:
         """An event (connect, data, close) on one of ``task``'s TCP LUNs: wake a READ, set its event flag."""
+        woken = False
         if task.state == "running":
             task.events = 1
             if task.event_wait:
                 task.wake = min(task.wake, self.now)
-        self.wake_io(task)
+                woken = True
+        self.wake_io(task, woken)
 
     def next_tick(self) -> float:
         c = self.cycle_s
