@@ -6,7 +6,8 @@ subscribes to the six ActualPosition values while the sim moves and sees them ma
 every instantiated node is walked against its type's declarations in the nodesets (every Mandatory child present,
 with the declared data type or type definition); a stalled stream (the sim stopped by SIGSTOP) turns the values
 Uncertain within a second, and Good again when it resumes; the robot server restarting does the same; clients killed
-while subscribed leave the others served.
+while subscribed leave the others served, and SIGTERM with clients subscribed during a motion stops the server at
+once.
 """
 
 from __future__ import annotations
@@ -324,8 +325,13 @@ asyncio.run(main())
 """
 
 
+STOP_GRACE_S = 5.0
+"""What a supervisor (aioadept.apps.processes.NodeProcess, docs/topology.md) gives a node after each signal."""
+
+
 @pytest.mark.timeout(90)
-async def test_a_client_that_vanishes_leaves_the_others_served(tmp_path) -> None:
+async def test_a_client_that_vanishes_leaves_the_others_served_and_sigterm_under_load_exits_0_in_one_line(
+        tmp_path) -> None:
     import sys
 
     from asyncua import Client
@@ -359,6 +365,46 @@ async def test_a_client_that_vanishes_leaves_the_others_served(tmp_path) -> None
             await robot.cmdexec(MoveJoints([0.0, -90.0, 180.0, 0.0, 90.0, 0.0]))
         await until(lambda: abs(changes.last[positions[0].nodeid].Value.Value) <= 0.01, 10, "home again")
         assert cell.opcua.returncode is None  # still serving
+        await _sigterm_under_load(cell, client, positions)
+
+
+async def _sigterm_under_load(cell, client, positions) -> None:
+    """SIGTERM during a motion, with ``client`` and three more subscribed at 100 ms, one of them no longer reading
+    (its process busy, or gone without a word): the server exits 0 within a supervisor's grace, its last words one
+    line that names the connections it closed."""
+    import contextlib
+
+    from asyncua import Client
+
+    from aioadept.client import RobotClient
+
+    more = []
+    try:
+        for _ in range(3):
+            other = Client(cell.url, timeout=10)
+            await other.connect()
+            more.append(other)
+            sub = await other.create_subscription(100, Changes())
+            await sub.subscribe_data_change([other.get_node(n.nodeid) for n in positions])
+        more[-1].uaclient.protocol.transport.pause_reading()
+        async with RobotClient("127.0.0.1", cell.robot_port) as robot:
+            await robot.cmdexec(SetSpeed(5))
+            move = asyncio.create_task(robot.cmdexec(MoveJoints(TARGET)))
+            await asyncio.sleep(0.3)  # under way: every client's values changing
+            proc = cell.opcua.proc
+            os.kill(proc.pid, signal.SIGTERM)
+            code = await asyncio.wait_for(proc.wait(), STOP_GRACE_S)
+            await robot.stop()
+            await asyncio.gather(move, return_exceptions=True)
+    finally:
+        for other in more:  # the server is gone: whatever a client says on its way out, it is closed
+            with contextlib.suppress(Exception):
+                await asyncio.wait_for(other.disconnect(), 0.5)
+    assert code == 0
+    await until(lambda: "stopped in" in cell.opcua.tail(), 5, "the server's last line")
+    said = [line for line in cell.opcua.tail().splitlines() if "aioadept opcua:" in line]
+    assert len(said) == 1 and said[0].endswith(" 4 client connection(s) closed"), cell.opcua.tail()
+    assert "Traceback" not in cell.opcua.tail()
 
 
 @pytest.mark.timeout(120)

@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import logging
+import os
 import signal
 import sys
 import time
@@ -248,6 +249,7 @@ async def run(args: argparse.Namespace, robots: list, users: dict[str, str] | No
                       private_key=args.private_key and Path(args.private_key), trust=args.trust and Path(args.trust),
                       user_certificates=args.user_certificates and Path(args.user_certificates))
     tasks: list[asyncio.Task] = []
+    stopping_since: float | None = None
     try:
         await cell.start()
         for c in commands or ():
@@ -265,6 +267,8 @@ async def run(args: argparse.Namespace, robots: list, users: dict[str, str] | No
         stopped = asyncio.create_task(stop.wait())
         done, _ = await asyncio.wait({*tasks, stopped}, return_when=asyncio.FIRST_COMPLETED)
         stopped.cancel()
+        if stop.is_set():
+            stopping_since = time.monotonic()
         for t in done:
             if t is not stopped and not t.cancelled() and t.exception() is not None:
                 raise t.exception()  # type: ignore[misc]
@@ -272,11 +276,14 @@ async def run(args: argparse.Namespace, robots: list, users: dict[str, str] | No
         for t in tasks:
             t.cancel()
         await asyncio.gather(*tasks, return_exceptions=True)
-        await cell.stop()
+        closed = await cell.stop()
         for c in commands or ():
             await c.close()
         for sig in (signal.SIGINT, signal.SIGTERM):
             loop.remove_signal_handler(sig)
+    if stopping_since is not None:
+        print(f"aioadept opcua: stopped in {time.monotonic() - stopping_since:.2f} s, {closed} client connection(s) "
+              f"closed", file=sys.stderr, flush=True)
     return 0
 
 
@@ -324,7 +331,13 @@ def main(argv: list[str] | None = None) -> int:
             users = read_users(args.users)
     except (ValueError, OSError) as exc:   # one line naming the option or the file, no usage block
         return report("aioadept opcua", exc)
-    return run_node("aioadept opcua", run(args, robots, users, security))
+    code = run_node("aioadept opcua", run(args, robots, users, security))
+    # Everything is closed by now. The address space is over half a million Python objects, and the interpreter's
+    # exit freed them one by one: 1.5-2 s on an idle machine, past a supervisor's 5 s grace under load.
+    logging.shutdown()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -22,6 +22,7 @@ Every variable is read-only to clients.
 
 from __future__ import annotations
 
+import asyncio
 import datetime
 import logging
 import xml.etree.ElementTree as ET
@@ -59,6 +60,8 @@ _DI_SOFTWARE_TYPE = 15106
 _DI_DEVICE_SET = 5001
 _POLICIES = {"none": ua.SecurityPolicyType.NoSecurity, "sign": ua.SecurityPolicyType.Basic256Sha256_Sign,
              "sign-and-encrypt": ua.SecurityPolicyType.Basic256Sha256_SignAndEncrypt}
+STOP_WITHIN_S = 2.0
+"""How long :meth:`CellServer.stop` waits for asyncua's own stop (a supervisor's grace is 5 s)."""
 _PLACEHOLDERS = (ua.ObjectIds.ModellingRule_MandatoryPlaceholder, ua.ObjectIds.ModellingRule_OptionalPlaceholder)
 
 
@@ -164,11 +167,32 @@ class CellServer:
         await s.start()
         self._started = True
 
-    async def stop(self) -> None:
-        """Close the server (nothing to do if it never started). Idempotent."""
-        if self._started:
-            self._started = False
-            await self.server.stop()
+    async def stop(self, within_s: float = STOP_WITHIN_S) -> int:
+        """Close the server within ``within_s`` (nothing to do if it never started; idempotent); returns how many
+        client connections it closed.
+
+        Every client connection is aborted first, its unsent bytes dropped: asyncua closes them gracefully and then
+        waits until every one has flushed what it still had to send, which a client that stopped reading never
+        lets happen. Its clock task (the server's CurrentTime, written every second) is cancelled instead of
+        waited for (up to a second). Whatever of asyncua's stop is still running after ``within_s`` is left to the
+        process's end, said in one warning."""
+        if not self._started:
+            return 0
+        self._started = False
+        iserver = self.server.iserver
+        transports = list(iserver.asyncio_transports)
+        for transport in transports:
+            transport.abort()
+        clock, iserver.time_task = iserver.time_task, None
+        if clock is not None:
+            clock.cancel()
+            await asyncio.gather(clock, return_exceptions=True)
+        try:
+            async with asyncio.timeout(within_s):
+                await self.server.stop()
+        except TimeoutError:
+            log.warning("the OPC UA server's stop took over %g s: left unfinished", within_s)
+        return len(transports)
 
     def _type(self, name: str) -> Node:
         return self.server.get_node(ua.NodeId(_ROBOTICS_TYPES[name], self._idx[ROBOTICS_NS]))
