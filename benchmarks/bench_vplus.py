@@ -19,12 +19,15 @@ Three figures, each against a baseline measured in the same run (prints one JSON
 Both servers run side by side, one connection each, warmed up; then ``--blocks`` measurement blocks alternate
 between them (the order swapped every block), and each block yields a ratio. The verdicts use the median of the
 per-block ratios and the JSON gives their min and max: on a shared machine the load changes within seconds, and
-neighbouring blocks see nearly the same load. The blocks are short (50 round trips, 3 to 50 ms) and many (60): a
+neighbouring blocks see nearly the same load. The blocks are short (50 round trips, 3 to 50 ms) and many (100): a
 pair of them a few ms apart sees the same load, where blocks of 300-500 (a quarter of a second or more each) gave
 run medians from 1.1 to 2.5 within one hour on a shared machine (docs/vplus.md, Performance). The JSON also gives
-``here_p10_ratio_all``, the ratio of the two servers' fastest tenth of round trips, which load spikes miss.
+``here_p10_ratio_all``, the ratio of the two servers' fastest tenth of round trips, which load spikes miss; the
+median's 95 % confidence interval (``ci95``: what the same load would give again; a run whose interval holds the
+goal has not shown it missed or met); and each server's CPU time per ack (``cpu_us_per_ack``, /proc: user +
+system time over the measurement blocks), the cost of the code, which the load changes less than the waits.
 
-Usage: ``python benchmarks/bench_vplus.py [--quick] [--messages 50] [--blocks 60] [--loop 1000000]``.
+Usage: ``python benchmarks/bench_vplus.py [--quick] [--messages 50] [--blocks 100] [--loop 1000000]``.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
+import os
 import platform
 import statistics
 import sys
@@ -310,6 +314,24 @@ def _spread(xs: list[float], nd: int = 2) -> dict:
     return {"median": round(statistics.median(xs), nd), "min": round(min(xs), nd), "max": round(max(xs), nd)}
 
 
+def _median_ci95(xs: list[float], nd: int = 2) -> list[float]:
+    """A distribution-free 95 % confidence interval of the median of ``xs`` (its order statistics n/2 -+
+    0.98 sqrt(n), the normal approximation of the binomial): how far the run's median may be from what the same
+    load would give again. Any n >= 1 (few blocks: the whole range)."""
+    ys = sorted(xs)
+    k = max(0, int(len(ys) / 2 - 0.98 * len(ys) ** 0.5))
+    return [round(ys[k], nd), round(ys[len(ys) - 1 - k], nd)]
+
+
+def _cpu_s(pid: int) -> float | None:
+    """User + system CPU seconds of process ``pid`` so far (Linux /proc; None elsewhere)."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return None
+
+
 async def bench_servers(args: argparse.Namespace) -> dict:
     """Both servers run at once; measurement blocks alternate between them (order swapped each block), so that
     a block of one and its neighbour of the other see the same load of the (shared) machine. Each block gives a
@@ -326,6 +348,7 @@ async def bench_servers(args: argparse.Namespace) -> dict:
     rtt: dict[str, list[float]] = {n: [] for n in names}        # per-block p50 (s)
     thr: dict[str, list[float]] = {n: [] for n in names}        # per-block acks/s
     all_rtt: dict[str, list[float]] = {n: [] for n in names}
+    cpu: dict[str, float | None] = {}
     try:
         for name, argv in argvs.items():
             procs[name], port = await start(argv)
@@ -333,6 +356,7 @@ async def bench_servers(args: argparse.Namespace) -> dict:
         for name in names:                                    # warm-up: not measured
             await conns[name].round_trips(args.warmup)
             await conns[name].pipelined(max(1, args.warmup // 10))
+        cpu0 = {n: _cpu_s(procs[n].pid) for n in names}
         for b in range(args.blocks):
             order = names if b % 2 == 0 else names[::-1]
             for name in order:
@@ -341,6 +365,10 @@ async def bench_servers(args: argparse.Namespace) -> dict:
                 rtt[name].append(_p50(s))
             for name in order:
                 thr[name].append(await conns[name].pipelined(max(1, args.messages // 10)))
+        for n in names:
+            c0, c1 = cpu0[n], _cpu_s(procs[n].pid)
+            acks = args.blocks * (args.messages + 10 * max(1, args.messages // 10))
+            cpu[n] = None if c0 is None or c1 is None else round((c1 - c0) / acks * 1e6, 1)
     finally:
         for c in conns.values():
             await c.close()
@@ -355,8 +383,10 @@ async def bench_servers(args: argparse.Namespace) -> dict:
                          "p50_us": round(xs[len(xs) // 2] * 1e6, 1),
                          "p99_us": round(xs[min(len(xs) - 1, int(len(xs) * 0.99))] * 1e6, 1)},
             "pipelined_acks_per_s_per_block": _spread(thr[n], 0),
+            "cpu_us_per_ack": cpu.get(n),
         }
-    out["here_p50_ratio_per_block"] = _spread([v / s for v, s in zip(rtt["vplus"], rtt["python_sim"], strict=True)])
+    ratios = [v / s for v, s in zip(rtt["vplus"], rtt["python_sim"], strict=True)]
+    out["here_p50_ratio_per_block"] = _spread(ratios) | {"ci95": _median_ci95(ratios)}
     # the fastest tenth of each server's round trips, those no load spike of the shared machine hit: a second
     # figure, steadier under load than any median (the verdict stays the median of per-block ratios)
     out["here_p10_ratio_all"] = round(out["vplus"]["here_all"]["p10_us"] / out["python_sim"]["here_all"]["p10_us"], 2)
@@ -369,7 +399,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--loop", type=int, default=1_000_000, help="iterations of the V+ FOR loop")
     p.add_argument("--messages", type=int, default=50, help="round trips per server and block")
     p.add_argument("--warmup", type=int, default=300)
-    p.add_argument("--blocks", type=int, default=60, help="measurement blocks, alternating between the servers")
+    p.add_argument("--blocks", type=int, default=100, help="measurement blocks, alternating between the servers")
     p.add_argument("--stops", type=int, default=20, help="stop trials on each side")
     p.add_argument("--quick", action="store_true", help="a smoke run: fewer iterations and messages")
     args = p.parse_args(argv)
