@@ -11,7 +11,8 @@ promises there, checked here:
 - a stop from another client is acked within its bound while that client's output is backed up, and nothing moves
   after it;
 - with ``rs.closeh = FALSE`` the client is only ignored, its port's acks wait until it goes, but a stop on that port
-  still brakes the arm at once and a stop through the stop port is acked; once it goes, the acks owed come;
+  still brakes the arm at once (with the reader's ring full of that port's answers too), and the stop port's answers
+  and a stop through it are acked; once it goes, the acks owed come;
 - a full command queue refuses lines with -530 and keeps its last entries for stops.
 """
 
@@ -210,7 +211,11 @@ async def test_without_closeh_a_client_not_reading_is_ignored_and_stops_still_br
         # it is dropped from the server's view (ignored, rs.sgone) but its connection stays open: no reset
         assert not await mute.send_until_reset(100, 0.005, timeout=3.0)
         assert "dropping client" in log.read_text()
-        # its port's acks wait behind its output; b's stop there still brakes the arm at once
+        # its port's answers wait behind its output: another client's 80 heres there fill the reader's ring,
+        # which must not stop the reader; b's stop there still brakes the arm at once
+        c = await Conn.to(port)
+        c.send(*[f"ca{i:06d}:here" for i in range(80)])
+        await asyncio.sleep(0.2)
         b.send("ea000003:stop")
         s = await Conn.to(sport)
         await asyncio.sleep(0.3)   # the deceleration (~0.1 s)
@@ -236,5 +241,5 @@ async def test_without_closeh_a_client_not_reading_is_ignored_and_stops_still_br
                 except (OSError, asyncio.IncompleteReadError):
                     await asyncio.sleep(0.05)
         assert waited < 2.0, waited
-        b.writer.close()
-        s2.writer.close()
+        for conn in (b, c, s2):
+            conn.writer.close()
