@@ -177,6 +177,12 @@ async def test_clients_that_do_not_read_are_dropped_and_never_hold_up_another_cl
             await asyncio.sleep(0.02)
         assert await dropping, "a client that trickles lines and never reads was not dropped"
         assert "dropping client" in log.read_text()
+        # the same on the stop port (it answers here): dropped, and the port serves the next stop
+        smute = Mute(sport)
+        assert await smute.send_until_reset(4, 0.02), "a stop-port client that never reads was not dropped"
+        s = await Conn.to(sport)
+        assert await _timed_stop(s, "bs000001") < 2.0
+        s.writer.close()
         # a full command queue: b's break waits for a move; c and d queue 64 each; the queue keeps its last 16
         # entries for stops, so d's lines beyond 127 - 16 = 111 in all are refused with -530 and never run
         b.send(f"bd000000:set_speed:{ARM.speed(2)}", f"bd000001:move_joints:{ARM.j1_wire(-60)}", "bd000002:break")
