@@ -183,3 +183,67 @@ def test_a_shared_value_is_encoded_once_into_a_data_value_s_bytes() -> None:
     assert first == expected
     assert shared._binary is not None                          # kept on the value for the next subscriber
     assert struct_to_binary(ua.MonitoredItemNotification(ClientHandle=9, Value=shared)) == expected
+
+
+def publish_responses() -> list:
+    """PublishResponses as asyncua's server sends them, and every part the fast encoding leaves to the library."""
+    from asyncua import ua
+
+    from aioadept.opcua.subscriptions import SharedDataValue
+
+    def response(notifications, handle: int = 7, **result) -> ua.PublishResponse:
+        fields = {"SubscriptionId": 3, "AvailableSequenceNumbers": [4, 5], "MoreNotifications": False,
+                  "Results": [ua.StatusCode()], **result}
+        r = ua.PublishResponse(Parameters=ua.PublishResult(**fields))
+        r.Parameters.NotificationMessage.SequenceNumber = 5
+        r.Parameters.NotificationMessage.NotificationData = notifications
+        r.ResponseHeader.RequestHandle = handle
+        return r
+
+    def changes(cls, n: int = 6, **kw) -> ua.DataChangeNotification:
+        return ua.DataChangeNotification(MonitoredItems=[ua.MonitoredItemNotification(
+            ClientHandle=100 + i, Value=value(cls, 10.5 * i, ua.StatusCodes.UncertainNoCommunicationLastUsableValue
+                                              if i == 2 else 0)) for i in range(n)], **kw)
+
+    keep_alive = response([], AvailableSequenceNumbers=[])
+    odd_header = response([changes(SharedDataValue)])
+    odd_header.ResponseHeader.ServiceResult = ua.StatusCode(ua.StatusCodes.BadTooManyPublishRequests)
+    odd_header.ResponseHeader.StringTable = ["why"]
+    odd_header.ResponseHeader.ServiceDiagnostics = ua.DiagnosticInfo(SymbolicId=1, AdditionalInfo="more")
+    events = ua.EventNotificationList(Events=[ua.EventFieldList(ClientHandle=9, EventFields=[ua.Variant(1.5)])])
+    status = ua.StatusChangeNotification(Status=ua.StatusCode(ua.StatusCodes.BadTimeout))
+    return [
+        response([changes(SharedDataValue)]),
+        response([changes(ua.DataValue, 3)], 2 ** 32 - 1),
+        keep_alive,
+        response([changes(SharedDataValue, 2), events, status],
+                 Results=[ua.StatusCode(), ua.StatusCode(ua.StatusCodes.BadSequenceNumberUnknown)]),
+        odd_header,
+        response([changes(SharedDataValue, 1, DiagnosticInfos=[ua.DiagnosticInfo(InnerStatusCode=ua.StatusCode(
+            ua.StatusCodes.BadInternalError))])], DiagnosticInfos=[ua.DiagnosticInfo(Locale=2)]),
+        response([changes(SharedDataValue, 0, DiagnosticInfos=None)], Results=None, DiagnosticInfos=None,
+                 AvailableSequenceNumbers=None),
+        response(None),
+    ]
+
+
+def test_a_publish_response_is_encoded_into_the_library_s_bytes_and_decodes_back() -> None:
+    from asyncua import ua
+    from asyncua.common.utils import Buffer
+    from asyncua.ua.ua_binary import struct_from_binary, struct_to_binary
+
+    from aioadept.opcua import subscriptions
+
+    subscriptions.install()
+    library = subscriptions.library_serializer(ua.PublishResponse)
+    for response in publish_responses():
+        data = struct_to_binary(response)
+        assert data == library(response)
+        back = struct_from_binary(ua.PublishResponse, Buffer(data))
+        assert struct_to_binary(back) == data
+        items = [i for n in back.Parameters.NotificationMessage.NotificationData or ()
+                 if isinstance(n, ua.DataChangeNotification) for i in n.MonitoredItems]
+        sent = [i for n in response.Parameters.NotificationMessage.NotificationData or ()
+                if isinstance(n, ua.DataChangeNotification) for i in n.MonitoredItems]
+        assert [(i.ClientHandle, i.Value.Value, i.Value.StatusCode, i.Value.SourceTimestamp) for i in items] == \
+            [(i.ClientHandle, i.Value.Value, i.Value.StatusCode, i.Value.SourceTimestamp) for i in sent]
