@@ -170,6 +170,7 @@ class TcpLun:
         # the last no-wait WRITE (/N) on this LUN: its connection until its output is complete; its error
         self.nowait: asyncio.Transport | None = None
         self.nowait_err = 0
+        self.sent: set[asyncio.Transport] = set()   # connections WRITE sent to at once since the last READ
 
     def out_bytes(self, tr: asyncio.Transport) -> int:
         """Bytes written to ``tr`` and not yet taken by the OS: the connection's output buffer."""
@@ -607,6 +608,8 @@ def read(rt: Any):
             if not isinstance(dev, TcpLun):
                 T.iostat[n] = E.NOT_ATTACHED
                 return
+        if dev.sent:
+            dev.sent.clear()
         while True:
             ev = dev.pop()
             if ev is not None:
@@ -739,8 +742,16 @@ def write(rt: Any):
             return
         if net is not None:
             data = text.encode("latin-1")
-            net.pending.setdefault(tr, []).append(data)
-            net.pending_bytes[tr] = net.pending_bytes.get(tr, 0) + len(data)
+            if tr not in dev.sent and tr not in net.pending and not dev.events and not dev.held:
+                # the first record to this connection since the LUN's last READ, and no input waits to be
+                # read: it leaves now rather than after the rest of the reader's loop (a lone line's ack: the
+                # here round trip); what follows it until the next READ (the acks of the other lines that READ
+                # brought) waits for the flush and leaves in one send, as before
+                dev.sent.add(tr)
+                net._send(tr, [data])
+            else:
+                net.pending.setdefault(tr, []).append(data)
+                net.pending_bytes[tr] = net.pending_bytes.get(tr, 0) + len(data)
         else:
             tr.write(text.encode("latin-1"))
         T.iostat[n] = 1
