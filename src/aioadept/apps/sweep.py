@@ -224,7 +224,7 @@ async def sweep_focus(rc: Robot, comm: Vision, params: Any, *, exposure_ms: floa
             if len(run.plans) >= params.max_sweeps:
                 raise _no_focal_plane(run, fit, params)
             plan = next_plan(params, exposure_ms, fit, here_mm, time_scale,
-                              forward_only=source == "planned-profile")
+                             forward_only=source == "planned-profile", last=plan)
         peak = fit.peak_mm
         target = approach @ Pose(z=peak)
         if recorder is not None:

@@ -4,7 +4,9 @@
   (``max_blur_fraction`` x ``depth_of_field_mm``) and ``sweep_max_speed_mm_s`` (:func:`sweep_speed`), checked before
   anything moves (:func:`check_sweep`).
 - Where: the first sweep from the approach pose, then one past the open end when the peak was not bracketed, or a
-  slower fine one around the fitted peak (:func:`next_plan`), never beyond :func:`max_reach_mm`.
+  slower fine one around the fitted peak (:func:`next_plan`), never beyond :func:`max_reach_mm`. A fine sweep that
+  left too few frames on the peak for the fit (a vision node slower than ``frame_interval_s``, e.g. on a loaded
+  machine) is followed by a slower one, in proportion to the frames missing.
 
 No clock, no I/O: numbers in, a :class:`SweepPlan` out.
 """
@@ -16,9 +18,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from aioadept.errors import FocusError
-from aioadept.apps.sweep_model import PeakFit
+from aioadept.apps.sweep_model import MIN_FIT_POINTS, PeakFit
 
-__all__ = ["SweepPlan", "check_sweep", "max_reach_mm", "next_plan", "plan_sweep", "sweep_speed"]
+__all__ = ["SweepPlan", "check_sweep", "fine_factor", "max_reach_mm", "next_plan", "plan_sweep", "sweep_speed"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -82,10 +84,10 @@ def max_reach_mm(params: Any) -> float:
 
 
 def next_plan(params: Any, exposure_ms: float, fit: PeakFit, here_mm: float, time_scale: float, *,
-              forward_only: bool = False) -> SweepPlan:
-    """After a sweep ending at ``here_mm``: extend past the end where the peak was not bracketed (or nothing was
-    fitted), else a slower sweep over ``fine_range_mm`` around the fitted peak, run from the side the robot is
-    on through the whole window."""
+              forward_only: bool = False, last: SweepPlan | None = None) -> SweepPlan:
+    """After a sweep ending at ``here_mm`` (``last``, when known): extend past the end where the peak was not
+    bracketed (or nothing was fitted), else a slower sweep over ``fine_range_mm`` around the fitted peak, run from
+    the side the robot is on through the whole window (see :func:`fine_factor` for its speed)."""
     if not fit.bracketed or not math.isfinite(fit.peak_mm):
         ext = params.sweep_range_mm / 2.0
         reach = max_reach_mm(params)
@@ -106,5 +108,19 @@ def next_plan(params: Any, exposure_ms: float, fit: PeakFit, here_mm: float, tim
         a, b = centre - half, centre + half
     reach = max_reach_mm(params)
     a, b = min(max(a, -reach), reach), min(max(b, -reach), reach)
-    return plan_sweep(params, exposure_ms, a, b, kind="fine", factor=params.fine_speed_factor,
-                      time_scale=time_scale)
+    return plan_sweep(params, exposure_ms, a, b, kind="fine",
+                      factor=fine_factor(params, exposure_ms, fit, last, time_scale), time_scale=time_scale)
+
+
+def fine_factor(params: Any, exposure_ms: float, fit: PeakFit, last: SweepPlan | None, time_scale: float) -> float:
+    """The fine sweep's speed, as a factor of the fastest (:func:`sweep_speed`): ``fine_speed_factor``; after a fine
+    sweep whose frames left fewer than the fit needs on the peak, that sweep's speed times the share of frames
+    there were (``n_points / (MIN_FIT_POINTS + 1)``, at least a quarter), never below 1 % program speed. The frames
+    of every sweep count in the next fit, so a slower sweep over the same window adds more of them."""
+    factor = params.fine_speed_factor
+    if last is None or last.kind != "fine" or fit.n_points >= MIN_FIT_POINTS:
+        return factor
+    _, fastest = sweep_speed(params, exposure_ms, time_scale=time_scale)
+    slowest = params.line_speed_mm_s * time_scale / 100.0  # 1 % program speed
+    share = max(0.25, fit.n_points / (MIN_FIT_POINTS + 1))
+    return max(last.speed_mm_s * share, slowest) / fastest

@@ -147,6 +147,23 @@ def test_next_sweep_extends_past_the_open_end_within_the_reach_and_the_fine_one_
     assert (forward.from_mm, forward.to_mm) == (15.3, 27.3)
 
 
+def test_a_fine_sweep_that_left_too_few_frames_on_the_peak_is_followed_by_a_slower_one():
+    from aioadept.apps.sweep_plan import next_plan, sweep_speed
+
+    fastest = sweep_speed(SWEEP, 5.0)[1]
+    short = PeakFit(21.3, math.inf, 5, (18.0, 24.0), True, 0, ok=False, why="5 frames on the peak")
+    first = next_plan(SWEEP, 5.0, short, 40.0, 1.0)  # after the coarse sweep: the configured fine speed
+    assert first.kind == "fine" and first.speed_mm_s == pytest.approx(fastest * SWEEP.fine_speed_factor)
+    second = next_plan(SWEEP, 5.0, short, first.to_mm, 1.0, last=first)  # 5 of the 7 needed: 5/8 of the speed
+    assert second.kind == "fine" and first.speed_mm_s * 0.55 < second.speed_mm_s <= first.speed_mm_s * 5 / 8
+    enough = PeakFit(21.3, 0.3, 9, (15.0, 27.0), True, 0)  # frames enough, the peak uncertain: the same speed
+    assert next_plan(SWEEP, 5.0, enough, first.to_mm, 1.0, last=first).speed_mm_s == first.speed_mm_s
+    none = PeakFit(21.3, math.inf, 0, (21.3, 21.3), True, 0, ok=False)  # nothing on the peak: a quarter (whole %)
+    assert next_plan(SWEEP, 5.0, none, 40.0, 1.0, last=first).speed_pct == first.speed_pct // 4 == 1
+    crawl = dataclasses.replace(first, speed_mm_s=SWEEP.line_speed_mm_s / 100)
+    assert next_plan(SWEEP, 5.0, short, 40.0, 1.0, last=crawl).speed_pct == 1  # never below 1 % program speed
+
+
 def test_the_sweep_figure_shows_frames_fit_and_plane(tmp_path):
     pytest.importorskip("matplotlib")
     from aioadept.analysis.plots import plot_sweep
