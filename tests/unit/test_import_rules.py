@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import ast
+import functools
 from pathlib import Path
 
 SRC = Path(__file__).resolve().parents[2] / "src"
@@ -64,7 +65,9 @@ def imports_of(name: str, path: Path, known: set[str]) -> set[str]:
     return {m for m in out if m != "aioadept" and m != name}
 
 
+@functools.cache
 def graph() -> dict[str, set[str]]:
+    """The import graph of the package, read once per test session (the tests only read it)."""
     mods = modules()
     known = set(mods)
     g = {}

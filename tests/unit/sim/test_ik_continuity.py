@@ -102,7 +102,7 @@ def assert_reaches(sol, target: Pose, tool: Pose = Pose()) -> None:
 
 # -- properties --------------------------------------------------------------------------------------------------
 
-@settings(max_examples=400, deadline=None)
+@settings(max_examples=200, deadline=None)
 @given(regular_joint_vectors(), small_deltas(), st.sampled_from(["tool", "world"]))
 def test_small_moves_away_from_singularities_stay_near_the_seed(q, delta, frame):
     assume(away_from_singularities(q))
@@ -114,7 +114,7 @@ def test_small_moves_away_from_singularities_stay_near_the_seed(q, delta, frame)
     assert max_move(sol, q) <= 8.0, (q, sol)
 
 
-@settings(max_examples=600, deadline=None)
+@settings(max_examples=300, deadline=None)
 @given(joint_vectors(margin=0.0), small_deltas(), st.sampled_from(["tool", "world"]))
 def test_small_moves_anywhere_never_jump(q, delta, frame):
     """Anywhere in the joint box, singularities and limits included: refused, or a small continuous motion."""

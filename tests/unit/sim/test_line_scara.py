@@ -34,6 +34,10 @@ def test_the_array_planner_takes_an_ordinary_line(name):
     np.testing.assert_allclose(m.flange_matrices(path.joints_deg[-1:])[0], target_m, atol=1e-9)
 
 
+N_LINES = 48
+"""Random lines per model (39 of 48 planned on both Cobras with this seed, the rest refused alike by both)."""
+
+
 @pytest.mark.parametrize("name", COBRAS)
 def test_random_lines_match_the_scalar_planner(name):
     m = model(name)
@@ -41,7 +45,7 @@ def test_random_lines_match_the_scalar_planner(name):
     lo, hi = np.array(m.limits.min_deg), np.array(m.limits.max_deg)
     tool = Pose(0.0, 15.0, 80.0, 0.0, 0.0, 25.0)
     used = 0
-    for i in range(120):
+    for i in range(N_LINES):
         start = tuple(rng.uniform(lo, hi))
         goal = np.clip(np.array(start) + rng.normal(0.0, 40.0, 4) * (1, 1, 1.5, 3), lo, hi)
         target = m.forward(goal, tool if i % 2 else Pose())
@@ -56,4 +60,4 @@ def test_random_lines_match_the_scalar_planner(name):
         start_m = m.flange_matrix(start) @ t.to_matrix()
         used += line._plan_scara(start, start_m, target.to_matrix(), None if t == Pose() else t.to_matrix(), m,
                                  joint_limits=m.limits, jump=line.DEFAULT_JUMP_LIMIT) is not None
-    assert used >= 20, used
+    assert used >= N_LINES // 2, used
