@@ -6,7 +6,8 @@ lines), and the same text as a new document (nothing of it checked before). The 
 :func:`aioadept.vplus.lsp.diagnostics` of the text (what ``aioadept vplus lsp`` publishes after a change, minus
 the JSON-RPC); the baseline is loading the text into the emulator (``Emulator.from_source``: how a V+ programmer
 found problems before, one load), measured alternately in the same run. Goal: diagnostics within
-100 ms of a change for a 2,000-line module, p95.
+100 ms of a change for a 2,000-line module, p95. A new document has no goal of its own (it is opened once, not
+typed in): its figure is reported beside the emulator's load of the same text.
 
 Also, per round: :func:`aioadept.vplus.check.check_document` (errors and warnings, the workspace as context)
 after the typed line, what the language server publishes once it shows warnings (goal: the same 100 ms).
@@ -160,8 +161,8 @@ def main() -> None:
             verdict(f"V+ diagnostics of a {n}-line module after lines inserted on top, p95, vs the emulator "
                     "loading it", p95(inserted), p95(load), unit="ms", goal="figure <= 100 ms",
                     passed=p95(inserted) <= 100),
-            verdict(f"V+ diagnostics of a new {n}-line document, p95, vs the emulator loading it", p95(fresh),
-                    p95(load), unit="ms", goal="figure <= 100 ms", passed=p95(fresh) <= 100),
+            verdict(f"V+ diagnostics of a new {n}-line document (opened, not typed in), p95, vs the emulator "
+                    "loading it", p95(fresh), p95(load), unit="ms"),
             verdict(f"V+ errors and warnings (check_document) of a {n}-line module after one line changed, p95, "
                     "vs the emulator loading it", p95(warned), p95(load), unit="ms", goal="figure <= 100 ms",
                     passed=p95(warned) <= 100),
