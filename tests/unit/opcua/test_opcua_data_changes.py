@@ -247,3 +247,206 @@ def test_a_publish_response_is_encoded_into_the_library_s_bytes_and_decodes_back
                 if isinstance(n, ua.DataChangeNotification) for i in n.MonitoredItems]
         assert [(i.ClientHandle, i.Value.Value, i.Value.StatusCode, i.Value.SourceTimestamp) for i in items] == \
             [(i.ClientHandle, i.Value.Value, i.Value.StatusCode, i.Value.SourceTimestamp) for i in sent]
+
+
+def subscription(sid: int, interval_ms: float, published: list, *, lifetime: int = 10_000, request=None,
+                 deleted: list | None = None):
+    """A real asyncua subscription whose publishes (keep-alives every cycle) land in ``published``."""
+    from asyncua import ua
+    from asyncua.server.address_space import AddressSpace
+    from asyncua.server.internal_subscription import InternalSubscription
+
+    async def callback(result, *requestdata) -> None:
+        if sid == 666:
+            raise RuntimeError("a publish that raises")
+        published.append(sid)
+
+    data = ua.CreateSubscriptionResult(SubscriptionId=sid, RevisedPublishingInterval=interval_ms,
+                                       RevisedLifetimeCount=lifetime, RevisedMaxKeepAliveCount=1)
+    return InternalSubscription(data, AddressSpace(), callback, ua.NodeId(1, 1), request_callback=request,
+                                delete_callback=None if deleted is None else (lambda: deleted.append(sid)))
+
+
+async def test_subscriptions_with_one_publishing_interval_share_one_timer() -> None:
+    import asyncio
+
+    from asyncua import ua
+
+    from aioadept.opcua.subscriptions import install
+
+    install()
+    before = len(asyncio.all_tasks())
+    published: list[int] = []
+    deleted: list[int] = []
+    subs = [subscription(i, 40.0, published) for i in range(1, 21)]
+    subs.append(subscription(666, 40.0, published))  # its publish raises: logged, the others go on
+    # No publish request ever comes: it expires after its lifetime count of cycles, as with its own task.
+    expiring = subscription(99, 40.0, published, lifetime=2, request=lambda sid: None, deleted=deleted)
+    subs.append(expiring)
+    other = subscription(50, 15.0, published)
+    for sub in [*subs, other]:
+        await sub.start()
+    assert published == []  # the first publish comes after the CreateSubscription response, not inside start
+    await asyncio.sleep(0)
+    await asyncio.sleep(0)
+    # Each published once at start; one timer per publishing interval, not a task per subscription.
+    assert sorted(published) == [*range(1, 21), 50]
+    assert len(asyncio.all_tasks()) - before == 2
+
+    await asyncio.sleep(0.37)
+    counts = {sid: published.count(sid) for sid in set(published)}
+    assert all(5 <= counts[i] <= 11 for i in range(1, 21)), counts    # 1 + about 9 cycles of 40 ms
+    assert counts[50] >= 12, counts                                   # 1 + about 24 cycles of 15 ms
+    assert deleted == [99] and expiring._triggered_statuschanges == [ua.StatusCode(ua.StatusCodes.BadTimeout)]
+
+    for sub in subs[:10]:
+        await sub.stop()
+    published.clear()
+    await asyncio.sleep(0.1)
+    assert {*published} == {*range(11, 21), 50}                       # a stopped subscription is published no more
+    for sub in [*subs[10:], other]:
+        await sub.stop()
+    await asyncio.sleep(0.05)
+    assert len(asyncio.all_tasks()) == before                         # no subscription left: no timer left
+    published.clear()
+    await subs[0].start()                                              # and a new one gets a timer again
+    await asyncio.sleep(0.1)
+    assert published.count(1) >= 2
+    await subs[0].stop()
+
+
+def publish_requests() -> list:
+    """PublishRequests as clients send them: tokens of each NodeId encoding, an audit entry id absent, empty and not
+    ASCII, no acknowledgement, one and three, a timeout hint; their header's timestamp to the 100 ns."""
+    import uuid
+
+    from asyncua import ua
+
+    stamp = datetime.datetime(2026, 11, 29, 15, 4, 5, 123456, tzinfo=datetime.timezone.utc)
+    tokens = [ua.NodeId(7), ua.NodeId(70000, 3), ua.NodeId(b"\x01" * 32, 0, ua.NodeIdType.ByteString),
+              ua.NodeId("session-token", 1), ua.NodeId(uuid.UUID(int=12345), 2)]
+    acks = [[], [ua.SubscriptionAcknowledgement(3, 77)],
+            [ua.SubscriptionAcknowledgement(i, 2**32 - i) for i in (1, 2, 3)]]
+    out = []
+    for i, token in enumerate(tokens):
+        for audit in (None, "", "Prüfung"):
+            for ack in acks:
+                request = ua.PublishRequest()
+                h = request.RequestHeader
+                h.AuthenticationToken, h.Timestamp, h.RequestHandle = token, stamp, 1000 + i
+                h.ReturnDiagnostics, h.AuditEntryId, h.TimeoutHint = i % 2, audit, 10_000 * (i % 2)
+                request.Parameters.SubscriptionAcknowledgements = ack
+                out.append(request)
+    return out
+
+
+def test_a_publish_request_is_decoded_as_the_library_decodes_it() -> None:
+    from asyncua import ua
+    from asyncua.common.utils import Buffer
+    from asyncua.ua.ua_binary import nodeid_from_binary, struct_from_binary, struct_to_binary
+
+    from aioadept.opcua.subscriptions import publish_request
+
+    for request in publish_requests():
+        data = struct_to_binary(request) + b"tail"
+        ours, theirs = Buffer(data), Buffer(data)
+        got = publish_request(ours)
+        assert nodeid_from_binary(theirs) == request.TypeId
+        header = struct_from_binary(ua.RequestHeader, theirs)
+        acks = struct_from_binary(ua.PublishParameters, theirs).SubscriptionAcknowledgements
+        assert got == (header, acks) and got[0].Timestamp == request.RequestHeader.Timestamp
+        assert ours.cur_pos == theirs.cur_pos and bytes(ours) == b"tail"   # moved past them, as the library's
+
+    # Anything else, the buffer untouched: the library's way.
+    plain = publish_requests()[0]
+    with_header = publish_requests()[0]
+    with_header.RequestHeader.AdditionalHeader = ua.ExtensionObject(ua.NodeId(99), b"x")
+    read = ua.ReadRequest()
+    for data in (struct_to_binary(with_header), struct_to_binary(read), struct_to_binary(plain)[:30], b"\x01\x00",
+                 b""):
+        buffer = Buffer(data)
+        assert publish_request(buffer) is None and buffer.cur_pos == 0 and len(buffer) == len(data)
+
+
+def test_a_message_without_security_is_framed_into_the_library_s_bytes() -> None:
+    from asyncua import ua
+    from asyncua.common.connection import SecureConnection, TransportLimits
+    from asyncua.crypto.security_policies import SecurityPolicyNone
+
+    from aioadept.opcua import subscriptions
+
+    subscriptions.install()
+    library, ours = subscriptions.library_message_to_binary, SecureConnection.message_to_binary
+    assert ours is not library and library.__module__ == "asyncua.common.connection"
+
+    def pair(buffer: int) -> tuple:
+        out = []
+        for _ in range(2):
+            c = SecureConnection(SecurityPolicyNone(), TransportLimits(max_send_buffer=buffer))
+            c.security_token.ChannelId, c.security_token.TokenId = 5, 9
+            c._sequence_number = 2**32 - 3  # wraps to 1 within the sequence below
+            out.append(c)
+        return out
+
+    for buffer in (65535, 200):
+        mine, theirs = pair(buffer)
+        # A small body, bodies about one chunk's size (one and two chunks), an empty one, open and close messages.
+        for body, kind in [(b"abc", ua.MessageType.SecureMessage), (b"x" * 175, ua.MessageType.SecureMessage),
+                           (b"y" * 176, ua.MessageType.SecureMessage), (b"z" * 177, ua.MessageType.SecureMessage),
+                           (b"", ua.MessageType.SecureMessage), (b"q" * 1000, ua.MessageType.SecureMessage),
+                           (b"c", ua.MessageType.SecureClose), (b"w" * 90, ua.MessageType.SecureMessage)]:
+            assert ours(mine, body, kind, request_id=7) == library(theirs, body, kind, request_id=7)
+            assert mine._sequence_number == theirs._sequence_number
+        assert mine._sequence_number < 20  # it wrapped, as the library's
+
+
+def test_a_message_without_security_is_read_as_the_library_reads_it() -> None:
+    from asyncua import ua
+    from asyncua.common.connection import SecureConnection, TransportLimits
+    from asyncua.common.utils import Buffer
+    from asyncua.crypto.security_policies import SecurityPolicyNone
+    from asyncua.ua.ua_binary import header_from_binary
+
+    from aioadept.opcua import subscriptions
+
+    subscriptions.install()
+    library, ours = subscriptions.library_receive, SecureConnection.receive_from_header_and_body
+    assert ours is not library and library.__module__ == "asyncua.common.connection"
+
+    def channel() -> SecureConnection:
+        c = SecureConnection(SecurityPolicyNone(), TransportLimits(max_recv_buffer=200, max_send_buffer=200, max_chunk_count=4))
+        c.security_token.ChannelId, c.security_token.TokenId = 5, 9
+        return c
+
+    sender = channel()
+    framed = [sender.message_to_binary(b"request %d" % i, request_id=i) for i in range(1, 4)]
+    framed.append(subscriptions.library_message_to_binary(sender, b"m" * 300, request_id=4))  # three chunks
+    framed.append(sender.message_to_binary(b"after", request_id=5))
+    skipped = sender.message_to_binary(b"lost", request_id=6)  # never received: the next is out of sequence
+    framed.append(sender.message_to_binary(b"out of sequence", request_id=7))
+    wrong_channel = bytearray(sender.message_to_binary(b"other channel", request_id=8))
+    wrong_channel[8] = 6
+    framed.append(bytes(wrong_channel))
+    assert skipped
+
+    def read(receive, c: SecureConnection) -> list:
+        out = []
+        for data in framed:
+            buffer = Buffer(data + b"next")
+            while len(buffer) > 4:
+                header = header_from_binary(buffer)
+                try:
+                    m = receive(c, header, buffer)
+                except ua.UaError as e:
+                    out.append(("error", type(e), c._peer_sequence_number))
+                    break
+                out.append(None if m is None else (m.SequenceHeader(), m.SecurityHeader(), bytes(m.body()),
+                                                   m._chunks[0].MessageHeader.ChunkType, c._peer_sequence_number))
+            assert bytes(buffer) == b"next"
+        return out
+
+    got, expected = read(ours, channel()), read(library, channel())
+    assert got == expected
+    assert [g[2] for g in got if g and g[0] != "error"] == [b"request 1", b"request 2", b"request 3", b"m" * 300,
+                                                             b"after"]
+    assert [g[0] for g in got[-2:]] == ["error", "error"]   # out of sequence, another channel: refused as before
