@@ -19,10 +19,9 @@ it never changes after writing) and nothing else:
 - A requested queue size of 0 is revised to 1, as Part 4 says, for every data monitored item.
 
 And a value is encoded once for every subscriber that gets it, not once each; a PublishResponse is encoded by its
-fixed layout rather than field by field (the same bytes); a PublishRequest is read by its fixed layout and answered
-without first comparing its type id with every other service's; a message of a channel without security in one
-chunk is framed and read by its fixed layout; every subscription with the same publishing interval is served by one
-timer (:class:`_Cycles`) instead of a task each.
+fixed layout rather than field by field (the same bytes); a PublishRequest is answered without first comparing its
+type id with every other service's; every subscription with the same publishing interval is served by one timer
+(:class:`_Cycles`) instead of a task each.
 
 Installed once per process (:func:`install`); every other value and item goes the library's own way.
 """
@@ -251,7 +250,6 @@ def install() -> None:
 
     _encoded_once()
     _publish_requests_first()
-    _plain_messages_by_layout()
     _one_timer_per_interval(InternalSubscription)
     datachange_callback._aioadept = True  # type: ignore[attr-defined]
     MonitoredItemService.datachange_callback = datachange_callback  # type: ignore[method-assign]
@@ -262,20 +260,15 @@ def install() -> None:
 
 
 def _publish_requests_first() -> None:
-    """asyncua's server answers a PublishRequest after decoding its header through generic deserializers (about
-    45 us a request on an idle core, two hundred requests a second for 20 clients at 100 ms) and comparing its type
-    id with 35 others, each a NodeId made anew for the comparison (about 50 us). A PublishRequest of an activated
-    session now has its header and acknowledgements read by their fixed layout (:func:`publish_request`, the same
-    objects) and takes the library's own steps for it without that walk: the permission check, the session's
-    activity, the acknowledgements, then the publish or the queued request; a fault is the library's ServiceFault.
-    Every other request, a PublishRequest whose header is not the plain one (an additional header), and one without
-    an activated session (refused as before) go the library's way."""
+    """asyncua's server answers a PublishRequest after comparing its type id with 35 others, each a NodeId made
+    anew for the comparison (about 50 us a request here, two hundred requests a second for 20 clients at 100 ms).
+    A PublishRequest of an activated session now takes the library's own steps for it without that walk: the
+    permission check, the session's activity, the acknowledgements, then the publish or the queued request. Every
+    other request, and a PublishRequest without an activated session (refused as before), goes the library's way."""
     from asyncua.server.uaprocessor import PublishRequestData, UaProcessor
-    from asyncua.common.utils import ServiceError
     from asyncua.ua.ua_binary import struct_from_binary
 
     library = UaProcessor._process_message
-    library_message = UaProcessor.process_message
     publish_id = ua.NodeId(ua.ObjectIds.PublishRequest_Encoding_DefaultBinary)
 
     async def publish(self: Any, requesthdr: Any, seqhdr: Any, body: Any, acks: list) -> bool:
@@ -298,25 +291,6 @@ def _publish_requests_first() -> None:
         self._publish_requests.append(data)
         return True
 
-    async def process_message(self: Any, seqhdr: Any, body: Any) -> bool:
-        session = self.session
-        decoded = publish_request(body) if session is not None and session.is_activated() else None
-        if decoded is None:
-            return await library_message(self, seqhdr, body)
-        requesthdr, acks = decoded
-        try:
-            return await publish(self, requesthdr, seqhdr, body, acks)
-        except (ServiceError, ua.uaerrors.UaStatusCodeError) as e:
-            status = ua.StatusCode(e.code)
-            _log.error("sending service fault response: %s (%s)", status.doc, status.name)
-        except Exception:
-            _log.exception("Error while processing message")
-            status = ua.StatusCode(ua.StatusCodes.BadInternalError)
-        response = ua.ServiceFault()
-        response.ResponseHeader.ServiceResult = status
-        self.send_response(requesthdr.RequestHandle, seqhdr, response)
-        return True
-
     async def process_decoded(self: Any, typeid: ua.NodeId, requesthdr: Any, seqhdr: Any, body: Any) -> bool:
         session = self.session
         if typeid != publish_id or session is None or not session.is_activated():
@@ -324,72 +298,7 @@ def _publish_requests_first() -> None:
         acks = struct_from_binary(ua.PublishParameters, body).SubscriptionAcknowledgements
         return await publish(self, requesthdr, seqhdr, body, acks)
 
-    UaProcessor.process_message = process_message  # type: ignore[method-assign]
     UaProcessor._process_message = process_decoded  # type: ignore[method-assign]
-
-
-_PUBLISH_TYPE_ID = b"\x01\x00" + struct.pack("<H", ua.ObjectIds.PublishRequest_Encoding_DefaultBinary)
-_HEADER_FIXED = struct.Struct("<qIIi")  # Timestamp, RequestHandle, ReturnDiagnostics, AuditEntryId's length
-_TIMEOUT_AND_NO_ADDITIONAL_HEADER = struct.Struct("<I3si")  # TimeoutHint, an empty ExtensionObject, acks' count
-_ACK = struct.Struct("<II")
-_NODE_ID_SIZES = {0: 2, 1: 4, 2: 7, 4: 19}  # TwoByte, FourByte, Numeric, Guid: OPC UA Part 6, 5.2.2.9
-_NO_ADDITIONAL_HEADER = ua.ExtensionObject()  # as the library's RequestHeader default, shared
-_tokens: dict[bytes, ua.NodeId] = {}
-"""A session's authentication token, sent with every request: its bytes -> the NodeId they decode to (decoding one
-takes about 11 us)."""
-
-
-def _token(data: Any, at: int) -> tuple[ua.NodeId, int]:
-    """The authentication token NodeId at ``data[at:]`` and where it ends."""
-    from asyncua.common.utils import Buffer
-    from asyncua.ua.ua_binary import nodeid_from_binary
-
-    size = _NODE_ID_SIZES.get(data[at])
-    if size is None and data[at] in (3, 5):  # String, ByteString: namespace, length, bytes
-        size = 7 + max(struct.unpack_from("<i", data, at + 3)[0], 0)
-    key = None if size is None else bytes(data[at:at + size])
-    token = _tokens.get(key) if key is not None else None
-    if token is None:
-        rest = Buffer(data, at, len(data) - at)
-        token = nodeid_from_binary(rest)
-        if key is not None and len(key) == size and rest.cur_pos == at + size:
-            if len(_tokens) >= 1000:
-                _tokens.clear()
-            _tokens[key] = token
-        return token, rest.cur_pos
-    return token, at + size
-
-
-def publish_request(body: Any) -> tuple[ua.RequestHeader, list[ua.SubscriptionAcknowledgement]] | None:
-    """A PublishRequest message body (asyncua's Buffer at the type id) as the library decodes it: its RequestHeader
-    and acknowledgements, read by their fixed layout (OPC UA Part 6, 5.2.2; Part 4, 7.32 and 5.14.5) and the
-    buffer moved past them; None, the buffer untouched, for any other request, a request header with an
-    additional header, or a body too short."""
-    data, start, size = body._data, body._cur_pos, body._size
-    if size < 4 or data[start:start + 4] != _PUBLISH_TYPE_ID:
-        return None
-    end = start + size
-    try:
-        token, at = _token(data, start + 4)
-        stamp, handle, diagnostics, audit_length = _HEADER_FIXED.unpack_from(data, at)
-        at += _HEADER_FIXED.size
-        audit = None
-        if audit_length >= 0:
-            audit = bytes(data[at:at + audit_length]).decode("utf-8")
-            at += audit_length
-        timeout, additional, count = _TIMEOUT_AND_NO_ADDITIONAL_HEADER.unpack_from(data, at)
-        at += _TIMEOUT_AND_NO_ADDITIONAL_HEADER.size
-        if additional != b"\x00\x00\x00" or at + 8 * max(count, 0) > end:
-            return None
-        acks = [ua.SubscriptionAcknowledgement(*_ACK.unpack_from(data, at + 8 * i)) for i in range(count)]
-        at += 8 * max(count, 0)
-    except (IndexError, struct.error, UnicodeDecodeError, ua.UaError):
-        return None
-    header = ua.RequestHeader(AuthenticationToken=token, Timestamp=ua.win_epoch_to_datetime(stamp),
-                              RequestHandle=handle, ReturnDiagnostics=diagnostics, AuditEntryId=audit,
-                              TimeoutHint=timeout, AdditionalHeader=_NO_ADDITIONAL_HEADER)
-    body.skip(at - start)
-    return header, acks
 
 
 _log = logging.getLogger(__name__)
@@ -482,73 +391,3 @@ def _one_timer_per_interval(subscription: type) -> None:
 
     subscription.start = start
     subscription.stop = stop
-
-
-library_message_to_binary: Any = None
-"""asyncua's own ``SecureConnection.message_to_binary``, once :func:`install` has put this module's in its place."""
-library_receive: Any = None
-"""asyncua's own ``SecureConnection.receive_from_header_and_body``, likewise."""
-_SINGLE_CHUNK = struct.Struct("<4sIIIII")  # MSG + F, size, channel, token, sequence number, request id
-_SECURITY_AND_SEQUENCE = struct.Struct("<III")  # token, sequence number, request id
-
-
-def _plain_messages_by_layout() -> None:
-    """asyncua frames every message it sends as chunk objects, then encodes each (about 16 us a response on an idle
-    core), and decodes each message it receives through generic deserializers (about 35 us a request). A message of
-    a channel without security (SecurityPolicy None: no signature, padding or encryption) in one chunk is now written
-    and read by its fixed layout (OPC UA Part 6, 6.7.2: message header, symmetric security header, sequence header,
-    body): the same bytes and the same message, with the same sequence numbers and the library's checks (channel,
-    token, sequence, limits). A message of a signed or encrypted channel, one of more chunks, an open or close message,
-    and a received one the checks refuse or that needs a new token go the library's way."""
-    from asyncua.common.connection import MessageChunk, SecureConnection
-    from asyncua.crypto.security_policies import CryptographyNone
-
-    global library_message_to_binary, library_receive
-    library = library_message_to_binary = SecureConnection.message_to_binary
-    library_receive = SecureConnection.receive_from_header_and_body
-    fits: dict[int, int] = {}  # a send buffer size -> the largest body of one chunk
-
-    def message_to_binary(self: Any, message: bytes, message_type: Any = ua.MessageType.SecureMessage,
-                          request_id: int = 0) -> bytes:
-        crypto = self.security_policy.symmetric_cryptography
-        if message_type != ua.MessageType.SecureMessage or type(crypto) is not CryptographyNone:
-            return library(self, message, message_type, request_id)
-        buffer = self._limits.max_send_buffer
-        largest = fits.get(buffer)
-        if largest is None:
-            largest = fits[buffer] = MessageChunk.max_body_size(crypto, buffer)
-        if not message or len(message) > largest:  # none (the library sends nothing) or more than one chunk
-            return library(self, message, message_type, request_id)
-        self._sequence_number += 1
-        if self._sequence_number >= (1 << 32):
-            self._sequence_number = 1
-        token = self.security_token
-        return _SINGLE_CHUNK.pack(b"MSGF", 24 + len(message), token.ChannelId, token.TokenId,
-                                  self._sequence_number, request_id) + message
-
-    def receive_from_header_and_body(self: Any, header: ua.Header, body: Any) -> Any:
-        size = header.body_size
-        if header.MessageType != ua.MessageType.SecureMessage or header.ChunkType != ua.ChunkType.Single or \
-                type(self.security_policy.symmetric_cryptography) is not CryptographyNone or self._incoming_parts or \
-                size < 12 or len(body) < size or header.packet_size > self._limits.max_recv_buffer:
-            return library_receive(self, header, body)
-        data, at = body._data, body._cur_pos
-        token_id, sequence_number, request_id = _SECURITY_AND_SEQUENCE.unpack_from(data, at)
-        token, peer = self.security_token, self._peer_sequence_number
-        if token_id != token.TokenId or header.ChannelId != token.ChannelId or \
-                (peer is not None and sequence_number != peer + 1) or \
-                not self._limits.is_msg_size_within_limit(size - 12) or \
-                not self._limits.is_chunk_count_within_limit(1):  # a new token, an error or a wrap: as the library
-            return library_receive(self, header, body)
-        self._peer_sequence_number = sequence_number
-        chunk = MessageChunk.__new__(MessageChunk)
-        chunk.crypto = self.security_policy.symmetric_cryptography
-        chunk.MessageHeader = header
-        chunk.SecurityHeader = ua.SymmetricAlgorithmHeader(TokenId=token_id)
-        chunk.SequenceHeader = ua.SequenceHeader(SequenceNumber=sequence_number, RequestId=request_id)
-        chunk.Body = data[at + 12:at + size]
-        body.skip(size)
-        return ua.Message([chunk])
-
-    SecureConnection.message_to_binary = message_to_binary  # type: ignore[method-assign]
-    SecureConnection.receive_from_header_and_body = receive_from_header_and_body  # type: ignore[method-assign]
