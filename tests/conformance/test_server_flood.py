@@ -60,10 +60,12 @@ async def test_a_stop_is_read_at_once_while_another_client_has_a_long_queue(serv
             assert x.error_code == ErrorCode.SERVER_BUSY, x
     # Both servers admit at most 64 queued commands per connection (the sim: --max-queued, as the V+ server's
     # rs.maxq), so what a client can pipeline is the same against the sim and the controller; the refused lines
-    # are the last ones.
+    # are the last ones. Admitted beyond the 64: the one running, and those done meanwhile (a command done frees its
+    # place; on a loaded machine the server reads A's 201 lines over long enough for a few short ones to finish).
     order = [ln[:8] for ln in lines]
     busy = [i for i, cid in enumerate(order) if got[cid].status is Status.ERROR]
-    assert len(busy) >= len(lines) - MAX_QUEUED - 3, len(busy)
+    done = sum(1 for x in got.values() if x.status is Status.DONE)
+    assert len(lines) - len(busy) <= MAX_QUEUED + done + 1, (len(busy), done)
     assert busy == list(range(busy[0], len(lines)))
     await b.send("kz000002:here")
     at_rest = (await b.ack()).pose
