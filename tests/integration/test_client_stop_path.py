@@ -431,11 +431,28 @@ async def test_a_stop_behind_unsent_bytes_takes_a_side_connection_and_the_unsent
         async with RobotClient("127.0.0.1", port, connect_timeout_s=2.0, stop_side_path=True,
                                max_pending=None) as robot:  # a server that reads nothing: no queue limit
             subs = await _flood(robot)
+            old_call = subs[0].futures[0]
+
+            class WhenTheStopIsWritten:
+                old_call_failed: list[bool] = []
+
+                def on_send(self, msg) -> None:
+                    if msg.skill == "stop":
+                        self.old_call_failed.append(old_call.done())
+
+                def on_ack(self, result) -> None:
+                    pass
+
+            seen = WhenTheStopIsWritten()
+            robot.add_observer(seen)
             loop = asyncio.get_running_loop()
             t0 = loop.time()
             result = await robot.stop()
             assert result.ok and result.skill == "stop"
             assert loop.time() - t0 < 3.0  # generous: it is a connect and a round trip
+            # The stop is written before the 60 000 old calls are failed (a ConnectionLost each: 0.4 s idle, seconds
+            # under load), never after: both writes of the stop (old connection, side) found them pending.
+            assert seen.old_call_failed == [False, False], seen.old_call_failed
             assert len(conns) == 2 and [parse_command(x).skill for x in conns[1]["lines"]] == ["stop"]
             assert conns[1]["t_stop"] - t0 < 3.0
             # every flooded call fails (never a silent success): lost with the reset connection

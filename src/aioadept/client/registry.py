@@ -355,19 +355,29 @@ class PendingCalls:
         per-message futures fail with :class:`ConnectionLost` (``unresolved``: that message) and its waiter wakes.
         Returns the submissions, in send order. A waiter then raises ConnectionLost with the batch's ``acked``
         (known done) and ``unresolved`` (may or may not have run) IDs."""
+        return fail_taken(self.take_all(), why)
+
+    def take_all(self) -> dict[str, Submission]:
+        """Empty the registry at once and return what was pending (message ID -> submission), for
+        :func:`fail_taken`: failing tens of thousands of futures takes a while, which a stop need not wait for."""
         pending, self._pending = self._pending, {}
-        subs = list({id(sub): sub for sub in pending.values()}.values())  # in send order
-        for sub in subs:
-            if sub.futures is not None:
-                for mid, fut in zip(sub.ids, sub.futures, strict=True):
-                    if mid in pending and not fut.done():
-                        # Per message; wait() merges them into one error with the whole batch's sets.
-                        fut.set_exception(lost(why, unresolved=(mid,)))
-        for sub in subs:
-            sub._lost_reason = why
-            if sub._waiter is not None and not sub._waiter.done():
-                sub._waiter.set_result(W_LOST)
-        return subs
+        return pending
+
+
+def fail_taken(pending: dict[str, Submission], why: str) -> list[Submission]:
+    """Fail what :meth:`PendingCalls.take_all` took, as :meth:`PendingCalls.fail_all` says."""
+    subs = list({id(sub): sub for sub in pending.values()}.values())  # in send order
+    for sub in subs:
+        if sub.futures is not None:
+            for mid, fut in zip(sub.ids, sub.futures, strict=True):
+                if mid in pending and not fut.done():
+                    # Per message; wait() merges them into one error with the whole batch's sets.
+                    fut.set_exception(lost(why, unresolved=(mid,)))
+    for sub in subs:
+        sub._lost_reason = why
+        if sub._waiter is not None and not sub._waiter.done():
+            sub._waiter.set_result(W_LOST)
+    return subs
 
 
 def _settle(sub: Submission, count: int) -> None:
