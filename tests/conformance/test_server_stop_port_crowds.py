@@ -66,9 +66,8 @@ async def test_a_newcomers_stop_gets_in_past_a_crowd_on_the_stop_port(backend, k
                 await mover.drain()
                 await asyncio.sleep(0.3)  # moving
                 # The goal is 100 ms at p95 (benchmarks/bench_safety.py; 9-18 ms here alone and beside two CPU
-                # hogs); under two test processes the V+ server once took 0.91 s with the monitors (cause not found).
-                # The bound catches what this test is for: the V+ server took for ever with monitors and seconds
-                # with the storm.
+                # hogs; up to 0.91 s seen under two test processes, cause not found). The bound catches what this
+                # test is for: a stop that never gets in past the crowd, or takes seconds.
                 took = await stop_through(server.host, server.stop_port, within_s=5.0)
                 assert took < 1.5, f"{kind}: stop acked after {took:.2f} s"
                 a = await _here(reader, mover, f"ky{i:06d}")

@@ -890,8 +890,8 @@ class RobotClient:
                     "and sending the stop on a new one", self.host, self.port)
         if transport is not None:
             drop_unsent_on_close(transport)
-        # The old connection's calls fail after the stop is written: with tens of thousands pending, failing them
-        # first (a ConnectionLost each) held the stop back by 0.4 s on an idle machine, seconds on a loaded one.
+        # The old connection's calls fail after the stop is written: failing tens of thousands of them (a
+        # ConnectionLost each) takes 0.4 s on an idle core, seconds on a loaded one, which the stop must not wait for.
         fail_old = self._on_lost(ConnectionResetError("reset by the client: a stop was behind unsent bytes"),
                                  later=True)
         try:
